@@ -1,0 +1,121 @@
+"""`hpg-mj bench envs`: environment steps per second, side by side in one run.
+
+Speed is measured here, in a command that prints figures, never in tests.
+"""
+import time
+
+import numpy as np
+
+from hpg_mj.worlds import ship_core as core
+
+
+def _rate(steps, seconds):
+  return steps / seconds if seconds > 0 else float("inf")
+
+
+def _timed(fn, min_seconds):
+  """Calls `fn()` (which returns the steps it took) until `min_seconds` have passed."""
+  fn()  # warm up: compile, allocate, fill caches
+  steps, start = 0, time.perf_counter()
+  while True:
+    steps += fn()
+    elapsed = time.perf_counter() - start
+    if elapsed >= min_seconds:
+      return _rate(steps, elapsed)
+
+
+def bench_analytic_single(min_seconds):
+  state = np.array([500.0, 500.0, 10.0, 0.0])
+  n = 5_000_000
+
+  def run():
+    state[:] = (500.0, 500.0, 10.0, 0.0)
+    core.euler_run(state, 3.0, n)
+    return n
+  return _timed(run, min_seconds)
+
+
+def bench_analytic_batch(min_seconds, ships=1024, controls=200):
+  rng = np.random.default_rng(0)
+  states = np.column_stack([rng.uniform(0, 1000, ships), rng.uniform(0, 1000, ships),
+                            rng.uniform(-180, 180, ships), rng.uniform(-15, 15, ships)])
+  r = rng.uniform(-15, 15, ships)
+  samples = np.empty((ships, core.SAMPLES_PER_CONTROL + 1, 2))
+
+  def run():
+    for _ in range(controls):
+      core.euler_batch(states, r, samples)
+    return ships * controls * core.SAMPLES_PER_CONTROL
+  return _timed(run, min_seconds)
+
+
+def _bench_dm_env(env, action, min_seconds, chunk=2000):
+  env.reset()
+
+  def run():
+    for _ in range(chunk):
+      if env.step(action).last():
+        env.reset()
+    return chunk
+  return _timed(run, min_seconds)
+
+
+def _bench_gym_env(env, actions, min_seconds, chunk=2000):
+  env.reset(seed=0)
+  n = len(actions)
+
+  def run():
+    for i in range(chunk):
+      _, _, terminated, truncated, _ = env.step(actions[i % n])
+      if terminated or truncated:
+        env.reset()
+    return chunk
+  return _timed(run, min_seconds)
+
+
+def bench_envs(min_seconds=1.0):
+  """Rows of (name, unit, steps per second)."""
+  import gymnasium
+
+  import hpg_mj  # noqa: F401  (registers the ids)
+  from hpg_mj import suite
+
+  rows = []
+  rows.append(("analytic ship, one ship (compiled)", "0.2 s steps/s",
+               bench_analytic_single(min_seconds)))
+  rows.append(("analytic ship, batch of 1024 (compiled)", "0.2 s steps/s",
+               bench_analytic_batch(min_seconds)))
+  rows.append(("dm_control ship steer (MuJoCo)", "control steps/s",
+               _bench_dm_env(suite.load("ship", "steer", {"random": 0}), np.array([5.0]),
+                             min_seconds)))
+  ship_actions = [np.array([r]) for r in np.random.default_rng(0).uniform(-15, 15, 97)]
+  for backend in ("mujoco", "analytic"):
+    env = gymnasium.make("hpg_mj/ShipSteering-v0", backend=backend).unwrapped
+    rows.append((f"Gymnasium ShipSteering-v0 backend={backend}", "control steps/s",
+                 _bench_gym_env(env, ship_actions, min_seconds)))
+  for task in ("fuel", "classic"):
+    n_actions = 7 if task == "fuel" else 6
+    env = suite.load("taxi", task, {"random": 0})
+    actions = np.random.default_rng(0).integers(0, n_actions, 101)
+    env.reset()
+
+    def run(env=env, actions=actions):
+      for i in range(2000):
+        if env.step(actions[i % len(actions)]).last():
+          env.reset()
+      return 2000
+    rows.append((f"dm_control taxi {task}", "primitive steps/s", _timed(run, min_seconds)))
+  for env_id, n_actions in (("hpg_mj/TaxiFuel-v0", 7), ("hpg_mj/Taxi-v0", 6), ("Taxi-v4", 6)):
+    env = gymnasium.make(env_id).unwrapped
+    actions = [int(a) for a in np.random.default_rng(0).integers(0, n_actions, 101)]
+    rows.append((f"Gymnasium {env_id}", "primitive steps/s",
+                 _bench_gym_env(env, actions, min_seconds)))
+  return rows
+
+
+def format_rows(rows):
+  width = max(len(name) for name, _, _ in rows)
+  lines = [f"{'environment':<{width}}  {'steps per second':>18}  unit"]
+  for name, unit, rate in rows:
+    lines.append(f"{name:<{width}}  {rate:>18,.0f}  {unit}")
+  return "\n".join(lines)

@@ -1,0 +1,107 @@
+"""The `hpg-mj` command line."""
+import argparse
+import sys
+
+
+def _cmd_verify(args):
+  from hpg_mj import verify
+  if args.what != "ship":
+    raise SystemExit(f"hpg-mj verify: unknown model {args.what!r}; valid: ship")
+  result = verify.verify_ship(controls=args.controls, starts=args.starts, seed=args.seed)
+  print("\n".join(result.lines()))
+  # SPEC section 1: within 0.25 m and 0.25 deg, and at most half the Euler model's error.
+  ok = (result.mujoco_position_m < 0.25 and result.mujoco_heading_deg < 0.25
+        and result.mujoco_position_m <= 0.5 * result.euler_position_m)
+  print("  bounds (< 0.25 m, < 0.25 deg, <= half the Euler error):", "met" if ok else "NOT MET")
+  return 0 if ok else 1
+
+
+def _cmd_render(args):
+  from hpg_mj.render import video
+  path, summary = video.render_task(args.domain, args.task, policy=args.policy, seed=args.seed,
+                                    out=args.out, gif=args.gif, width=args.width,
+                                    height=args.height, max_steps=args.max_steps,
+                                    backend=args.backend)
+  event = summary["info"].get("event") if isinstance(summary["info"], dict) else None
+  print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB): {summary['steps']} steps, "
+        f"return {summary['return']:.1f}" + (f", ended by {event}" if event else ""))
+  return 0
+
+
+def _cmd_bench(args):
+  from hpg_mj import bench
+  if args.what != "envs":
+    raise SystemExit(f"hpg-mj bench: unknown benchmark {args.what!r}; valid: envs")
+  print(bench.format_rows(bench.bench_envs(min_seconds=args.seconds)))
+  return 0
+
+
+def _cmd_demo(args):
+  """The README's main job (for now): a video of the scripted ship, the verification
+  and the environment benchmark."""
+  import pathlib
+  out = pathlib.Path(args.out)
+  rc = _cmd_render(argparse.Namespace(domain="ship", task="steer", policy="scripted", seed=3,
+                                      out=out / "ship_steer_scripted.mp4", gif=False,
+                                      width=640, height=480, max_steps=None, backend="mujoco"))
+  rc |= _cmd_render(argparse.Namespace(domain="taxi", task="fuel", policy="scripted", seed=1,
+                                       out=out / "taxi_fuel_scripted.mp4", gif=False,
+                                       width=480, height=480, max_steps=None, backend="mujoco"))
+  rc |= _cmd_verify(argparse.Namespace(what="ship", controls=1000, starts=3, seed=0))
+  rc |= _cmd_bench(argparse.Namespace(what="envs", seconds=args.seconds))
+  return rc
+
+
+def build_parser():
+  parser = argparse.ArgumentParser(
+      prog="hpg-mj", description="Hierarchical policy gradient benchmarks on MuJoCo.")
+  sub = parser.add_subparsers(dest="command", required=True)
+
+  p = sub.add_parser("verify", help="check the MuJoCo ship against the continuous ODE")
+  p.add_argument("what", choices=["ship"])
+  p.add_argument("--controls", type=int, default=1000, help="random 0.6 s controls per start")
+  p.add_argument("--starts", type=int, default=3, help="random starting states")
+  p.add_argument("--seed", type=int, default=0)
+  p.set_defaults(func=_cmd_verify)
+
+  p = sub.add_parser("render", help="write a video of one episode")
+  p.add_argument("--domain", choices=["ship", "taxi"], default="ship")
+  p.add_argument("--task", default=None,
+                 help="ship: steer, diagonal, straight; taxi: fuel, classic")
+  p.add_argument("--policy", choices=["scripted", "random"], default="scripted")
+  p.add_argument("--seed", type=int, default=0)
+  p.add_argument("--out", default=None, help="output path (.mp4 or .gif)")
+  p.add_argument("--gif", action="store_true", help="write an animated GIF instead of MP4")
+  p.add_argument("--width", type=int, default=640)
+  p.add_argument("--height", type=int, default=480)
+  p.add_argument("--max-steps", type=int, default=None)
+  p.add_argument("--backend", choices=["mujoco", "analytic"], default="mujoco")
+  p.set_defaults(func=_cmd_render)
+
+  p = sub.add_parser("bench", help="print speed figures")
+  p.add_argument("what", choices=["envs"])
+  p.add_argument("--seconds", type=float, default=1.0, help="measuring time per row")
+  p.set_defaults(func=_cmd_bench)
+
+  p = sub.add_parser("demo", help="the README's main job: videos, verification, benchmark")
+  p.add_argument("--out", default="videos")
+  p.add_argument("--seconds", type=float, default=1.0)
+  p.set_defaults(func=_cmd_demo)
+  return parser
+
+
+def main(argv=None):
+  import hpg_mj  # noqa: F401  (picks the OpenGL backend before MuJoCo loads)
+  parser = build_parser()
+  args = parser.parse_args(argv)
+  if args.command == "render" and args.task is None:
+    args.task = "steer" if args.domain == "ship" else "fuel"
+  try:
+    return args.func(args)
+  except ValueError as err:
+    print(f"hpg-mj {args.command}: error: {err}", file=sys.stderr)
+    return 2
+
+
+if __name__ == "__main__":
+  sys.exit(main())

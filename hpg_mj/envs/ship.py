@@ -1,0 +1,188 @@
+"""Ship steering as a Gymnasium environment, on the MuJoCo or the analytic ship."""
+import gymnasium
+import numpy as np
+from gymnasium import spaces
+
+from hpg_mj import _validation
+from hpg_mj.worlds import ship
+from hpg_mj.worlds import ship_core as core
+
+BACKENDS = ("mujoco", "analytic")
+
+
+class AnalyticBackend:
+  """Equation 1 exactly as written (explicit Euler, 0.2 s): the paper's ship."""
+
+  name = "analytic"
+
+  def __init__(self):
+    self._state = np.zeros(4)
+    self._samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
+
+  def set_state(self, state):
+    self._state[:] = state
+
+  def state(self):
+    return self._state.copy()
+
+  def control(self, r_deg):
+    """Sails one 0.6 s control interval; returns the sampled positions."""
+    core.euler_control(self._state, r_deg, self._samples)
+    return self._samples
+
+
+class MujocoBackend:
+  """The MJCF ship of assets/ship.xml (the physics behind the dm_control tasks)."""
+
+  name = "mujoco"
+
+  def __init__(self):
+    self.physics = ship.Physics.from_xml_string(*ship.get_model_and_assets())
+    self._nstep = core.SAMPLES_PER_CONTROL * self.physics._substeps_per_sample()
+
+  def set_state(self, state):
+    self.physics.set_ship_state(state)
+
+  def state(self):
+    return self.physics.ship_state()
+
+  def control(self, r_deg):
+    self.physics.set_turn_command(r_deg)
+    self.physics.step(self._nstep)
+    return self.physics.sampled_positions()
+
+
+def make_backend(name):
+  if name == "mujoco":
+    return MujocoBackend()
+  if name == "analytic":
+    return AnalyticBackend()
+  raise ValueError(f"unknown ship backend {name!r}; valid backends: {list(BACKENDS)}")
+
+
+class ShipSteeringEnv(gymnasium.Env):
+  """Ship steering (Ghavamzadeh & Mahadevan 2003; Miller et al. 1990).
+
+  ## Description
+  A ship sails at a constant 3 m/s on a 1 km x 1 km sea and must be steered
+  through a 100 m gate between (350, 400) and (450, 400). Its turning rate
+  follows the commanded rate with a 5 s lag (the paper's Equation 1), so every
+  decision acts slowly. `task="diagonal"` and `task="straight"` are the two
+  low-level subtasks of the paper's hierarchy, in their own 150 m frame.
+
+  ## Action space
+  `Box(-15, 15, (1,), float64)`: the desired turning rate r in deg/s, held for
+  one 0.6 s control interval (three 0.2 s sampling intervals). A rate outside
+  [-15, 15] is clipped (an error with `strict=True`); NaN, infinity or a wrong
+  shape raise `ValueError`.
+
+  ## Observation space
+  `Box(float64, (4,))`: `[x, y, theta_deg, theta_dot_deg]`: position in metres,
+  heading in degrees clockwise from north (+y) in [-180, 180), turning rate in
+  deg/s. For the subtasks the state is in the local 150 m frame. After the
+  ship leaves the field the last position may lie up to 1.8 m (one control
+  interval of sailing) outside it.
+
+  ## Rewards
+  - `steer`: -1 per control step, +100 more for passing the gate (in either
+    direction, between the posts), -100 more for leaving the field.
+  - `diagonal`, `straight`: -1 per control step plus the shaping reward
+    `exp(-(theta - theta_hat)^2 / 30^2) - 1` (theta_hat the bearing to the
+    local goal), +100 more on reaching the goal, -100 more on failing.
+
+  ## Starting state
+  - `steer`: x, y uniform on [0, 1000] m, heading uniform on [-180, 180) deg,
+    turning rate uniform on [-15, 15] deg/s.
+  - `diagonal`: at (40, 40) with random heading and turning rate; goal
+    (140, 140). `straight`: at (40, 75); goal (140, 75).
+  `reset(options={"state": [x, y, theta_deg, theta_dot_deg]})` starts from an
+  exact state (refused if off the field or the turning rate is out of range).
+
+  ## Episode end
+  - Terminated: `steer`: the gate is passed or the field is left.
+    Subtasks: within 10 m of the goal, leaving [0, 150]^2, or 300 control
+    steps without success (a failure). `info["event"]` says which.
+  - Truncated: `steer` after 5,000 control steps (3,000 s).
+
+  ## Arguments
+  - `task`: "steer" (default), "diagonal" or "straight".
+  - `backend`: "mujoco" (default, the MJCF ship of assets/ship.xml) or
+    "analytic" (Equation 1 exactly, the paper's discretisation).
+  - `strict`: refuse out-of-range turning rates instead of clipping them.
+  - `max_steps`: override the episode length in control steps.
+  - `render_mode`: None or "rgb_array" (a top-down orthographic view with
+    the ship's wake); `width`, `height`, `camera` ("top", "local",
+    "overview", "chase").
+
+  ## Version history
+  - v0: initial release (SPEC sections 1-3).
+  """
+
+  metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
+
+  def __init__(self, task="steer", backend="mujoco", render_mode=None, strict=False,
+               max_steps=None, width=640, height=480, camera=None):
+    self.rules = ship.ShipRules(task, max_steps)
+    if render_mode not in (None, "rgb_array"):
+      raise ValueError(f"unknown render_mode {render_mode!r}; valid: None, 'rgb_array'")
+    self.backend = make_backend(backend)
+    self.task = task
+    self.strict = bool(strict)
+    self.render_mode = render_mode
+    self._name = f"ShipSteering({task}, backend={backend})"
+    margin = core.SPEED * core.CONTROL_INTERVAL
+    size = self.rules.size
+    self.observation_space = spaces.Box(
+        low=np.array([-margin, -margin, -180.0, -core.MAX_TURN_RATE]),
+        high=np.array([size + margin, size + margin, 180.0, core.MAX_TURN_RATE]),
+        dtype=np.float64)
+    self.action_space = spaces.Box(-core.MAX_TURN_RATE, core.MAX_TURN_RATE, (1,), np.float64)
+    self._width, self._height = int(width), int(height)
+    self._camera = camera or ("top" if task == "steer" else "local")
+    self._renderer = None
+    self._trail = []
+    self._steps = 0
+
+  def reset(self, *, seed=None, options=None):
+    super().reset(seed=seed)
+    options = dict(options or {})
+    unknown = set(options) - {"state"}
+    if unknown:
+      raise ValueError(f"{self._name}: unknown reset options {sorted(unknown)}; allowed: ['state']")
+    if options.get("state") is not None:
+      state = self.rules.check_state(options["state"], self._name)
+    else:
+      state = self.rules.sample_start(self.np_random)
+    self.backend.set_state(state)
+    self._steps = 0
+    obs = self.backend.state()
+    self._trail = [obs[:2].copy()]
+    return obs, {"event": None}
+
+  def step(self, action):
+    r = _validation.finite_scalar_action(action, self._name, "turning rate r (deg/s)")
+    r = _validation.clip_or_refuse(r, -core.MAX_TURN_RATE, core.MAX_TURN_RATE,
+                                   strict=self.strict, task=self._name,
+                                   name="turning rate r (deg/s)")
+    samples = self.backend.control(r)
+    obs = self.backend.state()
+    self._steps += 1
+    reward, terminated, truncated, event = self.rules.evaluate(samples, obs, self._steps)
+    if self.render_mode is not None:
+      self._trail.extend(samples[1:].copy())
+    return obs, float(reward), terminated, truncated, {"event": event}
+
+  def render(self):
+    if self.render_mode is None:
+      gymnasium.logger.warn("render() called without a render_mode; pass render_mode='rgb_array'")
+      return None
+    from hpg_mj.render import scenes  # deferred: rendering needs an OpenGL backend
+    if self._renderer is None:
+      self._renderer = scenes.ShipScene(self._width, self._height)
+    return self._renderer.render(self.backend.state(), np.asarray(self._trail),
+                                 target=self.rules.goal, camera=self._camera)
+
+  def close(self):
+    if self._renderer is not None:
+      self._renderer.close()
+      self._renderer = None

@@ -1,0 +1,130 @@
+"""Videos of episodes: any hpg_mj Gymnasium task under a random or scripted policy."""
+import pathlib
+
+import imageio.v2 as imageio
+import numpy as np
+
+from hpg_mj.worlds import ship_core as core
+
+POLICIES = ("scripted", "random")
+
+
+class ShipPilot:
+  """The scripted helmsman of `ship_core.pilot_turn_rate` as a policy over observations."""
+
+  def __init__(self, task):
+    self.task = task
+    self.phase = 0
+
+  def reset(self):
+    self.phase = 0
+
+  def __call__(self, obs):
+    if self.task == "steer":
+      x, y, self.phase = core.gate_pilot_target(obs, self.phase)
+    else:
+      x, y = core.local_goal(1 if self.task == "diagonal" else 2)
+    return np.array([core.pilot_turn_rate(obs, x, y)])
+
+
+class RandomPolicy:
+  def __init__(self, action_space):
+    self.action_space = action_space
+
+  def reset(self):
+    pass
+
+  def __call__(self, obs):
+    return self.action_space.sample()
+
+
+def make_policy(env, domain, task, policy):
+  if policy == "random":
+    return RandomPolicy(env.action_space)
+  if policy != "scripted":
+    raise ValueError(f"unknown policy {policy!r}; valid policies: {list(POLICIES)}")
+  if domain == "ship":
+    return ShipPilot(task)
+  from hpg_mj.worlds import taxi_pilot
+  return taxi_pilot.TaxiPilot(fuel=(task == "fuel"))
+
+
+def record_episode(env, policy, seed=0, max_steps=None, frame_every=1, hold_last=10):
+  """Runs one episode of a Gymnasium env with render_mode="rgb_array".
+
+  Returns (frames, summary) where summary has the return, the steps and the
+  last `info`. Every `frame_every`-th step is drawn, and the last frame is
+  repeated `hold_last` times so the ending can be seen.
+  """
+  if frame_every < 1:
+    raise ValueError(f"frame_every must be >= 1, got {frame_every}")
+  policy.reset()
+  env.action_space.seed(seed)
+  obs, info = env.reset(seed=seed)
+  frames = [env.render()]
+  total, steps = 0.0, 0
+  terminated = truncated = False
+  while not (terminated or truncated):
+    obs, reward, terminated, truncated, info = env.step(policy(obs))
+    total += reward
+    steps += 1
+    if steps % frame_every == 0 or terminated or truncated:
+      frames.append(env.render())
+    if max_steps is not None and steps >= max_steps:
+      break
+  frames.extend([frames[-1]] * hold_last)
+  return frames, {"return": total, "steps": steps, "info": info,
+                  "terminated": terminated, "truncated": truncated}
+
+
+def write_video(frames, path, fps=20):
+  """Writes frames to an MP4 (H.264) or, for a .gif path, an animated GIF."""
+  path = pathlib.Path(path)
+  if not frames:
+    raise ValueError("no frames to write")
+  path.parent.mkdir(parents=True, exist_ok=True)
+  if path.suffix.lower() == ".gif":
+    imageio.mimsave(path, [np.asarray(f) for f in frames], duration=1000.0 / fps, loop=0)
+  elif path.suffix.lower() == ".mp4":
+    with imageio.get_writer(path, fps=fps, codec="libx264", quality=6,
+                            macro_block_size=16, pixelformat="yuv420p") as writer:
+      for frame in frames:
+        writer.append_data(np.asarray(frame))
+  else:
+    raise ValueError(f"video path {str(path)!r} must end in .mp4 or .gif")
+  return path
+
+
+def render_task(domain, task, policy="scripted", seed=0, out=None, gif=False, width=640,
+                height=480, max_steps=None, backend="mujoco", fps=20, frame_every=None):
+  """Renders one episode of a task to a video file; returns (path, summary)."""
+  import gymnasium
+
+  import hpg_mj  # noqa: F401  (registers the ids)
+  ids = {("ship", "steer"): "hpg_mj/ShipSteering-v0",
+         ("ship", "diagonal"): "hpg_mj/ShipSteeringDiagonal-v0",
+         ("ship", "straight"): "hpg_mj/ShipSteeringStraight-v0",
+         ("taxi", "fuel"): "hpg_mj/TaxiFuel-v0",
+         ("taxi", "classic"): "hpg_mj/Taxi-v0"}
+  if (domain, task) not in ids:
+    raise ValueError(f"unknown domain/task {domain}/{task}; valid: "
+                     f"{sorted(f'{d}/{t}' for d, t in ids)}")
+  kwargs = {"render_mode": "rgb_array", "width": width, "height": height}
+  if domain == "ship":
+    kwargs["backend"] = backend
+  env = gymnasium.make(ids[(domain, task)], **kwargs).unwrapped
+  try:
+    pilot = make_policy(env, domain, task, policy)
+    if frame_every is None:
+      frame_every = 2 if domain == "ship" else 1
+    frames, summary = record_episode(env, pilot, seed=seed, max_steps=max_steps,
+                                     frame_every=frame_every)
+  finally:
+    env.close()
+  if out is None:
+    out = pathlib.Path("videos") / f"{domain}_{task}_{policy}.{'gif' if gif else 'mp4'}"
+  out = pathlib.Path(out)
+  if gif and out.suffix.lower() != ".gif":
+    out = out.with_suffix(".gif")
+  fps = fps if domain == "ship" else 4
+  return write_video(frames, out, fps=fps), summary

@@ -1,0 +1,310 @@
+"""Ship steering domain (SPEC sections 1-3), in the style of dm_control's suite.
+
+Tasks:
+  steer:    the full task: sail through the gate (350, 400)-(450, 400) from a
+            random start in the 1 km field (SPEC section 2).
+  diagonal: the low-level subtask in its 150 m local frame, from (40, 40) to
+            within 10 m of (140, 140), with its internal reward (SPEC section 3).
+  straight: likewise from (40, 75) to (140, 75).
+
+One control step is 0.6 s: the desired turning rate r (deg/s) is held for three
+0.2 s sampling intervals, and the rules look at each sampled position.
+"""
+import collections
+
+import mujoco as mj
+import numpy as np
+from dm_control import mujoco
+from dm_control.rl import control
+from dm_control.suite import base
+from dm_control.utils import containers
+from dm_env import specs
+
+from hpg_mj import _assets
+from hpg_mj import _validation
+from hpg_mj.worlds import ship_core as core
+
+SUITE = containers.TaggedTasks()
+
+
+def get_model_and_assets():
+  """Returns the MJCF model of the ship and the (empty) assets dict."""
+  return _assets.read_model("ship.xml"), {}
+
+
+def set_orthographic_extents(model):
+  """Applies the custom numerics `ortho_extent_<camera>` to the cameras' fovy.
+
+  MuJoCo's compiler refuses a fovy above 180, also for an orthographic camera,
+  whose fovy is its vertical extent in metres; a 1 km field needs more.
+  """
+  for i in range(model.nnumeric):
+    name = mj.mj_id2name(model, mj.mjtObj.mjOBJ_NUMERIC, i)
+    if name and name.startswith("ortho_extent_"):
+      camera = mj.mj_name2id(model, mj.mjtObj.mjOBJ_CAMERA, name[len("ortho_extent_"):])
+      if camera < 0:
+        raise ValueError(f"custom numeric {name!r} names no camera in the model")
+      model.cam_fovy[camera] = model.numeric_data[model.numeric_adr[i]]
+
+
+class Physics(mujoco.Physics):
+  """The MuJoCo ship with named readings in the paper's units."""
+
+  # Sampled positions of the last step: row 0 is where it began, row k the
+  # position after sampling interval k (SPEC section 2 checks each segment).
+  _samples = None
+
+  def _reload_from_data(self, data):
+    super()._reload_from_data(data)
+    set_orthographic_extents(self.model.ptr)
+
+  def _substeps_per_sample(self):
+    substeps = core.SAMPLING_INTERVAL / self.model.opt.timestep
+    n = int(round(substeps))
+    if n < 1 or abs(n - substeps) > 1e-9:
+      raise ValueError(f"ship model timestep {self.model.opt.timestep} s must divide the "
+                       f"{core.SAMPLING_INTERVAL} s sampling interval")
+    return n
+
+  def bow_offset(self):
+    """Distance (m) from the joint origin to the bow site, the reported position."""
+    return float(self.named.model.site_pos["bow", 1])
+
+  def heading_deg(self):
+    """Heading, degrees clockwise from +y, wrapped to [-180, 180)."""
+    return float(core.wrap_deg(np.degrees(self.data.qpos[2])))
+
+  def turning_rate_deg(self):
+    """Actual turning rate theta_dot (deg/s): the state of the rudder filter."""
+    return float(self.data.act[0])
+
+  def position(self):
+    """(x, y) of the ship in metres (the bow site, see assets/ship.xml)."""
+    qpos = self.data.qpos
+    c = self.bow_offset()
+    return np.array([qpos[0] + c * np.sin(qpos[2]), qpos[1] + c * np.cos(qpos[2])])
+
+  def ship_state(self):
+    """[x, y, theta_deg, theta_dot_deg] as a new array."""
+    x, y = self.position()
+    return np.array([x, y, self.heading_deg(), self.turning_rate_deg()])
+
+  def set_ship_state(self, state):
+    """Places the ship at [x, y, theta_deg, theta_dot_deg], sailing at speed V."""
+    x, y, theta_deg, theta_dot_deg = (float(v) for v in state)
+    theta = np.radians(theta_deg)
+    c = self.bow_offset()
+    sin, cos = np.sin(theta), np.cos(theta)
+    self.data.qpos[:] = (x - c * sin, y - c * cos, theta)
+    self.data.qvel[:] = (core.SPEED * sin, core.SPEED * cos, np.radians(theta_dot_deg))
+    self.data.act[:] = theta_dot_deg
+    self.data.ctrl[:2] = theta_dot_deg
+    mj.mj_kinematics(self.model.ptr, self.data.ptr)
+
+  def set_turn_command(self, r_deg):
+    """Sets the desired turning rate r (deg/s) on both rudder filters."""
+    self.data.ctrl[0] = r_deg
+    self.data.ctrl[1] = r_deg
+
+  def place_target(self, xy):
+    """Shows a subtask's goal disc at `xy`, or hides it when `xy` is None."""
+    pos = (-5000.0, -5000.0, -50.0) if xy is None else (xy[0], xy[1], 0.3)
+    self.named.data.mocap_pos["target"] = pos
+
+  def sampled_positions(self):
+    """Positions sampled during the last `step` (rows: start, then each 0.2 s)."""
+    if self._samples is None:
+      return self.position()[None, :]
+    return self._samples
+
+  def step(self, nstep=1):
+    """Advances `nstep` MuJoCo steps, sampling the position every 0.2 s."""
+    substeps = self._substeps_per_sample()
+    if nstep % substeps:
+      raise ValueError(f"the ship steps whole 0.2 s sampling intervals ({substeps} MuJoCo "
+                       f"steps each), got nstep={nstep}")
+    n = nstep // substeps
+    samples = np.empty((n + 1, 2))
+    samples[0] = self.position()
+    model, data = self.model.ptr, self.data.ptr
+    for k in range(1, n + 1):
+      mj.mj_step(model, data, substeps)
+      samples[k] = self.position()
+    self._samples = samples
+
+  def render(self, *args, **kwargs):
+    # mj_step leaves body poses one MuJoCo step old; bring them up to date first.
+    mj.mj_kinematics(self.model.ptr, self.data.ptr)
+    return super().render(*args, **kwargs)
+
+
+class ShipRules:
+  """The start, reward and ending of one ship task, shared by every backend.
+
+  `kind` is "steer" (SPEC section 2), "diagonal" or "straight" (SPEC section 3,
+  the local frame). The Gymnasium environment and the dm_control tasks both
+  call these, so the rules live in one place.
+  """
+
+  KINDS = ("steer", "diagonal", "straight")
+
+  def __init__(self, kind, max_steps=None):
+    if kind not in self.KINDS:
+      raise ValueError(f"unknown ship task {kind!r}; valid tasks: {list(self.KINDS)}")
+    self.kind = kind
+    if kind == "steer":
+      self.size = core.FIELD_SIZE
+      self.start = None
+      self.goal = None
+      default_steps = core.STEER_MAX_STEPS
+    else:
+      self.size = core.LOCAL_SIZE
+      diagonal = kind == "diagonal"
+      self.start = (core.DIAGONAL_START if diagonal else core.STRAIGHT_START).copy()
+      self.goal = (core.DIAGONAL_GOAL if diagonal else core.STRAIGHT_GOAL).copy()
+      default_steps = core.SUBTASK_MAX_STEPS
+    self.max_steps = default_steps if max_steps is None else int(max_steps)
+    if self.max_steps < 1:
+      raise ValueError(f"max_steps must be a positive number of control steps, got {max_steps!r}")
+
+  def sample_start(self, random):
+    """A random start; `random` is a np.random.RandomState or Generator."""
+    theta = random.uniform(-180.0, 180.0)
+    theta_dot = random.uniform(-core.MAX_TURN_RATE, core.MAX_TURN_RATE)
+    if self.start is None:
+      x, y = random.uniform(0.0, self.size), random.uniform(0.0, self.size)
+    else:
+      x, y = self.start
+    return np.array([x, y, core.wrap_deg(theta), theta_dot])
+
+  def check_state(self, state, task_name):
+    return core.check_state(state, task_name, 0.0, self.size)
+
+  def evaluate(self, samples, end_state, steps):
+    """(reward, terminated, truncated, event name) after a control step.
+
+    `samples` are the positions sampled during the step, `end_state` the state
+    at its end, `steps` the control steps taken so far, this one included.
+    """
+    reward = core.STEP_REWARD
+    if self.goal is None:
+      event, _ = core.steer_event(samples, core.GATE, self.size)
+      name = {core.SUCCESS: "gate", core.FAILURE: "out_of_bounds"}.get(event)
+    else:
+      event, _ = core.subtask_event(samples, self.goal, core.GOAL_RADIUS, self.size)
+      name = {core.SUCCESS: "goal", core.FAILURE: "out_of_bounds"}.get(event)
+      if event == core.NO_EVENT and steps >= self.max_steps:
+        event, name = core.FAILURE, "timeout"   # SPEC section 3: 300 steps is failure
+      reward += core.shaping_reward(end_state[0], end_state[1], end_state[2],
+                                    self.goal[0], self.goal[1])
+    if event == core.SUCCESS:
+      reward += core.GATE_REWARD
+    elif event == core.FAILURE:
+      reward += core.OUT_OF_BOUNDS_REWARD
+    terminated = event != core.NO_EVENT
+    truncated = not terminated and steps >= self.max_steps
+    return reward, terminated, truncated, name
+
+
+class ShipTask(base.Task):
+  """A ship task on the MuJoCo ship (see `ShipRules` for the rules)."""
+
+  def __init__(self, kind, random=None, initial_state=None, strict=False, max_steps=None):
+    """Args:
+      kind: "steer", "diagonal" or "straight".
+      random: seed, np.random.RandomState or None.
+      initial_state: optional fixed start [x, y, theta_deg, theta_dot_deg].
+      strict: if True, a turning rate outside [-15, 15] deg/s is an error; by
+        default it is clipped. NaN and infinity are always errors.
+      max_steps: control steps before the episode ends (truncated for steer,
+        failed for the subtasks); SPEC defaults 5,000 and 300.
+    """
+    self.rules = ShipRules(kind, max_steps)
+    self.name = f"ship-{kind}"
+    self.strict = strict
+    self._initial_state = (None if initial_state is None
+                           else self.rules.check_state(initial_state, self.name))
+    self._steps = 0
+    self._outcome = (0.0, False, False, None)
+    super().__init__(random=random)
+
+  def initialize_episode(self, physics):
+    state = (self._initial_state if self._initial_state is not None
+             else self.rules.sample_start(self.random))
+    physics.set_ship_state(state)
+    physics.place_target(self.rules.goal)
+    physics._samples = None
+    self._steps = 0
+    self._outcome = (0.0, False, False, None)
+    super().initialize_episode(physics)
+
+  def action_spec(self, physics):
+    return specs.BoundedArray((1,), np.float64, -core.MAX_TURN_RATE, core.MAX_TURN_RATE,
+                              name="turning_rate_deg")
+
+  def before_step(self, action, physics):
+    r = _validation.finite_scalar_action(action, self.name, "turning rate r (deg/s)")
+    r = _validation.clip_or_refuse(r, -core.MAX_TURN_RATE, core.MAX_TURN_RATE,
+                                   strict=self.strict, task=self.name,
+                                   name="turning rate r (deg/s)")
+    physics.set_turn_command(r)
+
+  def after_step(self, physics):
+    self._steps += 1
+    self._outcome = self.rules.evaluate(physics.sampled_positions(), physics.ship_state(),
+                                        self._steps)
+
+  def get_observation(self, physics):
+    obs = collections.OrderedDict()
+    obs["position"] = physics.position()
+    obs["heading_deg"] = np.array([physics.heading_deg()])
+    obs["turning_rate_deg"] = np.array([physics.turning_rate_deg()])
+    return obs
+
+  def get_reward(self, physics):
+    return self._outcome[0]
+
+  def get_termination(self, physics):
+    _, terminated, truncated, _ = self._outcome
+    if terminated:
+      return 0.0
+    if truncated:
+      return 1.0
+    return None
+
+  @property
+  def last_event(self):
+    """What ended the last step: "gate", "goal", "out_of_bounds", "timeout" or None."""
+    return self._outcome[3]
+
+
+def _environment(kind, random, initial_state, strict, max_steps, environment_kwargs):
+  physics = Physics.from_xml_string(*get_model_and_assets())
+  task = ShipTask(kind, random=random, initial_state=initial_state, strict=strict,
+                  max_steps=max_steps)
+  environment_kwargs = dict(environment_kwargs or {})
+  # The task owns the episode's length (truncation vs. failure differ by task).
+  environment_kwargs.setdefault("time_limit", float("inf"))
+  environment_kwargs.setdefault("control_timestep", core.CONTROL_INTERVAL)
+  return control.Environment(physics, task, **environment_kwargs)
+
+
+@SUITE.add("benchmarking")
+def steer(random=None, initial_state=None, strict=False, max_steps=None,
+          environment_kwargs=None):
+  """The full ship steering task (SPEC section 2)."""
+  return _environment("steer", random, initial_state, strict, max_steps, environment_kwargs)
+
+
+@SUITE.add("benchmarking", "subtask")
+def diagonal(random=None, initial_state=None, strict=False, max_steps=None,
+             environment_kwargs=None):
+  """The diagonal low-level subtask in its local frame (SPEC section 3)."""
+  return _environment("diagonal", random, initial_state, strict, max_steps, environment_kwargs)
+
+
+@SUITE.add("benchmarking", "subtask")
+def straight(random=None, initial_state=None, strict=False, max_steps=None,
+             environment_kwargs=None):
+  """The straight low-level subtask in its local frame (SPEC section 3)."""
+  return _environment("straight", random, initial_state, strict, max_steps, environment_kwargs)

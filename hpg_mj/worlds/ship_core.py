@@ -1,0 +1,320 @@
+"""Ship steering: the analytic dynamics (paper, Equation 1) and the task rules.
+
+Everything here is a numba-compiled function over plain floats and arrays, so
+that the Gymnasium environment, the dm_control tasks and the compiled training
+loops all use one implementation of each rule (SPEC sections 1-3).
+
+Units are the paper's: metres, degrees, degrees per second. The heading
+`theta_deg = 0` points to +y ("north") and positive headings turn clockwise
+towards +x: `x += dt * V * sin(theta)`, `y += dt * V * cos(theta)`.
+
+A ship state is a float64 array `[x, y, theta_deg, theta_dot_deg]`.
+"""
+import math
+
+import numba
+import numpy as np
+
+# SPEC section 1.
+SPEED = 3.0                  # V, m/s
+TIME_CONSTANT = 5.0          # T, s
+SAMPLING_INTERVAL = 0.2      # Delta, s
+SAMPLES_PER_CONTROL = 3      # a control (0.6 s) holds r for 3 sampling intervals
+CONTROL_INTERVAL = SAMPLING_INTERVAL * SAMPLES_PER_CONTROL
+MAX_TURN_RATE = 15.0         # |theta_dot| and |r| bound, deg/s
+
+# SPEC section 2: the full task.
+FIELD_SIZE = 1000.0
+GATE = np.array([[350.0, 400.0], [450.0, 400.0]])
+STEER_MAX_STEPS = 5000       # control steps, then truncated
+STEP_REWARD = -1.0
+GATE_REWARD = 100.0
+OUT_OF_BOUNDS_REWARD = -100.0
+
+# SPEC section 3: the two low-level subtasks in their local frame.
+LOCAL_SIZE = 150.0
+DIAGONAL_START = np.array([40.0, 40.0])
+DIAGONAL_GOAL = np.array([140.0, 140.0])
+STRAIGHT_START = np.array([40.0, 75.0])
+STRAIGHT_GOAL = np.array([140.0, 75.0])
+GOAL_RADIUS = 10.0
+SUBTASK_MAX_STEPS = 300
+SHAPING_WIDTH_DEG = 30.0
+
+# The eight directions of the root, clockwise from north (SPEC section 3).
+DIRECTIONS = ("N", "NE", "E", "SE", "S", "SW", "W", "NW")
+
+# Event codes returned by the rule functions.
+NO_EVENT = 0
+SUCCESS = 1      # gate passed / local goal reached
+FAILURE = -1     # bounds left
+
+
+@numba.njit(cache=True, inline="always")
+def wrap_deg(angle):
+  """Wraps an angle in degrees to [-180, 180)."""
+  return (angle + 180.0) % 360.0 - 180.0
+
+
+@numba.njit(cache=True, inline="always")
+def euler_sample(state, r_deg, speed, time_constant, dt):
+  """One sampling interval of Equation 1 (explicit Euler), in place."""
+  theta = state[2]
+  theta_dot = state[3]
+  rad = math.radians(theta)
+  state[0] += dt * speed * math.sin(rad)
+  state[1] += dt * speed * math.cos(rad)
+  state[2] = wrap_deg(theta + dt * theta_dot)
+  state[3] = theta_dot + dt * (r_deg - theta_dot) / time_constant
+
+
+@numba.njit(cache=True)
+def euler_control(state, r_deg, samples, speed=SPEED, time_constant=TIME_CONSTANT,
+                  dt=SAMPLING_INTERVAL):
+  """One control interval: `r_deg` held for `len(samples) - 1` sampling intervals.
+
+  `samples[0]` receives the starting position and `samples[k]` the position after
+  sampling interval k, so that the rules can look at every sampled segment.
+  """
+  samples[0, 0] = state[0]
+  samples[0, 1] = state[1]
+  for k in range(1, samples.shape[0]):
+    euler_sample(state, r_deg, speed, time_constant, dt)
+    samples[k, 0] = state[0]
+    samples[k, 1] = state[1]
+
+
+@numba.njit(cache=True)
+def euler_run(state, r_deg, n_samples, speed=SPEED, time_constant=TIME_CONSTANT,
+              dt=SAMPLING_INTERVAL):
+  """Sails `n_samples` sampling intervals with a constant `r_deg` (for benchmarks)."""
+  for _ in range(n_samples):
+    euler_sample(state, r_deg, speed, time_constant, dt)
+
+
+@numba.njit(cache=True)
+def euler_batch(states, r_deg, samples):
+  """One control interval for a batch: `states` (n, 4), `r_deg` (n,), `samples` (n, k, 2)."""
+  for i in range(states.shape[0]):
+    euler_control(states[i], r_deg[i], samples[i])
+
+
+@numba.njit(cache=True, inline="always")
+def _cross(ax, ay, bx, by):
+  return ax * by - ay * bx
+
+
+@numba.njit(cache=True)
+def segment_crosses(p0x, p0y, p1x, p1y, q0x, q0y, q1x, q1y):
+  """Whether the sailed segment p0->p1 crosses the segment q0-q1 (the gate).
+
+  The crossing point must lie between the posts (inclusive) and after p0 along
+  the sailed segment (p0 excluded, p1 included), so a ship that stops exactly on
+  the line counts once, not twice. Sailing along the gate line is no crossing.
+  """
+  dx = p1x - p0x
+  dy = p1y - p0y
+  ex = q1x - q0x
+  ey = q1y - q0y
+  denom = _cross(dx, dy, ex, ey)
+  if denom == 0.0:
+    return False
+  wx = q0x - p0x
+  wy = q0y - p0y
+  t = _cross(wx, wy, ex, ey) / denom   # along the sailed segment
+  u = _cross(wx, wy, dx, dy) / denom   # along the gate
+  return 0.0 < t <= 1.0 and 0.0 <= u <= 1.0
+
+
+@numba.njit(cache=True)
+def steer_event(samples, gate, field_size):
+  """The full task's outcome over one control interval (SPEC section 2).
+
+  Returns (event, k): SUCCESS when a sampled segment crosses the gate, FAILURE
+  when a sampled position leaves [0, field_size]^2, NO_EVENT otherwise; k is the
+  sample at which it happened. The first event in time wins.
+  """
+  for k in range(1, samples.shape[0]):
+    if segment_crosses(samples[k - 1, 0], samples[k - 1, 1], samples[k, 0], samples[k, 1],
+                       gate[0, 0], gate[0, 1], gate[1, 0], gate[1, 1]):
+      return SUCCESS, k
+    x = samples[k, 0]
+    y = samples[k, 1]
+    if x < 0.0 or x > field_size or y < 0.0 or y > field_size:
+      return FAILURE, k
+  return NO_EVENT, 0
+
+
+@numba.njit(cache=True)
+def subtask_event(local_samples, goal, goal_radius, local_size):
+  """A low-level subtask's outcome over one control interval (SPEC section 3).
+
+  `local_samples` are the sampled positions in the subtask's local frame.
+  SUCCESS within `goal_radius` of the goal, FAILURE outside [0, local_size]^2.
+  The step limit is the caller's (it counts control steps).
+  """
+  for k in range(1, local_samples.shape[0]):
+    x = local_samples[k, 0]
+    y = local_samples[k, 1]
+    if math.hypot(x - goal[0], y - goal[1]) <= goal_radius:
+      return SUCCESS, k
+    if x < 0.0 or x > local_size or y < 0.0 or y > local_size:
+      return FAILURE, k
+  return NO_EVENT, 0
+
+
+@numba.njit(cache=True)
+def bearing_deg(x, y, goal_x, goal_y):
+  """Heading (deg, clockwise from +y) that points from (x, y) at the goal."""
+  return math.degrees(math.atan2(goal_x - x, goal_y - y))
+
+
+@numba.njit(cache=True)
+def shaping_reward(x, y, theta_deg, goal_x, goal_y, width_deg=SHAPING_WIDTH_DEG):
+  """Internal reward G = exp(-(theta - theta_hat)^2 / width^2) - 1 (SPEC section 3)."""
+  diff = wrap_deg(theta_deg - bearing_deg(x, y, goal_x, goal_y))
+  return math.exp(-(diff * diff) / (width_deg * width_deg)) - 1.0
+
+
+# ----------------------------------------------------------------------------
+# The local frame of the low-level subtasks (SPEC section 3).
+#
+# Direction d in 0..7 (N, NE, ..., NW) is the compass heading 45*d degrees.
+# The diagonal subtask sails local NE (45 deg), the straight subtask local E
+# (90 deg); the frame is turned clockwise by a multiple of 90 degrees so that
+# the local direction lands on the global one. Turning by quarter turns uses
+# exact 0/+-1 matrices, so the map is an exact isometry of Equation 1.
+# ----------------------------------------------------------------------------
+
+@numba.njit(cache=True)
+def is_diagonal(direction):
+  return direction % 2 == 1
+
+
+@numba.njit(cache=True)
+def quarter_turns(direction):
+  """Clockwise quarter turns taking the local frame onto global direction `direction`."""
+  local_heading = 45 if direction % 2 == 1 else 90
+  return ((45 * direction - local_heading) // 90) % 4
+
+
+@numba.njit(cache=True, inline="always")
+def _rotate_cw(vx, vy, quarters):
+  """Turns vector (vx, vy) clockwise by `quarters` * 90 degrees (heading += 90 * quarters)."""
+  q = quarters % 4
+  if q == 0:
+    return vx, vy
+  if q == 1:
+    return vy, -vx
+  if q == 2:
+    return -vx, -vy
+  return -vy, vx
+
+
+@numba.njit(cache=True)
+def local_start(direction):
+  if direction % 2 == 1:
+    return DIAGONAL_START[0], DIAGONAL_START[1]
+  return STRAIGHT_START[0], STRAIGHT_START[1]
+
+
+@numba.njit(cache=True)
+def local_goal(direction):
+  if direction % 2 == 1:
+    return DIAGONAL_GOAL[0], DIAGONAL_GOAL[1]
+  return STRAIGHT_GOAL[0], STRAIGHT_GOAL[1]
+
+
+@numba.njit(cache=True)
+def global_to_local(state, origin, direction, out):
+  """Maps a global ship state into the local frame of a call that began at `origin`.
+
+  `origin` is the global (x, y) where the subtask was called; it maps to the
+  local start. `out` receives [x, y, theta_deg, theta_dot_deg] in the local frame.
+  """
+  q = quarter_turns(direction)
+  sx, sy = local_start(direction)
+  lx, ly = _rotate_cw(state[0] - origin[0], state[1] - origin[1], -q)
+  out[0] = sx + lx
+  out[1] = sy + ly
+  out[2] = wrap_deg(state[2] - 90.0 * q)
+  out[3] = state[3]
+
+
+@numba.njit(cache=True)
+def local_to_global(local_state, origin, direction, out):
+  """The inverse of `global_to_local`."""
+  q = quarter_turns(direction)
+  sx, sy = local_start(direction)
+  gx, gy = _rotate_cw(local_state[0] - sx, local_state[1] - sy, q)
+  out[0] = origin[0] + gx
+  out[1] = origin[1] + gy
+  out[2] = wrap_deg(local_state[2] + 90.0 * q)
+  out[3] = local_state[3]
+
+
+@numba.njit(cache=True)
+def samples_to_local(samples, origin, direction, out):
+  """Maps sampled global positions (k, 2) into the local frame."""
+  q = quarter_turns(direction)
+  sx, sy = local_start(direction)
+  for k in range(samples.shape[0]):
+    lx, ly = _rotate_cw(samples[k, 0] - origin[0], samples[k, 1] - origin[1], -q)
+    out[k, 0] = sx + lx
+    out[k, 1] = sy + ly
+
+
+def check_state(state, task: str, low_xy: float = 0.0, high_xy: float = FIELD_SIZE) -> np.ndarray:
+  """Returns `state` as a float64 [x, y, theta_deg, theta_dot_deg], or raises.
+
+  Position must lie in [low_xy, high_xy]^2, the heading is any finite angle
+  (wrapped), the turning rate must lie in [-15, 15] deg/s.
+  """
+  arr = np.asarray(state, dtype=np.float64)
+  if arr.shape != (4,):
+    raise ValueError(f"{task}: a ship state is [x, y, theta_deg, theta_dot_deg] (shape (4,)), "
+                     f"got shape {arr.shape}")
+  names = ("x", "y", "theta_deg", "theta_dot_deg")
+  for name, value in zip(names, arr.tolist()):
+    if not math.isfinite(value):
+      raise ValueError(f"{task}: state {name} must be finite, got {value!r}")
+  for name, value in zip(names[:2], arr[:2].tolist()):
+    if not low_xy <= value <= high_xy:
+      raise ValueError(f"{task}: state {name}={value!r} is off the field; allowed "
+                       f"[{low_xy}, {high_xy}] m")
+  if not -MAX_TURN_RATE <= arr[3] <= MAX_TURN_RATE:
+    raise ValueError(f"{task}: state theta_dot_deg={float(arr[3])!r} is outside the allowed "
+                     f"[{-MAX_TURN_RATE}, {MAX_TURN_RATE}] deg/s")
+  out = arr.copy()
+  out[2] = wrap_deg(out[2])
+  return out
+
+
+@numba.njit(cache=True)
+def pilot_turn_rate(state, target_x, target_y, heading_gain=0.4, lead=4.0):
+  """A scripted helmsman: the turning rate r (deg/s) that heads for (target_x, target_y).
+
+  It asks for a turning rate proportional to the heading error and, because the
+  ship answers with a 5 s lag, commands past it (`lead` seconds of the rate
+  error) to get there sooner. Used for demonstrations and videos, not learned.
+  """
+  error = wrap_deg(bearing_deg(state[0], state[1], target_x, target_y) - state[2])
+  wanted = min(max(heading_gain * error, -MAX_TURN_RATE), MAX_TURN_RATE)
+  r = wanted + lead * (wanted - state[3]) / TIME_CONSTANT * 2.0
+  return min(max(r, -MAX_TURN_RATE), MAX_TURN_RATE)
+
+
+@numba.njit(cache=True)
+def gate_pilot_target(state, phase):
+  """Waypoints for the scripted helmsman: first 150 m off the gate on the ship's
+  side (phase 0), then through the gate's middle (phase 1). Returns (x, y, phase)."""
+  mid_x = 0.5 * (GATE[0, 0] + GATE[1, 0])
+  mid_y = 0.5 * (GATE[0, 1] + GATE[1, 1])
+  side = 1.0 if state[1] >= mid_y else -1.0
+  if phase == 0:
+    ax, ay = mid_x, mid_y + side * 150.0
+    if math.hypot(state[0] - ax, state[1] - ay) < 40.0:
+      phase = 1
+    else:
+      return ax, ay, 0
+  return mid_x, mid_y - side * 60.0, phase

@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# Sets hpg_mj up on a fresh machine: OSMesa for headless rendering where there
+# is no GPU, a virtual environment in .venv, and the package (with its test
+# extras) installed from this checkout as a wheel, assets included.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+if [ ! -e /dev/nvidia0 ] && ! ldconfig -p 2>/dev/null | grep -q 'libOSMesa\.so'; then
+  SUDO=""
+  if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+  echo "setup: installing OSMesa (libosmesa6) for headless rendering"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libosmesa6 >/dev/null
+fi
+
+PYTHON=${PYTHON:-python3}
+if [ ! -x .venv/bin/python ]; then
+  echo "setup: creating .venv"
+  "$PYTHON" -m venv .venv
+fi
+.venv/bin/python -m pip install -q --disable-pip-version-check --upgrade pip
+echo "setup: installing hpg_mj and its pinned dependencies into .venv"
+.venv/bin/python -m pip install -q --disable-pip-version-check ".[test]"

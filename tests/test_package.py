@@ -1,0 +1,36 @@
+"""The installed package carries its MJCF assets; the CLI answers."""
+import pathlib
+
+import pytest
+
+import hpg_mj
+from hpg_mj import _assets, cli
+
+REPO = pathlib.Path(__file__).resolve().parents[1]
+
+
+def test_assets_load_from_the_installed_package():
+  package_dir = pathlib.Path(hpg_mj.__file__).resolve().parent
+  if package_dir == REPO / "hpg_mj":
+    pytest.skip("running from the source tree (PYTHONPATH); scripts/test.sh tests the wheel")
+  assert _assets.assets_dir().resolve() == package_dir / "assets"
+  for name in ("ship.xml", "taxi.xml"):
+    assert (package_dir / "assets" / name).is_file()
+  assert REPO not in package_dir.parents
+
+
+def test_unknown_model_lists_what_exists():
+  with pytest.raises(FileNotFoundError, match=r"available: \['ship.xml', 'taxi.xml'\]"):
+    _assets.read_model("boat.xml")
+
+
+def test_cli_verify_ship(capsys):
+  assert cli.main(["verify", "ship", "--controls", "200", "--starts", "1"]) == 0
+  out = capsys.readouterr().out
+  assert "MuJoCo ship" in out and "analytic ship" in out and "met" in out
+
+
+def test_cli_render_rejects_an_unknown_task(capsys, tmp_path):
+  assert cli.main(["render", "--domain", "ship", "--task", "race",
+                   "--out", str(tmp_path / "x.mp4")]) == 2
+  assert "valid: " in capsys.readouterr().err

@@ -1,0 +1,118 @@
+"""dm_control suite invariants, for every task (after dm_control/suite/suite_test.py)."""
+import dm_env
+import numpy as np
+import pytest
+from dm_control.mujoco import engine
+from dm_control.rl import control
+from dm_control.suite import base
+from dm_env import specs
+
+from hpg_mj import suite
+
+N_STEPS = 60
+
+
+def _random_action(spec, rng):
+  if isinstance(spec, specs.DiscreteArray):
+    return np.array(rng.integers(0, spec.num_values), dtype=spec.dtype)
+  return rng.uniform(spec.minimum, spec.maximum, spec.shape).astype(spec.dtype)
+
+
+def _rollout(env, seed, n=N_STEPS):
+  rng = np.random.default_rng(seed)
+  steps = [env.reset()]
+  for _ in range(n):
+    ts = env.step(_random_action(env.action_spec(), rng))
+    steps.append(ts)
+    if ts.last():
+      steps.append(env.reset())
+  return steps
+
+
+def test_all_tasks_listed():
+  assert set(suite.ALL_TASKS) == {("ship", "steer"), ("ship", "diagonal"), ("ship", "straight"),
+                                  ("taxi", "fuel"), ("taxi", "classic")}
+
+
+@pytest.mark.parametrize("domain,task", suite.ALL_TASKS)
+def test_components_have_names_and_cameras(domain, task):
+  env = suite.load(domain, task, {"random": 0})
+  assert isinstance(env, control.Environment)
+  assert isinstance(env.physics, engine.Physics)
+  assert type(env.physics).__name__ == "Physics" and type(env.physics) is not engine.Physics
+  assert isinstance(env.task, base.Task)
+  model = env.physics.model
+  assert model.ncam >= 2
+  names = [model.id2name(i, "camera") for i in range(model.ncam)]
+  assert all(names), names
+  assert all(model.id2name(i, "body") for i in range(1, model.nbody))
+
+
+@pytest.mark.parametrize("domain,task", suite.ALL_TASKS)
+def test_actions_and_observations_conform_to_specs(domain, task):
+  env = suite.load(domain, task, {"random": 1})
+  obs_spec = env.observation_spec()
+  for ts in _rollout(env, 1):
+    assert set(ts.observation) == set(obs_spec)
+    for name, spec in obs_spec.items():
+      spec.validate(np.asarray(ts.observation[name], dtype=spec.dtype))
+      assert np.asarray(ts.observation[name]).shape == spec.shape
+    if ts.first():
+      assert ts.reward is None
+    else:
+      assert np.isfinite(ts.reward)
+      assert ts.discount in (0.0, 1.0)
+  with pytest.raises(ValueError):
+    env.reset()
+    env.step(np.full((3,), 0.5))
+
+
+@pytest.mark.parametrize("domain,task", suite.ALL_TASKS)
+def test_deterministic_under_a_seed(domain, task):
+  a = _rollout(suite.load(domain, task, {"random": 42}), 5)
+  b = _rollout(suite.load(domain, task, {"random": 42}), 5)
+  assert len(a) == len(b)
+  for x, y in zip(a, b):
+    assert x.step_type == y.step_type and x.reward == y.reward
+    for name in x.observation:
+      np.testing.assert_array_equal(x.observation[name], y.observation[name])
+
+
+@pytest.mark.parametrize("domain,task", suite.ALL_TASKS)
+def test_observations_share_no_memory(domain, task):
+  env = suite.load(domain, task, {"random": 3})
+  first = env.reset().observation
+  second = env.step(_random_action(env.action_spec(), np.random.default_rng(0))).observation
+  arrays = list(first.values()) + list(second.values())
+  physics_arrays = [env.physics.data.qpos, env.physics.data.qvel, env.physics.data.act,
+                    env.physics.data.mocap_pos]
+  for i, a in enumerate(arrays):
+    for b in arrays[i + 1:] + physics_arrays:
+      assert not np.shares_memory(a, b)
+
+
+@pytest.mark.parametrize("domain,task", suite.ALL_TASKS)
+def test_initial_states_are_random(domain, task):
+  env = suite.load(domain, task, {"random": 0})
+  starts = {tuple(np.concatenate([np.ravel(v) for v in env.reset().observation.values()]))
+            for _ in range(10)}
+  assert len(starts) >= 5
+
+
+def test_unknown_domain_and_task_list_the_valid_ones():
+  with pytest.raises(ValueError, match=r"unknown domain 'boat'.*'ship', 'taxi'"):
+    suite.load("boat", "steer")
+  with pytest.raises(ValueError, match=r"unknown task 'sail'.*'diagonal', 'steer', 'straight'"):
+    suite.load("ship", "sail")
+
+
+def test_time_step_types():
+  env = suite.load("ship", "steer", {"random": 0, "initial_state": [400.0, 395.0, 0.0, 0.0]})
+  ts = env.reset()
+  assert ts.step_type == dm_env.StepType.FIRST
+  ts = env.step(np.array([0.0]))       # 1.8 m north: still short of the gate line
+  assert ts.step_type == dm_env.StepType.MID and ts.reward == -1.0
+  ts = env.step(np.array([0.0]))
+  ts = env.step(np.array([0.0]))       # crosses y = 400 between the posts
+  assert ts.step_type == dm_env.StepType.LAST and ts.reward == 99.0 and ts.discount == 0.0
+  assert env.task.last_event == "gate"
