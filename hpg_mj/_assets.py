@@ -3,26 +3,21 @@
 An installed hpg_mj carries `assets/` inside the wheel as the `hpg_mj.assets`
 package; a source checkout that was not installed reads the top-level folder.
 """
-import importlib.resources
 import pathlib
 
+_PACKAGED_ASSETS = pathlib.Path(__file__).resolve().parent / "assets"
 _SOURCE_ASSETS = pathlib.Path(__file__).resolve().parents[1] / "assets"
 
 
 def assets_dir() -> pathlib.Path:
   """The folder holding the MJCF models this hpg_mj uses."""
-  try:
-    packaged = importlib.resources.files("hpg_mj.assets")
-    path = pathlib.Path(str(packaged))
+  for path in (_PACKAGED_ASSETS, _SOURCE_ASSETS):
     if path.is_dir():
       return path
-  except ModuleNotFoundError:
-    pass
-  if _SOURCE_ASSETS.is_dir():
-    return _SOURCE_ASSETS
   raise FileNotFoundError(
-      "hpg_mj's MJCF assets are missing: neither the installed package "
-      f"hpg_mj.assets nor {_SOURCE_ASSETS} exists; reinstall with `pip install .`")
+      "hpg_mj's MJCF assets are missing: neither the installed package folder "
+      f"{_PACKAGED_ASSETS} nor the checkout's {_SOURCE_ASSETS} exists; "
+      "reinstall with `pip install .`")
 
 
 def read_model(name: str) -> str:

@@ -78,7 +78,8 @@ class ShipScene:
     mujoco.mj_forward(model, self.physics.data.ptr)
     self._renderer.update_scene(self.physics.data.ptr, camera=camera_id)
     pixel = _pixel_size(model, camera_id, self.height)
-    add_polyline(self._renderer.scene, trail, width=max(0.25, 1.2 * pixel), rgba=_WAKE_RGBA)
+    add_polyline(self._renderer.scene, trail, width=min(5.0, max(0.2, 0.8 * pixel)),
+                 rgba=_WAKE_RGBA)
     add_markers(self._renderer.scene, marks, radius=max(1.0, 3.0 * pixel), rgba=_MARK_RGBA)
     return self._renderer.render().copy()
 
