@@ -1,0 +1,120 @@
+"""The two policy forms of the paper, over Eq. 3 traces (see `eligibility`).
+
+* Tabular softmax (Gibbs), one parameter per (state, child): the taxi's HPG.
+* Gaussian with sigmoid over a CMAC (SPEC section 3): m = sum(w_i phi_i) / sum(phi_i),
+  u ~ Normal(m, 1), r = r_max * (2 * sigmoid(u) - 1); score psi = (u - m) * phi / sum(phi).
+
+Each `act` samples an action with the shared generator and adds the action's
+score to the trace at once (Algorithm 1, line 14: z <- z + psi(s, a, theta_k)); the
+caller then applies the reward with `eligibility.reward` when the child returns.
+"""
+import math
+
+import numba
+
+from hpg_mj.learners import eligibility as el
+from hpg_mj.learners import rng
+
+
+@numba.njit(cache=True)
+def softmax_probabilities(w, zs, y, acc, state, n_actions, mask, probs):
+  """pi(state, .) over the actions allowed by `mask` (others get probability 0)."""
+  base = state * n_actions
+  top = -math.inf
+  for a in range(n_actions):
+    if mask[a]:
+      v = el.weight(w, zs, y, acc, base + a)
+      if v > top:
+        top = v
+  total = 0.0
+  for a in range(n_actions):
+    if mask[a]:
+      p = math.exp(el.weight(w, zs, y, acc, base + a) - top)
+      probs[a] = p
+      total += p
+    else:
+      probs[a] = 0.0
+  for a in range(n_actions):
+    probs[a] /= total
+
+
+@numba.njit(cache=True)
+def sample_index(probs, u):
+  """Inverse-CDF sample from `probs` with a uniform `u`; never an action of probability 0."""
+  c = 0.0
+  last = -1
+  for a in range(probs.shape[0]):
+    if probs[a] > 0.0:
+      c += probs[a]
+      last = a
+      if u < c:
+        return a
+  return last
+
+
+@numba.njit(cache=True)
+def softmax_act(w, zs, y, touched, marked, count, acc, state, n_actions, mask, rng_state,
+                probs, index, psi):
+  """Samples a child from the Gibbs policy and adds its score to the trace.
+
+  psi(s, a)[s, b] = 1{b = a} - pi(s, b) for the allowed b (zero elsewhere).
+  `probs`, `index`, `psi` are scratch arrays of length n_actions.
+  """
+  softmax_probabilities(w, zs, y, acc, state, n_actions, mask, probs)
+  a = sample_index(probs, rng.uniform(rng_state))
+  n = 0
+  for b in range(n_actions):
+    if mask[b]:
+      index[n] = state * n_actions + b
+      psi[n] = (1.0 if b == a else 0.0) - probs[b]
+      n += 1
+  el.add_score(zs, y, touched, marked, count, acc, index[:n], psi[:n])
+  return a
+
+
+@numba.njit(cache=True)
+def softmax_greedy(w, zs, y, acc, state, n_actions, mask):
+  """The most probable allowed child (lowest index on ties)."""
+  best = -1
+  top = -math.inf
+  for a in range(n_actions):
+    if mask[a]:
+      v = el.weight(w, zs, y, acc, state * n_actions + a)
+      if v > top:
+        top = v
+        best = a
+  return best
+
+
+@numba.njit(cache=True)
+def gaussian_mean(w, zs, y, acc, tiles):
+  """m = sum(w_i phi_i) / sum(phi_i) over the active tiles (phi binary)."""
+  total = 0.0
+  for k in range(tiles.shape[0]):
+    total += el.weight(w, zs, y, acc, tiles[k])
+  return total / tiles.shape[0]
+
+
+@numba.njit(cache=True)
+def squash(u, r_max):
+  """r = r_max * (2 * sigmoid(u) - 1) = r_max * tanh(u / 2)."""
+  return r_max * math.tanh(0.5 * u)
+
+
+@numba.njit(cache=True)
+def gaussian_act(w, zs, y, touched, marked, count, acc, tiles, r_max, rng_state, psi):
+  """Samples u ~ Normal(m, 1), adds psi = (u - m) phi / sum(phi) to the trace,
+  and returns the action r. `psi` is scratch of the length of `tiles`."""
+  m = gaussian_mean(w, zs, y, acc, tiles)
+  u = m + rng.normal(rng_state)
+  g = (u - m) / tiles.shape[0]
+  for k in range(tiles.shape[0]):
+    psi[k] = g
+  el.add_score(zs, y, touched, marked, count, acc, tiles, psi)
+  return squash(u, r_max)
+
+
+@numba.njit(cache=True)
+def gaussian_greedy(w, zs, y, acc, tiles, r_max):
+  """The policy's mode: r at u = m."""
+  return squash(gaussian_mean(w, zs, y, acc, tiles), r_max)

@@ -1,0 +1,70 @@
+"""A small counter-free random generator (xoshiro256**) over a uint64[4] state.
+
+Both training paths draw from it in the same order, so a fixed seed gives the
+same numbers in Python and in compiled loops, and its state is a plain array
+that a checkpoint saves and restores exactly.
+"""
+import math
+
+import numba
+import numpy as np
+
+_MASK = (1 << 64) - 1
+
+
+def make_state(seed: int) -> np.ndarray:
+  """The generator state for an integer seed (splitmix64, as xoshiro recommends)."""
+  if not isinstance(seed, (int, np.integer)) or isinstance(seed, bool):
+    raise ValueError(f"seed must be an integer, got {seed!r}")
+  x = int(seed) & _MASK
+  out = np.empty(4, dtype=np.uint64)
+  for i in range(4):
+    x = (x + 0x9E3779B97F4A7C15) & _MASK
+    z = x
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & _MASK
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & _MASK
+    out[i] = z ^ (z >> 31)
+  return out
+
+
+@numba.njit(cache=True, inline="always")
+def _rotl(x, k):
+  return (x << numba.uint64(k)) | (x >> numba.uint64(64 - k))
+
+
+@numba.njit(cache=True)
+def next_u64(s):
+  result = _rotl(s[1] * numba.uint64(5), 7) * numba.uint64(9)
+  t = s[1] << numba.uint64(17)
+  s[2] ^= s[0]
+  s[3] ^= s[1]
+  s[1] ^= s[2]
+  s[0] ^= s[3]
+  s[2] ^= t
+  s[3] = _rotl(s[3], 45)
+  return result
+
+
+@numba.njit(cache=True)
+def uniform(s):
+  """A float in [0, 1) with 53 random bits."""
+  return (next_u64(s) >> numba.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
+@numba.njit(cache=True)
+def uniform_range(s, low, high):
+  return low + (high - low) * uniform(s)
+
+
+@numba.njit(cache=True)
+def randint(s, n):
+  """An integer in 0..n-1 (n >= 1)."""
+  return min(int(uniform(s) * n), n - 1)
+
+
+@numba.njit(cache=True)
+def normal(s):
+  """A standard normal draw (Box-Muller; uses two uniforms)."""
+  u1 = 1.0 - uniform(s)          # in (0, 1]: log is finite
+  u2 = uniform(s)
+  return math.sqrt(-2.0 * math.log(u1)) * math.cos(2.0 * math.pi * u2)

@@ -1,0 +1,83 @@
+"""CMAC tile coding (SPEC section 3): several offset tilings, one weight per tile.
+
+A tiling divides each input dimension into `n_tiles[d]` equal tiles over
+[low[d], high[d]); a wrapping dimension (the heading) continues around the
+circle, the others clip to their edge tiles. Tiling k is shifted by k/n of a
+tile along the displacement vector (1, 3, 5, 7, ...) (Miller & Glanz's
+asymmetric offsets), so that neighbouring states share most tiles.
+Every state activates exactly one tile per tiling; the tile indices of tiling k
+are offset by k * tiles_per_tiling, so all active indices are distinct.
+"""
+import dataclasses
+
+import numba
+import numpy as np
+
+
+@dataclasses.dataclass(frozen=True)
+class TileCoder:
+  """The layout of a CMAC; `arrays()` gives what the compiled functions take."""
+  low: tuple
+  high: tuple
+  n_tiles: tuple
+  wrap: tuple
+  n_tilings: int = 9
+
+  def __post_init__(self):
+    d = len(self.low)
+    if not (len(self.high) == len(self.n_tiles) == len(self.wrap) == d) or d == 0:
+      raise ValueError(f"tile coder: low, high, n_tiles and wrap must have one entry per "
+                       f"dimension, got {self.low}, {self.high}, {self.n_tiles}, {self.wrap}")
+    for lo, hi, n in zip(self.low, self.high, self.n_tiles):
+      if not hi > lo or int(n) < 1:
+        raise ValueError(f"tile coder: need high > low and n_tiles >= 1, got [{lo}, {hi}) "
+                         f"with {n} tiles")
+    if self.n_tilings < 1:
+      raise ValueError(f"tile coder: n_tilings must be >= 1, got {self.n_tilings}")
+
+  @property
+  def tiles_per_tiling(self):
+    return int(np.prod(self.n_tiles))
+
+  @property
+  def size(self):
+    return self.n_tilings * self.tiles_per_tiling
+
+  def arrays(self):
+    low = np.asarray(self.low, dtype=np.float64)
+    width = (np.asarray(self.high, dtype=np.float64) - low) / np.asarray(self.n_tiles)
+    n = np.asarray(self.n_tiles, dtype=np.int64)
+    wrap = np.asarray(self.wrap, dtype=np.bool_)
+    displacement = 2 * np.arange(len(self.low)) + 1
+    offsets = ((np.arange(self.n_tilings)[:, None] * displacement[None, :])
+               % self.n_tilings) / self.n_tilings
+    return low, width, n, wrap, offsets
+
+  def active(self, x):
+    """The active tile indices of input `x` (a convenience for Python code)."""
+    out = np.empty(self.n_tilings, dtype=np.int64)
+    active_tiles(np.asarray(x, dtype=np.float64), *self.arrays(), out)
+    return out
+
+
+@numba.njit(cache=True)
+def active_tiles(x, low, width, n_tiles, wrap, offsets, out):
+  """Writes the index of the active tile of every tiling into `out`."""
+  n_tilings = offsets.shape[0]
+  dims = x.shape[0]
+  per_tiling = 1
+  for d in range(dims):
+    per_tiling *= n_tiles[d]
+  for k in range(n_tilings):
+    index = 0
+    for d in range(dims):
+      c = int(np.floor((x[d] - low[d]) / width[d] + offsets[k, d]))
+      n = n_tiles[d]
+      if wrap[d]:
+        c = c % n
+      elif c < 0:
+        c = 0
+      elif c >= n:
+        c = n - 1
+      index = index * n + c
+    out[k] = k * per_tiling + index
