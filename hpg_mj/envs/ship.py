@@ -89,6 +89,8 @@ class ShipSteeringEnv(gymnasium.Env):
   - `diagonal`, `straight`: -1 per control step plus the shaping reward
     `exp(-(theta - theta_hat)^2 / 30^2) - 1` (theta_hat the bearing to the
     local goal), +100 more on reaching the goal, -100 more on failing.
+  `info["positions"]` holds the positions sampled every 0.2 s during the step
+  (row 0 where it began), on which the gate and the bounds are checked.
 
   ## Starting state
   - `steer`: x, y uniform on [0, 1000] m, heading uniform on [-180, 180) deg,
@@ -110,6 +112,8 @@ class ShipSteeringEnv(gymnasium.Env):
     "analytic" (Equation 1 exactly, the paper's discretisation).
   - `strict`: refuse out-of-range turning rates instead of clipping them.
   - `max_steps`: override the episode length in control steps.
+  - `gate_reward`, `out_of_bounds_reward`: the +100 and -100 of SPEC section 2
+    (for the subtasks: reaching and failing the local goal).
   - `render_mode`: None or "rgb_array" (a top-down orthographic view with
     the ship's wake); `width`, `height`, `camera` ("top", "local",
     "overview", "chase").
@@ -121,8 +125,9 @@ class ShipSteeringEnv(gymnasium.Env):
   metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
 
   def __init__(self, task="steer", backend="mujoco", render_mode=None, strict=False,
-               max_steps=None, width=640, height=480, camera=None):
-    self.rules = ship.ShipRules(task, max_steps)
+               max_steps=None, width=640, height=480, camera=None,
+               gate_reward=core.GATE_REWARD, out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD):
+    self.rules = ship.ShipRules(task, max_steps, gate_reward, out_of_bounds_reward)
     if render_mode not in (None, "rgb_array"):
       raise ValueError(f"unknown render_mode {render_mode!r}; valid: None, 'rgb_array'")
     self.backend = make_backend(backend)
@@ -170,7 +175,8 @@ class ShipSteeringEnv(gymnasium.Env):
     reward, terminated, truncated, event = self.rules.evaluate(samples, obs, self._steps)
     if self.render_mode is not None:
       self._trail.extend(samples[1:].copy())
-    return obs, float(reward), terminated, truncated, {"event": event}
+    return obs, float(reward), terminated, truncated, {"event": event,
+                                                       "positions": samples.copy()}
 
   def render(self):
     if self.render_mode is None:

@@ -62,11 +62,11 @@ def run_low_level(state, direction, low_w, low_zs, low_y, low_touched, low_marke
     k += 1
     global_event, reward = rules.global_outcome(samples, task_rewards[0], task_rewards[1])
     reward_root += reward
-    local_event, signal = rules.low_level_outcome(samples, state, origin, direction, k,
-                                                  local_samples, local_state, max_steps_call)
+    local_event, internal = rules.low_level_outcome(samples, state, origin, direction, k,
+                                                    local_samples, local_state, max_steps_call)
     if learn:
       el.reward(low_w, low_zs, low_y, low_touched, low_marked, low_count, low_acc, alpha_low,
-                signal, gamma_low)
+                core.STEP_REWARD + internal, gamma_low)
     if (global_event != core.NO_EVENT or local_event != core.NO_EVENT
         or steps_before + k >= max_steps_episode):
       return global_event, local_event, reward_root, k

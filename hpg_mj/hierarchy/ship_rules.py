@@ -33,12 +33,12 @@ def subtask_of(direction):
 @numba.njit(cache=True)
 def low_level_outcome(samples, state, origin, direction, steps_in_call, local_samples,
                       local_state, max_steps):
-  """After one control step inside a low-level call: (local event, R + G).
+  """After one control step inside a low-level call: (local event, G).
 
   The local event is SUCCESS (goal within 10 m), FAILURE (left the 150 m frame,
-  or `max_steps` control steps without success) or NO_EVENT. The learning
-  signal is R + G: the step's -1 plus the internal reward G (the heading
-  shaping and the local +100 / -100), which never reaches the root.
+  or `max_steps` control steps without success) or NO_EVENT. G is the internal
+  reward: the heading shaping and the local +100 / -100; it never reaches the
+  root. The low level learns from R + G with R the step's -1.
   """
   core.samples_to_local(samples, origin, direction, local_samples)
   gx, gy = core.local_goal(direction)
@@ -52,7 +52,7 @@ def low_level_outcome(samples, state, origin, direction, steps_in_call, local_sa
     internal += core.GATE_REWARD
   elif event == core.FAILURE:
     internal += core.OUT_OF_BOUNDS_REWARD
-  return event, core.STEP_REWARD + internal
+  return event, internal
 
 
 @numba.njit(cache=True)

@@ -148,7 +148,8 @@ class ShipRules:
 
   KINDS = ("steer", "diagonal", "straight")
 
-  def __init__(self, kind, max_steps=None):
+  def __init__(self, kind, max_steps=None, gate_reward=core.GATE_REWARD,
+               out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD):
     if kind not in self.KINDS:
       raise ValueError(f"unknown ship task {kind!r}; valid tasks: {list(self.KINDS)}")
     self.kind = kind
@@ -164,6 +165,9 @@ class ShipRules:
       self.goal = (core.DIAGONAL_GOAL if diagonal else core.STRAIGHT_GOAL).copy()
       default_steps = core.SUBTASK_MAX_STEPS
     self.max_steps = default_steps if max_steps is None else int(max_steps)
+    # SPEC section 2's +100 / -100 (and the subtasks' local +100 / -100).
+    self.success_reward = float(gate_reward)
+    self.failure_reward = float(out_of_bounds_reward)
     if self.max_steps < 1:
       raise ValueError(f"max_steps must be a positive number of control steps, got {max_steps!r}")
 
@@ -198,9 +202,9 @@ class ShipRules:
       reward += core.shaping_reward(end_state[0], end_state[1], end_state[2],
                                     self.goal[0], self.goal[1])
     if event == core.SUCCESS:
-      reward += core.GATE_REWARD
+      reward += self.success_reward
     elif event == core.FAILURE:
-      reward += core.OUT_OF_BOUNDS_REWARD
+      reward += self.failure_reward
     terminated = event != core.NO_EVENT
     truncated = not terminated and steps >= self.max_steps
     return reward, terminated, truncated, name
@@ -222,11 +226,19 @@ class ShipTask(base.Task):
     self.rules = ShipRules(kind, max_steps)
     self.name = f"ship-{kind}"
     self.strict = strict
-    self._initial_state = (None if initial_state is None
-                           else self.rules.check_state(initial_state, self.name))
+    self.initial_state = initial_state
     self._steps = 0
     self._outcome = (0.0, False, False, None)
     super().__init__(random=random)
+
+  @property
+  def initial_state(self):
+    """A fixed start [x, y, theta_deg, theta_dot_deg] for the next episodes, or None."""
+    return self._initial_state
+
+  @initial_state.setter
+  def initial_state(self, state):
+    self._initial_state = None if state is None else self.rules.check_state(state, self.name)
 
   def initialize_episode(self, physics):
     state = (self._initial_state if self._initial_state is not None

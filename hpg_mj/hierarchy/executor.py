@@ -1,0 +1,143 @@
+"""Runs a task graph step by step over any environment (Algorithm 1).
+
+```
+Function HPG(Task i, State s)                          -> _execute(call, obs)
+  if i is primitive: execute it, return its reward     -> adapter.step(action)
+  while i has not terminated:                          -> termination(call, step)
+    choose a with mu^i(s, theta^i)                     -> learner.act(view(call, obs))
+    R = HPG(Task a, State s)                           -> child's rewards, summed
+    observe s' and internal reward G^i(s'|s, a)        -> internal_reward(call, step)
+    z, theta updates (Eq. 3)                           -> learner.observe(R + G)
+```
+
+Every subtask also returns when the environment's episode ends. Environments
+are reached through an adapter (`GymAdapter`, `DmControlAdapter`) that turns
+them into `reset(start) -> obs` and `step(action) -> Step`.
+"""
+import numpy as np
+
+from hpg_mj.hierarchy.graph import Call, Primitive, Step
+
+
+class GymAdapter:
+  """A Gymnasium environment; `reset(start)` uses `options={"state": start}`."""
+
+  def __init__(self, env):
+    self.env = env
+
+  def reset(self, start=None):
+    options = None if start is None else {"state": start}
+    obs, _ = self.env.reset(options=options)
+    return obs
+
+  def step(self, action):
+    obs, reward, terminated, truncated, info = self.env.step(action)
+    return Step(obs, float(reward), bool(terminated), bool(truncated), info)
+
+
+class DmControlAdapter:
+  """A dm_control environment; observations are flattened in their dict order.
+
+  A fixed start is handed to the task through its `initial_state` attribute.
+  Positions sampled inside a step (the ship's) come from the physics.
+  """
+
+  def __init__(self, env):
+    self.env = env
+
+  def _flat(self, timestep):
+    return np.concatenate([np.ravel(v) for v in timestep.observation.values()]).astype(
+        np.float64)
+
+  def reset(self, start=None):
+    if start is not None:
+      self.env.task.initial_state = start
+    return self._flat(self.env.reset())
+
+  def step(self, action):
+    ts = self.env.step(np.atleast_1d(action))
+    info = {}
+    if hasattr(self.env.physics, "sampled_positions"):
+      info["positions"] = self.env.physics.sampled_positions().copy()
+    if hasattr(self.env.task, "last_event"):
+      info["event"] = self.env.task.last_event
+    last = ts.last()
+    return Step(self._flat(ts), float(ts.reward), last and ts.discount == 0.0,
+                last and ts.discount != 0.0, info)
+
+
+class Executor:
+  """Executes episodes of `graph` on `adapter`, drawing randomness from `rng_state`."""
+
+  def __init__(self, graph, adapter, rng_state):
+    self.graph = graph
+    self.adapter = adapter
+    self.rng_state = rng_state
+    self.primitive_steps = 0
+
+  def run_episode(self, start=None, learn=True):
+    """One episode from `start` (or the environment's own start). Returns
+    (return, primitive steps, last Step)."""
+    self._learn = learn
+    self._steps = 0
+    self._over = False
+    obs = self.adapter.reset(start)
+    root = Call(self.graph.root, {}, obs)
+    total, last, _ = self._execute(root, obs)
+    if self.graph.on_episode_end is not None:
+      self.graph.on_episode_end(last, learn)
+    self.primitive_steps += self._steps
+    return total, self._steps, last
+
+  def _execute(self, call, obs):
+    """Runs `call` from `obs`; returns (summed reward, last Step, last obs)."""
+    node = self.graph.nodes[call.node]
+    if isinstance(node, Primitive):
+      raise TypeError("primitives are executed by their parent")
+    learner = node.learner
+    children = self.graph.children(node.name)
+    learner.start()
+    total = 0.0
+    last = None
+    while not self._over:
+      mask = None
+      if node.available is not None:
+        mask = np.array([node.available(call, obs, i) for i in range(len(children))],
+                        dtype=np.bool_)
+        if not mask.any():
+          raise RuntimeError(f"subtask {node.name!r} has no available child in state {obs!r}")
+      choice = learner.act(node.view(call, obs), mask, self.rng_state, self._learn)
+      if len(children) == 1 and isinstance(self.graph.nodes[children[0].node], Primitive) \
+          and self.graph.nodes[children[0].node].action is None:
+        child_reward, step = self._primitive(call, choice)
+      else:
+        ref = children[choice]
+        child = self.graph.nodes[ref.node]
+        if isinstance(child, Primitive):
+          child_reward, step = self._primitive(call, child.action)
+        else:
+          child_call = Call(ref.node, ref.args, obs)
+          child_reward, step, _ = self._execute(child_call, obs)
+          call.steps += child_call.steps
+      obs = step.obs
+      last = step
+      internal = node.internal_reward(call, step) if node.internal_reward is not None else 0.0
+      seen = node.reward(call, step, child_reward) if node.reward is not None else child_reward
+      done_here = node.termination(call, step)
+      done = done_here or self._over
+      learner.observe(seen + internal, None if step.terminated else node.view(call, obs),
+                      done, step.terminated or done_here, self._learn)
+      total += child_reward
+      if done:
+        break
+    if node.on_exit is not None:
+      node.on_exit(call, last, self._over)
+    return total, last, obs
+
+  def _primitive(self, call, action):
+    step = self.adapter.step(action)
+    self._steps += 1
+    call.steps += 1
+    if step.terminated or step.truncated:
+      self._over = True
+    return step.reward, step

@@ -1,0 +1,156 @@
+"""Task graphs: a hierarchy is a directed acyclic graph of subtasks over primitive
+actions (the paper's section 2).
+
+```python
+graph = TaskGraph(root="root", nodes=[
+    Primitive("north", action=1), Primitive("south", action=0), ...,
+    Subtask("navigate", children=["north", "south", "east", "west"],
+            termination=lambda call, step: at_target(call, step.obs),
+            view=lambda call, obs: abstract_index(call, obs),
+            learner=SoftmaxPolicyGradient(n_states=125, n_actions=4, alpha=0.1)),
+    Subtask("root", children=[Child("navigate", target=0), ...], ...),
+])
+```
+
+Each non-primitive subtask has its children, its termination, its own view of
+the state (a state abstraction, or a map into a local frame), an optional
+internal reward G that never propagates upward, an optional view of the reward
+its learner sees, an optional initiation condition on its children, and the
+learner that solves it. `hpg_mj.hierarchy.executor` runs a graph with the
+stack discipline of Algorithm 1.
+"""
+import dataclasses
+from typing import Any, Callable, Optional, Sequence
+
+
+@dataclasses.dataclass(frozen=True)
+class Primitive:
+  """A primitive action. `action` is what the environment receives; for a
+  continuous primitive (`action=None`) the parent's learner supplies the value."""
+  name: str
+  action: Any = None
+
+
+class Child:
+  """A reference to a child node with its parameters: `Child("navigate", target=2)`."""
+
+  def __init__(self, node: str, **args):
+    self.node = node
+    self.args = dict(args)
+
+  def __repr__(self):
+    args = ", ".join(f"{k}={v!r}" for k, v in self.args.items())
+    return f"Child({self.node!r}{', ' if args else ''}{args})"
+
+
+@dataclasses.dataclass
+class Call:
+  """One invocation of a subtask: its node, its parameters, the observation at
+  which it was called, the primitive steps taken inside it, and scratch space
+  (`memo`) for the subtask's own functions."""
+  node: str
+  args: dict
+  origin: Any
+  steps: int = 0
+  memo: dict = dataclasses.field(default_factory=dict)
+
+
+@dataclasses.dataclass
+class Step:
+  """What one primitive action did: the environment's observation after it, its
+  reward, whether the episode ended (terminated) or was cut (truncated), and
+  the environment's info (for the ship: the positions sampled every 0.2 s)."""
+  obs: Any
+  reward: float
+  terminated: bool
+  truncated: bool
+  info: dict
+
+
+@dataclasses.dataclass
+class Subtask:
+  """A non-primitive node (see the module docstring).
+
+  Functions receive the current `Call`; after each child returns the executor
+  calls, in this order: `internal_reward(call, step)` (G), `reward(call, step,
+  child_reward)` (the R its learner sees; default: the rewards summed over the
+  child's run), `termination(call, step)`, then the learner's update with
+  R + G. `step` is the last primitive step of the child's run. `available(call,
+  obs, i)` says whether child i may be chosen (its initiation condition);
+  `on_exit(call, step, episode_over)` runs when the call returns.
+  """
+  name: str
+  children: Sequence
+  termination: Callable[[Call, Step], bool]
+  view: Callable[[Call, Any], Any]
+  learner: Any
+  available: Optional[Callable[[Call, Any, int], bool]] = None
+  internal_reward: Optional[Callable[[Call, Step], float]] = None
+  reward: Optional[Callable[[Call, Step, float], float]] = None
+  on_exit: Optional[Callable[[Call, Optional[Step], bool], None]] = None
+
+
+class GraphError(ValueError):
+  """A task graph that cannot be executed: the message names the node."""
+
+
+class TaskGraph:
+  """A validated hierarchy: every child exists, there is no cycle, every
+  subtask has a termination, a view and a learner."""
+
+  def __init__(self, root: str, nodes: Sequence, on_episode_end=None):
+    self.root = root
+    self.nodes = {}
+    for node in nodes:
+      if not isinstance(node, (Subtask, Primitive)):
+        raise GraphError(f"node {node!r} is neither a Subtask nor a Primitive")
+      if node.name in self.nodes:
+        raise GraphError(f"node {node.name!r} is defined twice")
+      self.nodes[node.name] = node
+    self.on_episode_end = on_episode_end
+    self._children = {}
+    self._validate()
+
+  def children(self, name):
+    """The node's children as `Child` references."""
+    return self._children[name]
+
+  def subtasks(self):
+    return [n for n in self.nodes.values() if isinstance(n, Subtask)]
+
+  def _validate(self):
+    if self.root not in self.nodes:
+      raise GraphError(f"root {self.root!r} is not a node; nodes: {sorted(self.nodes)}")
+    if not isinstance(self.nodes[self.root], Subtask):
+      raise GraphError(f"root {self.root!r} must be a Subtask, not a primitive")
+    for node in self.subtasks():
+      for field in ("termination", "view", "learner"):
+        if getattr(node, field) is None:
+          raise GraphError(f"subtask {node.name!r} has no {field}")
+      if not node.children:
+        raise GraphError(f"subtask {node.name!r} has no children")
+      refs = []
+      for child in node.children:
+        ref = child if isinstance(child, Child) else Child(child)
+        if ref.node not in self.nodes:
+          raise GraphError(f"subtask {node.name!r} names an unknown child {ref.node!r}; "
+                           f"nodes: {sorted(self.nodes)}")
+        refs.append(ref)
+      self._children[node.name] = refs
+    # Depth-first search for a cycle, naming the nodes on it.
+    state = {}
+
+    def visit(name, path):
+      state[name] = "open"
+      for ref in self._children.get(name, ()):
+        if state.get(ref.node) == "open":
+          cycle = path[path.index(ref.node):] + [ref.node]
+          raise GraphError(f"task graph has a cycle through {' -> '.join(cycle)}; "
+                           "a hierarchy must be acyclic")
+        if ref.node not in state:
+          visit(ref.node, path + [ref.node])
+      state[name] = "done"
+
+    for name in self.nodes:
+      if name not in state:
+        visit(name, [name])

@@ -1,0 +1,157 @@
+"""Learners as objects for the step-by-step path: each holds its arrays and calls
+the compiled rule functions (the same ones the fused loops call).
+
+The protocol the executor uses:
+  start()                                   the subtask is called (Eq. 3: z <- 0)
+  act(features, mask, rng_state, learn)     choose a child (or a continuous action)
+  observe(signal, next_features, done, terminal, learn)
+                                            the child returned with signal R + G
+"""
+import dataclasses
+
+import numpy as np
+
+from hpg_mj.learners import eligibility as el
+from hpg_mj.learners import policies
+from hpg_mj.learners import qlambda
+
+
+def _trace_args(t):
+  return t["w"], t["zs"], t["y"], t["touched"], t["marked"], t["count"], t["acc"]
+
+
+class _PolicyGradient:
+  """Eq. 3 (SPEC section 3): z <- 0 on start; z <- gamma z + psi; w <- w + alpha (R + G) z.
+
+  `reset_states`: optional predicate on features; when it holds at a step the
+  trace is reset (the paper's variance-reduction variant with a set S*).
+  """
+
+  def __init__(self, n_weights, alpha, gamma=1.0, reset_states=None, initial=0.0):
+    if not alpha > 0:
+      raise ValueError(f"alpha must be positive, got {alpha!r}")
+    if not 0.0 < gamma <= 1.0:
+      raise ValueError(f"trace discount gamma must lie in (0, 1], got {gamma!r}")
+    self.trace = el.new_trace(n_weights, initial)
+    self.alpha = float(alpha)
+    self.gamma = float(gamma)
+    self.reset_states = reset_states
+
+  def start(self):
+    el.reset(*_trace_args(self.trace))
+
+  def observe(self, signal, next_features, done, terminal, learn):
+    if learn:
+      el.reward(*_trace_args(self.trace), self.alpha, signal, self.gamma)
+      if self.reset_states is not None and not done and self.reset_states(next_features):
+        el.reset(*_trace_args(self.trace))
+
+  def parameters(self):
+    """The current parameters with pending trace updates applied (a copy)."""
+    t = self.trace
+    return t["w"] + t["zs"] * t["acc"][0] - t["y"]
+
+  def state_arrays(self):
+    return dict(self.trace)
+
+
+class SoftmaxPolicyGradient(_PolicyGradient):
+  """Tabular Gibbs policy, one parameter per (abstract state, child)."""
+
+  def __init__(self, n_states, n_actions, alpha, gamma=1.0, reset_states=None, initial=0.0):
+    super().__init__(n_states * n_actions, alpha, gamma, reset_states, initial)
+    self.n_states, self.n_actions = int(n_states), int(n_actions)
+    self._probs = np.empty(self.n_actions)
+    self._index = np.empty(self.n_actions, dtype=np.int64)
+    self._psi = np.empty(self.n_actions)
+    self._all = np.ones(self.n_actions, dtype=np.bool_)
+
+  def act(self, features, mask, rng_state, learn):
+    mask = self._all if mask is None else mask
+    if learn:
+      return policies.softmax_act(*_trace_args(self.trace), int(features), self.n_actions, mask,
+                                  rng_state, self._probs, self._index, self._psi)
+    t = self.trace
+    return policies.softmax_greedy(t["w"], t["zs"], t["y"], t["acc"], int(features),
+                                   self.n_actions, mask)
+
+
+class GaussianPolicyGradient(_PolicyGradient):
+  """Gaussian-with-sigmoid policy over CMAC tiles (SPEC section 3); `features` are
+  the active tile indices; the action is a continuous value in [-r_max, r_max]."""
+
+  def __init__(self, n_weights, n_active, r_max, alpha, gamma=1.0, reset_states=None,
+               sample_when_evaluating=False):
+    super().__init__(n_weights, alpha, gamma, reset_states)
+    self.r_max = float(r_max)
+    self._psi = np.empty(int(n_active))
+    self.sample_when_evaluating = sample_when_evaluating
+
+  def act(self, features, mask, rng_state, learn):
+    if learn:
+      return policies.gaussian_act(*_trace_args(self.trace), features, self.r_max, rng_state,
+                                   self._psi)
+    t = self.trace
+    return policies.gaussian_greedy(t["w"], t["zs"], t["y"], t["acc"], features, self.r_max)
+
+
+@dataclasses.dataclass
+class _Pending:
+  state: int
+  action: int
+  signal: float = 0.0
+  next_state: int = -1
+  waiting: bool = False
+
+
+class QLambda:
+  """Watkins's Q(lambda) with replacing traces over an SMDP (SPEC section 3).
+
+  `epsilon` is read through `epsilon_source()` so that a schedule can own it.
+  """
+
+  def __init__(self, n_states, n_actions, alpha, lam, gamma=1.0, epsilon=0.1,
+               epsilon_source=None, trace_capacity=4096, initial=0.0):
+    self.n_states, self.n_actions = int(n_states), int(n_actions)
+    self.q = np.full(self.n_states * self.n_actions, float(initial))
+    self.index, self.value, self.count = qlambda.new_trace(trace_capacity)
+    self.alpha, self.lam, self.gamma = float(alpha), float(lam), float(gamma)
+    self.epsilon = float(epsilon)
+    self.epsilon_source = epsilon_source
+    self._pending = None
+
+  def current_epsilon(self):
+    return self.epsilon_source() if self.epsilon_source is not None else self.epsilon
+
+  def start(self):
+    qlambda.clear(self.count)
+    self._pending = None
+
+  def act(self, features, mask, rng_state, learn):
+    s = int(features)
+    epsilon = self.current_epsilon() if learn else 0.0
+    a = qlambda.epsilon_greedy(self.q, s, self.n_actions, epsilon, rng_state)
+    p = self._pending
+    if learn and p is not None and p.waiting:
+      qlambda.update(self.q, self.n_actions, self.index, self.value, self.count, p.state,
+                     p.action, p.signal, p.next_state, a, False, self.alpha, self.gamma,
+                     self.lam)
+    self._pending = _Pending(s, a)
+    return a
+
+  def observe(self, signal, next_features, done, terminal, learn):
+    p = self._pending
+    if not learn:
+      return
+    if done:
+      next_state = 0 if next_features is None else int(next_features)
+      qlambda.update(self.q, self.n_actions, self.index, self.value, self.count, p.state,
+                     p.action, signal, next_state, 0, terminal, self.alpha,
+                     self.gamma, self.lam)
+      qlambda.clear(self.count)
+      self._pending = None
+    else:
+      p.signal, p.next_state, p.waiting = signal, int(next_features), True
+
+  def parameters(self):
+    return self.q.copy()
