@@ -21,7 +21,8 @@ A trace is a set of arrays (see `new_trace`):
 import numba
 import numpy as np
 
-_RESCALE_BELOW = 1e-100
+# Below this trace scale the representation is folded (exactness: values grow as 1/g).
+_RESCALE_BELOW = 1e-4
 
 
 def new_trace(n_weights: int, initial=0.0):

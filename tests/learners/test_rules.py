@@ -1,0 +1,176 @@
+"""Known answers for the learning rules (Eq. 3, the policies, the CMAC, Q(lambda))."""
+import math
+
+import numpy as np
+import pytest
+
+from hpg_mj.learners import agents
+from hpg_mj.learners import eligibility as el
+from hpg_mj.learners import policies
+from hpg_mj.learners import qlambda
+from hpg_mj.learners import rng
+from hpg_mj.learners import tiles
+
+
+def _args(t):
+  return t["w"], t["zs"], t["y"], t["touched"], t["marked"], t["count"], t["acc"]
+
+
+@pytest.mark.parametrize("gamma", [1.0, 0.9, 0.5])
+def test_lazy_trace_equals_equation_3_applied_literally(gamma):
+  gen = np.random.default_rng(0)
+  n = 30
+  lazy = el.new_trace(n)
+  w = np.zeros(n)
+  z = np.zeros(n)
+  for step in range(400):
+    if step % 97 == 0:                         # a subtask starts: z <- 0
+      el.reset(*_args(lazy))
+      z[:] = 0.0
+    index = gen.choice(n, size=3, replace=False).astype(np.int64)
+    psi = gen.normal(size=3)
+    alpha, signal = 0.05, gen.normal()
+    el.add_score(lazy["zs"], lazy["y"], lazy["touched"], lazy["marked"], lazy["count"],
+                 lazy["acc"], index, psi)
+    z[index] += psi                            # z <- z + psi
+    el.reward(*_args(lazy), alpha, signal, gamma)
+    w += alpha * signal * z                    # w <- w + alpha (R + G) z
+    z *= gamma                                 # discounted trace, for the next step
+    current = lazy["w"] + lazy["zs"] * lazy["acc"][0] - lazy["y"]
+    np.testing.assert_allclose(current, w, rtol=1e-9, atol=1e-9)
+
+
+def test_lazy_trace_touches_only_the_score():
+  t = el.new_trace(1000)
+  el.add_score(t["zs"], t["y"], t["touched"], t["marked"], t["count"], t["acc"],
+               np.array([3, 7], dtype=np.int64), np.array([1.0, -1.0]))
+  el.reward(*_args(t), 0.5, 2.0, 1.0)
+  assert t["count"][0] == 2 and np.count_nonzero(t["w"]) == 0   # nothing written yet
+  assert el.weight(t["w"], t["zs"], t["y"], t["acc"], 3) == pytest.approx(1.0)
+  assert el.weight(t["w"], t["zs"], t["y"], t["acc"], 7) == pytest.approx(-1.0)
+  el.reset(*_args(t))
+  assert t["w"][3] == pytest.approx(1.0) and t["w"][7] == pytest.approx(-1.0)
+  assert t["count"][0] == 0 and not t["zs"].any()
+
+
+def test_softmax_probabilities_and_score():
+  t = el.new_trace(2 * 3)
+  t["w"][3:6] = [0.0, math.log(2.0), math.log(3.0)]      # state 1: probabilities 1:2:3
+  probs = np.empty(3)
+  policies.softmax_probabilities(t["w"], t["zs"], t["y"], t["acc"], 1, 3,
+                                 np.ones(3, dtype=np.bool_), probs)
+  np.testing.assert_allclose(probs, [1 / 6, 2 / 6, 3 / 6])
+  policies.softmax_probabilities(t["w"], t["zs"], t["y"], t["acc"], 1, 3,
+                                 np.array([True, False, True]), probs)
+  np.testing.assert_allclose(probs, [0.25, 0.0, 0.75])
+  state = rng.make_state(1)
+  index, psi = np.empty(3, dtype=np.int64), np.empty(3)
+  a = policies.softmax_act(*_args(t), 1, 3, np.ones(3, dtype=np.bool_), state, probs, index,
+                           psi)
+  expected = -np.array([1 / 6, 2 / 6, 3 / 6])
+  expected[a] += 1.0                                       # psi = e_a - pi
+  np.testing.assert_allclose(t["zs"][3:6], expected)
+  assert t["zs"][3:6].sum() == pytest.approx(0.0, abs=1e-12)
+
+
+def test_gaussian_sigmoid_policy_and_score():
+  t = el.new_trace(20)
+  active = np.arange(0, 18, 2, dtype=np.int64)           # 9 active tiles
+  t["w"][active] = np.linspace(-1, 1, 9) + 0.5           # mean m = 0.5
+  state = rng.make_state(3)
+  probe = state.copy()
+  u = 0.5 + rng.normal(probe)
+  r = policies.gaussian_act(*_args(t), active, 15.0, state, np.empty(9))
+  assert r == pytest.approx(15.0 * (2.0 / (1.0 + math.exp(-u)) - 1.0))
+  np.testing.assert_allclose(t["zs"][active], (u - 0.5) / 9)     # psi = (u - m) phi / sum phi
+  assert not t["zs"][1::2].any()
+  assert policies.gaussian_greedy(t["w"], np.zeros(20), np.zeros(20), np.array([0.0, 1.0]),
+                                  active, 15.0) == pytest.approx(15 * math.tanh(0.25))
+
+
+def test_cmac_activates_nine_tiles_wraps_and_shares():
+  coder = tiles.TileCoder((0.0, 0.0, -180.0, -15.0), (150.0, 150.0, 180.0, 15.0),
+                          (5, 5, 36, 5), (False, False, True, False), 9)
+  assert coder.size == 9 * 4500
+  a = coder.active([40.0, 40.0, 10.0, 0.0])
+  assert len(a) == 9 and len(set(a)) == 9
+  assert all(k * 4500 <= i < (k + 1) * 4500 for k, i in enumerate(a))
+  # The heading wraps: -180 and 179.99 are neighbours, +180 is -180.
+  assert len(set(coder.active([40, 40, -180.0, 0])) & set(coder.active([40, 40, 179.99, 0]))) >= 7
+  np.testing.assert_array_equal(coder.active([40, 40, 180.0, 0]), coder.active([40, 40, -180.0, 0]))
+  # Neighbouring states share tiles, distant ones share none.
+  near = set(coder.active([41.0, 40.0, 10.5, 0.1]))
+  assert len(near & set(a)) >= 6
+  assert not set(coder.active([140.0, 120.0, -100.0, 12.0])) & set(a)
+  # Outside the box the edge tiles are used.
+  np.testing.assert_array_equal(coder.active([-5.0, 40, 10, 0]), coder.active([0.0, 40, 10, 0]))
+  with pytest.raises(ValueError, match="high > low"):
+    tiles.TileCoder((0.0,), (0.0,), (5,), (False,))
+
+
+def test_watkins_q_lambda_hand_worked():
+  # 3 states x 2 actions, alpha 0.5, lambda 0.9, gamma 1.
+  q = np.zeros(6)
+  index, value, count = qlambda.new_trace(16)
+  # (s0, a1) -R=-1-> s1, next action a0 greedy (all zero: a tie counts as greedy).
+  d = qlambda.update(q, 2, index, value, count, 0, 1, -1.0, 1, 0, False, 0.5, 1.0, 0.9)
+  assert d == -1.0
+  np.testing.assert_allclose(q, [0, -0.5, 0, 0, 0, 0])
+  assert count[0] == 1 and value[0] == pytest.approx(0.9)
+  # (s1, a0) -R=-1-> s2, next action a1 also greedy (tie): delta = -1.
+  d = qlambda.update(q, 2, index, value, count, 1, 0, -1.0, 2, 1, False, 0.5, 1.0, 0.9)
+  assert d == -1.0
+  np.testing.assert_allclose(q, [0, -0.5 - 0.45, -0.5, 0, 0, 0])
+  np.testing.assert_allclose(sorted(value[:count[0]]), [0.81, 0.9])
+  # (s2, a1) -R=10-> terminal: delta = 10, all traced pairs move, traces cleared.
+  d = qlambda.update(q, 2, index, value, count, 2, 1, 10.0, 0, 0, True, 0.5, 1.0, 0.9)
+  assert d == 10.0
+  np.testing.assert_allclose(q, [0, -0.95 + 0.5 * 10 * 0.81, -0.5 + 0.5 * 10 * 0.9, 0, 0, 5.0])
+  assert count[0] == 0
+
+
+def test_watkins_cuts_the_trace_after_an_exploratory_action():
+  q = np.array([0.0, 0.0, 1.0, 0.0])            # in s1 action 0 is greedy
+  index, value, count = qlambda.new_trace(8)
+  qlambda.update(q, 2, index, value, count, 0, 0, 0.0, 1, 1, False, 0.1, 1.0, 0.9)
+  assert count[0] == 0                          # a' = 1 is not greedy: e <- 0
+  qlambda.update(q, 2, index, value, count, 0, 0, 0.0, 1, 0, False, 0.1, 1.0, 0.9)
+  assert count[0] == 1
+
+
+def test_replacing_traces_clear_the_other_actions_of_the_state():
+  q = np.zeros(4)
+  index, value, count = qlambda.new_trace(8)
+  qlambda.update(q, 2, index, value, count, 0, 0, 0.0, 0, 1, False, 0.1, 1.0, 1.0)
+  qlambda.update(q, 2, index, value, count, 0, 1, 0.0, 1, 0, False, 0.1, 1.0, 1.0)
+  traces = dict(zip(index[:count[0]], value[:count[0]]))
+  assert traces.get(0, 0.0) == 0.0 and traces[1] == 1.0
+
+
+def test_generator_is_reproducible_and_well_spread():
+  a, b = rng.make_state(42), rng.make_state(42)
+  xs = np.array([rng.uniform(a) for _ in range(20000)])
+  assert all(rng.uniform(b) == x for x in xs[:100])
+  assert 0.0 <= xs.min() and xs.max() < 1.0 and abs(xs.mean() - 0.5) < 0.01
+  normals = np.array([rng.normal(a) for _ in range(20000)])
+  assert abs(normals.mean()) < 0.03 and abs(normals.std() - 1.0) < 0.03
+  counts = np.bincount([rng.randint(a, 8) for _ in range(8000)], minlength=8)
+  assert counts.min() > 850
+  with pytest.raises(ValueError, match="integer"):
+    rng.make_state(1.5)
+
+
+def test_q_learner_object_matches_the_rule_functions():
+  learner = agents.QLambda(3, 2, alpha=0.5, lam=0.9, epsilon=0.0)
+  state = rng.make_state(0)
+  learner.start()
+  a0 = learner.act(0, None, state, True)
+  learner.observe(-1.0, 1, False, False, True)
+  a1 = learner.act(1, None, state, True)
+  learner.observe(10.0, None, True, True, True)
+  q = np.zeros(6)
+  index, value, count = qlambda.new_trace(16)
+  qlambda.update(q, 2, index, value, count, 0, a0, -1.0, 1, a1, False, 0.5, 1.0, 0.9)
+  qlambda.update(q, 2, index, value, count, 1, a1, 10.0, 0, 0, True, 0.5, 1.0, 0.9)
+  np.testing.assert_array_equal(learner.q, q)
+  assert learner.count[0] == 0
