@@ -36,6 +36,69 @@ def _cmd_bench(args):
   return 0
 
 
+def _progress_bar(total, quiet, label):
+  """A tqdm bar (episodes per second and the current figure), silent off a terminal."""
+  from tqdm import tqdm
+  disable = quiet or not sys.stderr.isatty()
+  bar = tqdm(total=total, unit="ep", desc=label, disable=disable, dynamic_ncols=True)
+
+  def update(done, _total, summary):
+    bar.update(done - bar.n)
+    bar.set_postfix({k: f"{v:.3f}" for k, v in summary.items()})
+  return bar, update
+
+
+def _cmd_train(args):
+  import json
+  import pathlib
+
+  from hpg_mj.experiments import kinds
+  task = kinds.load_task(args.task_file)
+  seed = task.section("protocol")["seed"] if args.seed is None else args.seed
+  episodes = task.section("protocol")["episodes"] if args.episodes is None else args.episodes
+  bar, update = _progress_bar(episodes, args.quiet or args.json, task.path.stem)
+  try:
+    agent, record, wall = kinds.train(task, episodes=episodes, seed=seed, backend=args.backend,
+                                      progress=update)
+  finally:
+    bar.close()
+  out = pathlib.Path(args.out) if args.out else pathlib.Path("runs") / f"{task.path.stem}-seed{seed}"
+  metrics = agent.metrics(record)
+  metrics.update({"task": str(task.path), "seed": seed, "episodes": episodes,
+                  "backend": args.backend or agent.backend, "wall_seconds": round(wall, 3)})
+  kinds.save(agent, out, record, {"metrics": metrics})
+  metrics["agent_dir"] = str(out)
+  if args.json:
+    print(json.dumps(metrics))
+  else:
+    for key, value in metrics.items():
+      print(f"{key}: {value}")
+  return 0
+
+
+def _cmd_evaluate(args):
+  import json
+  import time
+
+  from hpg_mj.experiments import kinds
+  agent, _, meta = kinds.load(args.agent_dir)
+  if args.seed is not None:
+    agent.set_seed(args.seed)
+  backend = args.backend or agent.backend
+  start = time.perf_counter()
+  record = agent.run(args.episodes, backend, learn=False, sample=args.policy == "sampled")
+  metrics = agent.metrics(record)
+  metrics.update({"agent_dir": str(args.agent_dir), "episodes": args.episodes,
+                  "backend": backend, "policy": args.policy,
+                  "wall_seconds": round(time.perf_counter() - start, 3)})
+  if args.json:
+    print(json.dumps(metrics))
+  else:
+    for key, value in metrics.items():
+      print(f"{key}: {value}")
+  return 0
+
+
 def _cmd_demo(args):
   """The README's main job (for now): a video of the scripted ship, the verification
   and the environment benchmark."""
@@ -78,6 +141,25 @@ def build_parser():
   p.add_argument("--backend", choices=["mujoco", "analytic"], default="mujoco")
   p.set_defaults(func=_cmd_render)
 
+  p = sub.add_parser("train", help="train the agent of a task file and save it")
+  p.add_argument("task_file")
+  p.add_argument("--episodes", type=int, default=None, help="override [protocol] episodes")
+  p.add_argument("--seed", type=int, default=None, help="override [protocol] seed")
+  p.add_argument("--backend", choices=["analytic", "mujoco"], default=None)
+  p.add_argument("--out", default=None, help="agent folder (default runs/<task>-seed<S>)")
+  p.add_argument("--json", action="store_true", help="print one JSON object of metrics")
+  p.add_argument("--quiet", action="store_true", help="no progress bar")
+  p.set_defaults(func=_cmd_train)
+
+  p = sub.add_parser("evaluate", help="run a saved agent without learning")
+  p.add_argument("agent_dir")
+  p.add_argument("--episodes", type=int, default=1000)
+  p.add_argument("--seed", type=int, default=None)
+  p.add_argument("--backend", choices=["analytic", "mujoco"], default=None)
+  p.add_argument("--policy", choices=["greedy", "sampled"], default="greedy")
+  p.add_argument("--json", action="store_true")
+  p.set_defaults(func=_cmd_evaluate)
+
   p = sub.add_parser("bench", help="print speed figures")
   p.add_argument("what", choices=["envs"])
   p.add_argument("--seconds", type=float, default=1.0, help="measuring time per row")
@@ -98,7 +180,7 @@ def main(argv=None):
     args.task = "steer" if args.domain == "ship" else "fuel"
   try:
     return args.func(args)
-  except ValueError as err:
+  except (ValueError, FileNotFoundError) as err:
     print(f"hpg-mj {args.command}: error: {err}", file=sys.stderr)
     return 2
 

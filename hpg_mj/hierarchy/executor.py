@@ -75,10 +75,12 @@ class Executor:
     self.rng_state = rng_state
     self.primitive_steps = 0
 
-  def run_episode(self, start=None, learn=True):
+  def run_episode(self, start=None, learn=True, sample=None):
     """One episode from `start` (or the environment's own start). Returns
-    (return, primitive steps, last Step)."""
+    (return, primitive steps, last Step). Without learning the policies are
+    sampled (`sample=True`) or followed greedily (the default)."""
     self._learn = learn
+    self._sample = learn if sample is None else (sample or learn)
     self._steps = 0
     self._over = False
     obs = self.adapter.reset(start)
@@ -106,7 +108,7 @@ class Executor:
                         dtype=np.bool_)
         if not mask.any():
           raise RuntimeError(f"subtask {node.name!r} has no available child in state {obs!r}")
-      choice = learner.act(node.view(call, obs), mask, self.rng_state, self._learn)
+      choice = learner.act(node.view(call, obs), mask, self.rng_state, self._sample)
       if len(children) == 1 and isinstance(self.graph.nodes[children[0].node], Primitive) \
           and self.graph.nodes[children[0].node].action is None:
         child_reward, step = self._primitive(call, choice)

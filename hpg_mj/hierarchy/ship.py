@@ -136,7 +136,7 @@ class ShipHybrid:
     ship_compiled.sample_start(self.rng_state, start)
     return start
 
-  def train_stepwise(self, adapter, episodes, learn=True, start=None):
+  def train_stepwise(self, adapter, episodes, learn=True, start=None, sample=None):
     """Episodes through an environment adapter (Gymnasium or dm_control ship).
 
     Starts are drawn from this agent's generator (as the compiled loop does),
@@ -149,7 +149,7 @@ class ShipHybrid:
     for i in range(episodes):
       self._row = record[i]
       begin = np.array(start, dtype=np.float64) if start is not None else self.sample_start()
-      total, steps, last = run.run_episode(begin, learn=learn)
+      total, steps, last = run.run_episode(begin, learn=learn, sample=sample)
       self._row[ship_compiled.PASSED] = last.info.get("event") == "gate"
       self._row[ship_compiled.STEPS] = steps
       self._row[ship_compiled.RETURN] = total
@@ -157,14 +157,15 @@ class ShipHybrid:
         self.episodes += 1
     return record
 
-  def train_compiled(self, episodes, learn=True, start=None):
+  def train_compiled(self, episodes, learn=True, start=None, sample=None):
     """Episodes in the fused compiled loop over the analytic ship."""
+    sample = learn if sample is None else (sample or learn)
     c = self.config
     record = np.zeros((episodes, ship_compiled.N_RECORD))
     d, s = self.low[rules.DIAGONAL].trace, self.low[rules.STRAIGHT].trace
     fixed = np.empty(0) if start is None else np.array(start, dtype=np.float64)
     ship_compiled.train(
-        episodes, learn, self.rng_state, self.root.q, self.root.index, self.root.value,
+        episodes, learn, sample, self.rng_state, self.root.q, self.root.index, self.root.value,
         self.root.count, c.root_alpha, c.root_lambda, self.schedule, self.outcomes,
         self.counts, c.epsilon_threshold, c.epsilon_every, c.epsilon_divisor,
         d["w"], d["zs"], d["y"], d["touched"], d["marked"], d["count"], d["acc"],

@@ -35,7 +35,7 @@ def sample_start(rng_state, out):
 @numba.njit(cache=True)
 def run_low_level(state, direction, low_w, low_zs, low_y, low_touched, low_marked, low_count,
                   low_acc, tile_low, tile_width, tile_n, tile_wrap, tile_offsets, alpha_low,
-                  gamma_low, learn, rng_state, steps_before, max_steps_episode,
+                  gamma_low, learn, sample, rng_state, steps_before, max_steps_episode,
                   max_steps_call, scratch_tiles, scratch_psi, samples, local_samples,
                   local_state, origin, task_rewards):
   """One call of a low-level subtask from `state` (modified in place).
@@ -53,7 +53,7 @@ def run_low_level(state, direction, low_w, low_zs, low_y, low_touched, low_marke
     core.global_to_local(state, origin, direction, local_state)
     tiles_mod.active_tiles(local_state, tile_low, tile_width, tile_n, tile_wrap, tile_offsets,
                            scratch_tiles)
-    if learn:
+    if sample:
       r = policies.gaussian_act(low_w, low_zs, low_y, low_touched, low_marked, low_count,
                                 low_acc, scratch_tiles, rules.R_MAX, rng_state, scratch_psi)
     else:
@@ -73,13 +73,14 @@ def run_low_level(state, direction, low_w, low_zs, low_y, low_touched, low_marke
 
 
 @numba.njit(cache=True)
-def train(n_episodes, learn, rng_state, q, q_index, q_value, q_count, alpha_root, lam,
+def train(n_episodes, learn, sample, rng_state, q, q_index, q_value, q_count, alpha_root, lam,
           schedule, outcomes, counts, eps_threshold, eps_every, eps_divisor,
           diag_w, diag_zs, diag_y, diag_touched, diag_marked, diag_count, diag_acc,
           str_w, str_zs, str_y, str_touched, str_marked, str_count, str_acc,
           tile_low, tile_width, tile_n, tile_wrap, tile_offsets, alpha_low, gamma_low,
           max_steps_episode, max_steps_call, record, fixed_start, task_rewards):
-  """Trains (or, with learn=False, runs greedily) for `n_episodes` episodes.
+  """Trains for `n_episodes` episodes; with learn=False it only runs the policy,
+  sampling it (sample=True) or greedily (sample=False: epsilon 0, u = m).
 
   `task_rewards` = [gate bonus, out-of-bounds penalty] (SPEC: +100, -100).
   `record` (n_episodes, N_RECORD) receives one row per episode. With
@@ -102,7 +103,7 @@ def train(n_episodes, learn, rng_state, q, q_index, q_value, q_count, alpha_root
     steps = 0
     total = 0.0
     cell = rules.root_cell(state[0], state[1])
-    epsilon = schedule[0] if learn else 0.0
+    epsilon = schedule[0] if sample else 0.0
     a = qlambda.epsilon_greedy(q, cell, rules.N_DIRECTIONS, epsilon, rng_state)
     row = record[episode]
     row[:] = 0.0
@@ -112,13 +113,13 @@ def train(n_episodes, learn, rng_state, q, q_index, q_value, q_count, alpha_root
         g_event, l_event, reward, k = run_low_level(
             state, a, diag_w, diag_zs, diag_y, diag_touched, diag_marked, diag_count, diag_acc,
             tile_low, tile_width, tile_n, tile_wrap, tile_offsets, alpha_low, gamma_low, learn,
-            rng_state, steps, max_steps_episode, max_steps_call, scratch_tiles, scratch_psi,
+            sample, rng_state, steps, max_steps_episode, max_steps_call, scratch_tiles, scratch_psi,
             samples, local_samples, local_state, origin, task_rewards)
       else:
         g_event, l_event, reward, k = run_low_level(
             state, a, str_w, str_zs, str_y, str_touched, str_marked, str_count, str_acc,
             tile_low, tile_width, tile_n, tile_wrap, tile_offsets, alpha_low, gamma_low, learn,
-            rng_state, steps, max_steps_episode, max_steps_call, scratch_tiles, scratch_psi,
+            sample, rng_state, steps, max_steps_episode, max_steps_call, scratch_tiles, scratch_psi,
             samples, local_samples, local_state, origin, task_rewards)
       if g_event == core.NO_EVENT and steps + k < max_steps_episode:
         success = l_event == core.SUCCESS

@@ -3,7 +3,8 @@ the compiled rule functions (the same ones the fused loops call).
 
 The protocol the executor uses:
   start()                                   the subtask is called (Eq. 3: z <- 0)
-  act(features, mask, rng_state, learn)     choose a child (or a continuous action)
+  act(features, mask, rng_state, sample)    choose a child (or a continuous action),
+                                            sampling the policy or taking its greedy choice
   observe(signal, next_features, done, terminal, learn)
                                             the child returned with signal R + G
 """
@@ -66,9 +67,9 @@ class SoftmaxPolicyGradient(_PolicyGradient):
     self._psi = np.empty(self.n_actions)
     self._all = np.ones(self.n_actions, dtype=np.bool_)
 
-  def act(self, features, mask, rng_state, learn):
+  def act(self, features, mask, rng_state, sample):
     mask = self._all if mask is None else mask
-    if learn:
+    if sample:
       return policies.softmax_act(*_trace_args(self.trace), int(features), self.n_actions, mask,
                                   rng_state, self._probs, self._index, self._psi)
     t = self.trace
@@ -87,8 +88,8 @@ class GaussianPolicyGradient(_PolicyGradient):
     self._psi = np.empty(int(n_active))
     self.sample_when_evaluating = sample_when_evaluating
 
-  def act(self, features, mask, rng_state, learn):
-    if learn:
+  def act(self, features, mask, rng_state, sample):
+    if sample:
       return policies.gaussian_act(*_trace_args(self.trace), features, self.r_max, rng_state,
                                    self._psi)
     t = self.trace
@@ -127,12 +128,12 @@ class QLambda:
     qlambda.clear(self.count)
     self._pending = None
 
-  def act(self, features, mask, rng_state, learn):
+  def act(self, features, mask, rng_state, sample):
     s = int(features)
-    epsilon = self.current_epsilon() if learn else 0.0
+    epsilon = self.current_epsilon() if sample else 0.0
     a = qlambda.epsilon_greedy(self.q, s, self.n_actions, epsilon, rng_state)
     p = self._pending
-    if learn and p is not None and p.waiting:
+    if p is not None and p.waiting:
       qlambda.update(self.q, self.n_actions, self.index, self.value, self.count, p.state,
                      p.action, p.signal, p.next_state, a, False, self.alpha, self.gamma,
                      self.lam)
@@ -152,6 +153,7 @@ class QLambda:
       self._pending = None
     else:
       p.signal, p.next_state, p.waiting = signal, int(next_features), True
+    # (Without learning nothing is pending, so act() makes no backup.)
 
   def parameters(self):
     return self.q.copy()

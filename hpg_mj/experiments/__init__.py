@@ -1,0 +1,1 @@
+"""Task files, training runs, metrics and saved agents."""

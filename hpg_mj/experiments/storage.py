@@ -1,0 +1,93 @@
+"""Saved agents: arrays in `arrays.npz` (loaded with allow_pickle=False) and
+metadata in `agent.json`, with a format name, a version and the arrays'
+SHA-256, so that a damaged or foreign folder is refused with a clear error.
+Both files are written to temporary names and renamed into place.
+"""
+import hashlib
+import io
+import json
+import os
+import pathlib
+
+import numpy as np
+
+FORMAT = "hpg_mj-agent"
+VERSION = 1
+ARRAYS = "arrays.npz"
+METADATA = "agent.json"
+
+
+class AgentFileError(ValueError):
+  """A saved agent that cannot be loaded; the message says why and where."""
+
+
+def _atomic_write(path, data: bytes):
+  tmp = path.with_name(path.name + ".tmp")
+  with open(tmp, "wb") as f:
+    f.write(data)
+    f.flush()
+    os.fsync(f.fileno())
+  os.replace(tmp, path)
+
+
+def save(directory, kind, arrays, metadata):
+  """Writes `arrays` (name -> ndarray) and `metadata` (JSON-able dict) to `directory`."""
+  directory = pathlib.Path(directory)
+  directory.mkdir(parents=True, exist_ok=True)
+  buffer = io.BytesIO()
+  np.savez(buffer, **{k: np.asarray(v) for k, v in arrays.items()})
+  blob = buffer.getvalue()
+  meta = dict(metadata)
+  meta.update({"format": FORMAT, "version": VERSION, "kind": kind,
+               "arrays_sha256": hashlib.sha256(blob).hexdigest(),
+               "array_names": sorted(arrays)})
+  _atomic_write(directory / ARRAYS, blob)
+  _atomic_write(directory / METADATA, (json.dumps(meta, indent=2) + "\n").encode())
+  return directory
+
+
+def load(directory):
+  """Returns (metadata, arrays) of a saved agent, or raises AgentFileError."""
+  directory = pathlib.Path(directory)
+  meta_path, arrays_path = directory / METADATA, directory / ARRAYS
+  if not meta_path.is_file() or not arrays_path.is_file():
+    raise AgentFileError(f"{directory} is not a saved hpg_mj agent: it needs {METADATA} and "
+                         f"{ARRAYS}")
+  try:
+    meta = json.loads(meta_path.read_text())
+  except (json.JSONDecodeError, UnicodeDecodeError) as err:
+    raise AgentFileError(f"{meta_path} is damaged: not valid JSON ({err})") from None
+  if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+    raise AgentFileError(f"{meta_path} is not an hpg_mj agent (format "
+                         f"{meta.get('format') if isinstance(meta, dict) else None!r}, "
+                         f"expected {FORMAT!r})")
+  if meta.get("version") != VERSION:
+    raise AgentFileError(f"{meta_path} has format version {meta.get('version')!r}; this "
+                         f"hpg_mj reads version {VERSION}")
+  blob = arrays_path.read_bytes()
+  if hashlib.sha256(blob).hexdigest() != meta.get("arrays_sha256"):
+    raise AgentFileError(f"{arrays_path} is damaged: its SHA-256 does not match {METADATA}")
+  try:
+    with np.load(io.BytesIO(blob), allow_pickle=False) as data:
+      arrays = {name: data[name] for name in data.files}
+  except Exception as err:  # noqa: BLE001  (numpy raises many kinds on a bad archive)
+    raise AgentFileError(f"{arrays_path} is damaged: {err}") from None
+  if sorted(arrays) != meta.get("array_names"):
+    raise AgentFileError(f"{arrays_path} holds {sorted(arrays)}, but {METADATA} lists "
+                         f"{meta.get('array_names')}")
+  return meta, arrays
+
+
+def restore_into(target: dict, arrays: dict, where):
+  """Copies saved arrays into an agent's arrays of the same names, shapes and dtypes."""
+  missing = set(target) - set(arrays)
+  extra = set(arrays) - set(target)
+  if missing or extra:
+    raise AgentFileError(f"{where}: arrays do not fit this agent (missing {sorted(missing)}, "
+                         f"unexpected {sorted(extra)})")
+  for name, dst in target.items():
+    src = arrays[name]
+    if src.shape != dst.shape or src.dtype != dst.dtype:
+      raise AgentFileError(f"{where}: array {name!r} is {src.dtype}{list(src.shape)}, this "
+                           f"agent needs {dst.dtype}{list(dst.shape)}")
+    dst[...] = src

@@ -1,0 +1,124 @@
+"""Task files are validated before anything runs; saved agents round-trip exactly
+and damaged or foreign ones are refused."""
+import json
+import pathlib
+
+import numpy as np
+import pytest
+
+from hpg_mj import cli
+from hpg_mj.experiments import kinds, storage, taskfile
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+SHIP = REPO / "tasks" / "ship_hybrid.toml"
+
+
+def _variant(tmp_path, old, new):
+  text = SHIP.read_text()
+  assert old in text
+  path = tmp_path / "variant.toml"
+  path.write_text(text.replace(old, new, 1))
+  return path
+
+
+def test_shipped_task_files_load():
+  task = kinds.load_task(SHIP)
+  assert task.kind == "ship_hybrid"
+  assert task.section("root")["alpha"] == 0.1
+  assert task.section("low_level")["tiles"] == (5, 5, 36, 5)
+
+
+@pytest.mark.parametrize("old,new,message", [
+    ("alpha = 0.1", "alpah = 0.1", r"\[root\] unknown key\(s\) \['alpah'\]; allowed: .*'alpha'"),
+    ("alpha = 0.1", "alpha = \"fast\"", r"\[root\] alpha must be a number, got 'fast'"),
+    ("episodes = 50000", "", r"\[protocol\] episodes is missing \(an integer\)"),
+    ("episodes = 50000", "episodes = 5.5", r"\[protocol\] episodes must be an integer"),
+    ("kind = \"ship_hybrid\"", "kind = \"ship_magic\"", r"kind = 'ship_magic' is not allowed"),
+    ("backend = \"analytic\"", "backend = \"bullet\"", r"allowed: \['analytic', 'mujoco'\]"),
+    ("tiles = [5, 5, 36, 5]", "tiles = [5, 5, 36]", r"tiles must be a list of 4 positive"),
+    ("[protocol]", "[protocols]", r"unknown section\(s\) \['protocols'\]"),
+    ("lambda = 0.9", "lambda = 1.9", r"\[root\] lambda = 1.9 is out of range"),
+    ("seed = 0", "seed = 0\nseed = 1", r"not valid TOML"),
+])
+def test_malformed_task_files_are_refused(tmp_path, old, new, message):
+  path = _variant(tmp_path, old, new)
+  with pytest.raises(taskfile.TaskFileError, match=message) as info:
+    kinds.build(kinds.load_task(path))
+  assert str(path) in str(info.value)
+
+
+def test_cli_train_refuses_a_bad_file_before_running(tmp_path, capsys):
+  path = _variant(tmp_path, "alpha = 0.1", "alpah = 0.1")
+  assert cli.main(["train", str(path), "--out", str(tmp_path / "agent")]) == 2
+  assert "unknown key" in capsys.readouterr().err
+  assert not (tmp_path / "agent").exists()
+
+
+def test_train_save_load_and_resume_exactly(tmp_path):
+  task = kinds.load_task(SHIP)
+  agent, record, _ = kinds.train(task, episodes=300, seed=3)
+  kinds.save(agent, tmp_path / "a", record)
+  loaded, loaded_record, meta = kinds.load(tmp_path / "a")
+  np.testing.assert_array_equal(loaded_record, record)
+  assert meta["episodes"] == 300 and loaded.episodes_trained == 300
+  for name, value in agent.arrays().items():
+    np.testing.assert_array_equal(loaded.arrays()[name], value)
+  # Continuing the loaded agent == continuing the original: the state is whole.
+  more_a = agent.run(100, "analytic")
+  more_b = loaded.run(100, "analytic")
+  np.testing.assert_array_equal(more_a, more_b)
+  for name, value in agent.arrays().items():
+    np.testing.assert_array_equal(loaded.arrays()[name], value)
+
+
+def test_damaged_and_foreign_agents_are_refused(tmp_path):
+  task = kinds.load_task(SHIP)
+  agent, record, _ = kinds.train(task, episodes=10, seed=0)
+  good = tmp_path / "good"
+  kinds.save(agent, good, record)
+  # Damaged arrays.
+  damaged = tmp_path / "damaged"
+  damaged.mkdir()
+  (damaged / "agent.json").write_text((good / "agent.json").read_text())
+  blob = bytearray((good / "arrays.npz").read_bytes())
+  blob[len(blob) // 2] ^= 0xFF
+  (damaged / "arrays.npz").write_bytes(bytes(blob))
+  with pytest.raises(storage.AgentFileError, match="damaged: its SHA-256 does not match"):
+    kinds.load(damaged)
+  # Foreign metadata.
+  foreign = tmp_path / "foreign"
+  foreign.mkdir()
+  (foreign / "arrays.npz").write_bytes((good / "arrays.npz").read_bytes())
+  (foreign / "agent.json").write_text(json.dumps({"format": "something-else"}))
+  with pytest.raises(storage.AgentFileError, match="not an hpg_mj agent"):
+    kinds.load(foreign)
+  (foreign / "agent.json").write_text("{not json")
+  with pytest.raises(storage.AgentFileError, match="not valid JSON"):
+    kinds.load(foreign)
+  with pytest.raises(storage.AgentFileError, match="needs agent.json and arrays.npz"):
+    kinds.load(tmp_path / "nowhere")
+  # A future version.
+  meta = json.loads((good / "agent.json").read_text())
+  meta["version"] = 99
+  (foreign / "agent.json").write_text(json.dumps(meta))
+  with pytest.raises(storage.AgentFileError, match="version 99"):
+    kinds.load(foreign)
+  # Pickled objects are never loaded.
+  assert "allow_pickle=False" in pathlib.Path(storage.__file__).read_text()
+
+
+def test_cli_train_and_evaluate_print_json(tmp_path, capsys):
+  out = tmp_path / "agent"
+  assert cli.main(["train", str(SHIP), "--episodes", "1200", "--seed", "1", "--out", str(out),
+                   "--json"]) == 0
+  metrics = json.loads(capsys.readouterr().out)
+  for key in ("gate_pass_rate", "steps_to_gate", "calls_per_episode", "diagonal_success_rate",
+              "straight_success_rate", "control_steps", "wall_seconds"):
+    assert key in metrics
+  assert metrics["episodes_measured"] == 1000
+  assert cli.main(["evaluate", str(out), "--episodes", "20", "--json"]) == 0
+  evaluation = json.loads(capsys.readouterr().out)
+  assert evaluation["episodes_measured"] == 20 and evaluation["policy"] == "greedy"
+  assert cli.main(["evaluate", str(out), "--episodes", "3", "--backend", "mujoco",
+                   "--policy", "sampled", "--json"]) == 0
+  assert json.loads(capsys.readouterr().out)["backend"] == "mujoco"
