@@ -115,7 +115,34 @@ def bench_envs(min_seconds=1.0):
 
 def format_rows(rows):
   width = max(len(name) for name, _, _ in rows)
-  lines = [f"{'environment':<{width}}  {'steps per second':>18}  unit"]
+  lines = [f"{'':<{width}}  {'steps per second':>18}  unit"]
   for name, unit, rate in rows:
     lines.append(f"{name:<{width}}  {rate:>18,.0f}  {unit}")
   return "\n".join(lines)
+
+
+def bench_train(min_seconds=2.0):
+  """Rows of (name, unit, steps per second) for the training paths."""
+  from hpg_mj import suite
+  from hpg_mj.hierarchy import executor
+  from hpg_mj.hierarchy import ship as ship_hierarchy
+  from hpg_mj.hierarchy import ship_compiled as sc
+
+  rows = []
+  agent = ship_hierarchy.ShipHybrid(seed=0)
+  agent.train_compiled(50)                          # compile, warm up
+  steps, start = 0, time.perf_counter()
+  while time.perf_counter() - start < min_seconds:
+    steps += int(agent.train_compiled(1000)[:, sc.STEPS].sum())
+  rows.append(("ship hybrid, compiled loop, learning (analytic)", "control steps/s",
+               _rate(steps, time.perf_counter() - start)))
+
+  agent = ship_hierarchy.ShipHybrid(seed=0)
+  adapter = executor.DmControlAdapter(suite.load("ship", "steer", {"random": 0}))
+  agent.train_stepwise(adapter, 2)
+  steps, start = 0, time.perf_counter()
+  while time.perf_counter() - start < min_seconds:
+    steps += int(agent.train_stepwise(adapter, 5)[:, sc.STEPS].sum())
+  rows.append(("ship hybrid, step by step through dm_control (MuJoCo)", "control steps/s",
+               _rate(steps, time.perf_counter() - start)))
+  return rows

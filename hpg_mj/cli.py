@@ -30,9 +30,10 @@ def _cmd_render(args):
 
 def _cmd_bench(args):
   from hpg_mj import bench
-  if args.what != "envs":
-    raise SystemExit(f"hpg-mj bench: unknown benchmark {args.what!r}; valid: envs")
-  print(bench.format_rows(bench.bench_envs(min_seconds=args.seconds)))
+  if args.what == "envs":
+    print(bench.format_rows(bench.bench_envs(min_seconds=args.seconds)))
+  else:
+    print(bench.format_rows(bench.bench_train(min_seconds=max(args.seconds, 2.0))))
   return 0
 
 
@@ -161,7 +162,7 @@ def build_parser():
   p.set_defaults(func=_cmd_evaluate)
 
   p = sub.add_parser("bench", help="print speed figures")
-  p.add_argument("what", choices=["envs"])
+  p.add_argument("what", choices=["envs", "train"])
   p.add_argument("--seconds", type=float, default=1.0, help="measuring time per row")
   p.set_defaults(func=_cmd_bench)
 
