@@ -23,6 +23,9 @@ import numpy as np
 
 # Below this trace scale the representation is folded (exactness: values grow as 1/g).
 _RESCALE_BELOW = 1e-4
+# A discounted trace entry that has decayed below this is dropped at a fold, so the
+# list of live entries (and the cost of a fold) stays bounded however long the episode.
+_DROP_BELOW = 1e-12
 
 
 def new_trace(n_weights: int, initial=0.0):
@@ -51,17 +54,20 @@ def fold(w, zs, y, touched, marked, count, acc, keep_trace):
   d = acc[0]
   g = acc[1]
   n = count[0]
+  live = 0
   for k in range(n):
     i = touched[k]
     w[i] += zs[i] * d - y[i]
     y[i] = 0.0
     if keep_trace:
       zs[i] *= g
-    else:
-      zs[i] = 0.0
-      marked[i] = False
-  if not keep_trace:
-    count[0] = 0
+      if abs(zs[i]) >= _DROP_BELOW:
+        touched[live] = i
+        live += 1
+        continue
+    zs[i] = 0.0
+    marked[i] = False
+  count[0] = live
   acc[0] = 0.0
   acc[1] = 1.0
 

@@ -102,11 +102,26 @@ def squash(u, r_max):
 
 
 @numba.njit(cache=True)
+def tile_mean(w, tiles):
+  """m over the active tiles of plain weights (no pending trace)."""
+  total = 0.0
+  for k in range(tiles.shape[0]):
+    total += w[tiles[k]]
+  return total / tiles.shape[0]
+
+
+@numba.njit(cache=True)
+def gaussian_draw(m, rng_state):
+  """u ~ Normal(m, 1)."""
+  return m + rng.normal(rng_state)
+
+
+@numba.njit(cache=True)
 def gaussian_act(w, zs, y, touched, marked, count, acc, tiles, r_max, rng_state, psi):
   """Samples u ~ Normal(m, 1), adds psi = (u - m) phi / sum(phi) to the trace,
   and returns the action r. `psi` is scratch of the length of `tiles`."""
   m = gaussian_mean(w, zs, y, acc, tiles)
-  u = m + rng.normal(rng_state)
+  u = gaussian_draw(m, rng_state)
   g = (u - m) / tiles.shape[0]
   for k in range(tiles.shape[0]):
     psi[k] = g
