@@ -158,3 +158,106 @@ def train_actor_critic(n_episodes, learn, sample, rng_state, actor_w,
     record[episode, PASSED] = event == core.SUCCESS
     record[episode, STEPS] = steps
     record[episode, RETURN] = total
+
+
+# ---- agents: both training paths over the same arrays ------------------------
+
+class _FlatShipAgent:
+  """Shared by the flat agents: a one-node task graph for the step-by-step path."""
+
+  def __init__(self, seed, max_steps, gate_reward, out_of_bounds_reward):
+    from hpg_mj.learners import rng
+    self.rng_state = rng.make_state(seed)
+    self.max_steps = int(max_steps)
+    self.task_rewards = np.array([gate_reward, out_of_bounds_reward], dtype=np.float64)
+    self.episodes = 0
+
+  def _fixed(self, start):
+    return np.empty(0) if start is None else np.array(start, dtype=np.float64)
+
+  def graph(self):
+    from hpg_mj.hierarchy.graph import Primitive, Subtask, TaskGraph
+    return TaskGraph("policy", [
+        Subtask("policy", children=["turn"], learner=self.learner, view=self.view,
+                termination=lambda call, step: False),     # flat: ends with the episode
+        Primitive("turn"),
+    ])
+
+  def train_stepwise(self, adapter, episodes, learn=True, start=None, sample=None):
+    from hpg_mj.hierarchy import executor
+    run = executor.Executor(self.graph(), adapter, self.rng_state)
+    record = np.zeros((episodes, N_RECORD))
+    for i in range(episodes):
+      begin = np.array(start, dtype=np.float64) if start is not None else self._start()
+      total, steps, last = run.run_episode(begin, learn=learn, sample=sample)
+      record[i] = (last.info.get("event") == "gate", steps, total)
+    if learn:
+      self.episodes += episodes
+    return record
+
+  def _start(self):
+    s = np.empty(4)
+    ship_compiled.sample_start(self.rng_state, s)
+    return s
+
+
+class FlatPolicyGradient(_FlatShipAgent):
+  """Flat PGRL (SPEC section 4)."""
+
+  def __init__(self, alpha=0.01, trace_gamma=0.99, tilings=9, tiles=(20, 20, 36, 5), seed=0,
+               max_steps=core.STEER_MAX_STEPS, gate_reward=core.GATE_REWARD,
+               out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD):
+    from hpg_mj.learners import agents
+    super().__init__(seed, max_steps, gate_reward, out_of_bounds_reward)
+    self.coder = actor_coder(tilings, tiles)
+    self.arrays = self.coder.arrays()
+    self.learner = agents.GaussianPolicyGradient(self.coder.size, tilings, rules.R_MAX, alpha,
+                                                 trace_gamma)
+    self._active = np.empty(tilings, dtype=np.int64)
+
+  def view(self, call, obs):
+    tiles_mod.active_tiles(np.asarray(obs, dtype=np.float64), *self.arrays, self._active)
+    return self._active
+
+  def train_compiled(self, episodes, learn=True, start=None, sample=None):
+    sample = learn if sample is None else (sample or learn)
+    t = self.learner.trace
+    record = np.zeros((episodes, N_RECORD))
+    train_flat_pg(episodes, learn, sample, self.rng_state, t["w"], t["zs"], t["y"],
+                  t["touched"], t["marked"], t["count"], t["acc"], *self.arrays,
+                  self.learner.alpha, self.learner.gamma, self.max_steps, record,
+                  self._fixed(start), self.task_rewards)
+    if learn:
+      self.episodes += episodes
+    return record
+
+
+class ActorCriticAgent(_FlatShipAgent):
+  """Konda's actor-critic (SPEC section 4)."""
+
+  def __init__(self, alpha_actor=1e-4, alpha_critic=0.01, lam=0.9, actor_tilings=9,
+               actor_tiles=(20, 20, 36, 5), critic_tilings=9, critic_tiles=(5, 5, 36, 5, 30),
+               seed=0, max_steps=core.STEER_MAX_STEPS, gate_reward=core.GATE_REWARD,
+               out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD):
+    from hpg_mj.learners import agents
+    super().__init__(seed, max_steps, gate_reward, out_of_bounds_reward)
+    self.actor = actor_coder(actor_tilings, actor_tiles)
+    self.critic = critic_coder(critic_tilings, critic_tiles)
+    self.learner = agents.ActorCritic(self.actor, self.critic, rules.R_MAX, alpha_actor,
+                                      alpha_critic, lam)
+
+  def view(self, call, obs):
+    return np.array(obs, dtype=np.float64)
+
+  def train_compiled(self, episodes, learn=True, start=None, sample=None):
+    sample = learn if sample is None else (sample or learn)
+    lr = self.learner
+    c = lr.critic
+    record = np.zeros((episodes, N_RECORD))
+    train_actor_critic(episodes, learn, sample, self.rng_state, lr.actor_w, *lr.actor_arrays,
+                       c["w"], c["zs"], c["y"], c["touched"], c["marked"], c["count"], c["acc"],
+                       *lr.critic_arrays, lr.alpha_actor, lr.alpha_critic, lr.lam,
+                       self.max_steps, record, self._fixed(start), self.task_rewards)
+    if learn:
+      self.episodes += episodes
+    return record

@@ -4,6 +4,7 @@ import time
 
 import numpy as np
 
+from hpg_mj.baselines import ship_flat
 from hpg_mj.experiments import storage
 from hpg_mj.experiments import taskfile
 from hpg_mj.hierarchy import ship as ship_hierarchy
@@ -19,64 +20,30 @@ def _window(record):
   return record[-METRIC_WINDOW:]
 
 
-class ShipHybridKind:
-  """The hierarchical hybrid on ship steering (paper section 5.2)."""
+_SHIP_ENVIRONMENT = {"world": ("choice", ("ship",)), "backend": ("choice", BACKENDS),
+                     "gate_reward": "float", "out_of_bounds_reward": "float",
+                     "max_steps": "int"}
+_TASK = {"kind": "str", "description": "str"}
+_PROTOCOL = {"episodes": "int", "seed": "int"}
 
-  name = "ship_hybrid"
-  schema = {
-      "task": {"kind": "str", "description": "str"},
-      "environment": {"world": ("choice", ("ship",)), "backend": ("choice", BACKENDS),
-                      "gate_reward": "float", "out_of_bounds_reward": "float",
-                      "max_steps": "int"},
-      "root": {"learner": ("choice", ("q_lambda",)), "alpha": "float", "lambda": "float",
-               "epsilon": "float", "epsilon_threshold": "float", "epsilon_window": "int",
-               "epsilon_every": "int", "epsilon_divisor": "float"},
-      "low_level": {"learner": ("choice", ("policy_gradient",)), "alpha": "float",
-                    "trace_gamma": "float", "tilings": "int", "tiles": ("int_list", 4),
-                    "max_steps": "int"},
-      "protocol": {"episodes": "int", "seed": "int"},
-  }
+
+def _require(task, checks):
+  """Refuses out-of-range values, naming the file and the key."""
+  for section, key, ok in checks:
+    if not ok:
+      raise taskfile.TaskFileError(f"{task.path}: [{section}] {key} = "
+                                   f"{task.section(section)[key]!r} is out of range")
+
+
+class _ShipKind:
+  """What the ship agents share: the environment, backends, seeds and saving."""
 
   def __init__(self, task, seed):
-    env, root, low = task.section("environment"), task.section("root"), task.section("low_level")
-    checks = [("root", "alpha", root["alpha"] > 0), ("root", "lambda", 0 <= root["lambda"] <= 1),
-              ("root", "epsilon", 0 <= root["epsilon"] <= 1),
-              ("root", "epsilon_divisor", root["epsilon_divisor"] >= 1),
-              ("root", "epsilon_window", root["epsilon_window"] >= 1),
-              ("root", "epsilon_every", root["epsilon_every"] >= 1),
-              ("low_level", "alpha", low["alpha"] > 0),
-              ("low_level", "trace_gamma", 0 < low["trace_gamma"] <= 1),
-              ("low_level", "tilings", low["tilings"] >= 1),
-              ("low_level", "max_steps", low["max_steps"] >= 1),
-              ("environment", "max_steps", env["max_steps"] >= 1)]
-    for section, key, ok in checks:
-      if not ok:
-        raise taskfile.TaskFileError(f"{task.path}: [{section}] {key} = "
-                                     f"{task.section(section)[key]!r} is out of range")
+    env = task.section("environment")
+    _require(task, [("environment", "max_steps", env["max_steps"] >= 1)])
     self.task = task
     self.backend = env["backend"]
-    self.config = ship_hierarchy.ShipHybridConfig(
-        root_alpha=root["alpha"], root_lambda=root["lambda"], epsilon=root["epsilon"],
-        epsilon_threshold=root["epsilon_threshold"], epsilon_window=root["epsilon_window"],
-        epsilon_every=root["epsilon_every"], epsilon_divisor=root["epsilon_divisor"],
-        low_alpha=low["alpha"], low_gamma=low["trace_gamma"], tilings=low["tilings"],
-        tiles=low["tiles"], subtask_max_steps=low["max_steps"],
-        episode_max_steps=env["max_steps"], gate_reward=env["gate_reward"],
-        out_of_bounds_reward=env["out_of_bounds_reward"])
-    self.agent = ship_hierarchy.ShipHybrid(self.config, seed=seed)
     self.seed = seed
-
-  # The agent's whole training state, for saving and exact resumption.
-  def arrays(self):
-    a = self.agent
-    out = {"rng_state": a.rng_state, "root_q": a.root.q, "root_trace_index": a.root.index,
-           "root_trace_value": a.root.value, "root_trace_count": a.root.count,
-           "epsilon_schedule": a.schedule, "subtask_outcomes": a.outcomes,
-           "subtask_counts": a.counts}
-    for name, learner in (("diagonal", a.low[0]), ("straight", a.low[1])):
-      for key, value in learner.trace.items():
-        out[f"{name}_{key}"] = value
-    return out
 
   @property
   def episodes_trained(self):
@@ -91,11 +58,11 @@ class ShipHybridKind:
 
     import hpg_mj  # noqa: F401
     from hpg_mj.hierarchy import executor
-    c = self.config
-    env = gymnasium.make("hpg_mj/ShipSteering-v0", backend=backend, max_steps=c.episode_max_steps,
-                         gate_reward=c.gate_reward,
-                         out_of_bounds_reward=c.out_of_bounds_reward).unwrapped
-    return executor.GymAdapter(env)
+    env = self.task.section("environment")
+    gym_env = gymnasium.make("hpg_mj/ShipSteering-v0", backend=backend,
+                             max_steps=env["max_steps"], gate_reward=env["gate_reward"],
+                             out_of_bounds_reward=env["out_of_bounds_reward"]).unwrapped
+    return executor.GymAdapter(gym_env)
 
   def run(self, episodes, backend, learn=True, sample=None):
     """Trains (or evaluates) for `episodes`; returns the per-episode record."""
@@ -107,29 +74,160 @@ class ShipHybridKind:
 
   @staticmethod
   def progress(record):
-    return {"gate": float(record[:, sc.PASSED].mean())}
-
-  @staticmethod
-  def metrics(record):
-    w = _window(record)
-    passed = w[:, sc.PASSED] > 0
-    diag_runs, str_runs = w[:, sc.DIAG_RUNS].sum(), w[:, sc.STRAIGHT_RUNS].sum()
-    return {
-        "episodes_measured": int(len(w)),
-        "gate_pass_rate": float(passed.mean()),
-        "steps_to_gate": float(w[passed, sc.STEPS].mean()) if passed.any() else None,
-        "calls_per_episode": float(w[:, sc.CALLS].mean()),
-        "diagonal_success_rate": float(w[:, sc.DIAG_SUCCESS].sum() / diag_runs) if diag_runs else None,
-        "straight_success_rate": float(w[:, sc.STRAIGHT_SUCCESS].sum() / str_runs) if str_runs else None,
-        "mean_return": float(w[:, sc.RETURN].mean()),
-        "control_steps": int(record[:, sc.STEPS].sum()),
-    }
+    return {"gate": float(record[:, 0].mean())}
 
   def set_seed(self, seed):
     self.agent.rng_state[:] = rng.make_state(seed)
 
 
-KINDS = {k.name: k for k in (ShipHybridKind,)}
+def _gate_metrics(record, passed_col, steps_col, return_col):
+  w = _window(record)
+  passed = w[:, passed_col] > 0
+  return {
+      "episodes_measured": int(len(w)),
+      "gate_pass_rate": float(passed.mean()),
+      "steps_to_gate": float(w[passed, steps_col].mean()) if passed.any() else None,
+      "mean_return": float(w[:, return_col].mean()),
+      "control_steps": int(record[:, steps_col].sum()),
+  }
+
+
+class ShipHybridKind(_ShipKind):
+  """The hierarchical hybrid on ship steering (paper section 5.2)."""
+
+  name = "ship_hybrid"
+  schema = {
+      "task": _TASK,
+      "environment": _SHIP_ENVIRONMENT,
+      "root": {"learner": ("choice", ("q_lambda",)), "alpha": "float", "lambda": "float",
+               "epsilon": "float", "epsilon_threshold": "float", "epsilon_window": "int",
+               "epsilon_every": "int", "epsilon_divisor": "float"},
+      "low_level": {"learner": ("choice", ("policy_gradient",)), "alpha": "float",
+                    "trace_gamma": "float", "tilings": "int", "tiles": ("int_list", 4),
+                    "max_steps": "int"},
+      "protocol": _PROTOCOL,
+  }
+
+  def __init__(self, task, seed):
+    super().__init__(task, seed)
+    env, root, low = task.section("environment"), task.section("root"), task.section("low_level")
+    _require(task, [("root", "alpha", root["alpha"] > 0), ("root", "lambda", 0 <= root["lambda"] <= 1),
+              ("root", "epsilon", 0 <= root["epsilon"] <= 1),
+              ("root", "epsilon_divisor", root["epsilon_divisor"] >= 1),
+              ("root", "epsilon_window", root["epsilon_window"] >= 1),
+              ("root", "epsilon_every", root["epsilon_every"] >= 1),
+              ("low_level", "alpha", low["alpha"] > 0),
+              ("low_level", "trace_gamma", 0 < low["trace_gamma"] <= 1),
+              ("low_level", "tilings", low["tilings"] >= 1),
+              ("low_level", "max_steps", low["max_steps"] >= 1)])
+    self.config = ship_hierarchy.ShipHybridConfig(
+        root_alpha=root["alpha"], root_lambda=root["lambda"], epsilon=root["epsilon"],
+        epsilon_threshold=root["epsilon_threshold"], epsilon_window=root["epsilon_window"],
+        epsilon_every=root["epsilon_every"], epsilon_divisor=root["epsilon_divisor"],
+        low_alpha=low["alpha"], low_gamma=low["trace_gamma"], tilings=low["tilings"],
+        tiles=low["tiles"], subtask_max_steps=low["max_steps"],
+        episode_max_steps=env["max_steps"], gate_reward=env["gate_reward"],
+        out_of_bounds_reward=env["out_of_bounds_reward"])
+    self.agent = ship_hierarchy.ShipHybrid(self.config, seed=seed)
+
+  # The agent's whole training state, for saving and exact resumption.
+  def arrays(self):
+    a = self.agent
+    out = {"rng_state": a.rng_state, "root_q": a.root.q, "root_trace_index": a.root.index,
+           "root_trace_value": a.root.value, "root_trace_count": a.root.count,
+           "epsilon_schedule": a.schedule, "subtask_outcomes": a.outcomes,
+           "subtask_counts": a.counts}
+    for name, learner in (("diagonal", a.low[0]), ("straight", a.low[1])):
+      for key, value in learner.trace.items():
+        out[f"{name}_{key}"] = value
+    return out
+
+  @staticmethod
+  def metrics(record):
+    out = _gate_metrics(record, sc.PASSED, sc.STEPS, sc.RETURN)
+    w = _window(record)
+    diag_runs, str_runs = w[:, sc.DIAG_RUNS].sum(), w[:, sc.STRAIGHT_RUNS].sum()
+    out.update({
+        "calls_per_episode": float(w[:, sc.CALLS].mean()),
+        "diagonal_success_rate": float(w[:, sc.DIAG_SUCCESS].sum() / diag_runs) if diag_runs else None,
+        "straight_success_rate": float(w[:, sc.STRAIGHT_SUCCESS].sum() / str_runs) if str_runs else None,
+    })
+    return out
+
+
+class ShipFlatPGKind(_ShipKind):
+  """Flat policy gradient on the full ship task (SPEC section 4)."""
+
+  name = "ship_flat_pg"
+  schema = {
+      "task": _TASK,
+      "environment": _SHIP_ENVIRONMENT,
+      "policy": {"learner": ("choice", ("policy_gradient",)), "alpha": "float",
+                 "trace_gamma": "float", "tilings": "int", "tiles": ("int_list", 4)},
+      "protocol": _PROTOCOL,
+  }
+
+  def __init__(self, task, seed):
+    super().__init__(task, seed)
+    env, pol = task.section("environment"), task.section("policy")
+    _require(task, [("policy", "alpha", pol["alpha"] > 0),
+                    ("policy", "trace_gamma", 0 < pol["trace_gamma"] <= 1),
+                    ("policy", "tilings", pol["tilings"] >= 1)])
+    self.agent = ship_flat.FlatPolicyGradient(
+        alpha=pol["alpha"], trace_gamma=pol["trace_gamma"], tilings=pol["tilings"],
+        tiles=pol["tiles"], seed=seed, max_steps=env["max_steps"],
+        gate_reward=env["gate_reward"], out_of_bounds_reward=env["out_of_bounds_reward"])
+
+  def arrays(self):
+    out = {"rng_state": self.agent.rng_state}
+    out.update({f"policy_{k}": v for k, v in self.agent.learner.trace.items()})
+    return out
+
+  @staticmethod
+  def metrics(record):
+    return _gate_metrics(record, ship_flat.PASSED, ship_flat.STEPS, ship_flat.RETURN)
+
+
+class ShipActorCriticKind(_ShipKind):
+  """Konda's actor-critic on the full ship task (SPEC section 4)."""
+
+  name = "ship_actor_critic"
+  schema = {
+      "task": _TASK,
+      "environment": _SHIP_ENVIRONMENT,
+      "actor": {"learner": ("choice", ("policy_gradient",)), "alpha": "float", "tilings": "int",
+                "tiles": ("int_list", 4)},
+      "critic": {"learner": ("choice", ("td_lambda",)), "alpha": "float", "lambda": "float",
+                 "tilings": "int", "tiles": ("int_list", 5)},
+      "protocol": _PROTOCOL,
+  }
+
+  def __init__(self, task, seed):
+    super().__init__(task, seed)
+    env, actor, critic = task.section("environment"), task.section("actor"), task.section("critic")
+    _require(task, [("actor", "alpha", actor["alpha"] > 0), ("critic", "alpha", critic["alpha"] > 0),
+                    ("critic", "lambda", 0 < critic["lambda"] <= 1),
+                    ("actor", "tilings", actor["tilings"] >= 1),
+                    ("critic", "tilings", critic["tilings"] >= 1)])
+    self.agent = ship_flat.ActorCriticAgent(
+        alpha_actor=actor["alpha"], alpha_critic=critic["alpha"], lam=critic["lambda"],
+        actor_tilings=actor["tilings"], actor_tiles=actor["tiles"],
+        critic_tilings=critic["tilings"], critic_tiles=critic["tiles"], seed=seed,
+        max_steps=env["max_steps"], gate_reward=env["gate_reward"],
+        out_of_bounds_reward=env["out_of_bounds_reward"])
+
+  def arrays(self):
+    lr = self.agent.learner
+    out = {"rng_state": self.agent.rng_state, "actor_w": lr.actor_w}
+    out.update({f"critic_{k}": v for k, v in lr.critic.items()})
+    return out
+
+  @staticmethod
+  def metrics(record):
+    return _gate_metrics(record, ship_flat.PASSED, ship_flat.STEPS, ship_flat.RETURN)
+
+
+KINDS = {k.name: k for k in (ShipHybridKind, ShipFlatPGKind, ShipActorCriticKind)}
 
 
 def schemas():

@@ -35,7 +35,7 @@ def save(directory, kind, arrays, metadata):
   directory = pathlib.Path(directory)
   directory.mkdir(parents=True, exist_ok=True)
   buffer = io.BytesIO()
-  np.savez(buffer, **{k: np.asarray(v) for k, v in arrays.items()})
+  np.savez_compressed(buffer, **{k: np.asarray(v) for k, v in arrays.items()})
   blob = buffer.getvalue()
   meta = dict(metadata)
   meta.update({"format": FORMAT, "version": VERSION, "kind": kind,

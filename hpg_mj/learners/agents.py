@@ -157,3 +157,77 @@ class QLambda:
 
   def parameters(self):
     return self.q.copy()
+
+
+class ActorCritic:
+  """Konda's actor-critic for a continuous action (SPEC section 4), step by step.
+
+  `features` are the raw state; the actor is a Gaussian-with-sigmoid policy over
+  `actor_coder`'s tiles (plain weights, stepped along Q(s, a) psi); the critic is
+  linear over `critic_coder`'s tiles of (state, r), learned by TD(lambda) on an
+  Eq. 3-style lazy trace. The order of draws and updates is that of
+  `hpg_mj.baselines.ship_flat.train_actor_critic`.
+  """
+
+  def __init__(self, actor_coder, critic_coder, r_max, alpha_actor, alpha_critic, lam):
+    from hpg_mj.learners import tiles as tiles_mod
+    self._tiles = tiles_mod
+    self.actor_arrays = actor_coder.arrays()
+    self.critic_arrays = critic_coder.arrays()
+    self.actor_w = np.zeros(actor_coder.size)
+    self.critic = el.new_trace(critic_coder.size)
+    self.r_max = float(r_max)
+    self.alpha_actor, self.alpha_critic, self.lam = float(alpha_actor), float(alpha_critic), float(lam)
+    self._a = np.empty(actor_coder.n_tilings, dtype=np.int64)
+    self._c = np.empty(critic_coder.n_tilings, dtype=np.int64)
+    self._ones = np.ones(critic_coder.n_tilings)
+    self._sa = np.empty(len(critic_coder.low))
+    self._next = None
+
+  def _choose(self, state, rng_state, sample):
+    a = np.empty_like(self._a)
+    self._tiles.active_tiles(np.asarray(state, dtype=np.float64), *self.actor_arrays, a)
+    m = policies.tile_mean(self.actor_w, a)
+    u = policies.gaussian_draw(m, rng_state) if sample else m
+    return a, m, u
+
+  def _q(self, state, u):
+    self._sa[:4] = state
+    self._sa[4] = policies.squash(u, self.r_max)
+    c = np.empty_like(self._c)
+    self._tiles.active_tiles(self._sa, *self.critic_arrays, c)
+    t = self.critic
+    q = 0.0
+    for i in c:
+      q += el.weight(t["w"], t["zs"], t["y"], t["acc"], i)
+    return c, q
+
+  def start(self):
+    el.reset(*_trace_args(self.critic))
+    self._next = None
+
+  def act(self, features, mask, rng_state, sample):
+    if self._next is None:
+      a, m, u = self._choose(features, rng_state, sample)
+    else:
+      a, m, u = self._next
+    self._current = (a, m, u, features)
+    self._rng, self._sample = rng_state, sample
+    return policies.squash(u, self.r_max)
+
+  def observe(self, signal, next_features, done, terminal, learn):
+    a, m, u, state = self._current
+    c, q = self._q(state, u)
+    target = signal
+    self._next = None
+    if not terminal:
+      self._next = self._choose(next_features, self._rng, self._sample)
+      _, q_next = self._q(next_features, self._next[2])
+      target += q_next
+    if learn:
+      el.add_score(self.critic["zs"], self.critic["y"], self.critic["touched"],
+                   self.critic["marked"], self.critic["count"], self.critic["acc"], c,
+                   self._ones)
+      el.reward(*_trace_args(self.critic), self.alpha_critic, target - q, self.lam)
+      step = self.alpha_actor * q * (u - m) / len(a)
+      self.actor_w[a] += step
