@@ -137,6 +137,18 @@ def bench_train(min_seconds=2.0):
   rows.append(("ship hybrid, compiled loop, learning (analytic)", "control steps/s",
                _rate(steps, time.perf_counter() - start)))
 
+  from hpg_mj.baselines import ship_flat
+  for label, make in (("ship flat policy gradient, compiled, learning",
+                       lambda: ship_flat.FlatPolicyGradient(seed=0)),
+                      ("ship actor-critic, compiled, learning",
+                       lambda: ship_flat.ActorCriticAgent(seed=0))):
+    flat = make()
+    flat.train_compiled(5)
+    steps, start = 0, time.perf_counter()
+    while time.perf_counter() - start < min_seconds:
+      steps += int(flat.train_compiled(100)[:, ship_flat.STEPS].sum())
+    rows.append((label, "control steps/s", _rate(steps, time.perf_counter() - start)))
+
   agent = ship_hierarchy.ShipHybrid(seed=0)
   adapter = executor.DmControlAdapter(suite.load("ship", "steer", {"random": 0}))
   agent.train_stepwise(adapter, 2)
