@@ -149,6 +149,21 @@ def bench_train(min_seconds=2.0):
       steps += int(flat.train_compiled(100)[:, ship_flat.STEPS].sum())
     rows.append((label, "control steps/s", _rate(steps, time.perf_counter() - start)))
 
+  from hpg_mj.baselines import taxi_flat_q
+  from hpg_mj.hierarchy import taxi_compiled
+  for label, make, column in (
+      ("taxi-fuel HPG, compiled, learning", lambda: taxi_compiled.TaxiHPG(seed=0),
+       taxi_compiled.STEPS),
+      ("taxi-fuel flat Q-learning, compiled, learning", lambda: taxi_flat_q.FlatQ(seed=0),
+       taxi_flat_q.STEPS)):
+    taxi_agent = make()
+    run = taxi_agent.run if hasattr(taxi_agent, "run") else taxi_agent.train_compiled
+    run(200)
+    steps, start = 0, time.perf_counter()
+    while time.perf_counter() - start < min_seconds:
+      steps += int(run(5000)[:, column].sum())
+    rows.append((label, "primitive steps/s", _rate(steps, time.perf_counter() - start)))
+
   agent = ship_hierarchy.ShipHybrid(seed=0)
   adapter = executor.DmControlAdapter(suite.load("ship", "steer", {"random": 0}))
   agent.train_stepwise(adapter, 2)

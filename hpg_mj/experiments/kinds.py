@@ -10,6 +10,7 @@ from hpg_mj.experiments import taskfile
 from hpg_mj.hierarchy import ship as ship_hierarchy
 from hpg_mj.hierarchy import ship_compiled as sc
 from hpg_mj.learners import rng
+from hpg_mj.worlds import taxi_core
 
 METRIC_WINDOW = 1000   # metrics are over the last 1,000 episodes
 
@@ -35,15 +36,9 @@ def _require(task, checks):
                                    f"{task.section(section)[key]!r} is out of range")
 
 
-class _ShipKind:
-  """What the ship agents share: the environment, backends, seeds and saving."""
-
-  def __init__(self, task, seed):
-    env = task.section("environment")
-    _require(task, [("environment", "max_steps", env["max_steps"] >= 1)])
-    self.task = task
-    self.backend = env["backend"]
-    self.seed = seed
+class _Kind:
+  """What every agent kind shares: `self.agent` holds the learners, its
+  generator (`rng_state`) and its count of learning episodes."""
 
   @property
   def episodes_trained(self):
@@ -52,6 +47,20 @@ class _ShipKind:
   @episodes_trained.setter
   def episodes_trained(self, value):
     self.agent.episodes = int(value)
+
+  def set_seed(self, seed):
+    self.agent.rng_state[:] = rng.make_state(seed)
+
+
+class _ShipKind(_Kind):
+  """What the ship agents share: the environment, backends, seeds and saving."""
+
+  def __init__(self, task, seed):
+    env = task.section("environment")
+    _require(task, [("environment", "max_steps", env["max_steps"] >= 1)])
+    self.task = task
+    self.backend = env["backend"]
+    self.seed = seed
 
   def _env(self, backend):
     import gymnasium
@@ -76,8 +85,6 @@ class _ShipKind:
   def progress(record):
     return {"gate": float(record[:, 0].mean())}
 
-  def set_seed(self, seed):
-    self.agent.rng_state[:] = rng.make_state(seed)
 
 
 def _gate_metrics(record, passed_col, steps_col, return_col):
@@ -227,7 +234,142 @@ class ShipActorCriticKind(_ShipKind):
     return _gate_metrics(record, ship_flat.PASSED, ship_flat.STEPS, ship_flat.RETURN)
 
 
-KINDS = {k.name: k for k in (ShipHybridKind, ShipFlatPGKind, ShipActorCriticKind)}
+_TAXI_ENVIRONMENT = {"world": ("choice", ("taxi",)), "backend": ("choice", BACKENDS),
+                     "fuel": "bool", "capacity": "int", "max_steps": "int"}
+
+
+class _TaxiKind(_Kind):
+  """What the taxi agents share. Backend "analytic" is the compiled loop over the
+  taxi rules; "mujoco" steps through the dm_control taxi (the MJCF board)."""
+
+  def __init__(self, task, seed):
+    env = task.section("environment")
+    _require(task, [("environment", "capacity", env["capacity"] >= 1),
+                    ("environment", "max_steps", env["max_steps"] >= 1)])
+    self.task = task
+    self.backend = env["backend"]
+    self.seed = seed
+    self.rules = taxi_core.TaxiRules(env["fuel"], capacity=env["capacity"],
+                                     max_steps=env["max_steps"])
+    self._optimal = None
+
+  def _adapter(self):
+    from hpg_mj import suite
+    from hpg_mj.hierarchy import executor
+    kwargs = {"random": 0, "max_steps": self.rules.max_steps}
+    if self.rules.fuel_enabled:
+      kwargs["capacity"] = self.rules.capacity
+    env = suite.load("taxi", "fuel" if self.rules.fuel_enabled else "classic", kwargs)
+    return executor.DmControlAdapter(env)
+
+  @staticmethod
+  def progress(record):
+    return {"return": float(record[:, 0].mean())}
+
+  def optimal_mean_return(self):
+    if self._optimal is None:
+      from hpg_mj.worlds import taxi_values
+      self._optimal = taxi_values.optimal_mean_return(self.rules.fuel_enabled,
+                                                      capacity=self.rules.capacity)
+    return self._optimal
+
+  def metrics(self, record):
+    from hpg_mj.worlds import taxi_values
+    w = _window(record)
+    optimal = self.optimal_mean_return()
+    mean = float(w[:, 0].mean())
+    return {"episodes_measured": int(len(w)), "mean_return": mean,
+            "optimal_mean_return": optimal,
+            "reaches_95_percent": bool(mean >= taxi_values.performance_threshold(optimal, 0.95)),
+            "primitive_steps": int(record[:, 1].sum())}
+
+
+
+def _level():
+  return {"learner": ("choice", ("policy_gradient",)), "alpha": "float",
+          "start_fraction": "float", "delay": "int", "ramp": "int", "trace_gamma": "float"}
+
+
+class TaxiHPGKind(_TaxiKind):
+  """Tabular HPG (Algorithm 1) on taxi-fuel (paper section 5.1)."""
+
+  name = "taxi_hpg"
+  schema = {"task": _TASK, "environment": _TAXI_ENVIRONMENT, "root": _level(),
+            "carry": _level(), "navigate": _level(), "protocol": _PROTOCOL}
+
+  def __init__(self, task, seed):
+    super().__init__(task, seed)
+    from hpg_mj.hierarchy import taxi_compiled
+    kwargs = {}
+    checks = []
+    for level in ("root", "carry", "navigate"):
+      sec = task.section(level)
+      checks += [(level, "alpha", sec["alpha"] >= 0),
+                 (level, "start_fraction", 0 <= sec["start_fraction"] <= 1),
+                 (level, "delay", sec["delay"] >= 0), (level, "ramp", sec["ramp"] >= 1),
+                 (level, "trace_gamma", 0 < sec["trace_gamma"] <= 1)]
+      kwargs.update({f"alpha_{level}": sec["alpha"], f"start_{level}": sec["start_fraction"],
+                     f"delay_{level}": sec["delay"], f"ramp_{level}": sec["ramp"],
+                     f"gamma_{level}": sec["trace_gamma"]})
+    _require(task, checks)
+    self.agent = taxi_compiled.TaxiHPG(seed=seed, config=taxi_compiled.HPGConfig(**kwargs),
+                                       task=self.rules)
+
+  def arrays(self):
+    out = {"rng_state": self.agent.rng_state}
+    names = ("root", "get", "put", "refuel", "navigate")
+    for name, trace in zip(names, self.agent.traces):
+      out.update({f"{name}_{k}": v for k, v in zip(
+          ("w", "zs", "y", "touched", "marked", "count", "acc"), trace)})
+    return out
+
+  def run(self, episodes, backend, learn=True, sample=None):
+    if backend == "analytic":
+      return self.agent.run(episodes, learn=learn, greedy=not learn and not sample)
+    if backend == "mujoco":
+      from hpg_mj.hierarchy import taxi as taxi_hierarchy
+      return taxi_hierarchy.TaxiHierarchy(self.agent).train_stepwise(
+          self._adapter(), episodes, learn=learn, sample=sample)
+    raise ValueError(f"unknown backend {backend!r}; valid backends: {list(BACKENDS)}")
+
+
+class TaxiFlatQKind(_TaxiKind):
+  """Flat Q-learning on taxi-fuel over the full state (SPEC section 5)."""
+
+  name = "taxi_flat_q"
+  schema = {"task": _TASK, "environment": _TAXI_ENVIRONMENT,
+            "policy": {"learner": ("choice", ("q_learning",)), "alpha": "float",
+                       "epsilon_start": "float", "epsilon_end": "float",
+                       "epsilon_episodes": "int", "initial": "float"},
+            "protocol": _PROTOCOL}
+
+  def __init__(self, task, seed):
+    super().__init__(task, seed)
+    from hpg_mj.baselines import taxi_flat_q
+    pol = task.section("policy")
+    _require(task, [("policy", "alpha", 0 < pol["alpha"] <= 1),
+                    ("policy", "epsilon_start", 0 <= pol["epsilon_start"] <= 1),
+                    ("policy", "epsilon_end", 0 <= pol["epsilon_end"] <= 1),
+                    ("policy", "epsilon_episodes", pol["epsilon_episodes"] >= 0)])
+    self.agent = taxi_flat_q.FlatQ(pol["alpha"], pol["epsilon_start"], pol["epsilon_end"],
+                                   pol["epsilon_episodes"], pol["initial"], seed=seed,
+                                   task=self.rules)
+
+  def arrays(self):
+    lr = self.agent.learner
+    return {"rng_state": self.agent.rng_state, "q": lr.q, "trace_index": lr.index,
+            "trace_value": lr.value, "trace_count": lr.count}
+
+  def run(self, episodes, backend, learn=True, sample=None):
+    if backend == "analytic":
+      return self.agent.train_compiled(episodes, learn=learn, sample=sample)
+    if backend == "mujoco":
+      return self.agent.train_stepwise(self._adapter(), episodes, learn=learn, sample=sample)
+    raise ValueError(f"unknown backend {backend!r}; valid backends: {list(BACKENDS)}")
+
+
+KINDS = {k.name: k for k in (ShipHybridKind, ShipFlatPGKind, ShipActorCriticKind, TaxiHPGKind,
+                             TaxiFlatQKind)}
 
 
 def schemas():

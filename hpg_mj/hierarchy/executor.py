@@ -118,7 +118,8 @@ class Executor:
         if isinstance(child, Primitive):
           child_reward, step = self._primitive(call, child.action)
         else:
-          child_call = Call(ref.node, ref.args, obs)
+          args = ref.args if ref.bind is None else {**ref.args, **ref.bind(call, obs)}
+          child_call = Call(ref.node, args, obs)
           child_reward, step, _ = self._execute(child_call, obs)
           call.steps += child_call.steps
       obs = step.obs

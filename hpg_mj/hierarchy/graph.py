@@ -32,10 +32,15 @@ class Primitive:
 
 
 class Child:
-  """A reference to a child node with its parameters: `Child("navigate", target=2)`."""
+  """A reference to a child node with its parameters: `Child("navigate", target=2)`.
 
-  def __init__(self, node: str, **args):
+  `bind(call, obs) -> dict` adds parameters decided when the child is called
+  (MAXQ's parameter binding, e.g. Get calls Navigate(t) with t = the passenger's
+  station)."""
+
+  def __init__(self, node: str, bind=None, **args):
     self.node = node
+    self.bind = bind
     self.args = dict(args)
 
   def __repr__(self):

@@ -13,6 +13,8 @@ taxi has no internal reward G. The trace is reset when a subtask starts rather
 than when it ends (line 12): the same thing, except that the final child's
 reward - a delivery's +20 - is applied with the trace still holding the
 choices that led to it, as Eq. 3 does (z is reset at s*, and R(s*, .) = 0).
+The step sizes warm up (`HPGConfig`), a deliberate departure from the paper's
+non-increasing step sizes, explained there.
 
 Algorithm 1 is recursive; numba is not good at recursion, and this graph has a
 fixed depth, so each level is its own function and the call stack is the
@@ -28,6 +30,11 @@ the choices are made. Greedy runs draw only the starts.
 
 A trace is the tuple `(w, zs, y, touched, marked, count, acc)` of `eligibility`'s
 arrays; `new_traces` makes one per subtask.
+
+Speed: measured by `hpg-mj bench train` (primitive steps per second of learning
+on one core). The levels are ordinary cached numba functions; numba's
+reference-count-free mode was tried and dropped: its cached copies of the shared
+`learners` functions would be reused by code that does allocate.
 """
 import dataclasses
 
@@ -46,38 +53,79 @@ RETURN, STEPS, OUTCOME, ILLEGAL = range(4)
 N_RECORD = 4
 
 
+# Rows of the step-size schedule array handed to the compiled loop (one column
+# per subtask id, see `HPGConfig.schedule`).
+S_ALPHA, S_START_FRACTION, S_DELAY, S_RAMP = range(4)
+
+
 @dataclasses.dataclass(frozen=True)
 class HPGConfig:
-  """HPG's hyper-parameters for the taxi (tuned to reach 95% of the optimal mean
-  return within 100,000 episodes; see tests/hierarchy/test_taxi_hpg.py)."""
-  alpha_root: float = 0.05       # Eq. 3 step size of Root
-  alpha_carry: float = 0.05      # of Get, Put and Refuel
-  alpha_navigate: float = 0.05   # of Navigate(t) (one table for the five targets)
-  gamma_root: float = 1.0        # trace discount of Root (1: Eq. 3 exactly)
-  gamma_carry: float = 1.0       # of Get, Put and Refuel
-  gamma_navigate: float = 1.0    # of Navigate(t)
-  initial: float = 0.0           # every policy parameter's start value (0: uniform policies)
+  """HPG's hyper-parameters for the taxi, by level: Root; Get, Put and Refuel
+  ("carry"); Navigate(t).
 
-  def alphas(self) -> np.ndarray:
-    """Step sizes by subtask id (taxi_rules.ROOT .. NAVIGATE)."""
-    return np.array([self.alpha_root, self.alpha_carry, self.alpha_carry, self.alpha_carry,
-                     self.alpha_navigate])
-
-  def gammas(self) -> np.ndarray:
-    return np.array([self.gamma_root, self.gamma_carry, self.gamma_carry, self.gamma_carry,
-                     self.gamma_navigate])
+  Step sizes warm up: subtask i learns with alpha_i * f_i(e) in its e-th learning
+  episode, f_i = start_i for the first delay_i episodes, then rising linearly to
+  1 over ramp_i episodes. The paper's assumptions A4-A5 ask for non-increasing
+  step sizes; a constant alpha large enough to learn in 100,000 episodes makes
+  Eq. 3 (REINFORCE, no baseline) commit early to wrong children for good: the
+  first calls are long random walks that mostly end with the tank dry, so every
+  choice in them gets the same large negative reward-to-go, pure noise that
+  drives the softmax to a corner, and a subtask whose calls from a state always
+  run dry never again sees a reward that tells its children apart. Small steps
+  while calls are long and doomed, full steps once they are short, avoid it.
+  Root also waits (delay) with a uniform policy while its children learn, or it
+  learns to avoid a child (Refuel, say) that is merely still bad.
+  """
+  alpha_root: float = 0.1            # Eq. 3 step size of Root, after warm-up
+  alpha_carry: float = 0.03          # of Get, Put and Refuel
+  alpha_navigate: float = 0.03       # of Navigate(t) (one table for the five targets)
+  start_root: float = 0.0            # f at the first episode (fraction of alpha)
+  start_carry: float = 0.1
+  start_navigate: float = 0.1
+  delay_root: int = 15_000           # episodes at the start fraction
+  delay_carry: int = 0
+  delay_navigate: int = 0
+  ramp_root: int = 20_000            # episodes of the linear rise to alpha
+  ramp_carry: int = 25_000
+  ramp_navigate: int = 25_000
+  gamma_root: float = 1.0            # trace discount (Eq. 3's variant; 1: Eq. 3 exactly)
+  gamma_carry: float = 1.0
+  gamma_navigate: float = 1.0
+  initial: float = 0.0               # every parameter's start value (0: uniform policies)
 
   def __post_init__(self):
-    for name in ("alpha_root", "alpha_carry", "alpha_navigate"):
-      value = getattr(self, name)
-      if not (np.isfinite(value) and value >= 0.0):
-        raise ValueError(f"HPGConfig: {name} must be a finite number >= 0, got {value!r}")
-    for name in ("gamma_root", "gamma_carry", "gamma_navigate"):
-      value = getattr(self, name)
-      if not 0.0 < value <= 1.0:
-        raise ValueError(f"HPGConfig: {name} must be in (0, 1], got {value!r}")
+    for level in ("root", "carry", "navigate"):
+      alpha = getattr(self, "alpha_" + level)
+      if not (np.isfinite(alpha) and alpha >= 0.0):
+        raise ValueError(f"HPGConfig: alpha_{level} must be a finite number >= 0, got {alpha!r}")
+      start = getattr(self, "start_" + level)
+      if not 0.0 <= start <= 1.0:
+        raise ValueError(f"HPGConfig: start_{level} must be in [0, 1], got {start!r}")
+      delay = getattr(self, "delay_" + level)
+      if not isinstance(delay, (int, np.integer)) or delay < 0:
+        raise ValueError(f"HPGConfig: delay_{level} must be an integer >= 0, got {delay!r}")
+      ramp = getattr(self, "ramp_" + level)
+      if not isinstance(ramp, (int, np.integer)) or ramp < 1:
+        raise ValueError(f"HPGConfig: ramp_{level} must be an integer >= 1, got {ramp!r}")
+      gamma = getattr(self, "gamma_" + level)
+      if not 0.0 < gamma <= 1.0:
+        raise ValueError(f"HPGConfig: gamma_{level} must be in (0, 1], got {gamma!r}")
     if not np.isfinite(self.initial):
       raise ValueError(f"HPGConfig: initial must be finite, got {self.initial!r}")
+
+  def _by_subtask(self, name):
+    """A per-level field as float64[5] by subtask id (ROOT, GET, PUT, REFUEL, NAVIGATE)."""
+    root, carry, navigate = (float(getattr(self, f"{name}_{level}"))
+                             for level in ("root", "carry", "navigate"))
+    return np.array([root, carry, carry, carry, navigate])
+
+  def schedule(self) -> np.ndarray:
+    """float64[4, 5]: rows S_ALPHA, S_START_FRACTION, S_DELAY, S_RAMP by subtask id."""
+    return np.stack([self._by_subtask("alpha"), self._by_subtask("start"),
+                     self._by_subtask("delay"), self._by_subtask("ramp")])
+
+  def gammas(self) -> np.ndarray:
+    return self._by_subtask("gamma")
 
 
 def new_trace(n_states: int, n_children: int, initial: float = 0.0):
@@ -119,9 +167,10 @@ def sample_start(rng_state, world, state):
   state[rules.FUEL] = fuel
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def choose(trace, abstract, n_children, mask, learn, greedy, rng_state, probs, index, psi):
-  """Algorithm 1, line 8 (and line 14 when learning: z <- z + psi)."""
+  """Algorithm 1, line 8: a child from the subtask's softmax policy in its
+  abstract state; when learning, also line 14: z <- z + psi (`softmax_act`)."""
   w, zs, y, touched, marked, count, acc = trace
   if greedy:
     return policies.softmax_greedy(w, zs, y, acc, abstract, n_children, mask)
@@ -132,27 +181,32 @@ def choose(trace, abstract, n_children, mask, learn, greedy, rng_state, probs, i
   return policies.sample_index(probs[:n_children], rng.uniform(rng_state))
 
 
-@numba.njit(cache=True)
-def start_call(trace, learn):
+@numba.njit(cache=True, inline="always")
+def begin_call(trace, learn):
   """Eq. 3: z <- 0 when a subtask is called."""
   if learn:
     w, zs, y, touched, marked, count, acc = trace
     el.reset(w, zs, y, touched, marked, count, acc)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def learn_from(trace, learn, alpha, reward, gamma):
-  """Algorithm 1, line 16 as Eq. 3: theta <- theta + alpha R z (then z <- gamma z)."""
+  """Algorithm 1, line 16 read as Eq. 3: theta <- theta + alpha R z, then z <- gamma z."""
   if learn:
     w, zs, y, touched, marked, count, acc = trace
     el.reward(w, zs, y, touched, marked, count, acc, alpha, reward, gamma)
 
 
+# The three levels of Algorithm 1's recursion. Each is the `while i has not
+# terminated` loop (lines 7-19) of its subtask; a call returns the sum of the
+# primitive rewards earned during it (R~, line 17). Nothing here allocates: the
+# scratch arrays come from the caller.
+
 @numba.njit(cache=True)
-def run_navigate(target, state, episode, world, nav, alphas, gammas, learn, greedy, rng_state,
+def run_navigate(target, nav, state, episode, world, alphas, gammas, learn, greedy, rng_state,
                  mask, probs, index, psi):
-  """One call of Navigate(target); returns the reward it earned."""
-  start_call(nav, learn)
+  """One call of Navigate(target)."""
+  begin_call(nav, learn)
   n = rules.N_CHILDREN[rules.NAVIGATE]
   total = 0.0
   while not rules.episode_over(episode) and not rules.navigate_done(target, state, world):
@@ -168,18 +222,17 @@ def run_navigate(target, state, episode, world, nav, alphas, gammas, learn, gree
 @numba.njit(cache=True)
 def run_carry(subtask, carry, nav, state, episode, world, alphas, gammas, learn, greedy,
               rng_state, mask, probs, index, psi):
-  """One call of Get, Put or Refuel (`carry` is its trace); returns its reward."""
-  start_call(carry, learn)
+  """One call of Get, Put or Refuel (`subtask`, with its trace `carry`)."""
+  begin_call(carry, learn)
   n = rules.N_CHILDREN[subtask]
   total = 0.0
   while not rules.episode_over(episode) and not rules.carry_done(subtask, state, world):
     rules.carry_children(subtask, state, world, mask)
     child = choose(carry, rules.carry_state(subtask, state), n, mask, learn, greedy, rng_state,
                    probs, index, psi)
-    target = rules.carry_child_target(subtask, child)
-    if target >= 0:
-      reward = run_navigate(target, state, episode, world, nav, alphas, gammas, learn, greedy,
-                            rng_state, mask, probs, index, psi)
+    if child == rules.CARRY_NAVIGATE:
+      reward = run_navigate(rules.carry_target(subtask, state), nav, state, episode, world,
+                            alphas, gammas, learn, greedy, rng_state, mask, probs, index, psi)
     else:
       reward = rules.primitive_step(state, episode, rules.carry_primitive(subtask), world)
     learn_from(carry, learn, alphas[subtask], reward, gammas[subtask])
@@ -190,8 +243,8 @@ def run_carry(subtask, carry, nav, state, episode, world, alphas, gammas, learn,
 @numba.njit(cache=True)
 def run_episode(root, get, put, refuel, nav, state, episode, world, alphas, gammas, learn,
                 greedy, rng_state, mask, probs, index, psi):
-  """One call of Root from `state`: the whole episode. Returns its return."""
-  start_call(root, learn)
+  """One call of Root: the whole episode from `state`. Returns its return."""
+  begin_call(root, learn)
   n = rules.N_CHILDREN[rules.ROOT]
   total = 0.0
   while not rules.episode_over(episode):
@@ -212,32 +265,52 @@ def run_episode(root, get, put, refuel, nav, state, episode, world, alphas, gamm
   return total
 
 
+@numba.njit(cache=True, inline="always")
+def step_sizes(schedule, episode_index, alphas):
+  """Writes alpha_i * f_i(e) for learning episode e (see `HPGConfig`) into `alphas`."""
+  for i in range(alphas.shape[0]):
+    fraction = schedule[S_START_FRACTION, i]
+    delay = schedule[S_DELAY, i]
+    if episode_index >= delay:
+      rise = min(1.0, (episode_index - delay + 1.0) / schedule[S_RAMP, i])
+      fraction += (1.0 - fraction) * rise
+    alphas[i] = schedule[S_ALPHA, i] * fraction
+
+
 @numba.njit(cache=True)
-def train(n_episodes, learn, greedy, rng_state, world, root, get, put, refuel, nav, alphas,
-          gammas, record, fixed_start):
+def train(n_episodes, learn, greedy, rng_state, world, root, get, put, refuel, nav, schedule,
+          first_episode, gammas, record, starts, scratch_int, scratch_float, mask):
   """Runs `n_episodes` episodes of HPG: learning (`learn`), or evaluating the
   current policies by sampling (`learn=False`) or greedily (`greedy`, which
   needs `learn=False`).
 
-  `alphas`, `gammas`: float64[5] by subtask id. `record` (n_episodes, N_RECORD)
-  receives one row per episode. With `fixed_start` of length 5 every episode
-  starts there instead of at a random start. Returns the primitive steps run.
+  `schedule` (HPGConfig.schedule) gives the step sizes of learning episode
+  `first_episode + e`; `gammas` float64[5] the trace discounts, by subtask id.
+  `record` (n_episodes, N_RECORD) receives one row per episode. `starts`
+  int64[k, 5]: with k = 0 every episode starts at random (SPEC section 5),
+  otherwise episode e starts at starts[e % k]. Scratch (nothing here
+  allocates, see above): `scratch_int` int64[12], `scratch_float` float64[13],
+  `mask` bool[MAX_CHILDREN].
+  Returns the primitive steps run.
   """
   if learn and greedy:
     raise ValueError("taxi_compiled.train: greedy runs do not learn; pass learn=False")
-  state = np.empty(5, dtype=np.int64)
-  episode = np.empty(3, dtype=np.int64)
-  mask = np.zeros(rules.MAX_CHILDREN, dtype=np.bool_)
-  probs = np.empty(rules.MAX_CHILDREN)
-  index = np.empty(rules.MAX_CHILDREN, dtype=np.int64)
-  psi = np.empty(rules.MAX_CHILDREN)
+  state = scratch_int[0:5]
+  episode = scratch_int[5:8]
+  index = scratch_int[8:12]
+  probs = scratch_float[0:4]
+  psi = scratch_float[4:8]
+  alphas = scratch_float[8:13]
   total_steps = 0
   for e in range(n_episodes):
-    if fixed_start.shape[0] == 5:
-      state[:] = fixed_start
+    if starts.shape[0] > 0:
+      for i in range(5):
+        state[i] = starts[e % starts.shape[0], i]
     else:
       sample_start(rng_state, world, state)
-    episode[:] = 0
+    for i in range(3):
+      episode[i] = 0
+    step_sizes(schedule, first_episode + e, alphas)
     ret = run_episode(root, get, put, refuel, nav, state, episode, world, alphas, gammas, learn,
                       greedy, rng_state, mask, probs, index, psi)
     record[e, RETURN] = ret
@@ -253,38 +326,47 @@ class TaxiHPG:
   and evaluation that wraps the compiled `train`."""
 
   def __init__(self, seed: int = 0, config: HPGConfig = HPGConfig(),
-               rules_: core.TaxiRules = None):
+               task: core.TaxiRules = None):
     """Args:
       seed: the integer seed of the `learners.rng` generator.
       config: the hyper-parameters (`HPGConfig`).
-      rules_: the taxi task (`taxi_core.TaxiRules`; SPEC taxi-fuel if None).
+      task: the taxi task (`taxi_core.TaxiRules`; SPEC taxi-fuel if None).
     """
     if not isinstance(config, HPGConfig):
       raise ValueError(f"TaxiHPG: config must be an HPGConfig, got {type(config).__name__}")
-    self.task = rules_ if rules_ is not None else core.TaxiRules()
+    self.task = task if task is not None else core.TaxiRules()
     self.world = rules.world_config(self.task)
     self.config = config
     self.rng_state = rng.make_state(seed)
     self.traces = new_traces(self.task.fuel_enabled, self.task.capacity, config.initial)
-    self.primitive_steps = 0   # steps of learning so far
+    self.episodes = 0          # learning episodes so far (they drive the step-size warm-up)
+    self.primitive_steps = 0   # primitive steps of learning so far
 
-  def run(self, n_episodes: int, learn: bool = True, greedy: bool = False, fixed_start=None):
+  def run(self, n_episodes: int, learn: bool = True, greedy: bool = False, starts=None):
     """`n_episodes` episodes; returns the (n_episodes, N_RECORD) record.
 
     learn=True trains; learn=False evaluates the current policies, sampling
     from them or, with greedy=True, taking each subtask's most probable child.
+    `starts`: None for random starts (SPEC section 5), or one state
+    `[row, col, passenger, destination, fuel]` or a list of them, used in turn.
     """
     if not isinstance(n_episodes, (int, np.integer)) or n_episodes < 0:
       raise ValueError(f"TaxiHPG.run: n_episodes must be an integer >= 0, got {n_episodes!r}")
     if learn and greedy:
       raise ValueError("TaxiHPG.run: greedy=True evaluates without learning; pass learn=False")
-    start = np.zeros(0, dtype=np.int64)
-    if fixed_start is not None:
-      start = np.array(self.task.check_state(fixed_start), dtype=np.int64)
+    start = np.zeros((0, 5), dtype=np.int64)
+    if starts is not None:
+      rows = np.asarray(starts)
+      rows = rows[None] if rows.ndim == 1 else rows
+      start = np.array([self.task.check_state(row) for row in rows], dtype=np.int64)
+      start = start.reshape(-1, 5)
     record = np.zeros((int(n_episodes), N_RECORD))
     steps = train(int(n_episodes), bool(learn), bool(greedy), self.rng_state, self.world,
-                  *self.traces, self.config.alphas(), self.config.gammas(), record, start)
+                  *self.traces, self.config.schedule(), self.episodes, self.config.gammas(),
+                  record, start, np.zeros(12, dtype=np.int64), np.zeros(13),
+                  np.zeros(rules.MAX_CHILDREN, dtype=np.bool_))
     if learn:
+      self.episodes += int(n_episodes)
       self.primitive_steps += int(steps)
     return record
 

@@ -3,10 +3,13 @@
 MAXQ's graph with the fuel subtask (Dietterich 2000; paper, section 5.1):
 
     Root -> {Get, Put, Refuel}
-    Get -> {Navigate(R), Navigate(G), Navigate(Y), Navigate(B), Pickup}
-    Put -> {Navigate(R), Navigate(G), Navigate(Y), Navigate(B), Dropoff}
-    Refuel -> {Navigate(F), Fillup}
+    Get -> {Navigate(t = the passenger's station), Pickup}
+    Put -> {Navigate(t = the destination), Dropoff}
+    Refuel -> {Navigate(t = F), Fillup}
     Navigate(t) -> {South, North, East, West},   t in {R, G, Y, B, F}
+
+As in Dietterich's graph, the parent binds Navigate's parameter (t/source,
+t/destination), so Get, Put and Refuel each choose between two children.
 
 For each subtask this module gives its abstract state (MAXQ-style state
 abstraction: the index of its row in the subtask's policy table), the children
@@ -27,12 +30,16 @@ Abstractions (each subtask sees only what its choice depends on):
 - Put sees (row, col, destination): 100 states, the same argument.
 - Refuel sees (row, col): 25 states. The way to F and the Fillup there do not
   depend on how much fuel is left.
-- Root sees the full state (`taxi_core.encode_state`: 6,500 with fuel, 500
-  classic). Whether to refuel first, or only after the pickup, or not at all,
-  depends on the fuel *and* on the three distances taxi -> passenger ->
-  destination and via F, so no variable can be dropped. Only reached states
-  are ever visited (start states, and the few states in which Get or Refuel
-  return), so the table is large but sparsely used.
+- Root sees (row, col, passenger station, fuel) while the passenger waits and
+  (row, col, destination, fuel) once it rides: 2 * 25 * 4 * 13 = 2,600 states
+  (200 classic, without fuel). Fuel must matter: whether to refuel first, after
+  the pickup or not at all depends on it and on the distances taxi ->
+  passenger -> destination via F. Leaving the destination out while the
+  passenger waits is the one approximation: the exact choice needs the full
+  state (6,500), and with it the hierarchy can reach the flat optimum 6.145 from
+  every start; without the destination the best mean return is 6.085 (99.0%,
+  from the SPEC start distribution), while each start context is seen three
+  times as often, which is what lets Root learn within 100,000 episodes.
 
 Children and initiation (a child already terminated in a state is not
 available there; primitives are always available):
@@ -40,14 +47,13 @@ available there; primitives are always available):
 - Root: Get while the passenger waits, Put while it is in the taxi (exactly one
   of the two), and Refuel unless the taxi stands at F with a full tank (the one
   state where Refuel is terminated). Refuel stays available with a full tank
-  elsewhere: from a start like taxi at R, passenger at G, fuel 12 the only way
-  to deliver is to top up at F on the way (R -> G -> Y takes 18 actions), and a
-  Root that could refuel only below capacity would lose 40 of the 2,400 start
-  states (its best mean return would be 5.856, not the optimal 6.145). With it,
-  the hierarchy's best policy reaches the optimum from every start.
-- Get: Navigate(t) for the four stations except the one the taxi is at, and
-  Pickup (which may be illegal: -10).
-- Put: the same with Dropoff.
+  elsewhere: from a start like taxi at R, passenger at G bound for Y, fuel 12
+  the only way to deliver is to top up at F on the way (R -> G -> Y takes 18
+  actions), and a Root that could refuel only below capacity would lose 40 of
+  the 2,400 start states (its best mean return would be 5.856 instead of 6.145).
+- Get: Navigate(passenger's station) unless the taxi is there, and Pickup
+  (illegal away from the passenger: -10).
+- Put: Navigate(destination) unless the taxi is there, and Dropoff.
 - Refuel: Navigate(F) unless the taxi is at F, and Fillup (a -1 no-op away from F).
 - Navigate(t): the four moves (a move into a wall is a -1 no-op).
 
@@ -73,15 +79,17 @@ ROOT, GET, PUT, REFUEL, NAVIGATE = range(5)
 N_SUBTASKS = 5
 SUBTASK_NAMES = ("Root", "Get", "Put", "Refuel", "Navigate")
 
-# Children, as the column of the subtask's policy table.
+# Children, as the column of the subtask's policy table. Get, Put and Refuel
+# each have two: Navigate(t) with t bound to the passenger's station, the
+# destination or F (MAXQ's parameter binding t/source, t/destination), and their
+# primitive.
 ROOT_GET, ROOT_PUT, ROOT_REFUEL = range(3)       # Root's child c is subtask c + 1
+CARRY_NAVIGATE, CARRY_PRIMITIVE = range(2)
 N_STATIONS = 4
 TARGET_F = 4                                     # Navigate's targets: R, G, Y, B, F
 N_TARGETS = 5
-CARRY_PRIMITIVE = N_STATIONS                     # Get/Put: children 0..3 Navigate(t), 4 Pickup/Dropoff
-REFUEL_NAVIGATE, REFUEL_FILLUP = range(2)
-N_CHILDREN = (3, N_STATIONS + 1, N_STATIONS + 1, 2, 4)  # Navigate's child = the move's action index
-MAX_CHILDREN = 5
+N_CHILDREN = (3, 2, 2, 2, 4)                     # Navigate's child = the move's action index
+MAX_CHILDREN = 4
 N_SQUARES = core.GRID_SIZE * core.GRID_SIZE
 
 # The state array's fields.
@@ -109,44 +117,50 @@ def world_config(rules: core.TaxiRules = None) -> np.ndarray:
 
 def n_abstract_states(fuel_enabled: bool = True, capacity: int = core.FUEL_CAPACITY):
   """Rows of each subtask's policy table, by subtask id."""
-  return (core.num_states(fuel_enabled, capacity), N_SQUARES * N_STATIONS,
+  levels = capacity + 1 if fuel_enabled else 1
+  return (2 * N_SQUARES * N_STATIONS * levels, N_SQUARES * N_STATIONS,
           N_SQUARES * N_STATIONS, N_SQUARES, N_TARGETS * N_SQUARES)
 
 
 # --- abstract states -----------------------------------------------------------
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def root_state(state, world):
-  """Root sees the full state (see the module docstring)."""
-  return core.encode_state(state[ROW], state[COL], state[PASSENGER], state[DESTINATION],
-                           state[FUEL], world[W_FUEL_ENABLED] != 0)
+  """Root sees (row, col, passenger station, fuel) while the passenger waits and
+  (row, col, destination, fuel) once it is aboard (see the module docstring)."""
+  levels = world[W_CAPACITY] + 1 if world[W_FUEL_ENABLED] != 0 else 1
+  fuel = state[FUEL] if world[W_FUEL_ENABLED] != 0 else 0
+  square = state[ROW] * core.GRID_SIZE + state[COL]
+  if state[PASSENGER] != core.IN_TAXI:
+    return (square * N_STATIONS + state[PASSENGER]) * levels + fuel
+  return ((N_SQUARES + square) * N_STATIONS + state[DESTINATION]) * levels + fuel
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def get_state(state):
   """Get sees (row, col, passenger station 0..3)."""
   return (state[ROW] * core.GRID_SIZE + state[COL]) * N_STATIONS + state[PASSENGER]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def put_state(state):
   """Put sees (row, col, destination)."""
   return (state[ROW] * core.GRID_SIZE + state[COL]) * N_STATIONS + state[DESTINATION]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def refuel_state(state):
   """Refuel sees (row, col)."""
   return state[ROW] * core.GRID_SIZE + state[COL]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def navigate_state(target, state):
   """Navigate(t) sees (t, row, col)."""
   return target * N_SQUARES + state[ROW] * core.GRID_SIZE + state[COL]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def carry_state(subtask, state):
   """The abstract state of Get, Put or Refuel (the three children of Root)."""
   if subtask == GET:
@@ -158,7 +172,7 @@ def carry_state(subtask, state):
 
 # --- where things are ----------------------------------------------------------
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def at_target(target, state, world):
   """Is the taxi at station t (0..3) or at F (`TARGET_F`)?"""
   if target == TARGET_F:
@@ -166,14 +180,14 @@ def at_target(target, state, world):
   return state[ROW] == core.STATIONS[target, 0] and state[COL] == core.STATIONS[target, 1]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def tank_full_at_f(state, world):
   return at_target(TARGET_F, state, world) and state[FUEL] == world[W_CAPACITY]
 
 
 # --- initiation: the children available in a state --------------------------------
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def root_children(state, world, mask):
   """Get while the passenger waits, Put while it rides, Refuel (fuel task only)
   unless the taxi is at F with a full tank."""
@@ -182,20 +196,25 @@ def root_children(state, world, mask):
   mask[ROOT_REFUEL] = world[W_FUEL_ENABLED] != 0 and not tank_full_at_f(state, world)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
+def carry_target(subtask, state):
+  """The target t that Get (the passenger's station), Put (the destination) or
+  Refuel (F) binds Navigate(t) to."""
+  if subtask == GET:
+    return state[PASSENGER]
+  if subtask == PUT:
+    return state[DESTINATION]
+  return TARGET_F
+
+
+@numba.njit(cache=True, inline="always")
 def carry_children(subtask, state, world, mask):
-  """Get / Put: Navigate(t) unless at t, and Pickup / Dropoff. Refuel:
-  Navigate(F) unless at F, and Fillup."""
-  if subtask == REFUEL:
-    mask[REFUEL_NAVIGATE] = not at_target(TARGET_F, state, world)
-    mask[REFUEL_FILLUP] = True
-    return
-  for t in range(N_STATIONS):
-    mask[t] = not at_target(t, state, world)
+  """Navigate(t) unless the taxi is at t already; the primitive always."""
+  mask[CARRY_NAVIGATE] = not at_target(carry_target(subtask, state), state, world)
   mask[CARRY_PRIMITIVE] = True
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def navigate_children(mask):
   """All four moves."""
   for a in range(4):
@@ -204,15 +223,7 @@ def navigate_children(mask):
 
 # --- the children's meaning ------------------------------------------------------
 
-@numba.njit(cache=True)
-def carry_child_target(subtask, child):
-  """The Navigate target of a child of Get, Put or Refuel, or -1 for its primitive."""
-  if subtask == REFUEL:
-    return TARGET_F if child == REFUEL_NAVIGATE else -1
-  return child if child < N_STATIONS else -1
-
-
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def carry_primitive(subtask):
   """The primitive child of Get (Pickup), Put (Dropoff) or Refuel (Fillup)."""
   if subtask == GET:
@@ -224,12 +235,12 @@ def carry_primitive(subtask):
 
 # --- termination ---------------------------------------------------------------
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def navigate_done(target, state, world):
   return at_target(target, state, world)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def carry_done(subtask, state, world):
   """Get: the passenger is aboard. Put: delivered. Refuel: at F with a full tank."""
   if subtask == GET:
@@ -239,14 +250,14 @@ def carry_done(subtask, state, world):
   return tank_full_at_f(state, world)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def episode_over(episode):
   return episode[E_OUTCOME] != RUNNING
 
 
 # --- the world ------------------------------------------------------------------
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def primitive_step(state, episode, action, world):
   """Executes a primitive action (Algorithm 1, line 4) and returns its reward.
 

@@ -72,13 +72,13 @@ def fold(w, zs, y, touched, marked, count, acc, keep_trace):
   acc[1] = 1.0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def reset(w, zs, y, touched, marked, count, acc):
   """z <- 0 (the subtask starts, or a state of S* is reached)."""
   fold(w, zs, y, touched, marked, count, acc, False)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def add_score(zs, y, touched, marked, count, acc, index, psi):
   """z <- z + psi, for a score with non-zeros `psi` at `index`."""
   d = acc[0]
@@ -94,7 +94,7 @@ def add_score(zs, y, touched, marked, count, acc, index, psi):
       count[0] += 1
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def reward(w, zs, y, touched, marked, count, acc, alpha, signal, gamma):
   """w <- w + alpha * signal * z, then discount the trace by gamma for the next step."""
   acc[0] += alpha * signal * acc[1]

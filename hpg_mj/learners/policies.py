@@ -16,7 +16,7 @@ from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import rng
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def softmax_probabilities(w, zs, y, acc, state, n_actions, mask, probs):
   """pi(state, .) over the actions allowed by `mask` (others get probability 0)."""
   base = state * n_actions
@@ -38,7 +38,7 @@ def softmax_probabilities(w, zs, y, acc, state, n_actions, mask, probs):
     probs[a] /= total
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def sample_index(probs, u):
   """Inverse-CDF sample from `probs` with a uniform `u`; never an action of probability 0."""
   c = 0.0
@@ -52,7 +52,7 @@ def sample_index(probs, u):
   return last
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def softmax_act(w, zs, y, touched, marked, count, acc, state, n_actions, mask, rng_state,
                 probs, index, psi):
   """Samples a child from the Gibbs policy and adds its score to the trace.
@@ -72,7 +72,7 @@ def softmax_act(w, zs, y, touched, marked, count, acc, state, n_actions, mask, r
   return a
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def softmax_greedy(w, zs, y, acc, state, n_actions, mask):
   """The most probable allowed child (lowest index on ties)."""
   best = -1

@@ -32,7 +32,7 @@ def _rotl(x, k):
   return (x << numba.uint64(k)) | (x >> numba.uint64(64 - k))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def next_u64(s):
   result = _rotl(s[1] * numba.uint64(5), 7) * numba.uint64(9)
   t = s[1] << numba.uint64(17)
@@ -45,7 +45,7 @@ def next_u64(s):
   return result
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def uniform(s):
   """A float in [0, 1) with 53 random bits."""
   return (next_u64(s) >> numba.uint64(11)) * (1.0 / 9007199254740992.0)
@@ -56,7 +56,7 @@ def uniform_range(s, low, high):
   return low + (high - low) * uniform(s)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def randint(s, n):
   """An integer in 0..n-1 (n >= 1)."""
   return min(int(uniform(s) * n), n - 1)

@@ -160,8 +160,7 @@ class Taxi(base.Task):
     self.rules = taxi_core.TaxiRules(fuel, fuel_station=fuel_station, capacity=capacity,
                                      start_fuel=start_fuel, max_steps=max_steps, who=self.name)
     self.strict = bool(strict)
-    self._initial_state = (None if initial_state is None
-                           else self.rules.check_state(initial_state, strict=self.strict))
+    self.initial_state = initial_state
     self._steps = 0
     self._reward = 0.0
     self._terminated = False
@@ -170,6 +169,16 @@ class Taxi(base.Task):
   @property
   def fuel_enabled(self):
     return self.rules.fuel_enabled
+
+  @property
+  def initial_state(self):
+    """A fixed start for the next episodes, or None for random starts."""
+    return self._initial_state
+
+  @initial_state.setter
+  def initial_state(self, state):
+    self._initial_state = (None if state is None
+                           else self.rules.check_state(state, strict=self.strict))
 
   def initialize_episode(self, physics):
     """Puts the pieces on a random start (or the fixed `initial_state`)."""

@@ -122,3 +122,26 @@ def test_cli_train_and_evaluate_print_json(tmp_path, capsys):
   assert cli.main(["evaluate", str(out), "--episodes", "3", "--backend", "mujoco",
                    "--policy", "sampled", "--json"]) == 0
   assert json.loads(capsys.readouterr().out)["backend"] == "mujoco"
+
+
+TASK_FILES = sorted((REPO / "tasks").glob("*.toml"))
+
+
+def test_every_kind_has_a_task_file():
+  assert {kinds.load_task(p).kind for p in TASK_FILES} == set(kinds.KINDS)
+
+
+@pytest.mark.parametrize("path", TASK_FILES, ids=lambda p: p.stem)
+def test_every_task_file_trains_saves_and_resumes_exactly(tmp_path, path):
+  task = kinds.load_task(path)
+  agent, record, _ = kinds.train(task, episodes=60, seed=2)
+  metrics = agent.metrics(record)
+  assert metrics["episodes_measured"] == 60
+  kinds.save(agent, tmp_path / "agent", record)
+  loaded, _, _ = kinds.load(tmp_path / "agent")
+  np.testing.assert_array_equal(agent.run(20, "analytic"), loaded.run(20, "analytic"))
+  for name, value in agent.arrays().items():
+    np.testing.assert_array_equal(loaded.arrays()[name], value)
+  # Evaluation through the MuJoCo world (dm_control / Gymnasium) works too.
+  evaluation = loaded.run(2, "mujoco", learn=False)
+  assert len(evaluation) == 2

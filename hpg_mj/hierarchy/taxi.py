@@ -1,0 +1,111 @@
+"""The taxi-fuel hierarchy (MAXQ's task graph with Refuel; paper section 5.1;
+SPEC section 5), on the task-graph API:
+
+    Root -> {Get, Put, Refuel}
+    Get -> {Navigate(t = passenger's station), Pickup}
+    Put -> {Navigate(t = destination), Dropoff}
+    Refuel -> {Navigate(t = F), Fillup}
+    Navigate(t) -> {South, North, East, West}
+
+Each subtask learns a Gibbs policy by Eq. 3 over its abstract state
+(`taxi_rules`). `TaxiHierarchy` trains step by step through a taxi environment
+on the arrays of a `taxi_compiled.TaxiHPG`, so the two paths share one agent and
+one set of rule functions.
+"""
+import numpy as np
+
+from hpg_mj.hierarchy import executor as executor_mod
+from hpg_mj.hierarchy import taxi_compiled
+from hpg_mj.hierarchy import taxi_rules as rules
+from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
+from hpg_mj.learners import agents
+from hpg_mj.worlds import taxi_core as core
+
+_TRACE_KEYS = ("w", "zs", "y", "touched", "marked", "count", "acc")
+
+
+class TaxiHierarchy:
+  """The task graph over a `TaxiHPG`'s learners (shared arrays)."""
+
+  def __init__(self, hpg: taxi_compiled.TaxiHPG):
+    self.hpg = hpg
+    self.world = hpg.world
+    sizes = rules.n_abstract_states(hpg.task.fuel_enabled, hpg.task.capacity)
+    self.learners = []
+    for i, trace in enumerate(hpg.traces):
+      learner = agents.SoftmaxPolicyGradient(sizes[i], rules.N_CHILDREN[i], alpha=1.0)
+      learner.trace = dict(zip(_TRACE_KEYS, trace))       # the compiled loop's arrays
+      learner.gamma = float(hpg.config.gammas()[i])
+      self.learners.append(learner)
+    self._alphas = np.zeros(rules.N_SUBTASKS)
+    self._state = np.zeros(5, dtype=np.int64)
+
+  def _s(self, obs):
+    """The observation as taxi_rules' int64 state (classic: the tank stays full)."""
+    s = self._state
+    s[:4] = obs[:4]
+    s[4] = obs[4] if self.hpg.task.fuel_enabled else core.CLASSIC_FUEL
+    return s
+
+  def _mask(self, fill):
+    def available(call, obs, i):
+      mask = np.zeros(rules.MAX_CHILDREN, dtype=np.bool_)
+      fill(call, self._s(obs), mask)
+      return bool(mask[i])
+    return available
+
+  def graph(self):
+    w = self.world
+    navigate_to = {rules.GET: "get", rules.PUT: "put", rules.REFUEL: "refuel"}
+
+    def carry(subtask, primitive):
+      return Subtask(
+          navigate_to[subtask], learner=self.learners[subtask],
+          children=[Child("navigate", bind=lambda call, obs: {
+              "target": int(rules.carry_target(subtask, self._s(obs)))}), primitive],
+          view=lambda call, obs: int(rules.carry_state(subtask, self._s(obs))),
+          available=self._mask(lambda call, s, m: rules.carry_children(subtask, s, w, m)),
+          termination=lambda call, step: bool(rules.carry_done(subtask, self._s(step.obs), w)))
+
+    return TaskGraph("root", [
+        Subtask("root", learner=self.learners[rules.ROOT],
+                children=["get", "put", "refuel"],
+                view=lambda call, obs: int(rules.root_state(self._s(obs), w)),
+                available=self._mask(lambda call, s, m: rules.root_children(s, w, m)),
+                termination=lambda call, step: False),          # ends with the episode
+        carry(rules.GET, "pickup"), carry(rules.PUT, "dropoff"), carry(rules.REFUEL, "fillup"),
+        Subtask("navigate", learner=self.learners[rules.NAVIGATE],
+                children=["south", "north", "east", "west"],
+                view=lambda call, obs: int(rules.navigate_state(call.args["target"],
+                                                                self._s(obs))),
+                termination=lambda call, step: bool(
+                    rules.navigate_done(call.args["target"], self._s(step.obs), w))),
+        Primitive("south", core.SOUTH), Primitive("north", core.NORTH),
+        Primitive("east", core.EAST), Primitive("west", core.WEST),
+        Primitive("pickup", core.PICKUP), Primitive("dropoff", core.DROPOFF),
+        Primitive("fillup", core.FILLUP),
+    ])
+
+  def train_stepwise(self, adapter, episodes, learn=True, sample=None):
+    """Episodes through a taxi environment adapter; returns TaxiHPG's record."""
+    hpg = self.hpg
+    run = executor_mod.Executor(self.graph(), adapter, hpg.rng_state)
+    record = np.zeros((episodes, taxi_compiled.N_RECORD))
+    start = np.empty(5, dtype=np.int64)
+    schedule = hpg.config.schedule()
+    for e in range(episodes):
+      taxi_compiled.sample_start(hpg.rng_state, self.world, start)
+      taxi_compiled.step_sizes(schedule, hpg.episodes, self._alphas)
+      for learner, alpha in zip(self.learners, self._alphas):
+        learner.alpha = float(alpha)
+      begin = start.copy() if hpg.task.fuel_enabled else start[:4].copy()
+      total, steps, last = run.run_episode(begin, learn=learn, sample=sample)
+      outcome = (rules.TRUNCATED if last.truncated else
+                 rules.DELIVERED if last.reward == core.DELIVERY_REWARD else rules.OUT_OF_FUEL)
+      record[e, taxi_compiled.RETURN] = total
+      record[e, taxi_compiled.STEPS] = steps
+      record[e, taxi_compiled.OUTCOME] = outcome
+      if learn:
+        hpg.episodes += 1
+        hpg.primitive_steps += steps
+    return record
