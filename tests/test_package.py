@@ -34,3 +34,11 @@ def test_cli_render_rejects_an_unknown_task(capsys, tmp_path):
   assert cli.main(["render", "--domain", "ship", "--task", "race",
                    "--out", str(tmp_path / "x.mp4")]) == 2
   assert "valid: " in capsys.readouterr().err
+
+
+def test_every_subpackage_is_in_the_wheel():
+  import tomllib
+  listed = set(tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
+               ["packages"])
+  found = {"hpg_mj." + p.parent.name for p in (REPO / "hpg_mj").glob("*/__init__.py")}
+  assert found | {"hpg_mj", "hpg_mj.assets"} == listed
