@@ -66,8 +66,8 @@ def train(n_episodes, first_episode, learn, sample, rng_state, world, q, tr_inde
 class FlatQ:
   """Flat Q-learning's learner and generator, trained step by step or compiled."""
 
-  def __init__(self, alpha=0.5, epsilon_start=0.1, epsilon_end=0.0, epsilon_episodes=80000,
-               initial=10.0, seed=0, task=None):
+  def __init__(self, alpha=1.0, epsilon_start=0.1, epsilon_end=0.0, epsilon_episodes=50000,
+               initial=20.0, seed=0, task=None):
     from hpg_mj.learners import agents
     from hpg_mj.learners import rng
     self.task = task if task is not None else core.TaxiRules()
