@@ -31,10 +31,15 @@ the choices are made. Greedy runs draw only the starts.
 A trace is the tuple `(w, zs, y, touched, marked, count, acc)` of `eligibility`'s
 arrays; `new_traces` makes one per subtask.
 
-Speed: measured by `hpg-mj bench train` (primitive steps per second of learning
-on one core). The levels are ordinary cached numba functions; numba's
-reference-count-free mode was tried and dropped: its cached copies of the shared
-`learners` functions would be reused by code that does allocate.
+Speed: the three levels and `train` are compiled without numba's reference
+counting (`_nrt=False`), which otherwise spends about half the time counting
+references to the arrays handed down at every call (3.3 million primitive steps
+per second with it, about 7 million without; `hpg-mj bench train`). That is safe
+because nothing here allocates (numba refuses to compile an allocation without
+NRT), and the shared `learners` and `taxi_rules` functions they use are inlined
+(`inline="always"`), so no reference-count-free copy of them is cached for other
+callers; the only other callees (`taxi_core.taxi_step`, `state_from_draws`)
+return scalars.
 """
 import dataclasses
 
@@ -200,9 +205,9 @@ def learn_from(trace, learn, alpha, reward, gamma):
 # The three levels of Algorithm 1's recursion. Each is the `while i has not
 # terminated` loop (lines 7-19) of its subtask; a call returns the sum of the
 # primitive rewards earned during it (R~, line 17). Nothing here allocates: the
-# scratch arrays come from the caller.
+# scratch arrays come from the caller (see the module docstring on _nrt=False).
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def run_navigate(target, nav, state, episode, world, alphas, gammas, learn, greedy, rng_state,
                  mask, probs, index, psi):
   """One call of Navigate(target)."""
@@ -219,7 +224,7 @@ def run_navigate(target, nav, state, episode, world, alphas, gammas, learn, gree
   return total
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def run_carry(subtask, carry, nav, state, episode, world, alphas, gammas, learn, greedy,
               rng_state, mask, probs, index, psi):
   """One call of Get, Put or Refuel (`subtask`, with its trace `carry`)."""
@@ -240,7 +245,7 @@ def run_carry(subtask, carry, nav, state, episode, world, alphas, gammas, learn,
   return total
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def run_episode(root, get, put, refuel, nav, state, episode, world, alphas, gammas, learn,
                 greedy, rng_state, mask, probs, index, psi):
   """One call of Root: the whole episode from `state`. Returns its return."""
@@ -277,7 +282,7 @@ def step_sizes(schedule, episode_index, alphas):
     alphas[i] = schedule[S_ALPHA, i] * fraction
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, _nrt=False)
 def train(n_episodes, learn, greedy, rng_state, world, root, get, put, refuel, nav, schedule,
           first_episode, gammas, record, starts, scratch_int, scratch_float, mask):
   """Runs `n_episodes` episodes of HPG: learning (`learn`), or evaluating the
