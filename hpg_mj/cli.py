@@ -143,7 +143,7 @@ def build_parser():
   p.set_defaults(func=_cmd_render)
 
   p = sub.add_parser("train", help="train the agent of a task file and save it")
-  p.add_argument("task_file")
+  p.add_argument("task_file", help="a task file, or the name of a shipped one (ship_hybrid, ...)")
   p.add_argument("--episodes", type=int, default=None, help="override [protocol] episodes")
   p.add_argument("--seed", type=int, default=None, help="override [protocol] seed")
   p.add_argument("--backend", choices=["analytic", "mujoco"], default=None)

@@ -16,6 +16,7 @@ def test_assets_load_from_the_installed_package():
   assert _assets.assets_dir().resolve() == package_dir / "assets"
   for name in ("ship.xml", "taxi.xml"):
     assert (package_dir / "assets" / name).is_file()
+  assert (package_dir / "tasks" / "ship_hybrid.toml").is_file()
   assert "site-packages" in package_dir.parts
 
 
@@ -41,4 +42,14 @@ def test_every_subpackage_is_in_the_wheel():
   listed = set(tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
                ["packages"])
   found = {"hpg_mj." + p.parent.name for p in (REPO / "hpg_mj").glob("*/__init__.py")}
-  assert found | {"hpg_mj", "hpg_mj.assets"} == listed
+  assert found | {"hpg_mj", "hpg_mj.assets", "hpg_mj.tasks"} == listed
+
+
+def test_shipped_tasks_load_by_name():
+  from hpg_mj.experiments import kinds
+  names = kinds.shipped_tasks()
+  assert {"ship_hybrid", "ship_flat_pg", "ship_actor_critic", "taxi_fuel_hpg",
+          "taxi_fuel_flat_q"} <= set(names)
+  assert kinds.load_task("ship_hybrid").kind == "ship_hybrid"
+  with pytest.raises(ValueError, match=r"no shipped task of that name; shipped: \['ship_"):
+    kinds.load_task("ship_hybird")

@@ -376,7 +376,24 @@ def schemas():
   return {name: kind.schema for name, kind in KINDS.items()}
 
 
+def shipped_tasks():
+  """The task files that come with hpg_mj, by name (e.g. "ship_hybrid")."""
+  import pathlib
+  here = pathlib.Path(__file__).resolve().parents[1]
+  for folder in (here / "tasks", here.parent / "tasks"):   # installed, then a checkout
+    if folder.is_dir():
+      return {p.stem: p for p in sorted(folder.glob("*.toml"))}
+  return {}
+
+
 def load_task(path):
+  """Loads a task file by path, or a shipped one by name (`ship_hybrid`)."""
+  import pathlib
+  if not pathlib.Path(path).exists() and str(path) in shipped_tasks():
+    path = shipped_tasks()[str(path)]
+  elif not pathlib.Path(path).exists():
+    raise taskfile.TaskFileError(f"{path}: no such task file, and no shipped task of that "
+                                 f"name; shipped: {sorted(shipped_tasks())}")
   return taskfile.load(path, schemas())
 
 
