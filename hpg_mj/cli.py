@@ -18,6 +18,18 @@ def _cmd_verify(args):
 
 def _cmd_render(args):
   from hpg_mj.render import video
+  if getattr(args, "agent", None) is not None:
+    from hpg_mj.experiments import kinds
+    agent, _, _ = kinds.load(args.agent)
+    out = args.out or f"videos/{agent.name}.{'gif' if args.gif else 'mp4'}"
+    path, record = kinds.render_agent(agent, out, seed=args.seed, width=args.width,
+                                      height=args.height)
+    summary = agent.metrics(record)
+    print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB): a greedy episode of "
+          f"{args.agent}, return {summary['mean_return']:.1f}"
+          + (f", gate passed: {bool(summary['gate_pass_rate'])}" if "gate_pass_rate" in summary
+             else ""))
+    return 0
   path, summary = video.render_task(args.domain, args.task, policy=args.policy, seed=args.seed,
                                     out=args.out, gif=args.gif, width=args.width,
                                     height=args.height, max_steps=args.max_steps,
@@ -111,6 +123,14 @@ def _cmd_demo(args):
   rc |= _cmd_render(argparse.Namespace(domain="taxi", task="fuel", policy="scripted", seed=1,
                                        out=out / "taxi_fuel_scripted.mp4", gif=False,
                                        width=480, height=480, max_steps=None, backend="mujoco"))
+  # A quick hybrid: 20,000 episodes on the analytic ship (seconds), then its greedy
+  # policy steering the MuJoCo ship.
+  rc |= _cmd_train(argparse.Namespace(task_file="ship_hybrid", seed=0, episodes=20000,
+                                      backend=None, out=str(out / "agents" / "ship_hybrid"),
+                                      json=False, quiet=False))
+  rc |= _cmd_render(argparse.Namespace(agent=str(out / "agents" / "ship_hybrid"), seed=3,
+                                       out=out / "ship_hybrid_learned.mp4", gif=False,
+                                       width=640, height=480))
   rc |= _cmd_verify(argparse.Namespace(what="ship", controls=1000, starts=3, seed=0))
   rc |= _cmd_bench(argparse.Namespace(what="envs", seconds=args.seconds))
   return rc
@@ -140,6 +160,8 @@ def build_parser():
   p.add_argument("--height", type=int, default=480)
   p.add_argument("--max-steps", type=int, default=None)
   p.add_argument("--backend", choices=["mujoco", "analytic"], default="mujoco")
+  p.add_argument("--agent", default=None,
+                 help="a saved agent folder: render its greedy policy on the MuJoCo world")
   p.set_defaults(func=_cmd_render)
 
   p = sub.add_parser("train", help="train the agent of a task file and save it")

@@ -52,6 +52,55 @@ class _Kind:
     self.agent.rng_state[:] = rng.make_state(seed)
 
 
+class _RecordingAdapter:
+  """A Gymnasium adapter that also keeps a rendered frame of every step."""
+
+  def __init__(self, env):
+    from hpg_mj.hierarchy import executor
+    self._inner = executor.GymAdapter(env)
+    self.env = env
+    self.frames = []
+
+  def reset(self, start=None):
+    obs = self._inner.reset(start)
+    self.frames = [self.env.render()]
+    return obs
+
+  def step(self, action):
+    step = self._inner.step(action)
+    self.frames.append(self.env.render())
+    return step
+
+
+def render_agent(agent, path, seed=0, width=640, height=480, fps=None):
+  """A video of one greedy episode of a trained agent on the MuJoCo world."""
+  import gymnasium
+
+  import hpg_mj  # noqa: F401
+  from hpg_mj.render import video
+  agent.set_seed(seed)
+  if isinstance(agent, _ShipKind):
+    env_cfg = agent.task.section("environment")
+    env = gymnasium.make("hpg_mj/ShipSteering-v0", backend="mujoco", render_mode="rgb_array",
+                         width=width, height=height, max_steps=env_cfg["max_steps"],
+                         gate_reward=env_cfg["gate_reward"],
+                         out_of_bounds_reward=env_cfg["out_of_bounds_reward"]).unwrapped
+    fps = fps or 20
+  else:
+    env = gymnasium.make("hpg_mj/TaxiFuel-v0" if agent.rules.fuel_enabled else "hpg_mj/Taxi-v0",
+                         render_mode="rgb_array", width=width, height=height).unwrapped
+    fps = fps or 4
+  adapter = _RecordingAdapter(env)
+  try:
+    record = agent.agent.train_stepwise(adapter, 1, learn=False) if isinstance(
+        agent, _ShipKind) else agent.run_with(adapter)
+  finally:
+    env.close()
+  frames = adapter.frames[::2] if len(adapter.frames) > 400 else adapter.frames
+  frames = frames + [frames[-1]] * 10
+  return video.write_video(frames, path, fps=fps), record
+
+
 class _ShipKind(_Kind):
   """What the ship agents share: the environment, backends, seeds and saving."""
 
@@ -323,6 +372,12 @@ class TaxiHPGKind(_TaxiKind):
           ("w", "zs", "y", "touched", "marked", "count", "acc"), trace)})
     return out
 
+  def run_with(self, adapter, episodes=1):
+    """Greedy episodes through a given taxi environment adapter."""
+    from hpg_mj.hierarchy import taxi as taxi_hierarchy
+    return taxi_hierarchy.TaxiHierarchy(self.agent).train_stepwise(adapter, episodes,
+                                                                  learn=False)
+
   def run(self, episodes, backend, learn=True, sample=None):
     if backend == "analytic":
       return self.agent.run(episodes, learn=learn, greedy=not learn and not sample)
@@ -359,6 +414,9 @@ class TaxiFlatQKind(_TaxiKind):
     lr = self.agent.learner
     return {"rng_state": self.agent.rng_state, "q": lr.q, "trace_index": lr.index,
             "trace_value": lr.value, "trace_count": lr.count}
+
+  def run_with(self, adapter, episodes=1):
+    return self.agent.train_stepwise(adapter, episodes, learn=False)
 
   def run(self, episodes, backend, learn=True, sample=None):
     if backend == "analytic":

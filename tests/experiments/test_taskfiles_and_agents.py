@@ -145,3 +145,19 @@ def test_every_task_file_trains_saves_and_resumes_exactly(tmp_path, path):
   # Evaluation through the MuJoCo world (dm_control / Gymnasium) works too.
   evaluation = loaded.run(2, "mujoco", learn=False)
   assert len(evaluation) == 2
+
+
+@pytest.mark.parametrize("name", ["ship_hybrid", "taxi_fuel_hpg"])
+def test_cli_renders_a_trained_agent(tmp_path, capsys, name):
+  path = _variant(tmp_path, "max_steps = 5000", "max_steps = 25") if name == "ship_hybrid" \
+      else REPO / "tasks" / f"{name}.toml"
+  agent_dir = tmp_path / "agent"
+  assert cli.main(["train", str(path), "--episodes", "30", "--out", str(agent_dir), "--quiet"]) == 0
+  capsys.readouterr()
+  out = tmp_path / "learned.gif"
+  assert cli.main(["render", "--agent", str(agent_dir), "--out", str(out), "--width", "160",
+                   "--height", "128"]) == 0
+  assert "a greedy episode" in capsys.readouterr().out
+  import imageio.v2 as imageio
+  frames = imageio.mimread(out)
+  assert len(frames) >= 3 and np.asarray(frames[0]).std() > 5
