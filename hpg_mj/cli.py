@@ -129,7 +129,7 @@ def _cmd_demo(args):
                                       backend=None, out=str(out / "agents" / "ship_hybrid"),
                                       json=False, quiet=False))
   rc |= _cmd_render(argparse.Namespace(agent=str(out / "agents" / "ship_hybrid"), seed=3,
-                                       out=out / "ship_hybrid_learned.mp4", gif=False,
+                                       out=out / "ship_hybrid_quick.mp4", gif=False,
                                        width=640, height=480))
   rc |= _cmd_verify(argparse.Namespace(what="ship", controls=1000, starts=3, seed=0))
   rc |= _cmd_bench(argparse.Namespace(what="envs", seconds=args.seconds))
