@@ -61,8 +61,16 @@ def _progress_bar(total, quiet, label):
   return bar, update
 
 
-def _cmd_train(args):
+def _print_metrics(metrics, as_json):
   import json
+  if as_json:
+    print(json.dumps(metrics))
+  else:
+    for key, value in metrics.items():
+      print(f"{key}: {value}")
+
+
+def _cmd_train(args):
   import pathlib
 
   from hpg_mj.experiments import kinds
@@ -81,16 +89,11 @@ def _cmd_train(args):
                   "backend": args.backend or agent.backend, "wall_seconds": round(wall, 3)})
   kinds.save(agent, out, record, {"metrics": metrics})
   metrics["agent_dir"] = str(out)
-  if args.json:
-    print(json.dumps(metrics))
-  else:
-    for key, value in metrics.items():
-      print(f"{key}: {value}")
+  _print_metrics(metrics, args.json)
   return 0
 
 
 def _cmd_evaluate(args):
-  import json
   import time
 
   from hpg_mj.experiments import kinds
@@ -104,16 +107,13 @@ def _cmd_evaluate(args):
   metrics.update({"agent_dir": str(args.agent_dir), "episodes": args.episodes,
                   "backend": backend, "policy": args.policy,
                   "wall_seconds": round(time.perf_counter() - start, 3)})
-  if args.json:
-    print(json.dumps(metrics))
-  else:
-    for key, value in metrics.items():
-      print(f"{key}: {value}")
+  _print_metrics(metrics, args.json)
   return 0
 
 
 def _cmd_demo(args):
-  """The README's main job (for now): a video of the scripted ship, the verification
+  """The README's main job: videos of the scripted ship and taxi, a quick hybrid
+  (20,000 episodes) and a video of it on the MuJoCo ship, the ship's verification
   and the environment benchmark."""
   import pathlib
   out = pathlib.Path(args.out)
