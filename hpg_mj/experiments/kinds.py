@@ -51,6 +51,10 @@ class _Kind:
   def set_seed(self, seed):
     self.agent.rng_state[:] = rng.make_state(seed)
 
+  def run_with(self, adapter, episodes=1):
+    """Greedy episodes through a given environment adapter."""
+    return self.agent.train_stepwise(adapter, episodes, learn=False)
+
 
 class _RecordingAdapter:
   """A Gymnasium adapter that also keeps a rendered frame of every step."""
@@ -92,8 +96,7 @@ def render_agent(agent, path, seed=0, width=640, height=480, fps=None):
     fps = fps or 4
   adapter = _RecordingAdapter(env)
   try:
-    record = agent.agent.train_stepwise(adapter, 1, learn=False) if isinstance(
-        agent, _ShipKind) else agent.run_with(adapter)
+    record = agent.run_with(adapter)
   finally:
     env.close()
   frames = adapter.frames[::2] if len(adapter.frames) > 400 else adapter.frames
@@ -414,9 +417,6 @@ class TaxiFlatQKind(_TaxiKind):
     lr = self.agent.learner
     return {"rng_state": self.agent.rng_state, "q": lr.q, "trace_index": lr.index,
             "trace_value": lr.value, "trace_count": lr.count}
-
-  def run_with(self, adapter, episodes=1):
-    return self.agent.train_stepwise(adapter, episodes, learn=False)
 
   def run(self, episodes, backend, learn=True, sample=None):
     if backend == "analytic":
