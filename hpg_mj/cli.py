@@ -111,6 +111,29 @@ def _cmd_evaluate(args):
   return 0
 
 
+def _cmd_run(args):
+  from hpg_mj.experiments import figures, runner
+  experiment = runner.load_experiment(args.experiment_file)   # refused before any run
+  done = []
+
+  def progress(job):
+    done.append(job)
+    if not args.quiet:
+      print(f"  finished {pathlib.Path(job[0]).stem} seed {job[1]} ({len(done)} runs)",
+            file=sys.stderr)
+  import pathlib
+  results, root, wall = runner.run_experiment(experiment, args.out, quick=args.quick,
+                                              workers=args.workers, progress=progress)
+  runs = experiment["quick_runs"] if args.quick else experiment["runs"]
+  records = {task: runner.load_records(root, task, runs) for task in results
+             if task.startswith("ship")}
+  finals = figures.draw_ship_figures(root, records) if records else {}
+  figures.write_report(root, experiment, results, finals)
+  print(f"{experiment['name']}: {sum(len(r) for r in results.values())} runs "
+        f"({len(done)} new, {wall:.1f} s); figures and REPORT.md in {root}")
+  return 0
+
+
 def _cmd_demo(args):
   """The README's main job: videos of the scripted ship and taxi, a quick hybrid
   (20,000 episodes) and a video of it on the MuJoCo ship, the ship's verification
@@ -173,6 +196,14 @@ def build_parser():
   p.add_argument("--json", action="store_true", help="print one JSON object of metrics")
   p.add_argument("--quiet", action="store_true", help="no progress bar")
   p.set_defaults(func=_cmd_train)
+
+  p = sub.add_parser("run", help="run an experiment file: its tasks x seeds, figures, report")
+  p.add_argument("experiment_file", help="an experiment file, or a shipped one's name (fig7_11)")
+  p.add_argument("--quick", action="store_true", help="fewer runs and episodes")
+  p.add_argument("--out", default="runs", help="output folder (one subfolder per experiment)")
+  p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+  p.add_argument("--quiet", action="store_true")
+  p.set_defaults(func=_cmd_run)
 
   p = sub.add_parser("evaluate", help="run a saved agent without learning")
   p.add_argument("agent_dir")

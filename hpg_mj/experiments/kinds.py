@@ -434,14 +434,19 @@ def schemas():
   return {name: kind.schema for name, kind in KINDS.items()}
 
 
-def shipped_tasks():
-  """The task files that come with hpg_mj, by name (e.g. "ship_hybrid")."""
+def shipped_tasks_dirs():
+  """The folder of shipped task files: installed, else the checkout's."""
   import pathlib
   here = pathlib.Path(__file__).resolve().parents[1]
-  for folder in (here / "tasks", here.parent / "tasks"):   # installed, then a checkout
+  for folder in (here / "tasks", here.parent / "tasks"):
     if folder.is_dir():
-      return {p.stem: p for p in sorted(folder.glob("*.toml"))}
-  return {}
+      return [folder]
+  return []
+
+
+def shipped_tasks():
+  """The task files that come with hpg_mj, by name (e.g. "ship_hybrid")."""
+  return {p.stem: p for folder in shipped_tasks_dirs() for p in sorted(folder.glob("*.toml"))}
 
 
 def load_task(path):

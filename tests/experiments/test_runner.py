@@ -1,0 +1,66 @@
+"""Experiment files, parallel runs, skipping finished runs, figures and report."""
+import json
+
+import numpy as np
+import pytest
+
+from hpg_mj import cli
+from hpg_mj.experiments import runner, taskfile
+
+EXPERIMENT = """
+[experiment]
+name = "tiny"
+description = "two tasks, two seeds"
+tasks = ["ship_hybrid", "ship_flat_pg"]
+runs = 2
+episodes = 1000
+quick_runs = 1
+quick_episodes = 1000
+"""
+
+
+def test_results_do_not_depend_on_the_number_of_workers(tmp_path):
+  path = tmp_path / "tiny.toml"
+  path.write_text(EXPERIMENT)
+  experiment = runner.load_experiment(path)
+  one, root_one, _ = runner.run_experiment(experiment, tmp_path / "one", workers=1)
+  two, root_two, _ = runner.run_experiment(experiment, tmp_path / "two", workers=2)
+  for task in ("ship_hybrid", "ship_flat_pg"):
+    for a, b in zip(runner.load_records(root_one, task, 2), runner.load_records(root_two, task, 2)):
+      np.testing.assert_array_equal(a, b)
+    for a, b in zip(one[task], two[task]):
+      a.pop("wall_seconds"), b.pop("wall_seconds")
+      assert a == b
+
+
+def test_finished_runs_are_skipped_and_figures_written(tmp_path, capsys):
+  path = tmp_path / "tiny.toml"
+  path.write_text(EXPERIMENT)
+  out = tmp_path / "out"
+  assert cli.main(["run", str(path), "--out", str(out), "--workers", "1", "--quiet"]) == 0
+  assert "(4 new" in capsys.readouterr().out
+  metrics = out / "tiny" / "ship_hybrid" / "seed0" / "metrics.json"
+  stamp = metrics.stat().st_mtime_ns
+  assert cli.main(["run", str(path), "--out", str(out), "--workers", "1", "--quiet"]) == 0
+  assert "(0 new" in capsys.readouterr().out
+  assert metrics.stat().st_mtime_ns == stamp
+  for fig in ("fig7", "fig8", "fig9", "fig10", "fig11"):
+    assert (out / "tiny" / f"{fig}.png").stat().st_size > 1000
+    rows = np.loadtxt(out / "tiny" / f"{fig}.csv", delimiter=",", skiprows=1, ndmin=2)
+    assert rows.shape[0] == 1
+  report = (out / "tiny" / "REPORT.md").read_text()
+  assert "about 220 control steps" in report and "ship_flat_pg" in report
+  assert json.loads(metrics.read_text())["episodes"] == 1000
+
+
+@pytest.mark.parametrize("old,new,message", [
+    ('runs = 2', 'runs = 0', "runs must be a positive integer"),
+    ('runs = 2', 'run = 2', r"unknown key\(s\) \['run'\]"),
+    ('"ship_flat_pg"]', '"ship_flat_pgg"]', "no shipped task of that name"),
+    ('episodes = 1000\n', '', "episodes is missing"),
+])
+def test_malformed_experiment_files_are_refused_before_running(tmp_path, old, new, message):
+  path = tmp_path / "bad.toml"
+  path.write_text(EXPERIMENT.replace(old, new, 1))
+  with pytest.raises(taskfile.TaskFileError, match=message):
+    runner.load_experiment(path)
