@@ -125,10 +125,17 @@ def _cmd_run(args):
   results, root, wall = runner.run_experiment(experiment, args.out, quick=args.quick,
                                               workers=args.workers, progress=progress)
   runs = experiment["quick_runs"] if args.quick else experiment["runs"]
-  records = {task: runner.load_records(root, task, runs) for task in results
-             if task.startswith("ship")}
-  finals = figures.draw_ship_figures(root, records) if records else {}
-  figures.write_report(root, experiment, results, finals)
+  records = {task: runner.load_records(root, task, runs) for task in results}
+  if all(task.startswith("ship") for task in records):
+    finals = figures.draw_ship_figures(root, records)
+    figures.write_report(root, experiment, results, finals)
+  elif all(task.startswith("taxi") for task in records):
+    optimal = next(iter(results.values()))[0]["optimal_mean_return"]
+    summary = figures.draw_taxi_figure(root, records, optimal)
+    figures.write_taxi_report(root, experiment, summary, optimal)
+  else:
+    raise ValueError(f"{experiment['path']}: an experiment compares ship tasks or taxi tasks, "
+                     f"not both: {sorted(records)}")
   print(f"{experiment['name']}: {sum(len(r) for r in results.values())} runs "
         f"({len(done)} new, {wall:.1f} s); figures and REPORT.md in {root}")
   return 0

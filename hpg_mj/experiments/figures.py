@@ -111,3 +111,62 @@ def write_report(root, experiment, results, finals):
                f"order by gate passes: {', '.join(f'{t} {gates[t]:.2f}' for t in order)}"
                + ("." if order and order[0] == "ship_hybrid" else " (we differ)."))
   pathlib.Path(root, "REPORT.md").write_text("\n".join(lines) + "\n")
+
+
+def draw_taxi_figure(root, records_by_task, optimal):
+  """Figure 6: total reward per episode (mean of each 1,000-episode block) against
+  primitive steps, mean over runs with a min-max band; the optimum drawn in.
+  Returns {task: (final mean return, mean primitive steps to reach 95%)}."""
+  import matplotlib
+  matplotlib.use("Agg")
+  import matplotlib.pyplot as plt
+  from hpg_mj.worlds import taxi_values
+  root = pathlib.Path(root)
+  threshold = taxi_values.performance_threshold(optimal, 0.95)
+  plt.figure(figsize=(6.4, 4.0))
+  columns, header, summary = [], [], {}
+  for task, records in records_by_task.items():
+    returns = np.array([_blocks(r[:, 0]) for r in records])
+    steps = np.array([np.cumsum(r[:, 1])[BLOCK - 1::BLOCK][:returns.shape[1]] for r in records])
+    x = steps.mean(axis=0)
+    mean = returns.mean(axis=0)
+    plt.plot(x, mean, label=task)
+    plt.fill_between(x, returns.min(axis=0), returns.max(axis=0), alpha=0.2)
+    columns += [x, mean, returns.min(axis=0), returns.max(axis=0)]
+    header += [f"{task}_steps", f"{task}_mean", f"{task}_min", f"{task}_max"]
+    reached = []
+    for r in records:
+      trailing = np.convolve(r[:, 0], np.ones(BLOCK) / BLOCK, mode="valid")
+      hit = np.nonzero(trailing >= threshold)[0]
+      reached.append(np.cumsum(r[:, 1])[hit[0] + BLOCK - 1] if len(hit) else np.nan)
+    summary[task] = (float(mean[-1]), float(np.nanmean(reached)) if not np.all(
+        np.isnan(reached)) else None, int(np.sum(~np.isnan(reached))))
+  plt.axhline(optimal, color="k", linestyle="--", linewidth=1, label="optimal (exact)")
+  plt.ylim(max(-60.0, plt.ylim()[0]), optimal + 3)
+  plt.title("Taxi-fuel: reward per episode")
+  plt.xlabel("primitive steps")
+  plt.ylabel("total reward per episode")
+  plt.legend(fontsize=8)
+  plt.tight_layout()
+  plt.savefig(root / "fig6.png", dpi=100)
+  plt.close()
+  n = min(len(c) for c in columns)
+  np.savetxt(root / "fig6.csv", np.column_stack([c[:n] for c in columns]), delimiter=",",
+             header=",".join(header), comments="", fmt="%.6g")
+  return summary
+
+
+def write_taxi_report(root, experiment, summary, optimal):
+  lines = [f"# {experiment['name']}: {experiment['description']}", "",
+           f"Optimal mean return (value iteration): {optimal:.4f}.", "",
+           "| task | final mean return | % of optimal | primitive steps to 95% (runs reaching it) |",
+           "|---|---|---|---|"]
+  for task, (final, steps, n) in summary.items():
+    lines.append(f"| {task} | {final:.3f} | {100 * final / optimal:.1f}% | "
+                 f"{'-' if steps is None else f'{steps:,.0f}'} ({n}) |")
+  order = sorted((s[1], t) for t, s in summary.items() if s[1] is not None)
+  lines += ["", "## Against the paper", "",
+            "- Figure 6: the paper finds MAXQ-Q fastest, then HPG, then flat Q. Our order by "
+            "primitive steps to 95% of optimal: " + (", ".join(t for _, t in order) or "none")
+            + ". MAXQ-Q is not in this experiment yet."]
+  pathlib.Path(root, "REPORT.md").write_text("\n".join(lines) + "\n")

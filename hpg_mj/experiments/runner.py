@@ -76,6 +76,10 @@ def load_experiment(path):
                 "str": "a string"}[kind]
       raise taskfile.TaskFileError(f"{path}: [experiment] {key} must be {wanted}, got {value!r}")
   tasks = [kinds.load_task(t) for t in section["tasks"]]   # refused here, before any run
+  worlds = sorted({t.section("environment")["world"] for t in tasks})
+  if len(worlds) > 1:
+    raise taskfile.TaskFileError(f"{path}: [experiment] tasks compare one world, ship or "
+                                 f"taxi; these mix {worlds}")
   return dict(section, path=path, task_files=tasks)
 
 

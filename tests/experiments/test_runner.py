@@ -64,3 +64,26 @@ def test_malformed_experiment_files_are_refused_before_running(tmp_path, old, ne
   path.write_text(EXPERIMENT.replace(old, new, 1))
   with pytest.raises(taskfile.TaskFileError, match=message):
     runner.load_experiment(path)
+
+
+def test_taxi_experiment_draws_figure_6(tmp_path, capsys):
+  path = tmp_path / "taxi.toml"
+  path.write_text(EXPERIMENT.replace('"ship_hybrid", "ship_flat_pg"',
+                                     '"taxi_fuel_hpg", "taxi_fuel_flat_q"')
+                  .replace("episodes = 1000\n", "episodes = 3000\n", 1))
+  out = tmp_path / "out"
+  assert cli.main(["run", str(path), "--out", str(out), "--workers", "2", "--quiet"]) == 0
+  assert (out / "tiny" / "fig6.png").stat().st_size > 1000
+  rows = np.loadtxt(out / "tiny" / "fig6.csv", delimiter=",", skiprows=1, ndmin=2)
+  assert rows.shape == (3, 8)
+  assert "Optimal mean return (value iteration): 6.1446" in (out / "tiny" / "REPORT.md").read_text()
+
+
+def test_mixed_experiment_is_refused(tmp_path):
+  path = tmp_path / "mixed.toml"
+  path.write_text(EXPERIMENT.replace('"ship_flat_pg"', '"taxi_fuel_flat_q"'))
+  with pytest.raises(taskfile.TaskFileError, match=r"these mix \['ship', 'taxi'\]"):
+    runner.load_experiment(path)
+  assert cli.main(["run", str(path), "--out", str(tmp_path / "o"), "--workers", "1",
+                   "--quiet"]) == 2
+  assert not (tmp_path / "o").exists()
