@@ -141,6 +141,26 @@ def _cmd_run(args):
   return 0
 
 
+FIGURE_EXPERIMENTS = {"fig6": "fig6", "fig7": "fig7_11", "fig8": "fig7_11", "fig9": "fig7_11",
+                      "fig10": "fig7_11", "fig11": "fig7_11"}
+
+
+def _cmd_reproduce(args):
+  """The paper's figures from the shipped experiment files."""
+  if args.figure == "all":
+    names = sorted(set(FIGURE_EXPERIMENTS.values()))
+  elif args.figure in FIGURE_EXPERIMENTS:
+    names = [FIGURE_EXPERIMENTS[args.figure]]
+  else:
+    raise ValueError(f"unknown figure {args.figure!r}; valid: all, {', '.join(FIGURE_EXPERIMENTS)}"
+                     " (fig12 is still to come)")
+  rc = 0
+  for name in names:
+    rc |= _cmd_run(argparse.Namespace(experiment_file=name, quick=args.quick, out=args.out,
+                                      workers=args.workers, quiet=args.quiet))
+  return rc
+
+
 def _cmd_demo(args):
   """The README's main job: videos of the scripted ship and taxi, a quick hybrid
   (20,000 episodes) and a video of it on the MuJoCo ship, the ship's verification
@@ -211,6 +231,15 @@ def build_parser():
   p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
   p.add_argument("--quiet", action="store_true")
   p.set_defaults(func=_cmd_run)
+
+  p = sub.add_parser("reproduce", help="the paper's figures from the shipped experiments")
+  p.add_argument("figure", nargs="?", default="all",
+                 help="all, fig6, fig7, fig8, fig9, fig10 or fig11")
+  p.add_argument("--quick", action="store_true", help="fewer runs and episodes")
+  p.add_argument("--out", default="runs", help="output folder")
+  p.add_argument("--workers", type=int, default=None)
+  p.add_argument("--quiet", action="store_true")
+  p.set_defaults(func=_cmd_reproduce)
 
   p = sub.add_parser("evaluate", help="run a saved agent without learning")
   p.add_argument("agent_dir")

@@ -87,3 +87,11 @@ def test_mixed_experiment_is_refused(tmp_path):
   assert cli.main(["run", str(path), "--out", str(tmp_path / "o"), "--workers", "1",
                    "--quiet"]) == 2
   assert not (tmp_path / "o").exists()
+
+
+def test_reproduce_quick_figure_6(tmp_path, capsys):
+  assert cli.main(["reproduce", "fig6", "--quick", "--out", str(tmp_path), "--quiet"]) == 0
+  assert (tmp_path / "fig6" / "fig6.png").is_file()
+  assert (tmp_path / "fig6" / "taxi_fuel_hpg" / "seed2" / "metrics.json").is_file()
+  assert cli.main(["reproduce", "fig13", "--out", str(tmp_path)]) == 2
+  assert "valid: all, fig6, fig7" in capsys.readouterr().err
