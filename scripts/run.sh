@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Sets up (scripts/setup.sh) and runs the main job: a quick reproduction of the
-# paper's Figures 6-11 (runs/fig6, runs/fig7_11: PNGs, CSVs, REPORT.md), then videos
-# of the scripted ship and taxi and of a quickly trained hybrid in videos/, the
-# ship's verification against the continuous ODE, and the environment benchmark.
+# paper's Figures 6-12 (runs/fig6, runs/fig7_11, runs/fig12: PNGs, CSVs, REPORT.md,
+# the learned hybrid's MP4s on the MuJoCo ship), then videos of the scripted ship
+# and taxi in videos/, the ship's verification against the continuous ODE, and the
+# environment benchmark.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh

@@ -67,6 +67,9 @@ class ShipHybrid:
     self.rng_state = rng.make_state(seed)
     self.episodes = 0
     self._row = np.zeros(ship_compiled.N_RECORD)
+    # When a list, every low-level call appends (x, y, direction) where it began
+    # (Figure 12 marks the root's decisions).
+    self.call_log = None
     self._scratch_tiles = np.empty(c.tilings, dtype=np.int64)
     self._local = np.empty(4)
     self._local_samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
@@ -91,6 +94,9 @@ class ShipHybrid:
 
     def low_exit(call, step, episode_over):
       self._row[ship_compiled.CALLS] += 1
+      if self.call_log is not None:
+        self.call_log.append((float(call.origin[0]), float(call.origin[1]),
+                              int(call.args["direction"])))
       if not episode_over:
         sub = rules.subtask_of(call.args["direction"])
         success = call.memo["event"] == core.SUCCESS

@@ -95,3 +95,20 @@ def test_reproduce_quick_figure_6(tmp_path, capsys):
   assert (tmp_path / "fig6" / "taxi_fuel_hpg" / "seed2" / "metrics.json").is_file()
   assert cli.main(["reproduce", "fig13", "--out", str(tmp_path)]) == 2
   assert "valid: all, fig6, fig7" in capsys.readouterr().err
+
+
+def test_figure_12_marks_the_root_decisions(tmp_path):
+  from hpg_mj.experiments import fig12, kinds
+  path = tmp_path / "short.toml"
+  path.write_text((kinds.shipped_tasks()["ship_hybrid"]).read_text()
+                  .replace("max_steps = 5000", "max_steps = 40"))
+  agent, _, _ = kinds.train(kinds.load_task(path), episodes=200, seed=0)
+  summary = fig12.draw(agent, tmp_path / "f12", width=96, height=80)
+  assert (tmp_path / "f12" / "fig12.png").stat().st_size > 1000
+  for k, s in enumerate(summary):
+    assert s["start"] == list(fig12.STARTS[k])
+    assert 1 <= s["calls"] == len(s["decisions"]) and 1 <= s["steps"] <= 40
+    assert (tmp_path / "f12" / f"fig12_{k}.mp4").stat().st_size > 1000
+  path_, decisions, _ = fig12.sail(agent, fig12.STARTS[0])
+  assert decisions[0][:2] == pytest.approx(fig12.STARTS[0][:2])   # the first call starts there
+  assert agent.agent.call_log is None

@@ -1,0 +1,101 @@
+"""Figure 12: the learned hybrid steering the MuJoCo ship from the paper's two
+starting states, as a picture (path, gate, the root's decisions marked where each
+low-level call began) and as an MP4 (SPEC section 6)."""
+import pathlib
+
+import numpy as np
+
+from hpg_mj.worlds import ship_core as core
+
+STARTS = ((700.0, 700.0, 100.0, 3.65), (750.0, 180.0, 80.0, 7.9))
+
+
+def sail(agent_kind, start):
+  """One greedy episode from `start` on the MuJoCo ship: (path, decisions, record)."""
+  import gymnasium
+
+  import hpg_mj  # noqa: F401
+  from hpg_mj.hierarchy import executor
+  env_cfg = agent_kind.task.section("environment")
+  env = gymnasium.make("hpg_mj/ShipSteering-v0", backend="mujoco",
+                       max_steps=env_cfg["max_steps"], gate_reward=env_cfg["gate_reward"],
+                       out_of_bounds_reward=env_cfg["out_of_bounds_reward"]).unwrapped
+  path = []
+
+  class Tracing(executor.GymAdapter):
+    def reset(self, start=None):
+      obs = super().reset(start)
+      path.append(np.array(obs))
+      return obs
+
+    def step(self, action):
+      step = super().step(action)
+      path.append(np.array(step.obs))
+      return step
+
+  hybrid = agent_kind.agent
+  hybrid.call_log = []
+  try:
+    record = hybrid.train_stepwise(Tracing(env), 1, learn=False, start=start)
+  finally:
+    decisions, hybrid.call_log = hybrid.call_log, None
+  return np.array(path), decisions, record[0]
+
+
+def draw(agent_kind, out, video=True, width=640, height=480):
+  """Writes fig12.png and, with `video`, fig12_<k>.mp4 for each start; returns a summary."""
+  import matplotlib
+  matplotlib.use("Agg")
+  import matplotlib.pyplot as plt
+  out = pathlib.Path(out)
+  out.mkdir(parents=True, exist_ok=True)
+  fig, ax = plt.subplots(figsize=(6.0, 6.0))
+  ax.plot([0, 1000, 1000, 0, 0], [0, 0, 1000, 1000, 0], color="firebrick", linewidth=1)
+  ax.plot(core.GATE[:, 0], core.GATE[:, 1], color="goldenrod", linewidth=4, label="gate")
+  summary = []
+  for k, start in enumerate(STARTS):
+    path, decisions, record = sail(agent_kind, start)
+    line, = ax.plot(path[:, 0], path[:, 1], linewidth=1.5,
+                    label=f"from ({start[0]:.0f}, {start[1]:.0f}, {start[2]:.0f} deg, "
+                          f"{start[3]} deg/s)")
+    marks = np.array([(x, y) for x, y, _ in decisions])
+    ax.scatter(marks[:, 0], marks[:, 1], color=line.get_color(), s=30, zorder=3)
+    for x, y, d in decisions:
+      ax.annotate(core.DIRECTIONS[d], (x, y), textcoords="offset points", xytext=(5, 5),
+                  fontsize=8)
+    summary.append({"start": list(start), "steps": int(record[1]),
+                    "passed": bool(record[0]), "calls": len(decisions),
+                    "decisions": [core.DIRECTIONS[d] for _, _, d in decisions]})
+    if video:
+      _video(path, marks, out / f"fig12_{k}.mp4", width, height)
+  ax.set_xlim(-20, 1020)
+  ax.set_ylim(-20, 1020)
+  ax.set_aspect("equal")
+  ax.set_xlabel("x (m)")
+  ax.set_ylabel("y (m)")
+  ax.set_title("Learned hybrid from the paper's two starts (dots: root decisions)")
+  ax.legend(fontsize=7, loc="lower left")
+  fig.tight_layout()
+  fig.savefig(out / "fig12.png", dpi=100)
+  plt.close(fig)
+  return summary
+
+
+def _video(path, marks, file, width, height):
+  from hpg_mj.render import scenes, video
+  scene = scenes.ShipScene(width, height)
+  try:
+    frames = []
+    for i in range(0, len(path), 2):
+      seen = marks[:max(1, int(np.sum(_reached(path[:i + 1], marks))))]
+      frames.append(scene.render(path[i], path[:i + 1, :2], marks=seen))
+    frames.append(scene.render(path[-1], path[:, :2], marks=marks))
+    frames += [frames[-1]] * 10
+  finally:
+    scene.close()
+  video.write_video(frames, file, fps=20)
+
+
+def _reached(path, marks):
+  """Which decision points the path has reached (within 0.5 m of a sailed position)."""
+  return [np.min(np.hypot(*(path[:, :2] - m).T)) < 0.5 for m in marks]
