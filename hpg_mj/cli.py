@@ -114,16 +114,25 @@ def _cmd_evaluate(args):
 def _cmd_run(args):
   from hpg_mj.experiments import figures, runner
   experiment = runner.load_experiment(args.experiment_file)   # refused before any run
+  import pathlib
+
+  from tqdm import tqdm
+  total = (experiment["quick_runs"] if args.quick else experiment["runs"]) * len(
+      experiment["task_files"])
+  bar = tqdm(total=total, initial=total - len(runner.pending(experiment, args.out, args.quick)),
+             unit="run", desc=experiment["name"], dynamic_ncols=True,
+             disable=args.quiet or not sys.stderr.isatty())
   done = []
 
   def progress(job):
     done.append(job)
-    if not args.quiet:
-      print(f"  finished {pathlib.Path(job[0]).stem} seed {job[1]} ({len(done)} runs)",
-            file=sys.stderr)
-  import pathlib
-  results, root, wall = runner.run_experiment(experiment, args.out, quick=args.quick,
-                                              workers=args.workers, progress=progress)
+    bar.update(1)
+    bar.set_postfix_str(f"{pathlib.Path(job[0]).stem} seed {job[1]}")
+  try:
+    results, root, wall = runner.run_experiment(experiment, args.out, quick=args.quick,
+                                                workers=args.workers, progress=progress)
+  finally:
+    bar.close()
   runs = experiment["quick_runs"] if args.quick else experiment["runs"]
   records = {task: runner.load_records(root, task, runs) for task in results}
   if all(task.startswith("ship") for task in records):

@@ -108,8 +108,8 @@ def _run_one(task_path, seed, episodes, run_dir):
   return metrics
 
 
-def run_experiment(experiment, out, quick=False, workers=None, progress=None):
-  """Runs every unfinished (task, seed) of an experiment; returns {task: [metrics]}."""
+def pending(experiment, out, quick=False):
+  """The (task file, seed, episodes, run folder) of every unfinished run."""
   runs = experiment["quick_runs"] if quick else experiment["runs"]
   episodes = experiment["quick_episodes"] if quick else experiment["episodes"]
   root = pathlib.Path(out) / experiment["name"]
@@ -119,6 +119,14 @@ def run_experiment(experiment, out, quick=False, workers=None, progress=None):
       run_dir = root / task.path.stem / f"seed{seed}"
       if not (run_dir / "metrics.json").is_file():
         jobs.append((str(task.path), seed, episodes, str(run_dir)))
+  return jobs
+
+
+def run_experiment(experiment, out, quick=False, workers=None, progress=None):
+  """Runs every unfinished (task, seed) of an experiment; returns {task: [metrics]}."""
+  runs = experiment["quick_runs"] if quick else experiment["runs"]
+  root = pathlib.Path(out) / experiment["name"]
+  jobs = pending(experiment, out, quick)
   workers = workers or os.cpu_count() or 1
   start = time.perf_counter()
   if jobs:
