@@ -117,20 +117,29 @@ def _cmd_run(args):
   import pathlib
 
   from tqdm import tqdm
-  total = (experiment["quick_runs"] if args.quick else experiment["runs"]) * len(
-      experiment["task_files"])
-  bar = tqdm(total=total, initial=total - len(runner.pending(experiment, args.out, args.quick)),
-             unit="run", desc=experiment["name"], dynamic_ncols=True,
-             disable=args.quiet or not sys.stderr.isatty())
+  all_jobs = runner.jobs(experiment, args.out, args.quick)
+  todo = runner.pending(experiment, args.out, args.quick)
+  bar = tqdm(total=sum(job[2] for job in all_jobs), unit="ep", unit_scale=True,
+             desc=f"{experiment['name']} ({len(todo)} of {len(all_jobs)} runs to go)",
+             dynamic_ncols=True, disable=args.quiet or not sys.stderr.isatty())
   done = []
 
-  def progress(job):
+  def progress(episodes, _total, current):
+    bar.update(episodes - bar.n)
+    if current:     # e.g. "hybrid gate 0.812, flat_pg gate 0.403"
+      bar.set_postfix_str(", ".join(
+          f"{task.split('_', 1)[-1]} {'gate' if task.startswith('ship') else 'return'} {v:.3f}"
+          for task, v in current.items()))
+
+  def finished(job):
     done.append(job)
-    bar.update(1)
-    bar.set_postfix_str(f"{pathlib.Path(job[0]).stem} seed {job[1]}")
+    bar.set_description(f"{experiment['name']} ({len(todo) - len(done)} of {len(all_jobs)} "
+                        f"runs to go)")
   try:
-    results, root, wall = runner.run_experiment(experiment, args.out, quick=args.quick,
-                                                workers=args.workers, progress=progress)
+    results, root, wall = runner.run_experiment(
+        experiment, args.out, quick=args.quick, workers=args.workers, progress=progress,
+        on_finished=finished, executor=args.executor, address=args.address,
+        checkpoint_every=args.checkpoint_every)
   finally:
     bar.close()
   runs = experiment["quick_runs"] if args.quick else experiment["runs"]
@@ -170,8 +179,10 @@ def _cmd_reproduce(args):
     if name == "fig12":
       rc |= _reproduce_fig12(args)
     else:
-      rc |= _cmd_run(argparse.Namespace(experiment_file=name, quick=args.quick, out=args.out,
-                                        workers=args.workers, quiet=args.quiet))
+      rc |= _cmd_run(argparse.Namespace(
+          experiment_file=name, quick=args.quick, out=args.out, workers=args.workers,
+          quiet=args.quiet, executor=args.executor, address=args.address,
+          checkpoint_every=args.checkpoint_every))
   return rc
 
 
@@ -209,6 +220,21 @@ def _cmd_demo(args):
   rc |= _cmd_verify(argparse.Namespace(what="ship", controls=1000, starts=3, seed=0))
   rc |= _cmd_bench(argparse.Namespace(what="envs", seconds=args.seconds))
   return rc
+
+
+def _add_run_options(p):
+  """Options shared by `run` and `reproduce`."""
+  from hpg_mj.experiments import runs
+  p.add_argument("--quick", action="store_true", help="fewer runs and episodes")
+  p.add_argument("--out", default="runs", help="output folder (one subfolder per experiment)")
+  p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+  p.add_argument("--executor", choices=["process", "ray"], default="process",
+                 help="a local process pool, or Ray (pip install 'hpg_mj[ray]')")
+  p.add_argument("--address", default=None,
+                 help="with --executor ray: a Ray cluster's address (default: a local Ray)")
+  p.add_argument("--checkpoint-every", type=int, default=runs.CHECKPOINT_EVERY, metavar="N",
+                 help=f"episodes between checkpoints (default {runs.CHECKPOINT_EVERY})")
+  p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def build_parser():
@@ -251,19 +277,13 @@ def build_parser():
 
   p = sub.add_parser("run", help="run an experiment file: its tasks x seeds, figures, report")
   p.add_argument("experiment_file", help="an experiment file, or a shipped one's name (fig7_11)")
-  p.add_argument("--quick", action="store_true", help="fewer runs and episodes")
-  p.add_argument("--out", default="runs", help="output folder (one subfolder per experiment)")
-  p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
-  p.add_argument("--quiet", action="store_true")
+  _add_run_options(p)
   p.set_defaults(func=_cmd_run)
 
   p = sub.add_parser("reproduce", help="the paper's figures from the shipped experiments")
   p.add_argument("figure", nargs="?", default="all",
                  help="all, fig6, fig7, fig8, fig9, fig10 or fig11")
-  p.add_argument("--quick", action="store_true", help="fewer runs and episodes")
-  p.add_argument("--out", default="runs", help="output folder")
-  p.add_argument("--workers", type=int, default=None)
-  p.add_argument("--quiet", action="store_true")
+  _add_run_options(p)
   p.set_defaults(func=_cmd_reproduce)
 
   p = sub.add_parser("evaluate", help="run a saved agent without learning")

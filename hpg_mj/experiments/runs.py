@@ -1,0 +1,199 @@
+"""One (task, seed) run of an experiment: trained in chunks, its metrics written as
+it goes, its whole training state checkpointed atomically, resumed exactly.
+
+A run folder (`OUT/<experiment>/<task>/seed<k>/`) holds:
+
+    progress.csv          one row per chunk of episodes, flushed as written:
+                          episodes, wall_seconds, episodes_per_second and the
+                          chunk's figure (gate_pass_rate or mean_return)
+    checkpoints/ep<N>/    the agent after N episodes with its record so far
+                          (`kinds.save`); the newest two are kept
+    events.log            what happened to the run: started, resumed from
+                          episode N, a damaged checkpoint set aside
+    record.npy            the per-episode record       } written when the run
+    agent/                the final agent (`hpg-mj     } finishes; metrics.json
+                          evaluate`, `render --agent`)  } last, and a run with
+    metrics.json          metrics over the last 1,000   } it is never run again
+
+A checkpoint is written to `checkpoints/.tmp-ep<N>` and renamed into place, so a
+run killed at any moment leaves either the new checkpoint whole or none of it.
+Resuming loads the newest checkpoint; one that does not load (its SHA-256 or its
+archive does not check out) is reported in events.log and on stderr, renamed to
+`damaged-ep<N>`, and the run resumes from the one before it (or from the start).
+The saved state is the agent's whole training state (parameters, traces, the
+generator, counters), so a resumed run ends bit-identical to one never stopped.
+"""
+import json
+import os
+import pathlib
+import shutil
+import sys
+import time
+
+import numpy as np
+
+from hpg_mj.experiments import kinds
+from hpg_mj.experiments import storage
+
+CHUNK = 1000           # episodes between progress rows
+CHECKPOINT_EVERY = 10000
+KEEP_CHECKPOINTS = 2
+PROGRESS_COLUMNS = ("episodes", "wall_seconds", "episodes_per_second")
+
+
+class RunInterrupted(Exception):
+  """Raised by `run(stop_after=...)`: the run stopped as if killed (for tests)."""
+
+
+def is_finished(run_dir):
+  return (pathlib.Path(run_dir) / "metrics.json").is_file()
+
+
+def _log(run_dir, message, stderr=False):
+  line = f"{time.strftime('%Y-%m-%d %H:%M:%S')} {message}"
+  with open(pathlib.Path(run_dir) / "events.log", "a") as f:
+    f.write(line + "\n")
+  if stderr:
+    print(f"{run_dir}: {message}", file=sys.stderr)
+
+
+def _checkpoints(run_dir):
+  """The checkpoint folders, newest first."""
+  folder = pathlib.Path(run_dir) / "checkpoints"
+  found = [p for p in folder.glob("ep*") if p.is_dir() and p.name[2:].isdigit()]
+  return sorted(found, key=lambda p: int(p.name[2:]), reverse=True)
+
+
+def _write_checkpoint(agent, record, run_dir, done, wall):
+  folder = pathlib.Path(run_dir) / "checkpoints"
+  tmp = folder / f".tmp-ep{done}"
+  if tmp.exists():
+    shutil.rmtree(tmp)
+  kinds.save(agent, tmp, record, {"episodes_done": done, "wall_seconds": wall})
+  os.replace(tmp, folder / f"ep{done}")
+  for old in _checkpoints(run_dir)[KEEP_CHECKPOINTS:]:
+    shutil.rmtree(old)
+
+
+def _resume(task, seed, run_dir):
+  """(agent, records, episodes done, wall seconds) from the newest good checkpoint,
+  or a fresh agent."""
+  folder = pathlib.Path(run_dir) / "checkpoints"
+  for tmp in folder.glob(".tmp-*"):        # a checkpoint whose writing was cut short
+    shutil.rmtree(tmp)
+  for path in _checkpoints(run_dir):
+    try:
+      agent, record, meta = kinds.load(path)
+      done = int(meta["episodes_done"])
+      if record is None or len(record) != done or agent.seed != seed:
+        raise storage.AgentFileError(f"{path}: holds {None if record is None else len(record)} "
+                                     f"episodes of seed {agent.seed}, expected {done} of {seed}")
+    except (storage.AgentFileError, KeyError, ValueError) as err:
+      aside = path.with_name("damaged-" + path.name)
+      if aside.exists():
+        shutil.rmtree(aside)
+      os.replace(path, aside)
+      _log(run_dir, f"damaged checkpoint {path.name} set aside as {aside.name}: {err}",
+           stderr=True)
+      continue
+    _log(run_dir, f"resumed from checkpoint {path.name} (episode {done})")
+    return agent, [record], done, float(meta.get("wall_seconds", 0.0))
+  agent = kinds.build(task, seed)
+  _log(run_dir, f"started seed {seed}")
+  return agent, [], 0, 0.0
+
+
+class _ProgressFile:
+  """progress.csv, cut back to the episodes a resumed run really has."""
+
+  def __init__(self, run_dir, key, done):
+    self.path = pathlib.Path(run_dir) / "progress.csv"
+    header = ",".join(PROGRESS_COLUMNS + (key,))
+    keep = []
+    if done and self.path.is_file():
+      for line in self.path.read_text().splitlines()[1:]:
+        fields = line.split(",")
+        if len(fields) == len(PROGRESS_COLUMNS) + 1 and fields[0].isdigit() and int(fields[0]) <= done:
+          keep.append(line)
+    tmp = self.path.with_name("progress.csv.tmp")
+    tmp.write_text("\n".join([header] + keep) + "\n")
+    os.replace(tmp, self.path)
+    self.file = open(self.path, "a")
+
+  def write(self, done, wall, rate, value):
+    self.file.write(f"{done},{wall:.3f},{rate:.1f},{value:.6g}\n")
+    self.file.flush()
+
+  def close(self):
+    self.file.close()
+
+
+def read_progress(run_dir):
+  """(episodes done, latest figure) from a run's progress.csv; (0, None) if none yet."""
+  path = pathlib.Path(run_dir) / "progress.csv"
+  try:
+    lines = path.read_text().splitlines()
+  except OSError:
+    return 0, None
+  for line in reversed(lines[1:]):
+    fields = line.split(",")
+    if len(fields) == len(PROGRESS_COLUMNS) + 1 and fields[0].isdigit():
+      try:
+        return int(fields[0]), float(fields[-1])
+      except ValueError:
+        continue
+  return 0, None
+
+
+def run(task_path, seed, episodes, run_dir, checkpoint_every=CHECKPOINT_EVERY, stop_after=None):
+  """Trains one (task, seed) run to `episodes`, resuming from its checkpoints;
+  returns its metrics. A finished run is not run again."""
+  run_dir = pathlib.Path(run_dir)
+  if is_finished(run_dir):
+    return json.loads((run_dir / "metrics.json").read_text())
+  if checkpoint_every < 1:
+    raise ValueError(f"checkpoint_every must be a positive number of episodes, got "
+                     f"{checkpoint_every}")
+  task = kinds.load_task(task_path)
+  (run_dir / "checkpoints").mkdir(parents=True, exist_ok=True)
+  agent, records, done, wall = _resume(task, seed, run_dir)
+  if done > episodes:
+    raise ValueError(f"{run_dir}: its checkpoint is at episode {done}, past the {episodes} "
+                     f"episodes asked for; use another output folder")
+  key = "gate_pass_rate" if isinstance(agent, kinds._ShipKind) else "mean_return"
+  progress = _ProgressFile(run_dir, key, done)
+  chunk = 50 if agent.backend == "mujoco" else CHUNK
+  try:
+    while done < episodes:
+      n = min(chunk, episodes - done, checkpoint_every - done % checkpoint_every)
+      start = time.perf_counter()
+      records.append(agent.run(n, agent.backend))
+      seconds = time.perf_counter() - start
+      wall += seconds
+      done += n
+      progress.write(done, wall, n / max(seconds, 1e-9), next(iter(agent.progress(records[-1]).values())))
+      if done % checkpoint_every == 0 and done < episodes:
+        records = [np.concatenate(records)]
+        _write_checkpoint(agent, records[0], run_dir, done, wall)
+      if stop_after is not None and done >= stop_after and done < episodes:
+        raise RunInterrupted(f"stopped at episode {done}")
+  finally:
+    progress.close()
+  record = np.concatenate(records)
+  metrics = agent.metrics(record)
+  metrics.update({"task": task.path.stem, "seed": seed, "episodes": episodes,
+                  "wall_seconds": round(wall, 3)})
+  agent_dir = run_dir / "agent"
+  if agent_dir.exists():
+    shutil.rmtree(agent_dir)
+  kinds.save(agent, agent_dir, record, {"metrics": metrics})
+  tmp = run_dir / "record.npy.tmp"
+  with open(tmp, "wb") as f:
+    np.save(f, record)
+  os.replace(tmp, run_dir / "record.npy")
+  tmp = run_dir / "metrics.json.tmp"
+  tmp.write_text(json.dumps(metrics, indent=2) + "\n")
+  os.replace(tmp, run_dir / "metrics.json")     # written last: the run is finished
+  shutil.rmtree(run_dir / "checkpoints")
+  _log(run_dir, f"finished {episodes} episodes in {wall:.1f} s of training")
+  return metrics

@@ -1,0 +1,165 @@
+"""Runs write their metrics as they go, checkpoint atomically, survive SIGKILL and
+damaged checkpoints, and give the same numbers under any executor."""
+import json
+import os
+import pathlib
+import random
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+import hpg_mj
+from hpg_mj.experiments import kinds, runner, runs, storage
+
+EXPERIMENT = """
+[experiment]
+name = "resume"
+description = "one task, one seed"
+tasks = ["{task}"]
+runs = {runs}
+episodes = {episodes}
+quick_runs = 1
+quick_episodes = 1000
+"""
+
+
+def _experiment(tmp_path, task="ship_hybrid", n_runs=1, episodes=6000):
+  path = tmp_path / f"{task}.toml"
+  path.write_text(EXPERIMENT.format(task=task, runs=n_runs, episodes=episodes))
+  return path
+
+
+def _final(run_dir):
+  """The finished run: metrics without the wall time, record, final agent arrays."""
+  run_dir = pathlib.Path(run_dir)
+  metrics = json.loads((run_dir / "metrics.json").read_text())
+  metrics.pop("wall_seconds")
+  _, arrays = storage.load(run_dir / "agent")
+  return metrics, np.load(run_dir / "record.npy"), arrays
+
+
+def _assert_same(a, b):
+  assert a[0] == b[0]
+  np.testing.assert_array_equal(a[1], b[1])
+  assert sorted(a[2]) == sorted(b[2])
+  for name in a[2]:
+    np.testing.assert_array_equal(a[2][name], b[2][name], err_msg=name)
+
+
+def test_progress_is_written_as_the_run_goes(tmp_path):
+  run_dir = tmp_path / "run"
+  task = kinds.load_task("taxi_fuel_flat_q")
+  with pytest.raises(runs.RunInterrupted):
+    runs.run(str(task.path), 0, 5000, run_dir, checkpoint_every=2000, stop_after=3000)
+  lines = (run_dir / "progress.csv").read_text().splitlines()
+  assert lines[0] == "episodes,wall_seconds,episodes_per_second,mean_return"
+  assert [int(line.split(",")[0]) for line in lines[1:]] == [1000, 2000, 3000]
+  assert runs.read_progress(run_dir)[0] == 3000
+  assert [p.name for p in (run_dir / "checkpoints").iterdir()] == ["ep2000"]
+  assert not runs.is_finished(run_dir)
+  # Resumed from episode 2000: the rows after it are cut, then written again.
+  runs.run(str(task.path), 0, 5000, run_dir, checkpoint_every=2000)
+  lines = (run_dir / "progress.csv").read_text().splitlines()
+  assert [int(line.split(",")[0]) for line in lines[1:]] == [1000, 2000, 3000, 4000, 5000]
+  assert "resumed from checkpoint ep2000 (episode 2000)" in (run_dir / "events.log").read_text()
+  assert not (run_dir / "checkpoints").exists()      # a finished run keeps its agent only
+  record = np.load(run_dir / "record.npy")
+  assert record.shape[0] == 5000
+
+
+def test_a_run_killed_with_sigkill_resumes_bit_identical(tmp_path):
+  path = _experiment(tmp_path)
+  env = dict(os.environ, PYTHONPATH=str(pathlib.Path(hpg_mj.__file__).resolve().parents[1]))
+  command = [sys.executable, "-m", "hpg_mj.cli", "run", str(path), "--workers", "1", "--quiet",
+             "--checkpoint-every", "1000"]
+  # The uninterrupted run.
+  subprocess.run(command + ["--out", str(tmp_path / "whole")], env=env, check=True,
+                 capture_output=True)
+  # The same command, killed at a random point after its first checkpoint...
+  rnd = random.Random()
+  target = rnd.randrange(1500, 5000)
+  pause = rnd.uniform(0.0, 0.2)
+  out = tmp_path / "killed"
+  run_dir = out / "resume" / "ship_hybrid" / "seed0"
+  proc = subprocess.Popen(command + ["--out", str(out)], env=env, stdout=subprocess.DEVNULL,
+                          stderr=subprocess.DEVNULL)
+  deadline = time.monotonic() + 300
+  while runs.read_progress(run_dir)[0] < target and proc.poll() is None:
+    assert time.monotonic() < deadline, "the run did not progress"
+    time.sleep(0.01)
+  time.sleep(pause)
+  proc.send_signal(signal.SIGKILL)
+  proc.wait()
+  assert proc.returncode == -signal.SIGKILL, (target, pause)
+  assert not runs.is_finished(run_dir), "the run finished before it was killed"
+  killed_at = runs.read_progress(run_dir)[0]
+  # ...and run again: it resumes from its last checkpoint.
+  subprocess.run(command + ["--out", str(out)], env=env, check=True, capture_output=True)
+  log = (run_dir / "events.log").read_text()
+  assert "resumed from checkpoint ep" in log, log
+  _assert_same(_final(tmp_path / "whole" / "resume" / "ship_hybrid" / "seed0"), _final(run_dir))
+  print(f"killed near episode {killed_at} (target {target}, pause {pause:.3f} s)")
+
+
+def test_a_damaged_checkpoint_falls_back_to_the_previous_good_one(tmp_path, capsys):
+  task = str(kinds.load_task("ship_flat_pg").path)
+  runs.run(task, 1, 4000, tmp_path / "whole", checkpoint_every=1000)
+  run_dir = tmp_path / "broken"
+  with pytest.raises(runs.RunInterrupted):
+    runs.run(task, 1, 4000, run_dir, checkpoint_every=1000, stop_after=3000)
+  assert [p.name for p in runs._checkpoints(run_dir)] == ["ep3000", "ep2000"]
+  arrays = run_dir / "checkpoints" / "ep3000" / storage.ARRAYS
+  blob = bytearray(arrays.read_bytes())
+  blob[len(blob) // 2] ^= 0xFF
+  arrays.write_bytes(bytes(blob))
+  runs.run(task, 1, 4000, run_dir, checkpoint_every=1000)
+  err = capsys.readouterr().err
+  assert "damaged checkpoint ep3000" in err and "SHA-256" in err
+  log = (run_dir / "events.log").read_text()
+  assert "resumed from checkpoint ep2000 (episode 2000)" in log
+  assert (run_dir / "damaged-ep3000").is_dir() is False     # removed with the checkpoints
+  _assert_same(_final(tmp_path / "whole"), _final(run_dir))
+
+
+def test_a_checkpoint_cut_short_is_ignored(tmp_path):
+  task = str(kinds.load_task("taxi_fuel_hpg").path)
+  run_dir = tmp_path / "run"
+  with pytest.raises(runs.RunInterrupted):
+    runs.run(task, 0, 3000, run_dir, checkpoint_every=1000, stop_after=1000)
+  # A kill while writing ep2000 leaves only its temporary folder.
+  (run_dir / "checkpoints" / ".tmp-ep2000").mkdir()
+  (run_dir / "checkpoints" / ".tmp-ep2000" / storage.ARRAYS).write_bytes(b"PK\x03\x04")
+  runs.run(task, 0, 3000, run_dir, checkpoint_every=1000)
+  runs.run(task, 0, 3000, tmp_path / "whole", checkpoint_every=1000)
+  _assert_same(_final(tmp_path / "whole"), _final(run_dir))
+
+
+def test_bad_checkpoint_interval_is_refused(tmp_path):
+  with pytest.raises(ValueError, match="checkpoint_every must be a positive number"):
+    runs.run(str(kinds.load_task("ship_hybrid").path), 0, 10, tmp_path, checkpoint_every=0)
+
+
+def test_ray_gives_the_same_results_as_the_process_pool(tmp_path):
+  pytest.importorskip("ray", reason="Ray is an optional extra: pip install 'hpg_mj[ray]'")
+  experiment = runner.load_experiment(_experiment(tmp_path, "taxi_fuel_hpg", n_runs=2,
+                                                  episodes=3000))
+  pool, root_pool, _ = runner.run_experiment(experiment, tmp_path / "pool", workers=2,
+                                             checkpoint_every=1000)
+  ray_results, root_ray, _ = runner.run_experiment(experiment, tmp_path / "ray", workers=2,
+                                                   executor="ray", checkpoint_every=1000)
+  for seed in range(2):
+    _assert_same(_final(root_pool / "taxi_fuel_hpg" / f"seed{seed}"),
+                 _final(root_ray / "taxi_fuel_hpg" / f"seed{seed}"))
+  for a, b in zip(pool["taxi_fuel_hpg"], ray_results["taxi_fuel_hpg"]):
+    a.pop("wall_seconds"), b.pop("wall_seconds")
+    assert a == b
+
+
+def test_unknown_executor_is_refused(tmp_path):
+  experiment = runner.load_experiment(_experiment(tmp_path))
+  with pytest.raises(ValueError, match=r"unknown executor 'dask'; valid executors: \['process', 'ray'\]"):
+    runner.run_experiment(experiment, tmp_path, executor="dask")
