@@ -183,6 +183,8 @@ def _cmd_reproduce(args):
           experiment_file=name, quick=args.quick, out=args.out, workers=args.workers,
           quiet=args.quiet, executor=args.executor, address=args.address,
           checkpoint_every=args.checkpoint_every))
+  from hpg_mj.experiments import figures
+  print(f"reproduce: every figure beside the paper in {figures.write_combined_report(args.out, names)}")
   return rc
 
 

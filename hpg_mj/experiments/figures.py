@@ -170,3 +170,33 @@ def write_taxi_report(root, experiment, summary, optimal):
             "primitive steps to 95% of optimal: " + (", ".join(t for _, t in order) or "none")
             + ". MAXQ-Q is not in this experiment yet."]
   pathlib.Path(root, "REPORT.md").write_text("\n".join(lines) + "\n")
+
+
+def write_combined_report(out, names):
+  """OUT/REPORT.md after `hpg-mj reproduce`: each experiment's REPORT.md in turn and
+  Figure 12's two episodes, so that one file sets every figure beside the paper."""
+  import json
+  out = pathlib.Path(out)
+  lines = ["# Reproduction of Ghavamzadeh & Mahadevan (2003)", "",
+           "Each section is the REPORT.md of one experiment folder below this one.", ""]
+  for name in names:
+    if name == "fig12":
+      summary_path = out / "fig12" / "fig12.json"
+      if not summary_path.is_file():
+        continue
+      lines += ["## fig12: the learned hybrid from the paper's two starts", "",
+                "The paper (Figure 12) shows the hybrid passing the gate from both starts "
+                "with a few low-level calls. Ours, on the MuJoCo ship (`fig12/fig12.png`, "
+                "`fig12/fig12_0.mp4`, `fig12/fig12_1.mp4`):", ""]
+      for s in json.loads(summary_path.read_text()):
+        lines.append(f"- from ({s['start'][0]:.0f}, {s['start'][1]:.0f}): "
+                     f"{'passed' if s['passed'] else 'missed'} the gate in {s['steps']} "
+                     f"control steps, {s['calls']} calls ({' '.join(s['decisions'])})")
+      lines.append("")
+      continue
+    report = out / name / "REPORT.md"
+    if report.is_file():
+      text = report.read_text().splitlines()
+      lines += ["#" + line if line.startswith("#") else line for line in text] + [""]
+  (out / "REPORT.md").write_text("\n".join(lines))
+  return out / "REPORT.md"

@@ -93,6 +93,8 @@ def test_reproduce_quick_figure_6(tmp_path, capsys):
   assert cli.main(["reproduce", "fig6", "--quick", "--out", str(tmp_path), "--quiet"]) == 0
   assert (tmp_path / "fig6" / "fig6.png").is_file()
   assert (tmp_path / "fig6" / "taxi_fuel_hpg" / "seed2" / "metrics.json").is_file()
+  report = (tmp_path / "REPORT.md").read_text()
+  assert "## fig6:" in report and "Optimal mean return (value iteration): 6.1446" in report
   assert cli.main(["reproduce", "fig13", "--out", str(tmp_path)]) == 2
   assert "valid: all, fig6, fig7" in capsys.readouterr().err
 
