@@ -142,70 +142,49 @@ def _cmd_run(args):
         checkpoint_every=args.checkpoint_every)
   finally:
     bar.close()
-  runs = experiment["quick_runs"] if args.quick else experiment["runs"]
-  records = {task: runner.load_records(root, task, runs) for task in results}
-  if all(task.startswith("ship") for task in records):
-    finals = figures.draw_ship_figures(root, records)
-    figures.write_report(root, experiment, results, finals)
-  elif all(task.startswith("taxi") for task in records):
-    optimal = next(iter(results.values()))[0]["optimal_mean_return"]
-    summary = figures.draw_taxi_figure(root, records, optimal)
-    figures.write_taxi_report(root, experiment, summary, optimal)
-  else:
-    raise ValueError(f"{experiment['path']}: an experiment compares ship tasks or taxi tasks, "
-                     f"not both: {sorted(records)}")
+  n_runs = experiment["quick_runs"] if args.quick else experiment["runs"]
+  records = {task: runner.load_records(root, task, n_runs) for task in results}
+  optimal = next(iter(results.values()))[0].get("optimal_mean_return")
+  drawn = {}
+  for fig in experiment["figures"]:
+    if fig["kind"] == "curve":
+      drawn[fig["name"]] = figures.draw_curve(root, fig, experiment["task_files"], records,
+                                              optimal)
+      continue
+    from hpg_mj.experiments import kinds
+    agent, _, _ = kinds.load(root / fig["task"] / f"seed{fig['seed']}" / "agent")
+    drawn[fig["name"]] = figures.draw_trajectories(root, fig, agent)
+    for s in drawn[fig["name"]]:
+      print(f"{fig['name']}: from {tuple(s['start'])}: "
+            f"{'passed' if s['passed'] else 'missed'} the gate in {s['steps']} control "
+            f"steps, {s['calls']} calls ({' '.join(s['decisions'])})")
+  figures.write_report(root, experiment, results, drawn)
   print(f"{experiment['name']}: {sum(len(r) for r in results.values())} runs "
-        f"({len(done)} new, {wall:.1f} s); figures and REPORT.md in {root}")
+        f"({len(done)} new, {wall:.1f} s); {', '.join(drawn)} and REPORT.md in {root}")
   return 0
 
 
 FIGURE_EXPERIMENTS = {"fig6": "fig6", "fig7": "fig7_11", "fig8": "fig7_11", "fig9": "fig7_11",
-                      "fig10": "fig7_11", "fig11": "fig7_11"}
+                      "fig10": "fig7_11", "fig11": "fig7_11", "fig12": "fig12"}
 
 
 def _cmd_reproduce(args):
   """The paper's figures from the shipped experiment files."""
   if args.figure == "all":
-    names = sorted(set(FIGURE_EXPERIMENTS.values())) + ["fig12"]
+    names = list(dict.fromkeys(FIGURE_EXPERIMENTS.values()))
   elif args.figure in FIGURE_EXPERIMENTS:
     names = [FIGURE_EXPERIMENTS[args.figure]]
-  elif args.figure == "fig12":
-    names = ["fig12"]
   else:
-    raise ValueError(f"unknown figure {args.figure!r}; valid: all, "
-                     f"{', '.join(FIGURE_EXPERIMENTS)}, fig12")
+    raise ValueError(f"unknown figure {args.figure!r}; valid: all, {', '.join(FIGURE_EXPERIMENTS)}")
   rc = 0
   for name in names:
-    if name == "fig12":
-      rc |= _reproduce_fig12(args)
-    else:
-      rc |= _cmd_run(argparse.Namespace(
-          experiment_file=name, quick=args.quick, out=args.out, workers=args.workers,
-          quiet=args.quiet, executor=args.executor, address=args.address,
-          checkpoint_every=args.checkpoint_every))
+    rc |= _cmd_run(argparse.Namespace(
+        experiment_file=name, quick=args.quick, out=args.out, workers=args.workers,
+        quiet=args.quiet, executor=args.executor, address=args.address,
+        checkpoint_every=args.checkpoint_every))
   from hpg_mj.experiments import figures
   print(f"reproduce: every figure beside the paper in {figures.write_combined_report(args.out, names)}")
   return rc
-
-
-def _reproduce_fig12(args):
-  """Figure 12: a hybrid trained on the analytic ship (50,000 episodes; --quick 20,000)
-  steers the MuJoCo ship from the paper's two starts."""
-  import json
-  import pathlib
-
-  from hpg_mj.experiments import fig12, kinds
-  out = pathlib.Path(args.out) / "fig12"
-  episodes = 20000 if args.quick else 50000
-  agent, record, _ = kinds.train(kinds.load_task("ship_hybrid"), episodes=episodes, seed=0)
-  kinds.save(agent, out / "agent", record)
-  summary = fig12.draw(agent, out)
-  (out / "fig12.json").write_text(json.dumps(summary, indent=2) + "\n")
-  for s in summary:
-    print(f"fig12: from {tuple(s['start'])}: {'passed' if s['passed'] else 'missed'} the gate "
-          f"in {s['steps']} control steps, {s['calls']} calls ({' '.join(s['decisions'])})")
-  print(f"fig12: fig12.png and fig12_0.mp4, fig12_1.mp4 in {out}")
-  return 0
 
 
 def _cmd_demo(args):
@@ -284,7 +263,7 @@ def build_parser():
 
   p = sub.add_parser("reproduce", help="the paper's figures from the shipped experiments")
   p.add_argument("figure", nargs="?", default="all",
-                 help="all, fig6, fig7, fig8, fig9, fig10 or fig11")
+                 help="all, fig6, fig7, ..., fig12")
   _add_run_options(p)
   p.set_defaults(func=_cmd_reproduce)
 

@@ -42,8 +42,10 @@ def sail(agent_kind, start):
   return np.array(path), decisions, record[0]
 
 
-def draw(agent_kind, out, video=True, width=640, height=480):
-  """Writes fig12.png and, with `video`, fig12_<k>.mp4 for each start; returns a summary."""
+def draw(agent_kind, out, video=True, width=640, height=480, starts=STARTS, name="fig12",
+         title="Learned hybrid from the paper's two starts (dots: root decisions)"):
+  """Writes <name>.png and, with `video`, <name>_<k>.mp4 for each start; returns a
+  summary per start."""
   import matplotlib
   matplotlib.use("Agg")
   import matplotlib.pyplot as plt
@@ -53,7 +55,7 @@ def draw(agent_kind, out, video=True, width=640, height=480):
   ax.plot([0, 1000, 1000, 0, 0], [0, 0, 1000, 1000, 0], color="firebrick", linewidth=1)
   ax.plot(core.GATE[:, 0], core.GATE[:, 1], color="goldenrod", linewidth=4, label="gate")
   summary = []
-  for k, start in enumerate(STARTS):
+  for k, start in enumerate(starts):
     path, decisions, record = sail(agent_kind, start)
     line, = ax.plot(path[:, 0], path[:, 1], linewidth=1.5,
                     label=f"from ({start[0]:.0f}, {start[1]:.0f}, {start[2]:.0f} deg, "
@@ -67,16 +69,16 @@ def draw(agent_kind, out, video=True, width=640, height=480):
                     "passed": bool(record[0]), "calls": len(decisions),
                     "decisions": [core.DIRECTIONS[d] for _, _, d in decisions]})
     if video:
-      _video(path, marks, out / f"fig12_{k}.mp4", width, height)
+      _video(path, marks, out / f"{name}_{k}.mp4", width, height)
   ax.set_xlim(-20, 1020)
   ax.set_ylim(-20, 1020)
   ax.set_aspect("equal")
   ax.set_xlabel("x (m)")
   ax.set_ylabel("y (m)")
-  ax.set_title("Learned hybrid from the paper's two starts (dots: root decisions)")
+  ax.set_title(title)
   ax.legend(fontsize=7, loc="lower left")
   fig.tight_layout()
-  fig.savefig(out / "fig12.png", dpi=100)
+  fig.savefig(out / f"{name}.png", dpi=100)
   plt.close(fig)
   return summary
 

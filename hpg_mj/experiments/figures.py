@@ -1,6 +1,16 @@
-"""Figures 7-11 of the paper from stored run records: mean over runs with a band
-for their spread (min to max), the data beside each PNG as CSV, the paper's
-stated values drawn in, and a REPORT.md that sets our numbers beside the paper's."""
+"""The figures an experiment file declares ([[figure]] tables), drawn from stored
+run records, and a REPORT.md that sets our numbers beside the paper's statements.
+
+A "curve" figure plots one metric per block of 1,000 episodes (`METRICS`) against
+episodes or against primitive/control steps: the mean over runs, with a band from
+the lowest to the highest run, the paper's stated value drawn in when the file
+gives one, and the data beside the PNG as CSV. A "trajectories" figure (Figure
+12) sails a run's final agent from given starts on the MuJoCo ship
+(`experiments.fig12`).
+
+Every task record starts with the same two columns: the ship's (passed the gate,
+control steps), the taxi's (return, primitive steps); the hybrid adds its own.
+"""
 import pathlib
 
 import numpy as np
@@ -8,16 +18,6 @@ import numpy as np
 from hpg_mj.hierarchy import ship_compiled as sc
 
 BLOCK = 1000   # episodes per point
-
-# figure -> (title, y label, columns needed, paper's stated value or None)
-SHIP_FIGURES = {
-    "fig7": ("Gate passes per 1,000 episodes", "gate passes"),
-    "fig8": ("Low-level calls per episode (hybrid)", "calls per episode"),
-    "fig9": ("Control steps to pass the gate", "control steps"),
-    "fig10": ("Diagonal subtask: successes per 1,000 runs (hybrid)", "successes per 1,000 runs"),
-    "fig11": ("Straight subtask: successes per 1,000 runs (hybrid)", "successes per 1,000 runs"),
-}
-PAPER = {"fig8": 4.0, "fig9": 220.0}
 
 
 def _blocks(values, weights=None):
@@ -30,170 +30,192 @@ def _blocks(values, weights=None):
     return v.sum(axis=1) / w.sum(axis=1)
 
 
-def ship_series(task_name, record):
-  """{figure: per-block values} for one run (hybrid columns where the task has them)."""
-  passed, steps = record[:, 0], record[:, 1]
-  out = {"fig7": _blocks(passed) * BLOCK,
-         "fig9": _blocks(steps * passed, passed)}
-  if task_name == "ship_hybrid":
-    out["fig8"] = _blocks(record[:, sc.CALLS])
-    out["fig10"] = _blocks(record[:, sc.DIAG_SUCCESS], record[:, sc.DIAG_RUNS]) * BLOCK
-    out["fig11"] = _blocks(record[:, sc.STRAIGHT_SUCCESS], record[:, sc.STRAIGHT_RUNS]) * BLOCK
-  return out
+# metric -> (which tasks have it: a world, or the ship_hybrid kind; per-block values)
+METRICS = {
+    "gate_passes": ("ship", lambda r: _blocks(r[:, 0]) * BLOCK),
+    "steps_to_gate": ("ship", lambda r: _blocks(r[:, 1] * r[:, 0], r[:, 0])),
+    "calls_per_episode": ("ship_hybrid", lambda r: _blocks(r[:, sc.CALLS])),
+    "diagonal_successes": ("ship_hybrid",
+                           lambda r: _blocks(r[:, sc.DIAG_SUCCESS], r[:, sc.DIAG_RUNS]) * BLOCK),
+    "straight_successes": ("ship_hybrid", lambda r: _blocks(r[:, sc.STRAIGHT_SUCCESS],
+                                                            r[:, sc.STRAIGHT_RUNS]) * BLOCK),
+    "mean_return": ("taxi", lambda r: _blocks(r[:, 0])),
+}
+X_AXES = ("episodes", "steps")
+REFERENCES = ("optimal",)
 
 
-def draw_ship_figures(root, records_by_task):
-  """Writes fig7..fig11 (.png, .csv) into `root`; returns {figure: {task: final mean}}."""
-  import matplotlib
-  matplotlib.use("Agg")
-  import matplotlib.pyplot as plt
-  root = pathlib.Path(root)
-  finals = {}
-  series = {task: [ship_series(task, r) for r in records]
-            for task, records in records_by_task.items()}
-  for fig, (title, ylabel) in SHIP_FIGURES.items():
-    tasks = [t for t in series if fig in series[t][0]]
-    if not tasks:
-      continue
-    plt.figure(figsize=(6.4, 4.0))
-    columns, header = [], ["episodes"]
-    for task in tasks:
-      data = np.array([s[fig] for s in series[task]])
-      x = (np.arange(data.shape[1]) + 1) * BLOCK
-      mean = np.nanmean(data, axis=0)
-      plt.plot(x, mean, label=task)
-      plt.fill_between(x, np.nanmin(data, axis=0), np.nanmax(data, axis=0), alpha=0.2)
-      columns += [mean, np.nanmin(data, axis=0), np.nanmax(data, axis=0)]
-      header += [f"{task}_mean", f"{task}_min", f"{task}_max"]
-      finals.setdefault(fig, {})[task] = float(mean[-1])
-    if fig in PAPER:
-      plt.axhline(PAPER[fig], color="k", linestyle="--", linewidth=1, label="paper (about)")
-    plt.title(title)
-    plt.xlabel("episodes")
-    plt.ylabel(ylabel)
-    plt.legend(fontsize=8)
-    plt.tight_layout()
-    plt.savefig(root / f"{fig}.png", dpi=100)
-    plt.close()
-    table = np.column_stack([x] + columns)
-    np.savetxt(root / f"{fig}.csv", table, delimiter=",", header=",".join(header),
-               comments="", fmt="%.6g")
-  return finals
+def _has(task, metric):
+  owner = METRICS[metric][0]
+  return task.kind == owner or task.section("environment")["world"] == owner
 
 
-def write_report(root, experiment, results, finals):
-  """REPORT.md: per figure, our final numbers beside the paper's statements."""
-  lines = [f"# {experiment['name']}: {experiment['description']}", "",
-           f"{len(next(iter(results.values())))} runs per task; numbers are means over runs "
-           "of the last 1,000 episodes (figures: of the last block).", ""]
-  lines += ["| task | gate pass rate | steps to gate | calls per episode | diagonal | straight |",
-            "|---|---|---|---|---|---|"]
-  for task, runs in results.items():
-    def mean(key):
-      values = [r.get(key) for r in runs if r.get(key) is not None]
-      return f"{np.mean(values):.3f}" if values else "-"
-    lines.append(f"| {task} | {mean('gate_pass_rate')} | {mean('steps_to_gate')} | "
-                 f"{mean('calls_per_episode')} | {mean('diagonal_success_rate')} | "
-                 f"{mean('straight_success_rate')} |")
-  lines += ["", "## Against the paper", ""]
-  hybrid = results.get("ship_hybrid")
-  if hybrid:
-    calls = np.mean([r["calls_per_episode"] for r in hybrid])
-    steps = np.mean([r["steps_to_gate"] for r in hybrid if r["steps_to_gate"] is not None])
-    lines.append(f"- Figure 8: the paper reports about 4 low-level calls per episode; we "
-                 f"measure {calls:.2f}.")
-    lines.append(f"- Figure 9: the paper reports about 220 control steps to the gate; we "
-                 f"measure {steps:.0f}" + (" (we differ: see the README, 'Results so far')."
-                                          if abs(steps - 220) > 25 else "."))
-  gates = {t: np.mean([r["gate_pass_rate"] for r in runs]) for t, runs in results.items()}
-  order = sorted(gates, key=gates.get, reverse=True)
-  lines.append(f"- Figure 7: the paper finds the hybrid ahead of both flat learners; our "
-               f"order by gate passes: {', '.join(f'{t} {gates[t]:.2f}' for t in order)}"
-               + ("." if order and order[0] == "ship_hybrid" else " (we differ)."))
-  pathlib.Path(root, "REPORT.md").write_text("\n".join(lines) + "\n")
+def check_curve(fig, tasks):
+  """Why a curve figure cannot be drawn from these tasks, or None."""
+  if fig["metric"] not in METRICS:
+    return f"metric = {fig['metric']!r}; allowed: {sorted(METRICS)}"
+  if fig["x"] not in X_AXES:
+    return f"x = {fig['x']!r}; allowed: {list(X_AXES)}"
+  if fig.get("reference", REFERENCES[0]) not in REFERENCES:
+    return f"reference = {fig['reference']!r}; allowed: {list(REFERENCES)}"
+  if "reference" in fig and fig["metric"] != "mean_return":
+    return "reference = 'optimal' needs metric = 'mean_return' (the taxi's exact optimum)"
+  if not any(_has(t, fig["metric"]) for t in tasks):
+    return (f"metric {fig['metric']!r} belongs to {METRICS[fig['metric']][0]} tasks; none of "
+            f"{[t.path.stem for t in tasks]} has it")
+  return None
 
 
-def draw_taxi_figure(root, records_by_task, optimal):
-  """Figure 6: total reward per episode (mean of each 1,000-episode block) against
-  primitive steps, mean over runs with a min-max band; the optimum drawn in.
-  Returns {task: (final mean return, mean primitive steps to reach 95%)}."""
+def draw_curve(root, fig, tasks, records_by_task, optimal=None):
+  """Writes <name>.png and <name>.csv; returns {task: (final block mean, steps to
+  95% of the optimum or None, runs reaching it)}."""
   import matplotlib
   matplotlib.use("Agg")
   import matplotlib.pyplot as plt
   from hpg_mj.worlds import taxi_values
   root = pathlib.Path(root)
-  threshold = taxi_values.performance_threshold(optimal, 0.95)
+  world = tasks[0].section("environment")["world"]
   plt.figure(figsize=(6.4, 4.0))
   columns, header, summary = [], [], {}
-  for task, records in records_by_task.items():
-    returns = np.array([_blocks(r[:, 0]) for r in records])
-    steps = np.array([np.cumsum(r[:, 1])[BLOCK - 1::BLOCK][:returns.shape[1]] for r in records])
-    x = steps.mean(axis=0)
-    mean = returns.mean(axis=0)
-    plt.plot(x, mean, label=task)
-    plt.fill_between(x, returns.min(axis=0), returns.max(axis=0), alpha=0.2)
-    columns += [x, mean, returns.min(axis=0), returns.max(axis=0)]
-    header += [f"{task}_steps", f"{task}_mean", f"{task}_min", f"{task}_max"]
+  for task in tasks:
+    if not _has(task, fig["metric"]):
+      continue
+    name = task.path.stem
+    records = records_by_task[name]
+    data = np.array([METRICS[fig["metric"]][1](r) for r in records])
+    if fig["x"] == "steps":
+      x = np.mean([np.cumsum(r[:, 1])[BLOCK - 1::BLOCK][:data.shape[1]] for r in records], axis=0)
+    else:
+      x = (np.arange(data.shape[1]) + 1.0) * BLOCK
+    mean = np.nanmean(data, axis=0)
+    low, high = np.nanmin(data, axis=0), np.nanmax(data, axis=0)
+    plt.plot(x, mean, label=name)
+    plt.fill_between(x, low, high, alpha=0.2)
+    columns += [x, mean, low, high]
+    header += [f"{name}_x", f"{name}_mean", f"{name}_min", f"{name}_max"]
     reached = []
-    for r in records:
-      trailing = np.convolve(r[:, 0], np.ones(BLOCK) / BLOCK, mode="valid")
-      hit = np.nonzero(trailing >= threshold)[0]
-      reached.append(np.cumsum(r[:, 1])[hit[0] + BLOCK - 1] if len(hit) else np.nan)
-    summary[task] = (float(mean[-1]), float(np.nanmean(reached)) if not np.all(
-        np.isnan(reached)) else None, int(np.sum(~np.isnan(reached))))
-  plt.axhline(optimal, color="k", linestyle="--", linewidth=1, label="optimal (exact)")
-  plt.ylim(max(-60.0, plt.ylim()[0]), optimal + 3)
-  plt.title("Taxi-fuel: reward per episode")
-  plt.xlabel("primitive steps")
-  plt.ylabel("total reward per episode")
+    if fig.get("reference") == "optimal":
+      threshold = taxi_values.performance_threshold(optimal, 0.95)
+      for r in records:
+        trailing = np.convolve(r[:, 0], np.ones(BLOCK) / BLOCK, mode="valid")
+        hit = np.nonzero(trailing >= threshold)[0]
+        reached.append(np.cumsum(r[:, 1])[hit[0] + BLOCK - 1] if len(hit) else np.nan)
+    hits = [v for v in reached if not np.isnan(v)]
+    summary[name] = (float(mean[-1]), float(np.mean(hits)) if hits else None, len(hits))
+  if fig.get("reference") == "optimal":
+    plt.axhline(optimal, color="k", linestyle="--", linewidth=1, label="optimal (exact)")
+    plt.ylim(max(-60.0, plt.ylim()[0]), optimal + 3)
+  if "paper_value" in fig:
+    plt.axhline(fig["paper_value"], color="k", linestyle="--", linewidth=1,
+                label="paper (about)")
+  plt.title(fig["title"])
+  plt.xlabel("episodes" if fig["x"] == "episodes" else
+             ("primitive steps" if world == "taxi" else "control steps"))
+  plt.ylabel(fig["ylabel"])
   plt.legend(fontsize=8)
   plt.tight_layout()
-  plt.savefig(root / "fig6.png", dpi=100)
+  plt.savefig(root / f"{fig['name']}.png", dpi=100)
   plt.close()
   n = min(len(c) for c in columns)
-  np.savetxt(root / "fig6.csv", np.column_stack([c[:n] for c in columns]), delimiter=",",
-             header=",".join(header), comments="", fmt="%.6g")
+  np.savetxt(root / f"{fig['name']}.csv", np.column_stack([c[:n] for c in columns]),
+             delimiter=",", header=",".join(header), comments="", fmt="%.6g")
   return summary
 
 
-def write_taxi_report(root, experiment, summary, optimal):
+def draw_trajectories(root, fig, agent):
+  """A trajectories figure from a trained hybrid; returns fig12.draw's summary."""
+  import json
+
+  from hpg_mj.experiments import fig12
+  root = pathlib.Path(root)
+  summary = fig12.draw(agent, root, starts=[tuple(s) for s in fig["starts"]],
+                       video=fig["video"], name=fig["name"], title=fig["title"],
+                       width=fig.get("width", 640), height=fig.get("height", 480))
+  (root / f"{fig['name']}.json").write_text(json.dumps(summary, indent=2) + "\n")
+  return summary
+
+
+_SHIP_COLUMNS = ("gate_pass_rate", "steps_to_gate", "calls_per_episode",
+                 "diagonal_success_rate", "straight_success_rate")
+
+
+def _mean(runs, key):
+  values = [r.get(key) for r in runs if r.get(key) is not None]
+  return float(np.mean(values)) if values else None
+
+
+def write_report(root, experiment, results, drawn):
+  """REPORT.md: the final metrics, then per figure what the paper states beside
+  what we measure. `drawn`: {figure name: draw_curve's or draw_trajectories' summary}."""
+  root = pathlib.Path(root)
+  n_runs = len(next(iter(results.values())))
   lines = [f"# {experiment['name']}: {experiment['description']}", "",
-           f"Optimal mean return (value iteration): {optimal:.4f}.", "",
-           "| task | final mean return | % of optimal | primitive steps to 95% (runs reaching it) |",
-           "|---|---|---|---|"]
-  for task, (final, steps, n) in summary.items():
-    lines.append(f"| {task} | {final:.3f} | {100 * final / optimal:.1f}% | "
-                 f"{'-' if steps is None else f'{steps:,.0f}'} ({n}) |")
-  order = sorted((s[1], t) for t, s in summary.items() if s[1] is not None)
-  lines += ["", "## Against the paper", "",
-            "- Figure 6: the paper finds MAXQ-Q fastest, then HPG, then flat Q. Our order by "
-            "primitive steps to 95% of optimal: " + (", ".join(t for _, t in order) or "none")
-            + ". MAXQ-Q is not in this experiment yet."]
-  pathlib.Path(root, "REPORT.md").write_text("\n".join(lines) + "\n")
+           f"{n_runs} run(s) per task; numbers are means over runs of the last 1,000 "
+           "episodes (figures: of the last block of 1,000).", ""]
+  taxi = all("optimal_mean_return" in runs[0] for runs in results.values())
+  optimal = next(iter(results.values()))[0].get("optimal_mean_return")
+  if taxi:
+    lines += [f"Optimal mean return (value iteration): {optimal:.4f}.", "",
+              "| task | final mean return | % of optimal | primitive steps |", "|---|---|---|---|"]
+    for task, runs in results.items():
+      ret = _mean(runs, "mean_return")
+      lines.append(f"| {task} | {ret:.3f} | {100 * ret / optimal:.1f}% | "
+                   f"{_mean(runs, 'primitive_steps'):,.0f} |")
+  else:
+    lines += ["| task | " + " | ".join(c.replace("_", " ") for c in _SHIP_COLUMNS) + " |",
+              "|---" * (len(_SHIP_COLUMNS) + 1) + "|"]
+    for task, runs in results.items():
+      cells = [_mean(runs, c) for c in _SHIP_COLUMNS]
+      lines.append(f"| {task} | " + " | ".join("-" if v is None else f"{v:.3f}" for v in cells)
+                   + " |")
+  lines += ["", "## Against the paper", ""]
+  for fig in experiment["figures"]:
+    summary = drawn.get(fig["name"])
+    if summary is None:
+      continue
+    head = f"- **{fig['name']}** ({fig['title']}): the paper: {fig['paper']}."
+    if fig["kind"] == "trajectories":
+      lines.append(head + " Ours, on the MuJoCo ship:")
+      for s in summary:
+        lines.append(f"  - from ({s['start'][0]:.0f}, {s['start'][1]:.0f}): "
+                     f"{'passed' if s['passed'] else 'missed'} the gate in {s['steps']} "
+                     f"control steps, {s['calls']} calls ({' '.join(s['decisions'])})")
+      continue
+    ours = ", ".join(f"{task} {v[0]:.3g}" for task, v in summary.items())
+    line = head + f" Ours (last block): {ours}."
+    if "paper_value" in fig:
+      off = [t for t, v in summary.items()
+             if abs(v[0] - fig["paper_value"]) > 0.1 * abs(fig["paper_value"])]
+      if off:
+        line += (f" We differ from the paper's {fig['paper_value']:g} by more than 10% "
+                 f"({', '.join(off)}); see the README, 'Results so far'.")
+    if fig.get("reference") == "optimal":
+      line += " Primitive steps until the trailing 1,000-episode mean first reaches 95% of " \
+              "the optimum: " + ", ".join(
+                  f"{t} {'never' if v[1] is None else f'{v[1]:,.0f}'} ({v[2]} of {n_runs} runs)"
+                  for t, v in summary.items()) + "."
+    if "paper_order" in fig:
+      if fig.get("reference") == "optimal":
+        order = sorted(summary, key=lambda t: (summary[t][1] is None, summary[t][1] or 0.0))
+        how = "by primitive steps to 95% of the optimum"
+      else:
+        order = sorted(summary, key=lambda t: -summary[t][0])
+        how = "by the last block, highest first"
+      same = order == [t for t in fig["paper_order"] if t in summary]
+      line += (f" The paper's order: {', '.join(fig['paper_order'])}; ours ({how}): "
+               f"{', '.join(order)}" + (" (the same)." if same else " (we differ)."))
+    lines.append(line)
+  (root / "REPORT.md").write_text("\n".join(lines) + "\n")
+  return root / "REPORT.md"
 
 
 def write_combined_report(out, names):
-  """OUT/REPORT.md after `hpg-mj reproduce`: each experiment's REPORT.md in turn and
-  Figure 12's two episodes, so that one file sets every figure beside the paper."""
-  import json
+  """OUT/REPORT.md after `hpg-mj reproduce`: each experiment's REPORT.md in turn, so
+  that one file sets every figure beside the paper."""
   out = pathlib.Path(out)
   lines = ["# Reproduction of Ghavamzadeh & Mahadevan (2003)", "",
            "Each section is the REPORT.md of one experiment folder below this one.", ""]
   for name in names:
-    if name == "fig12":
-      summary_path = out / "fig12" / "fig12.json"
-      if not summary_path.is_file():
-        continue
-      lines += ["## fig12: the learned hybrid from the paper's two starts", "",
-                "The paper (Figure 12) shows the hybrid passing the gate from both starts "
-                "with a few low-level calls. Ours, on the MuJoCo ship (`fig12/fig12.png`, "
-                "`fig12/fig12_0.mp4`, `fig12/fig12_1.mp4`):", ""]
-      for s in json.loads(summary_path.read_text()):
-        lines.append(f"- from ({s['start'][0]:.0f}, {s['start'][1]:.0f}): "
-                     f"{'passed' if s['passed'] else 'missed'} the gate in {s['steps']} "
-                     f"control steps, {s['calls']} calls ({' '.join(s['decisions'])})")
-      lines.append("")
-      continue
     report = out / name / "REPORT.md"
     if report.is_file():
       text = report.read_text().splitlines()

@@ -12,6 +12,27 @@ An experiment file (tasks/experiments/*.toml):
     quick_runs = 2
     quick_episodes = 5000
 
+    [[figure]]                 # one table per figure; see tasks/experiments/*.toml
+    name = "fig7"
+    kind = "curve"             # a metric per 1,000 episodes, mean over runs, min-max band
+    metric = "gate_passes"     # figures.METRICS
+    x = "episodes"             # or "steps" (primitive or control steps)
+    title = "Gate passes per 1,000 episodes"
+    ylabel = "gate passes"
+    paper = "the hybrid ahead of both flat learners"   # what the paper states
+    paper_order = ["ship_hybrid", "ship_flat_pg"]      # optional: the paper's ranking
+    # optional: paper_value = 4.0 (drawn in), reference = "optimal" (taxi: the exact optimum)
+
+    [[figure]]
+    name = "fig12"
+    kind = "trajectories"      # a trained hybrid's greedy episodes on the MuJoCo ship
+    task = "ship_hybrid"
+    seed = 0                   # whose final agent
+    starts = [[700.0, 700.0, 100.0, 3.65]]
+    video = true
+    title = "..."
+    paper = "..."
+
 Layout of the output folder (one per experiment):
 
     OUT/<experiment>/<task>/seed<k>/               one run (`hpg_mj.experiments.runs`:
@@ -37,13 +58,96 @@ from hpg_mj.experiments import kinds
 from hpg_mj.experiments import runs
 from hpg_mj.experiments import taskfile
 
-EXPERIMENT_SCHEMA = {"experiment": {"name": "str", "description": "str", "tasks": "str_list",
-                                    "runs": "int", "episodes": "int", "quick_runs": "int",
-                                    "quick_episodes": "int"}}
+EXPERIMENT_SCHEMA = {"name": "str", "description": "str", "tasks": "str_list", "runs": "int",
+                     "episodes": "int", "quick_runs": "int", "quick_episodes": "int"}
+
+# [[figure]] tables: every figure needs the common keys and those of its kind;
+# the optional ones may be left out.
+FIGURE_COMMON = {"name": "str", "kind": "str", "title": "str", "paper": "str"}
+FIGURE_KINDS = {
+    "curve": ({"metric": "str", "x": "str", "ylabel": "str"},
+              {"paper_value": "float", "paper_order": "str_list", "reference": "str"}),
+    "trajectories": ({"task": "str", "seed": "count", "starts": "starts", "video": "bool"},
+                     {"width": "int", "height": "int"}),
+}
+_WANTED = {"str_list": "a non-empty list of strings", "int": "a positive integer",
+           "count": "an integer >= 0", "str": "a string", "float": "a number",
+           "bool": "true or false",
+           "starts": "a non-empty list of [x, y, heading in degrees, turning rate in deg/s]"}
+
+
+def _valid(value, kind):
+  if kind == "str_list":
+    return isinstance(value, list) and value and all(isinstance(v, str) for v in value)
+  if kind in ("int", "count"):
+    return isinstance(value, int) and not isinstance(value, bool) and value >= (kind == "int")
+  if kind == "float":
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+  if kind == "bool":
+    return isinstance(value, bool)
+  if kind == "starts":
+    return isinstance(value, list) and value and all(
+        isinstance(v, list) and len(v) == 4 and all(_valid(x, "float") for x in v) for v in value)
+  return isinstance(value, str)
+
+
+def _check_table(path, where, table, required, optional=None):
+  optional = optional or {}
+  allowed = {**required, **optional}
+  unknown = set(table) - set(allowed)
+  if unknown:
+    raise taskfile.TaskFileError(f"{path}: {where} unknown key(s) {sorted(unknown)}; "
+                                 f"allowed: {sorted(allowed)}")
+  for key, kind in allowed.items():
+    if key not in table:
+      if key in required:
+        raise taskfile.TaskFileError(f"{path}: {where} {key} is missing")
+      continue
+    if not _valid(table[key], kind):
+      raise taskfile.TaskFileError(f"{path}: {where} {key} must be {_WANTED[kind]}, got "
+                                   f"{table[key]!r}")
+
+
+def _check_figures(path, section, tasks, figures_):
+  from hpg_mj.experiments import figures
+  if not isinstance(figures_, list) or not figures_:
+    raise taskfile.TaskFileError(f"{path}: needs at least one [[figure]] table saying what "
+                                 f"is plotted")
+  names = [t.path.stem for t in tasks]
+  seen = set()
+  for k, fig in enumerate(figures_):
+    where = f"[[figure]] #{k + 1}"
+    kind = fig.get("kind")
+    if kind not in FIGURE_KINDS:
+      raise taskfile.TaskFileError(f"{path}: {where} kind = {kind!r}; allowed: "
+                                   f"{sorted(FIGURE_KINDS)}")
+    required, optional = FIGURE_KINDS[kind]
+    _check_table(path, where, fig, {**FIGURE_COMMON, **required}, optional)
+    where = f"[[figure]] {fig['name']!r}"
+    if fig["name"] in seen:
+      raise taskfile.TaskFileError(f"{path}: {where} is named twice")
+    seen.add(fig["name"])
+    for task in fig.get("paper_order", []) + ([fig["task"]] if "task" in fig else []):
+      if task not in names:
+        raise taskfile.TaskFileError(f"{path}: {where} names task {task!r}, which is not in "
+                                     f"[experiment] tasks {names}")
+    if kind == "curve":
+      problem = figures.check_curve(fig, tasks)
+      if problem:
+        raise taskfile.TaskFileError(f"{path}: {where} {problem}")
+    else:
+      if tasks[names.index(fig["task"])].kind != "ship_hybrid":
+        raise taskfile.TaskFileError(f"{path}: {where} draws a ship_hybrid's trajectories; "
+                                     f"{fig['task']!r} is not one")
+      runs_ = min(section["runs"], section["quick_runs"])
+      if fig["seed"] >= runs_:
+        raise taskfile.TaskFileError(f"{path}: {where} seed = {fig['seed']}, but the "
+                                     f"experiment has seeds 0..{runs_ - 1}")
 
 
 def load_experiment(path):
-  """Reads an experiment file and checks every task file it names, before anything runs."""
+  """Reads an experiment file and checks every task file and figure it names,
+  before anything runs."""
   import tomllib
   path = pathlib.Path(path)
   if not path.is_file():
@@ -56,35 +160,21 @@ def load_experiment(path):
     data = tomllib.loads(path.read_text())
   except tomllib.TOMLDecodeError as err:
     raise taskfile.TaskFileError(f"{path}: not valid TOML: {err}") from None
-  if set(data) != {"experiment"}:
-    raise taskfile.TaskFileError(f"{path}: needs exactly one section [experiment], got "
-                                 f"{sorted(data)}")
+  if "experiment" not in data or set(data) - {"experiment", "figure"}:
+    raise taskfile.TaskFileError(f"{path}: needs one [experiment] section and [[figure]] "
+                                 f"tables, got {sorted(data)}")
   section = data["experiment"]
-  keys = EXPERIMENT_SCHEMA["experiment"]
-  unknown = set(section) - set(keys)
-  if unknown:
-    raise taskfile.TaskFileError(f"{path}: [experiment] unknown key(s) {sorted(unknown)}; "
-                                 f"allowed: {sorted(keys)}")
-  for key, kind in keys.items():
-    if key not in section:
-      raise taskfile.TaskFileError(f"{path}: [experiment] {key} is missing")
-    value = section[key]
-    if kind == "str_list":
-      ok = isinstance(value, list) and value and all(isinstance(v, str) for v in value)
-    elif kind == "int":
-      ok = isinstance(value, int) and not isinstance(value, bool) and value >= 1
-    else:
-      ok = isinstance(value, str)
-    if not ok:
-      wanted = {"str_list": "a non-empty list of task names", "int": "a positive integer",
-                "str": "a string"}[kind]
-      raise taskfile.TaskFileError(f"{path}: [experiment] {key} must be {wanted}, got {value!r}")
+  _check_table(path, "[experiment]", section, EXPERIMENT_SCHEMA)
   tasks = [kinds.load_task(t) for t in section["tasks"]]   # refused here, before any run
   worlds = sorted({t.section("environment")["world"] for t in tasks})
   if len(worlds) > 1:
     raise taskfile.TaskFileError(f"{path}: [experiment] tasks compare one world, ship or "
                                  f"taxi; these mix {worlds}")
-  return dict(section, path=path, task_files=tasks)
+  stems = [t.path.stem for t in tasks]
+  if len(set(stems)) < len(stems):
+    raise taskfile.TaskFileError(f"{path}: [experiment] tasks names a task twice: {stems}")
+  _check_figures(path, section, tasks, data.get("figure"))
+  return dict(section, path=path, task_files=tasks, figures=data["figure"])
 
 
 def shipped_experiments():

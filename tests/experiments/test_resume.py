@@ -24,12 +24,22 @@ runs = {runs}
 episodes = {episodes}
 quick_runs = 1
 quick_episodes = 1000
+
+[[figure]]
+name = "curve"
+kind = "curve"
+metric = "{metric}"
+x = "episodes"
+title = "a curve"
+ylabel = "a metric"
+paper = "nothing"
 """
 
 
 def _experiment(tmp_path, task="ship_hybrid", n_runs=1, episodes=6000):
   path = tmp_path / f"{task}.toml"
-  path.write_text(EXPERIMENT.format(task=task, runs=n_runs, episodes=episodes))
+  metric = "mean_return" if task.startswith("taxi") else "gate_passes"
+  path.write_text(EXPERIMENT.format(task=task, runs=n_runs, episodes=episodes, metric=metric))
   return path
 
 

@@ -16,7 +16,20 @@ runs = 2
 episodes = 1000
 quick_runs = 1
 quick_episodes = 1000
-"""
+""" + runner.shipped_experiments()["fig7_11"].read_text().split("[[figure]]", 1)[1].join(
+    ["\n[[figure]]", ""]).replace('"ship_flat_pg", "ship_actor_critic"]', '"ship_flat_pg"]')
+
+TAXI = """
+[experiment]
+name = "tiny"
+description = "two taxi learners, two seeds"
+tasks = ["taxi_fuel_hpg", "taxi_fuel_flat_q"]
+runs = 2
+episodes = 3000
+quick_runs = 1
+quick_episodes = 1000
+""" + runner.shipped_experiments()["fig6"].read_text().split("[[figure]]", 1)[1].join(
+    ["\n[[figure]]", ""])
 
 
 def test_results_do_not_depend_on_the_number_of_workers(tmp_path):
@@ -58,6 +71,15 @@ def test_finished_runs_are_skipped_and_figures_written(tmp_path, capsys):
     ('runs = 2', 'run = 2', r"unknown key\(s\) \['run'\]"),
     ('"ship_flat_pg"]', '"ship_flat_pgg"]', "no shipped task of that name"),
     ('episodes = 1000\n', '', "episodes is missing"),
+    ('metric = "gate_passes"', 'metric = "gate"', r"\[\[figure\]\] 'fig7' metric = 'gate'; allowed:"),
+    ('x = "episodes"', 'x = "time"', r"'fig7' x = 'time'; allowed: \['episodes', 'steps'\]"),
+    ('kind = "curve"', 'kind = "bars"', r"\[\[figure\]\] #1 kind = 'bars'; allowed"),
+    ('ylabel = "gate passes"\n', '', r"\[\[figure\]\] #1 ylabel is missing"),
+    ('paper_value = 4.0', 'paper_value = "4"', "paper_value must be a number"),
+    ('paper_order = ["ship_hybrid", "ship_flat_pg"]', 'paper_order = ["ship_actor_critic"]',
+     "names task 'ship_actor_critic', which is not in"),
+    ('name = "fig8"', 'name = "fig7"', "'fig7' is named twice"),
+    ('name = "fig8"', 'colour = "red"\nname = "fig8"', r"unknown key\(s\) \['colour'\]"),
 ])
 def test_malformed_experiment_files_are_refused_before_running(tmp_path, old, new, message):
   path = tmp_path / "bad.toml"
@@ -68,9 +90,7 @@ def test_malformed_experiment_files_are_refused_before_running(tmp_path, old, ne
 
 def test_taxi_experiment_draws_figure_6(tmp_path, capsys):
   path = tmp_path / "taxi.toml"
-  path.write_text(EXPERIMENT.replace('"ship_hybrid", "ship_flat_pg"',
-                                     '"taxi_fuel_hpg", "taxi_fuel_flat_q"')
-                  .replace("episodes = 1000\n", "episodes = 3000\n", 1))
+  path.write_text(TAXI)
   out = tmp_path / "out"
   assert cli.main(["run", str(path), "--out", str(out), "--workers", "2", "--quiet"]) == 0
   assert (out / "tiny" / "fig6.png").stat().st_size > 1000
@@ -81,7 +101,7 @@ def test_taxi_experiment_draws_figure_6(tmp_path, capsys):
 
 def test_mixed_experiment_is_refused(tmp_path):
   path = tmp_path / "mixed.toml"
-  path.write_text(EXPERIMENT.replace('"ship_flat_pg"', '"taxi_fuel_flat_q"'))
+  path.write_text(EXPERIMENT.replace('"ship_flat_pg"]', '"taxi_fuel_flat_q"]', 1))
   with pytest.raises(taskfile.TaskFileError, match=r"these mix \['ship', 'taxi'\]"):
     runner.load_experiment(path)
   assert cli.main(["run", str(path), "--out", str(tmp_path / "o"), "--workers", "1",
@@ -99,18 +119,49 @@ def test_reproduce_quick_figure_6(tmp_path, capsys):
   assert "valid: all, fig6, fig7" in capsys.readouterr().err
 
 
-def test_figure_12_marks_the_root_decisions(tmp_path):
+def test_figure_12_marks_the_root_decisions(tmp_path, capsys):
   from hpg_mj.experiments import fig12, kinds
-  path = tmp_path / "short.toml"
-  path.write_text((kinds.shipped_tasks()["ship_hybrid"]).read_text()
+  task = tmp_path / "short.toml"
+  task.write_text((kinds.shipped_tasks()["ship_hybrid"]).read_text()
                   .replace("max_steps = 5000", "max_steps = 40"))
-  agent, _, _ = kinds.train(kinds.load_task(path), episodes=200, seed=0)
-  summary = fig12.draw(agent, tmp_path / "f12", width=96, height=80)
-  assert (tmp_path / "f12" / "fig12.png").stat().st_size > 1000
+  text = runner.shipped_experiments()["fig12"].read_text()
+  text = text.replace('tasks = ["ship_hybrid"]', f'tasks = ["{task}"]').replace(
+      'task = "ship_hybrid"', 'task = "short"\nwidth = 96\nheight = 80').replace(
+      "quick_episodes = 20000", "quick_episodes = 200")
+  path = tmp_path / "f12.toml"
+  path.write_text(text)
+  out = tmp_path / "out"
+  assert cli.main(["run", str(path), "--quick", "--out", str(out), "--quiet"]) == 0
+  printed = capsys.readouterr().out
+  assert "fig12: from (700.0, 700.0, 100.0, 3.65):" in printed
+  folder = out / "fig12"
+  assert (folder / "fig12.png").stat().st_size > 1000
+  summary = json.loads((folder / "fig12.json").read_text())
   for k, s in enumerate(summary):
     assert s["start"] == list(fig12.STARTS[k])
     assert 1 <= s["calls"] == len(s["decisions"]) and 1 <= s["steps"] <= 40
-    assert (tmp_path / "f12" / f"fig12_{k}.mp4").stat().st_size > 1000
+    assert (folder / f"fig12_{k}.mp4").stat().st_size > 1000
+  assert "from (750, 180):" in (folder / "REPORT.md").read_text()
+  agent, _, _ = kinds.load(folder / "short" / "seed0" / "agent")
   path_, decisions, _ = fig12.sail(agent, fig12.STARTS[0])
   assert decisions[0][:2] == pytest.approx(fig12.STARTS[0][:2])   # the first call starts there
   assert agent.agent.call_log is None
+
+
+@pytest.mark.parametrize("old,new,message", [
+    ("[750.0, 180.0, 80.0, 7.9]", "[750.0, 180.0]", r"starts must be a non-empty list of \[x, y"),
+    ("seed = 0", "seed = 1", r"seed = 1, but the experiment has seeds 0..0"),
+    ('task = "ship_hybrid"', 'task = "ship_flat_pg"', "names task 'ship_flat_pg', which is not"),
+    ("video = true", "video = 1", "video must be true or false"),
+])
+def test_malformed_figure_12_is_refused(tmp_path, old, new, message):
+  path = tmp_path / "f12.toml"
+  path.write_text(runner.shipped_experiments()["fig12"].read_text().replace(old, new, 1))
+  with pytest.raises(taskfile.TaskFileError, match=message):
+    runner.load_experiment(path)
+
+
+def test_every_shipped_experiment_loads():
+  for name in ("fig6", "fig7_11", "fig12"):
+    experiment = runner.load_experiment(name)
+    assert experiment["figures"]
