@@ -339,7 +339,8 @@ class _TaxiKind(_Kind):
 
 def _level():
   return {"learner": ("choice", ("policy_gradient",)), "alpha": "float",
-          "start_fraction": "float", "delay": "int", "ramp": "int", "trace_gamma": "float"}
+          "start_fraction": "float", "delay": "int", "ramp": "int", "trace_gamma": "float",
+          "baseline": "float"}
 
 
 class TaxiHPGKind(_TaxiKind):
@@ -359,10 +360,11 @@ class TaxiHPGKind(_TaxiKind):
       checks += [(level, "alpha", sec["alpha"] >= 0),
                  (level, "start_fraction", 0 <= sec["start_fraction"] <= 1),
                  (level, "delay", sec["delay"] >= 0), (level, "ramp", sec["ramp"] >= 1),
-                 (level, "trace_gamma", 0 < sec["trace_gamma"] <= 1)]
+                 (level, "trace_gamma", 0 < sec["trace_gamma"] <= 1),
+                 (level, "baseline", 0 <= sec["baseline"] <= 1)]
       kwargs.update({f"alpha_{level}": sec["alpha"], f"start_{level}": sec["start_fraction"],
                      f"delay_{level}": sec["delay"], f"ramp_{level}": sec["ramp"],
-                     f"gamma_{level}": sec["trace_gamma"]})
+                     f"gamma_{level}": sec["trace_gamma"], f"baseline_{level}": sec["baseline"]})
     _require(task, checks)
     self.agent = taxi_compiled.TaxiHPG(seed=seed, config=taxi_compiled.HPGConfig(**kwargs),
                                        task=self.rules)
@@ -370,9 +372,10 @@ class TaxiHPGKind(_TaxiKind):
   def arrays(self):
     out = {"rng_state": self.agent.rng_state}
     names = ("root", "get", "put", "refuel", "navigate")
-    for name, trace in zip(names, self.agent.traces):
+    for name, trace, values in zip(names, self.agent.traces, self.agent.values):
       out.update({f"{name}_{k}": v for k, v in zip(
           ("w", "zs", "y", "touched", "marked", "count", "acc"), trace)})
+      out[f"{name}_baseline"] = values
     return out
 
   def run_with(self, adapter, episodes=1):

@@ -8,9 +8,10 @@ SPEC section 5), on the task-graph API:
     Navigate(t) -> {South, North, East, West}
 
 Each subtask learns a Gibbs policy by Eq. 3 over its abstract state
-(`taxi_rules`). `TaxiHierarchy` trains step by step through a taxi environment
-on the arrays of a `taxi_compiled.TaxiHPG`, so the two paths share one agent and
-one set of rule functions.
+(`taxi_rules`), with the baseline of `taxi_compiled.HPGConfig`. `TaxiHierarchy`
+trains step by step through a taxi environment on the arrays of a
+`taxi_compiled.TaxiHPG` (policies and baselines), so the two paths share one
+agent and one set of rule functions.
 """
 import numpy as np
 
@@ -24,6 +25,37 @@ from hpg_mj.worlds import taxi_core as core
 _TRACE_KEYS = ("w", "zs", "y", "touched", "marked", "count", "acc")
 
 
+class _BaselinedSoftmax(agents.SoftmaxPolicyGradient):
+  """The Gibbs learner with the compiled loop's baseline b(s) (`taxi_compiled`):
+  Eq. 3, plus theta <- theta - alpha b(s) psi(s, a) for each choice and a TD(0)
+  step of b when the child returns, by the same compiled functions.
+
+  theta <- theta - alpha b(s) psi(s, a) is applied when the child returns, not
+  at the choice as in the compiled loop: the child never touches this
+  subtask's parameters, so the numbers are the same, and only then does the
+  executor say whether it is learning.
+  """
+
+  def __init__(self, n_states, n_actions, values, beta):
+    super().__init__(n_states, n_actions, alpha=1.0)
+    self.values = values      # the compiled loop's baseline table (shared)
+    self.beta = float(beta)
+    self._here = 0
+    self._mask = self._all
+
+  def act(self, features, mask, rng_state, sample):
+    self._here = int(features)
+    self._mask = self._all if mask is None else mask
+    return super().act(features, mask, rng_state, sample)
+
+  def observe(self, signal, next_features, done, terminal, learn):
+    taxi_compiled.subtract_baseline(self.trace["w"], self.values, self._here, self.n_actions,
+                                    self._mask, learn, self.alpha, self._index, self._psi)
+    super().observe(signal, next_features, done, terminal, learn)
+    taxi_compiled.learn_baseline(self.values, self._here, learn, self.beta, signal, done,
+                                 0 if next_features is None else int(next_features))
+
+
 class TaxiHierarchy:
   """The task graph over a `TaxiHPG`'s learners (shared arrays)."""
 
@@ -32,8 +64,9 @@ class TaxiHierarchy:
     self.world = hpg.world
     sizes = rules.n_abstract_states(hpg.task.fuel_enabled, hpg.task.capacity)
     self.learners = []
+    betas = hpg.config.betas()
     for i, trace in enumerate(hpg.traces):
-      learner = agents.SoftmaxPolicyGradient(sizes[i], rules.N_CHILDREN[i], alpha=1.0)
+      learner = _BaselinedSoftmax(sizes[i], rules.N_CHILDREN[i], hpg.values[i], betas[i])
       learner.trace = dict(zip(_TRACE_KEYS, trace))       # the compiled loop's arrays
       learner.gamma = float(hpg.config.gammas()[i])
       self.learners.append(learner)

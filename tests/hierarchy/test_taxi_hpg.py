@@ -291,9 +291,53 @@ def test_step_size_warm_up():
                              + [config.alpha_navigate])
 
 
+def test_baseline_steps_by_hand():
+  # theta <- theta - alpha b(s) psi(s, a), on the allowed children's entries only.
+  w = np.zeros(9)
+  values = np.array([0.0, 2.0, 0.0])
+  mask = np.array([True, False, True, False])
+  index = np.array([3, 5, 0, 0], dtype=np.int64)          # state 1 of a 3-child table
+  psi = np.array([0.25, -0.25, 0.0, 0.0])
+  tcp.subtract_baseline(w, values, 1, 3, mask, True, 0.5, index, psi)
+  np.testing.assert_array_equal(w, [0, 0, 0, -0.25, 0, 0.25, 0, 0, 0])
+  tcp.subtract_baseline(w, values, 1, 3, mask, False, 0.5, index, psi)   # not learning
+  tcp.subtract_baseline(w, values, 0, 3, mask, True, 0.5, index, psi)    # b(s) = 0
+  np.testing.assert_array_equal(w, [0, 0, 0, -0.25, 0, 0.25, 0, 0, 0])
+  # b(s) <- b(s) + beta (R + b(s') - b(s)), with b(s') = 0 once the call is over.
+  values = np.array([1.0, 3.0])
+  tcp.learn_baseline(values, 0, True, 0.5, -1.0, False, 1)
+  assert values[0] == 1.5                                  # target -1 + 3
+  tcp.learn_baseline(values, 0, True, 0.5, -1.0, True, 1)
+  assert values[0] == 0.25                                 # target -1
+  tcp.learn_baseline(values, 0, False, 0.5, -1.0, True, 1)
+  tcp.learn_baseline(values, 0, True, 0.0, -1.0, True, 1)
+  assert list(values) == [0.25, 3.0]
+
+
+def test_baseline_is_an_option():
+  off = tcp.HPGConfig(baseline_root=0.0, baseline_carry=0.0, baseline_navigate=0.0)
+  plain, based = tcp.TaxiHPG(2, off), tcp.TaxiHPG(2)
+  plain.run(3000)
+  based.run(3000)
+  assert not any(np.any(v) for v in plain.values)          # b = 0: Eq. 3 exactly
+  assert all(np.any(v) for v in based.values)
+  # A Navigate baseline estimates the (negative) moves left to the target: the
+  # targets themselves are never a state of their own calls.
+  navigate = based.values[tr.NAVIGATE].reshape(tr.N_TARGETS, 25)
+  for t, (row, col) in AT.items():
+    assert navigate[t, row * 5 + col] == 0.0
+  assert np.all(navigate <= 0.0)
+  # Root's baseline learns while Root itself waits (step size 0 for 15,000 episodes).
+  assert not np.any(tables_of(based)[tr.ROOT])
+  for t1, t2 in zip(tables_of(plain)[1:], tables_of(based)[1:]):
+    assert not np.array_equal(t1, t2)
+
+
 def test_bad_arguments():
   with pytest.raises(ValueError, match="alpha_root"):
     tcp.HPGConfig(alpha_root=-0.1)
+  with pytest.raises(ValueError, match="baseline_carry"):
+    tcp.HPGConfig(baseline_carry=1.5)
   with pytest.raises(ValueError, match="gamma_navigate"):
     tcp.HPGConfig(gamma_navigate=0.0)
   with pytest.raises(ValueError, match="ramp_carry"):
@@ -308,18 +352,20 @@ def test_bad_arguments():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", range(5))
-def test_hpg_reaches_95_percent_of_optimal(seed):
-  """The issue's requirement: the online mean return over a trailing window of
-  1,000 episodes reaches 95% of the optimal mean return within 100,000 episodes.
+def test_hpg_reaches_95_percent_of_optimal():
+  """The issue's requirement, as `hpg-mj train tasks/taxi_fuel_hpg.toml --json`
+  measures it: the online mean return of the last 1,000 of 100,000 training
+  episodes, mean of seeds 0-4, is at least 95% of the optimal mean return.
 
-  The window's mean wanders by about +-0.1 around the learner's level, which
-  at 100,000 episodes is about 93% of the optimum (evaluated on 20,000 episodes);
-  the window first touches 95% between episodes 57,000 and 82,000 (seeds 0-4).
+  With the defaults (those of the task file) the five windows give 5.98, 6.11,
+  5.95, 6.11 and 6.19: 6.07, 98.8% of 6.1446; over seeds 5-24 they range from
+  5.80 to 6.12 (mean 97.2%). Each window's mean wanders by about +-0.1 (one
+  fuel-out costs about 30).
   """
   optimal = tv.optimal_mean_return(True)
-  agent = tcp.TaxiHPG(seed)
-  returns = agent.run(100_000)[:, tcp.RETURN]
-  trailing = np.convolve(returns, np.ones(1000) / 1000, mode="valid")
-  assert trailing.max() >= tv.performance_threshold(optimal, 0.95)
-  assert trailing[-1] >= tv.performance_threshold(optimal, 0.90)
+  last = []
+  for seed in range(5):
+    returns = tcp.TaxiHPG(seed).run(100_000)[:, tcp.RETURN]
+    last.append(returns[-1000:].mean())
+  assert np.mean(last) >= tv.performance_threshold(optimal, 0.95)
+  assert min(last) >= tv.performance_threshold(optimal, 0.90)

@@ -31,6 +31,10 @@ def test_stepwise_and_compiled_hpg_agree_bit_for_bit(fuel, env_id):
   # Get, Put and Navigate always learn; Root only where it has a real choice (with fuel).
   assert all(np.any(tables[i] != 0) for i in (1, 2, 4))
   assert np.any(tables[0] != 0) == fuel
+  # So do their baselines (HPGConfig's default), the same on both paths.
+  for x, y in zip(a.values, b.values):
+    np.testing.assert_array_equal(x, y)
+  assert all(np.any(a.values[i] != 0) for i in (0, 1, 2, 4))
   np.testing.assert_array_equal(a.rng_state, b.rng_state)
 
 
@@ -41,6 +45,8 @@ def test_hpg_through_dm_control_matches_the_compiled_loop():
   rb = b.run(40)
   np.testing.assert_array_equal(ra[:, :3], rb[:, :3])
   for x, y in zip(a.policy_tables(), b.policy_tables()):
+    np.testing.assert_array_equal(x, y)
+  for x, y in zip(a.values, b.values):
     np.testing.assert_array_equal(x, y)
 
 
