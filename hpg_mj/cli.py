@@ -44,9 +44,40 @@ def _cmd_bench(args):
   from hpg_mj import bench
   if args.what == "envs":
     print(bench.format_rows(bench.bench_envs(min_seconds=args.seconds)))
-  else:
+  elif args.what == "train":
     print(bench.format_rows(bench.bench_train(min_seconds=max(args.seconds, 2.0))))
+  else:
+    _bench_experiments(args)
   return 0
+
+
+# (what, shipped experiments, --quick, the issue's limit in seconds)
+EXPERIMENT_BENCHES = (("Figure 6, full protocol", ("fig6",), False, 60),
+                      ("Figures 7-11, full protocol", ("fig7_11",), False, 300),
+                      ("reproduce all --quick", ("fig6", "fig7_11", "fig12"), True, 120))
+
+
+def _bench_experiments(args):
+  """Times the paper's protocols from scratch, in a temporary folder, on all cores."""
+  import contextlib
+  import io
+  import os
+  import tempfile
+  import time
+  print(f"{'':<28}  {'seconds':>8}  {'limit':>6}   ({os.cpu_count()} cores, "
+        f"{args.workers or os.cpu_count()} workers)", flush=True)
+  for label, names, quick, limit in EXPERIMENT_BENCHES:
+    with tempfile.TemporaryDirectory() as out:
+      start = time.perf_counter()
+      for name in names:
+        with contextlib.redirect_stdout(io.StringIO()):
+          rc = _cmd_run(argparse.Namespace(
+              experiment_file=name, quick=quick, out=out, workers=args.workers, quiet=True,
+              executor="process", address=None, checkpoint_every=10000))
+        if rc:
+          raise RuntimeError(f"bench experiments: {name} failed")
+      seconds = time.perf_counter() - start
+    print(f"{label:<28}  {seconds:>8.1f}  {limit:>6}", flush=True)
 
 
 def _progress_bar(total, quiet, label):
@@ -277,8 +308,10 @@ def build_parser():
   p.set_defaults(func=_cmd_evaluate)
 
   p = sub.add_parser("bench", help="print speed figures")
-  p.add_argument("what", choices=["envs", "train"])
+  p.add_argument("what", choices=["envs", "train", "experiments"],
+                 help="environments, training loops, or the paper's protocols end to end")
   p.add_argument("--seconds", type=float, default=1.0, help="measuring time per row")
+  p.add_argument("--workers", type=int, default=None, help="experiments: processes")
   p.set_defaults(func=_cmd_bench)
 
   p = sub.add_parser("demo", help="the README's main job: videos, verification, benchmark")
