@@ -150,12 +150,15 @@ def bench_train(min_seconds=2.0):
     rows.append((label, "control steps/s", _rate(steps, time.perf_counter() - start)))
 
   from hpg_mj.baselines import taxi_flat_q
+  from hpg_mj.baselines import taxi_maxq
   from hpg_mj.hierarchy import taxi_compiled
   for label, make, column in (
       ("taxi-fuel HPG, compiled, learning", lambda: taxi_compiled.TaxiHPG(seed=0),
        taxi_compiled.STEPS),
       ("taxi-fuel flat Q-learning, compiled, learning", lambda: taxi_flat_q.FlatQ(seed=0),
-       taxi_flat_q.STEPS)):
+       taxi_flat_q.STEPS),
+      ("taxi-fuel MAXQ-Q, compiled, learning", lambda: taxi_maxq.TaxiMAXQ(seed=0),
+       taxi_maxq.STEPS)):
     taxi_agent = make()
     run = taxi_agent.run if hasattr(taxi_agent, "run") else taxi_agent.train_compiled
     run(200)

@@ -429,8 +429,68 @@ class TaxiFlatQKind(_TaxiKind):
     raise ValueError(f"unknown backend {backend!r}; valid backends: {list(BACKENDS)}")
 
 
+def _maxq_level(pseudo_reward=True):
+  keys = {"learner": ("choice", ("maxq_q",)), "alpha": "float", "epsilon": "float",
+          "epsilon_episodes": "int", "initial": "float"}
+  if pseudo_reward:
+    keys["pseudo_reward"] = "float"
+  return keys
+
+
+class TaxiMAXQKind(_TaxiKind):
+  """MAXQ-Q (Dietterich 2000) on taxi-fuel over the task graph of SPEC section 5."""
+
+  name = "taxi_maxq"
+  schema = {"task": _TASK, "environment": _TAXI_ENVIRONMENT,
+            "root": _maxq_level(pseudo_reward=False), "carry": _maxq_level(),
+            "navigate": _maxq_level(),
+            "primitive": {"alpha": "float", "all_states_updating": "bool"},
+            "protocol": _PROTOCOL}
+
+  def __init__(self, task, seed):
+    super().__init__(task, seed)
+    from hpg_mj.baselines import taxi_maxq
+    kwargs, checks = {}, []
+    for level in ("root", "carry", "navigate"):
+      sec = task.section(level)
+      checks += [(level, "alpha", 0 < sec["alpha"] <= 1),
+                 (level, "epsilon", 0 <= sec["epsilon"] <= 1),
+                 (level, "epsilon_episodes", sec["epsilon_episodes"] >= 0)]
+      kwargs.update({f"alpha_{level}": sec["alpha"], f"epsilon_{level}": sec["epsilon"],
+                     f"epsilon_episodes_{level}": sec["epsilon_episodes"],
+                     f"initial_{level}": sec["initial"]})
+      if level != "root":
+        kwargs[f"pseudo_reward_{level}"] = sec["pseudo_reward"]
+    prim = task.section("primitive")
+    checks.append(("primitive", "alpha", 0 < prim["alpha"] <= 1))
+    _require(task, checks)
+    config = taxi_maxq.MAXQConfig(alpha_primitive=prim["alpha"],
+                                  all_states=prim["all_states_updating"], **kwargs)
+    self.agent = taxi_maxq.TaxiMAXQ(seed=seed, config=config, task=self.rules)
+
+  def arrays(self):
+    a = self.agent
+    return {"rng_state": a.rng_state, "primitive_values": a.values,
+            "completions_pseudo": a.c_tilde, "completions": a.c}
+
+  def _graph(self):
+    from hpg_mj.hierarchy import taxi_maxq as taxi_maxq_graph
+    return taxi_maxq_graph.TaxiMAXQHierarchy(self.agent)
+
+  def run_with(self, adapter, episodes=1):
+    """Greedy episodes through a given taxi environment adapter."""
+    return self._graph().train_stepwise(adapter, episodes, learn=False)
+
+  def run(self, episodes, backend, learn=True, sample=None):
+    if backend == "analytic":
+      return self.agent.run(episodes, learn=learn, sample=sample)
+    if backend == "mujoco":
+      return self._graph().train_stepwise(self._adapter(), episodes, learn=learn, sample=sample)
+    raise ValueError(f"unknown backend {backend!r}; valid backends: {list(BACKENDS)}")
+
+
 KINDS = {k.name: k for k in (ShipHybridKind, ShipFlatPGKind, ShipActorCriticKind, TaxiHPGKind,
-                             TaxiFlatQKind)}
+                             TaxiFlatQKind, TaxiMAXQKind)}
 
 
 def schemas():
