@@ -145,8 +145,6 @@ def _cmd_evaluate(args):
 def _cmd_run(args):
   from hpg_mj.experiments import figures, runner
   experiment = runner.load_experiment(args.experiment_file)   # refused before any run
-  import pathlib
-
   from tqdm import tqdm
   all_jobs = runner.jobs(experiment, args.out, args.quick)
   todo = runner.pending(experiment, args.out, args.quick)

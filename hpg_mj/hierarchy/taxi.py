@@ -25,6 +25,57 @@ from hpg_mj.worlds import taxi_core as core
 _TRACE_KEYS = ("w", "zs", "y", "touched", "marked", "count", "acc")
 
 
+def rules_state(obs, fuel_enabled, out):
+  """The observation as taxi_rules' int64 state in `out` (classic: the tank stays full)."""
+  out[:4] = obs[:4]
+  out[4] = obs[4] if fuel_enabled else core.CLASSIC_FUEL
+  return out
+
+
+def taxi_graph(world, learners, state_of, view_of):
+  """The task graph above over `learners` (by subtask id), for HPG and MAXQ-Q alike:
+  `state_of(obs)` is taxi_rules' state of an observation, `view_of(subtask id)`
+  the view function of that subtask."""
+
+  def available(fill):
+    def check(call, obs, i):
+      mask = np.zeros(rules.MAX_CHILDREN, dtype=np.bool_)
+      fill(state_of(obs), mask)
+      return bool(mask[i])
+    return check
+
+  def carry(subtask, name, primitive):
+    return Subtask(
+        name, learner=learners[subtask], view=view_of(subtask),
+        children=[Child("navigate", bind=lambda call, obs: {
+            "target": int(rules.carry_target(subtask, state_of(obs)))}), primitive],
+        available=available(lambda s, m: rules.carry_children(subtask, s, world, m)),
+        termination=lambda call, step: bool(rules.carry_done(subtask, state_of(step.obs), world)))
+
+  return TaskGraph("root", [
+      Subtask("root", learner=learners[rules.ROOT], children=["get", "put", "refuel"],
+              view=view_of(rules.ROOT),
+              available=available(lambda s, m: rules.root_children(s, world, m)),
+              termination=lambda call, step: False),          # ends with the episode
+      carry(rules.GET, "get", "pickup"), carry(rules.PUT, "put", "dropoff"),
+      carry(rules.REFUEL, "refuel", "fillup"),
+      Subtask("navigate", learner=learners[rules.NAVIGATE],
+              children=["south", "north", "east", "west"], view=view_of(rules.NAVIGATE),
+              termination=lambda call, step: bool(
+                  rules.navigate_done(call.args["target"], state_of(step.obs), world))),
+      Primitive("south", core.SOUTH), Primitive("north", core.NORTH),
+      Primitive("east", core.EAST), Primitive("west", core.WEST),
+      Primitive("pickup", core.PICKUP), Primitive("dropoff", core.DROPOFF),
+      Primitive("fillup", core.FILLUP),
+  ])
+
+
+def outcome_of(last):
+  """How an episode ended, from the executor's last step (taxi_rules' codes)."""
+  return (rules.TRUNCATED if last.truncated else
+          rules.DELIVERED if last.reward == core.DELIVERY_REWARD else rules.OUT_OF_FUEL)
+
+
 class _BaselinedSoftmax(agents.SoftmaxPolicyGradient):
   """The Gibbs learner with the compiled loop's baseline b(s) (`taxi_compiled`):
   Eq. 3, plus theta <- theta - alpha b(s) psi(s, a) for each choice and a TD(0)
@@ -74,50 +125,18 @@ class TaxiHierarchy:
     self._state = np.zeros(5, dtype=np.int64)
 
   def _s(self, obs):
-    """The observation as taxi_rules' int64 state (classic: the tank stays full)."""
-    s = self._state
-    s[:4] = obs[:4]
-    s[4] = obs[4] if self.hpg.task.fuel_enabled else core.CLASSIC_FUEL
-    return s
-
-  def _mask(self, fill):
-    def available(call, obs, i):
-      mask = np.zeros(rules.MAX_CHILDREN, dtype=np.bool_)
-      fill(call, self._s(obs), mask)
-      return bool(mask[i])
-    return available
+    return rules_state(obs, self.hpg.task.fuel_enabled, self._state)
 
   def graph(self):
     w = self.world
-    navigate_to = {rules.GET: "get", rules.PUT: "put", rules.REFUEL: "refuel"}
-
-    def carry(subtask, primitive):
-      return Subtask(
-          navigate_to[subtask], learner=self.learners[subtask],
-          children=[Child("navigate", bind=lambda call, obs: {
-              "target": int(rules.carry_target(subtask, self._s(obs)))}), primitive],
-          view=lambda call, obs: int(rules.carry_state(subtask, self._s(obs))),
-          available=self._mask(lambda call, s, m: rules.carry_children(subtask, s, w, m)),
-          termination=lambda call, step: bool(rules.carry_done(subtask, self._s(step.obs), w)))
-
-    return TaskGraph("root", [
-        Subtask("root", learner=self.learners[rules.ROOT],
-                children=["get", "put", "refuel"],
-                view=lambda call, obs: int(rules.root_state(self._s(obs), w)),
-                available=self._mask(lambda call, s, m: rules.root_children(s, w, m)),
-                termination=lambda call, step: False),          # ends with the episode
-        carry(rules.GET, "pickup"), carry(rules.PUT, "dropoff"), carry(rules.REFUEL, "fillup"),
-        Subtask("navigate", learner=self.learners[rules.NAVIGATE],
-                children=["south", "north", "east", "west"],
-                view=lambda call, obs: int(rules.navigate_state(call.args["target"],
-                                                                self._s(obs))),
-                termination=lambda call, step: bool(
-                    rules.navigate_done(call.args["target"], self._s(step.obs), w))),
-        Primitive("south", core.SOUTH), Primitive("north", core.NORTH),
-        Primitive("east", core.EAST), Primitive("west", core.WEST),
-        Primitive("pickup", core.PICKUP), Primitive("dropoff", core.DROPOFF),
-        Primitive("fillup", core.FILLUP),
-    ])
+    views = {
+        rules.ROOT: lambda call, obs: int(rules.root_state(self._s(obs), w)),
+        rules.NAVIGATE: lambda call, obs: int(rules.navigate_state(call.args["target"],
+                                                                   self._s(obs))),
+    }
+    for i in (rules.GET, rules.PUT, rules.REFUEL):
+      views[i] = lambda call, obs, i=i: int(rules.carry_state(i, self._s(obs)))
+    return taxi_graph(w, self.learners, self._s, views.__getitem__)
 
   def train_stepwise(self, adapter, episodes, learn=True, sample=None):
     """Episodes through a taxi environment adapter; returns TaxiHPG's record."""
@@ -133,11 +152,9 @@ class TaxiHierarchy:
         learner.alpha = float(alpha)
       begin = start.copy() if hpg.task.fuel_enabled else start[:4].copy()
       total, steps, last = run.run_episode(begin, learn=learn, sample=sample)
-      outcome = (rules.TRUNCATED if last.truncated else
-                 rules.DELIVERED if last.reward == core.DELIVERY_REWARD else rules.OUT_OF_FUEL)
       record[e, taxi_compiled.RETURN] = total
       record[e, taxi_compiled.STEPS] = steps
-      record[e, taxi_compiled.OUTCOME] = outcome
+      record[e, taxi_compiled.OUTCOME] = outcome_of(last)
       if learn:
         hpg.episodes += 1
         hpg.primitive_steps += steps

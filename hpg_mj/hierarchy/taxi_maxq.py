@@ -20,10 +20,9 @@ import numpy as np
 
 from hpg_mj.baselines import taxi_maxq as mq
 from hpg_mj.hierarchy import executor as executor_mod
+from hpg_mj.hierarchy import taxi
 from hpg_mj.hierarchy import taxi_compiled
 from hpg_mj.hierarchy import taxi_rules as rules
-from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
-from hpg_mj.worlds import taxi_core as core
 
 
 class MAXQNode:
@@ -96,50 +95,14 @@ class TaxiMAXQHierarchy:
     self.learners = [MAXQNode(i, self) for i in range(rules.N_SUBTASKS)]
     self._state = np.zeros(5, dtype=np.int64)
 
-  def _s(self, obs):
-    """The observation as taxi_rules' int64 state (classic: the tank stays full)."""
-    s = self._state
-    s[:4] = obs[:4]
-    s[4] = obs[4] if self.agent.task.fuel_enabled else core.CLASSIC_FUEL
-    return s
-
   def _view(self, call, obs):
     return call.args.get("target", 0), self._s(obs).copy()
 
-  def _mask(self, fill):
-    def available(call, obs, i):
-      mask = np.zeros(rules.MAX_CHILDREN, dtype=np.bool_)
-      fill(call, self._s(obs), mask)
-      return bool(mask[i])
-    return available
+  def _s(self, obs):
+    return taxi.rules_state(obs, self.agent.task.fuel_enabled, self._state)
 
   def graph(self):
-    w = self.world
-    names = {rules.GET: "get", rules.PUT: "put", rules.REFUEL: "refuel"}
-
-    def carry(subtask, primitive):
-      return Subtask(
-          names[subtask], learner=self.learners[subtask], view=self._view,
-          children=[Child("navigate", bind=lambda call, obs: {
-              "target": int(rules.carry_target(subtask, self._s(obs)))}), primitive],
-          available=self._mask(lambda call, s, m: rules.carry_children(subtask, s, w, m)),
-          termination=lambda call, step: bool(rules.carry_done(subtask, self._s(step.obs), w)))
-
-    return TaskGraph("root", [
-        Subtask("root", learner=self.learners[rules.ROOT], children=["get", "put", "refuel"],
-                view=self._view,
-                available=self._mask(lambda call, s, m: rules.root_children(s, w, m)),
-                termination=lambda call, step: False),          # ends with the episode
-        carry(rules.GET, "pickup"), carry(rules.PUT, "dropoff"), carry(rules.REFUEL, "fillup"),
-        Subtask("navigate", learner=self.learners[rules.NAVIGATE],
-                children=["south", "north", "east", "west"], view=self._view,
-                termination=lambda call, step: bool(
-                    rules.navigate_done(call.args["target"], self._s(step.obs), w))),
-        Primitive("south", core.SOUTH), Primitive("north", core.NORTH),
-        Primitive("east", core.EAST), Primitive("west", core.WEST),
-        Primitive("pickup", core.PICKUP), Primitive("dropoff", core.DROPOFF),
-        Primitive("fillup", core.FILLUP),
-    ])
+    return taxi.taxi_graph(self.world, self.learners, self._s, lambda subtask: self._view)
 
   def train_stepwise(self, adapter, episodes, learn=True, sample=None):
     """Episodes through a taxi environment adapter, from the agent's random
@@ -155,11 +118,9 @@ class TaxiMAXQHierarchy:
       self.cursor[0] = 0
       begin = start.copy() if agent.task.fuel_enabled else start[:4].copy()
       total, steps, last = run.run_episode(begin, learn=learn, sample=sample)
-      outcome = (rules.TRUNCATED if last.truncated else
-                 rules.DELIVERED if last.reward == core.DELIVERY_REWARD else rules.OUT_OF_FUEL)
       record[e, mq.RETURN] = total
       record[e, mq.STEPS] = steps
-      record[e, mq.OUTCOME] = outcome
+      record[e, mq.OUTCOME] = taxi.outcome_of(last)
       if learn:
         agent.episodes += 1
         agent.primitive_steps += steps
