@@ -22,8 +22,8 @@ quick_episodes = 1000
 TAXI = """
 [experiment]
 name = "tiny"
-description = "two taxi learners, two seeds"
-tasks = ["taxi_fuel_hpg", "taxi_fuel_flat_q"]
+description = "three taxi learners, two seeds"
+tasks = ["taxi_fuel_hpg", "taxi_fuel_maxq", "taxi_fuel_flat_q"]
 runs = 2
 episodes = 3000
 quick_runs = 1
@@ -95,7 +95,7 @@ def test_taxi_experiment_draws_figure_6(tmp_path, capsys):
   assert cli.main(["run", str(path), "--out", str(out), "--workers", "2", "--quiet"]) == 0
   assert (out / "tiny" / "fig6.png").stat().st_size > 1000
   rows = np.loadtxt(out / "tiny" / "fig6.csv", delimiter=",", skiprows=1, ndmin=2)
-  assert rows.shape == (3, 8)
+  assert rows.shape == (3, 12)
   assert "Optimal mean return (value iteration): 6.1446" in (out / "tiny" / "REPORT.md").read_text()
 
 
