@@ -193,8 +193,10 @@ def jobs(experiment, out, quick=False):
   n_runs = experiment["quick_runs"] if quick else experiment["runs"]
   episodes = experiment["quick_episodes"] if quick else experiment["episodes"]
   root = pathlib.Path(out) / experiment["name"]
+  # Seed by seed, so that the first runs the workers pick up are of different tasks
+  # and compile (numba, cached for the later runs) different code at the same time.
   return [(str(task.path), seed, episodes, str(root / task.path.stem / f"seed{seed}"))
-          for task in experiment["task_files"] for seed in range(n_runs)]
+          for seed in range(n_runs) for task in experiment["task_files"]]
 
 
 class _Poller:
