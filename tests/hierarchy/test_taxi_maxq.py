@@ -157,7 +157,7 @@ def test_a_greedy_policy_delivers_every_passenger():
 
 
 # Every level explores during all 300 episodes, so that every table is compared.
-EAGER = mq.MAXQConfig(epsilon_episodes_root=300, epsilon_episodes_carry=200,
+EAGER = mq.MAXQConfig(epsilon_root=0.2, epsilon_episodes_root=300, epsilon_episodes_carry=200,
                       epsilon_episodes_navigate=100)
 
 
