@@ -212,7 +212,9 @@ def _cmd_reproduce(args):
         quiet=args.quiet, executor=args.executor, address=args.address,
         checkpoint_every=args.checkpoint_every))
   from hpg_mj.experiments import figures
-  print(f"reproduce: every figure beside the paper in {figures.write_combined_report(args.out, names)}")
+  folders = [name + ("_quick" if args.quick else "") for name in names]
+  print(f"reproduce: every figure beside the paper in "
+        f"{figures.write_combined_report(args.out, folders)}")
   return rc
 
 

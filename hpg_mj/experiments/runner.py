@@ -35,7 +35,7 @@ An experiment file (tasks/experiments/*.toml):
 
 Layout of the output folder (one per experiment):
 
-    OUT/<experiment>/<task>/seed<k>/               one run (`hpg_mj.experiments.runs`:
+    OUT/<experiment>/<task>/seed<k>/               one run (OUT/<experiment>_quick/... with --quick) (`hpg_mj.experiments.runs`:
                                                    progress.csv, checkpoints, events.log,
                                                    record.npy, agent/, metrics.json)
     OUT/<experiment>/<figure>.png, <figure>.csv    see `hpg_mj.experiments.figures`
@@ -188,11 +188,17 @@ def pending(experiment, out, quick=False):
   return [job for job in jobs(experiment, out, quick) if not runs.is_finished(job[3])]
 
 
+def folder(experiment, out, quick=False):
+  """The experiment's output folder: OUT/<name>, or OUT/<name>_quick for --quick, so
+  that quick runs never stand in for full ones."""
+  return pathlib.Path(out) / (experiment["name"] + ("_quick" if quick else ""))
+
+
 def jobs(experiment, out, quick=False):
   """The (task file, seed, episodes, run folder) of every run of the experiment."""
   n_runs = experiment["quick_runs"] if quick else experiment["runs"]
   episodes = experiment["quick_episodes"] if quick else experiment["episodes"]
-  root = pathlib.Path(out) / experiment["name"]
+  root = folder(experiment, out, quick)
   # Seed by seed, so that the first runs the workers pick up are of different tasks
   # and compile (numba, cached for the later runs) different code at the same time.
   return [(str(task.path), seed, episodes, str(root / task.path.stem / f"seed{seed}"))
@@ -283,8 +289,19 @@ def run_experiment(experiment, out, quick=False, workers=None, progress=None, on
   """
   if executor not in EXECUTORS:
     raise ValueError(f"unknown executor {executor!r}; valid executors: {list(EXECUTORS)}")
-  root = pathlib.Path(out) / experiment["name"]
+  if workers is not None and workers < 1:
+    raise ValueError(f"workers must be a positive number of processes, got {workers}")
+  if checkpoint_every < 1:
+    raise ValueError(f"checkpoint_every must be a positive number of episodes, got "
+                     f"{checkpoint_every}")
+  root = folder(experiment, out, quick)
   all_jobs = jobs(experiment, out, quick)
+  for job in all_jobs:             # a finished run of another length is not this one
+    if runs.is_finished(job[3]):
+      done = json.loads((pathlib.Path(job[3]) / "metrics.json").read_text()).get("episodes")
+      if done != job[2]:
+        raise ValueError(f"{job[3]} holds a finished run of {done} episodes, but "
+                         f"{experiment['path'].name} asks for {job[2]}; use another --out")
   todo = [job for job in all_jobs if not runs.is_finished(job[3])]
   workers = workers or os.cpu_count() or 1
   poll = _Poller(all_jobs, progress)

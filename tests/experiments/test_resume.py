@@ -169,7 +169,12 @@ def test_ray_gives_the_same_results_as_the_process_pool(tmp_path):
     assert a == b
 
 
-def test_unknown_executor_is_refused(tmp_path):
+def test_unknown_executor_and_bad_counts_are_refused(tmp_path):
   experiment = runner.load_experiment(_experiment(tmp_path))
   with pytest.raises(ValueError, match=r"unknown executor 'dask'; valid executors: \['process', 'ray'\]"):
     runner.run_experiment(experiment, tmp_path, executor="dask")
+  with pytest.raises(ValueError, match="workers must be a positive number of processes, got 0"):
+    runner.run_experiment(experiment, tmp_path, workers=0)
+  with pytest.raises(ValueError, match="checkpoint_every must be a positive number of episodes"):
+    runner.run_experiment(experiment, tmp_path, checkpoint_every=-5)
+  assert not (tmp_path / "resume").exists()

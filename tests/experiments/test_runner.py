@@ -57,6 +57,12 @@ def test_finished_runs_are_skipped_and_figures_written(tmp_path, capsys):
   assert cli.main(["run", str(path), "--out", str(out), "--workers", "1", "--quiet"]) == 0
   assert "(0 new" in capsys.readouterr().out
   assert metrics.stat().st_mtime_ns == stamp
+  # The same folder asked for runs of another length is refused, not reused.
+  path.write_text(EXPERIMENT.replace("episodes = 1000\n", "episodes = 2000\n", 1))
+  assert cli.main(["run", str(path), "--out", str(out), "--workers", "1", "--quiet"]) == 2
+  assert "holds a finished run of 1000 episodes, but tiny.toml asks for 2000" in \
+      capsys.readouterr().err
+  assert metrics.stat().st_mtime_ns == stamp
   for fig in ("fig7", "fig8", "fig9", "fig10", "fig11"):
     assert (out / "tiny" / f"{fig}.png").stat().st_size > 1000
     rows = np.loadtxt(out / "tiny" / f"{fig}.csv", delimiter=",", skiprows=1, ndmin=2)
@@ -111,8 +117,8 @@ def test_mixed_experiment_is_refused(tmp_path):
 
 def test_reproduce_quick_figure_6(tmp_path, capsys):
   assert cli.main(["reproduce", "fig6", "--quick", "--out", str(tmp_path), "--quiet"]) == 0
-  assert (tmp_path / "fig6" / "fig6.png").is_file()
-  assert (tmp_path / "fig6" / "taxi_fuel_hpg" / "seed2" / "metrics.json").is_file()
+  assert (tmp_path / "fig6_quick" / "fig6.png").is_file()       # never mistaken for full runs
+  assert (tmp_path / "fig6_quick" / "taxi_fuel_hpg" / "seed2" / "metrics.json").is_file()
   report = (tmp_path / "REPORT.md").read_text()
   assert "## fig6:" in report and "Optimal mean return (value iteration): 6.1446" in report
   assert cli.main(["reproduce", "fig13", "--out", str(tmp_path)]) == 2
@@ -134,7 +140,7 @@ def test_figure_12_marks_the_root_decisions(tmp_path, capsys):
   assert cli.main(["run", str(path), "--quick", "--out", str(out), "--quiet"]) == 0
   printed = capsys.readouterr().out
   assert "fig12: from (700.0, 700.0, 100.0, 3.65):" in printed
-  folder = out / "fig12"
+  folder = out / "fig12_quick"
   assert (folder / "fig12.png").stat().st_size > 1000
   summary = json.loads((folder / "fig12.json").read_text())
   for k, s in enumerate(summary):
