@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Sets up (scripts/setup.sh) and runs the main job: a quick reproduction of the
-# paper's Figures 6-12 (runs/fig6, runs/fig7_11, runs/fig12: PNGs, CSVs, REPORT.md,
+# paper's Figures 6-12 (runs/fig6_quick, runs/fig7_11_quick, runs/fig12_quick, runs/REPORT.md: PNGs, CSVs,
 # the learned hybrid's MP4s on the MuJoCo ship), then videos of the scripted ship
 # and taxi in videos/, the ship's verification against the continuous ODE, and the
 # environment benchmark.
