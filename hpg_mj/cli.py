@@ -332,6 +332,11 @@ def main(argv=None):
   except (ValueError, FileNotFoundError) as err:
     print(f"hpg-mj {args.command}: error: {err}", file=sys.stderr)
     return 2
+  except KeyboardInterrupt:
+    again = (" (run the same command again to resume from the last checkpoints)"
+             if args.command in ("run", "reproduce") else "")
+    print(f"hpg-mj {args.command}: interrupted{again}", file=sys.stderr)
+    return 130
 
 
 if __name__ == "__main__":

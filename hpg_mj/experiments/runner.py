@@ -239,7 +239,8 @@ def _run_processes(todo, workers, checkpoint_every, poll, on_finished):
       on_finished(job)
       poll()
     return
-  with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
+  pool = concurrent.futures.ProcessPoolExecutor(max_workers=workers)
+  try:
     futures = {pool.submit(runs.run, *job, checkpoint_every=checkpoint_every): job for job in todo}
     waiting = set(futures)
     while waiting:
@@ -249,6 +250,14 @@ def _run_processes(todo, workers, checkpoint_every, poll, on_finished):
         future.result()
         on_finished(futures[future])
       poll()
+  except BaseException:
+    # Interrupted, or a run failed: stop the other runs now rather than let them
+    # finish; each resumes from its last checkpoint when the command is run again.
+    for process in list(getattr(pool, "_processes", {}).values()):
+      process.terminate()
+    pool.shutdown(wait=False, cancel_futures=True)
+    raise
+  pool.shutdown()
 
 
 def _run_ray(todo, workers, checkpoint_every, poll, on_finished, address):
