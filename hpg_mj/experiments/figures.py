@@ -188,7 +188,7 @@ def write_report(root, experiment, results, drawn):
              if abs(v[0] - fig["paper_value"]) > 0.1 * abs(fig["paper_value"])]
       if off:
         line += (f" We differ from the paper's {fig['paper_value']:g} by more than 10% "
-                 f"({', '.join(off)}); see the README, 'Results so far'.")
+                 f"({', '.join(off)}); see the README, 'Results'.")
     if fig.get("reference") == "optimal":
       line += " Primitive steps until the trailing 1,000-episode mean first reaches 95% of " \
               "the optimum: " + ", ".join(
