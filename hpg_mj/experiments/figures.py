@@ -58,6 +58,8 @@ def check_curve(fig, tasks):
     return f"x = {fig['x']!r}; allowed: {list(X_AXES)}"
   if fig.get("reference", REFERENCES[0]) not in REFERENCES:
     return f"reference = {fig['reference']!r}; allowed: {list(REFERENCES)}"
+  if fig.get("better", "higher") not in ("higher", "lower"):
+    return f"better = {fig['better']!r}; allowed: ['higher', 'lower']"
   if "reference" in fig and fig["metric"] != "mean_return":
     return "reference = 'optimal' needs metric = 'mean_return' (the taxi's exact optimum)"
   if not any(_has(t, fig["metric"]) for t in tasks):
@@ -194,16 +196,23 @@ def write_report(root, experiment, results, drawn):
               "the optimum: " + ", ".join(
                   f"{t} {'never' if v[1] is None else f'{v[1]:,.0f}'} ({v[2]} of {n_runs} runs)"
                   for t, v in summary.items()) + "."
-    if "paper_order" in fig:
+    if "paper_order" in fig or "paper_best" in fig:
       if fig.get("reference") == "optimal":
         order = sorted(summary, key=lambda t: (summary[t][1] is None, summary[t][1] or 0.0))
         how = "by primitive steps to 95% of the optimum"
+      elif fig.get("better", "higher") == "lower":
+        order = sorted(summary, key=lambda t: summary[t][0])
+        how = "by the last block, lowest first"
       else:
         order = sorted(summary, key=lambda t: -summary[t][0])
         how = "by the last block, highest first"
-      same = order == [t for t in fig["paper_order"] if t in summary]
-      line += (f" The paper's order: {', '.join(fig['paper_order'])}; ours ({how}): "
-               f"{', '.join(order)}" + (" (the same)." if same else " (we differ)."))
+      if "paper_order" in fig:
+        same = order == [t for t in fig["paper_order"] if t in summary]
+        line += f" The paper's order: {', '.join(fig['paper_order'])}"
+      else:
+        same = order[0] == fig["paper_best"]
+        line += f" The paper's best: {fig['paper_best']}"
+      line += f"; ours ({how}): {', '.join(order)}" + (" (the same)." if same else " (we differ).")
     lines.append(line)
   (root / "REPORT.md").write_text("\n".join(lines) + "\n")
   return root / "REPORT.md"

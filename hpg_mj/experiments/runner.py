@@ -20,7 +20,8 @@ An experiment file (tasks/experiments/*.toml):
     title = "Gate passes per 1,000 episodes"
     ylabel = "gate passes"
     paper = "the hybrid ahead of both flat learners"   # what the paper states
-    paper_order = ["ship_hybrid", "ship_flat_pg"]      # optional: the paper's ranking
+    paper_order = ["ship_hybrid", "ship_flat_pg"]      # optional: the paper's ranking,
+    # or paper_best = "ship_hybrid" (its best only); better = "higher" or "lower"
     # optional: paper_value = 4.0 (drawn in), reference = "optimal" (taxi: the exact optimum)
 
     [[figure]]
@@ -66,7 +67,8 @@ EXPERIMENT_SCHEMA = {"name": "str", "description": "str", "tasks": "str_list", "
 FIGURE_COMMON = {"name": "str", "kind": "str", "title": "str", "paper": "str"}
 FIGURE_KINDS = {
     "curve": ({"metric": "str", "x": "str", "ylabel": "str"},
-              {"paper_value": "float", "paper_order": "str_list", "reference": "str"}),
+              {"paper_value": "float", "paper_order": "str_list", "paper_best": "str",
+               "better": "str", "reference": "str"}),
     "trajectories": ({"task": "str", "seed": "count", "starts": "starts", "video": "bool"},
                      {"width": "int", "height": "int"}),
 }
@@ -127,7 +129,8 @@ def _check_figures(path, section, tasks, figures_):
     if fig["name"] in seen:
       raise taskfile.TaskFileError(f"{path}: {where} is named twice")
     seen.add(fig["name"])
-    for task in fig.get("paper_order", []) + ([fig["task"]] if "task" in fig else []):
+    named = fig.get("paper_order", []) + [fig[k] for k in ("task", "paper_best") if k in fig]
+    for task in named:
       if task not in names:
         raise taskfile.TaskFileError(f"{path}: {where} names task {task!r}, which is not in "
                                      f"[experiment] tasks {names}")

@@ -69,6 +69,7 @@ def test_finished_runs_are_skipped_and_figures_written(tmp_path, capsys):
     assert rows.shape[0] == 1
   report = (out / "tiny" / "REPORT.md").read_text()
   assert "about 220 control steps" in report and "ship_flat_pg" in report
+  assert "The paper's best: ship_hybrid; ours (by the last block, lowest first):" in report
   assert json.loads(metrics.read_text())["episodes"] == 1000
 
 
@@ -86,6 +87,8 @@ def test_finished_runs_are_skipped_and_figures_written(tmp_path, capsys):
      "names task 'ship_actor_critic', which is not in"),
     ('name = "fig8"', 'name = "fig7"', "'fig7' is named twice"),
     ('name = "fig8"', 'colour = "red"\nname = "fig8"', r"unknown key\(s\) \['colour'\]"),
+    ('better = "lower"', 'better = "smaller"', r"'fig9' better = 'smaller'; allowed: \['higher', 'lower'\]"),
+    ('paper_best = "ship_hybrid"', 'paper_best = "hybrid"', "names task 'hybrid', which is not in"),
 ])
 def test_malformed_experiment_files_are_refused_before_running(tmp_path, old, new, message):
   path = tmp_path / "bad.toml"
