@@ -48,7 +48,6 @@ process pool (or to Ray); every run draws only from its own seeded generator,
 so results do not depend on the executor or the number of workers.
 """
 import concurrent.futures
-import json
 import os
 import pathlib
 import time
@@ -310,7 +309,7 @@ def run_experiment(experiment, out, quick=False, workers=None, progress=None, on
   all_jobs = jobs(experiment, out, quick)
   for job in all_jobs:             # a finished run of another length is not this one
     if runs.is_finished(job[3]):
-      done = json.loads((pathlib.Path(job[3]) / "metrics.json").read_text()).get("episodes")
+      done = runs.read_metrics(job[3])["episodes"]
       if done != job[2]:
         raise ValueError(f"{job[3]} holds a finished run of {done} episodes, but "
                          f"{experiment['path'].name} asks for {job[2]}; use another --out")
@@ -326,7 +325,7 @@ def run_experiment(experiment, out, quick=False, workers=None, progress=None, on
       _run_processes(todo, workers, checkpoint_every, poll, on_finished)
   results = {}
   for task in experiment["task_files"]:
-    results[task.path.stem] = [json.loads((pathlib.Path(job[3]) / "metrics.json").read_text())
+    results[task.path.stem] = [runs.read_metrics(job[3])
                                for job in all_jobs if job[0] == str(task.path)]
   return results, root, time.perf_counter() - start
 

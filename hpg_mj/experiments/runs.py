@@ -49,6 +49,20 @@ def is_finished(run_dir):
   return (pathlib.Path(run_dir) / "metrics.json").is_file()
 
 
+def read_metrics(run_dir):
+  """A finished run's metrics.json, or a ValueError that names the damaged file."""
+  path = pathlib.Path(run_dir) / "metrics.json"
+  try:
+    metrics = json.loads(path.read_text())
+  except (json.JSONDecodeError, UnicodeDecodeError) as err:
+    raise ValueError(f"{path} is damaged ({err}); delete {path.parent} to run it "
+                     f"again") from None
+  if not isinstance(metrics, dict) or not isinstance(metrics.get("episodes"), int):
+    raise ValueError(f"{path} is not a run's metrics (it has no episode count); delete "
+                     f"{path.parent} to run it again")
+  return metrics
+
+
 def _log(run_dir, message, stderr=False):
   line = f"{time.strftime('%Y-%m-%d %H:%M:%S')} {message}"
   with open(pathlib.Path(run_dir) / "events.log", "a") as f:
@@ -150,7 +164,7 @@ def run(task_path, seed, episodes, run_dir, checkpoint_every=CHECKPOINT_EVERY, s
   returns its metrics. A finished run is not run again."""
   run_dir = pathlib.Path(run_dir)
   if is_finished(run_dir):
-    return json.loads((run_dir / "metrics.json").read_text())
+    return read_metrics(run_dir)
   if checkpoint_every < 1:
     raise ValueError(f"checkpoint_every must be a positive number of episodes, got "
                      f"{checkpoint_every}")

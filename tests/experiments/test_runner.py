@@ -63,6 +63,13 @@ def test_finished_runs_are_skipped_and_figures_written(tmp_path, capsys):
   assert "holds a finished run of 1000 episodes, but tiny.toml asks for 2000" in \
       capsys.readouterr().err
   assert metrics.stat().st_mtime_ns == stamp
+  # A damaged metrics.json is named, not a bare JSON error.
+  path.write_text(EXPERIMENT)
+  text = metrics.read_text()
+  metrics.write_text('{"gate_pass_rate": 0.9, "epis')
+  assert cli.main(["run", str(path), "--out", str(out), "--workers", "1", "--quiet"]) == 2
+  assert f"{metrics} is damaged" in capsys.readouterr().err
+  metrics.write_text(text)
   for fig in ("fig7", "fig8", "fig9", "fig10", "fig11"):
     assert (out / "tiny" / f"{fig}.png").stat().st_size > 1000
     rows = np.loadtxt(out / "tiny" / f"{fig}.csv", delimiter=",", skiprows=1, ndmin=2)
