@@ -133,6 +133,8 @@ class _ShipKind(_Kind):
       return self.agent.train_stepwise(self._env("mujoco"), episodes, learn=learn, sample=sample)
     raise ValueError(f"unknown backend {backend!r}; valid backends: {list(BACKENDS)}")
 
+  figure = "gate_pass_rate"      # what progress() reports, by its metric's name
+
   @staticmethod
   def progress(record):
     return {"gate": float(record[:, 0].mean())}
@@ -313,6 +315,8 @@ class _TaxiKind(_Kind):
       kwargs["capacity"] = self.rules.capacity
     env = suite.load("taxi", "fuel" if self.rules.fuel_enabled else "classic", kwargs)
     return executor.DmControlAdapter(env)
+
+  figure = "mean_return"         # what progress() reports, by its metric's name
 
   @staticmethod
   def progress(record):

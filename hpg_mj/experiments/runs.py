@@ -174,8 +174,7 @@ def run(task_path, seed, episodes, run_dir, checkpoint_every=CHECKPOINT_EVERY, s
   if done > episodes:
     raise ValueError(f"{run_dir}: its checkpoint is at episode {done}, past the {episodes} "
                      f"episodes asked for; use another output folder")
-  key = "gate_pass_rate" if isinstance(agent, kinds._ShipKind) else "mean_return"
-  progress = _ProgressFile(run_dir, key, done)
+  progress = _ProgressFile(run_dir, agent.figure, done)
   chunk = 50 if agent.backend == "mujoco" else CHUNK
   try:
     while done < episodes:
