@@ -153,12 +153,19 @@ def _cmd_run(args):
              dynamic_ncols=True, disable=args.quiet or not sys.stderr.isatty())
   done = []
 
+  from hpg_mj.experiments import kinds
+  shown = {t.path.stem: {"gate_pass_rate": "gate", "mean_return": "return"}[
+      kinds.KINDS[t.kind].figure] for t in experiment["task_files"]}
+
+  import os
+  common = os.path.commonprefix(list(shown)) if len(shown) > 1 else ""
+  cut = common.rfind("_") + 1           # "ship_hybrid", "ship_flat_pg" -> "hybrid", "flat_pg"
+
   def progress(episodes, _total, current):
     bar.update(episodes - bar.n)
     if current:     # e.g. "hybrid gate 0.812, flat_pg gate 0.403"
-      bar.set_postfix_str(", ".join(
-          f"{task.split('_', 1)[-1]} {'gate' if task.startswith('ship') else 'return'} {v:.3f}"
-          for task, v in current.items()))
+      bar.set_postfix_str(", ".join(f"{task[cut:]} {shown[task]} {v:.3f}"
+                                    for task, v in current.items()))
 
   def finished(job):
     done.append(job)
