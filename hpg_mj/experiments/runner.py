@@ -58,55 +58,23 @@ from hpg_mj.experiments import kinds
 from hpg_mj.experiments import runs
 from hpg_mj.experiments import taskfile
 
-EXPERIMENT_SCHEMA = {"name": "str", "description": "str", "tasks": "str_list", "runs": "int",
-                     "episodes": "int", "quick_runs": "int", "quick_episodes": "int"}
+POSITIVE = ("int_min", 1)
+EXPERIMENT_SCHEMA = {"name": "str", "description": "str", "tasks": "str_list", "runs": POSITIVE,
+                     "episodes": POSITIVE, "quick_runs": POSITIVE, "quick_episodes": POSITIVE}
 
-# [[figure]] tables: every figure needs the common keys and those of its kind;
-# the optional ones may be left out.
+# [[figure]] tables (taskfile's types): every figure needs the common keys and
+# those of its kind; the optional ones may be left out.
 FIGURE_COMMON = {"name": "str", "kind": "str", "title": "str", "paper": "str"}
 FIGURE_KINDS = {
     "curve": ({"metric": "str", "x": "str", "ylabel": "str"},
               {"paper_value": "float", "paper_order": "str_list", "paper_best": "str",
                "better": "str", "reference": "str"}),
-    "trajectories": ({"task": "str", "seed": "count", "starts": "starts", "video": "bool"},
-                     {"width": "int", "height": "int"}),
+    "trajectories": ({"task": "str", "seed": ("int_min", 0),
+                      "starts": ("float_lists", 4, "[x, y, heading in degrees, turning rate "
+                                                   "in deg/s]"),
+                      "video": "bool"},
+                     {"width": POSITIVE, "height": POSITIVE}),
 }
-_WANTED = {"str_list": "a non-empty list of strings", "int": "a positive integer",
-           "count": "an integer >= 0", "str": "a string", "float": "a number",
-           "bool": "true or false",
-           "starts": "a non-empty list of [x, y, heading in degrees, turning rate in deg/s]"}
-
-
-def _valid(value, kind):
-  if kind == "str_list":
-    return isinstance(value, list) and value and all(isinstance(v, str) for v in value)
-  if kind in ("int", "count"):
-    return isinstance(value, int) and not isinstance(value, bool) and value >= (kind == "int")
-  if kind == "float":
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-  if kind == "bool":
-    return isinstance(value, bool)
-  if kind == "starts":
-    return isinstance(value, list) and value and all(
-        isinstance(v, list) and len(v) == 4 and all(_valid(x, "float") for x in v) for v in value)
-  return isinstance(value, str)
-
-
-def _check_table(path, where, table, required, optional=None):
-  optional = optional or {}
-  allowed = {**required, **optional}
-  unknown = set(table) - set(allowed)
-  if unknown:
-    raise taskfile.TaskFileError(f"{path}: {where} unknown key(s) {sorted(unknown)}; "
-                                 f"allowed: {sorted(allowed)}")
-  for key, kind in allowed.items():
-    if key not in table:
-      if key in required:
-        raise taskfile.TaskFileError(f"{path}: {where} {key} is missing")
-      continue
-    if not _valid(table[key], kind):
-      raise taskfile.TaskFileError(f"{path}: {where} {key} must be {_WANTED[kind]}, got "
-                                   f"{table[key]!r}")
 
 
 def _check_figures(path, section, tasks, figures_):
@@ -116,14 +84,18 @@ def _check_figures(path, section, tasks, figures_):
                                  f"is plotted")
   names = [t.path.stem for t in tasks]
   seen = set()
+  checked = []
   for k, fig in enumerate(figures_):
     where = f"[[figure]] #{k + 1}"
+    if not isinstance(fig, dict):
+      raise taskfile.TaskFileError(f"{path}: {where} must be a table, got {fig!r}")
     kind = fig.get("kind")
     if kind not in FIGURE_KINDS:
       raise taskfile.TaskFileError(f"{path}: {where} kind = {kind!r}; allowed: "
                                    f"{sorted(FIGURE_KINDS)}")
     required, optional = FIGURE_KINDS[kind]
-    _check_table(path, where, fig, {**FIGURE_COMMON, **required}, optional)
+    fig = taskfile.check_table(path, where, fig, {**FIGURE_COMMON, **required}, optional)
+    checked.append(fig)
     where = f"[[figure]] {fig['name']!r}"
     if fig["name"] in seen:
       raise taskfile.TaskFileError(f"{path}: {where} is named twice")
@@ -145,6 +117,7 @@ def _check_figures(path, section, tasks, figures_):
       if fig["seed"] >= runs_:
         raise taskfile.TaskFileError(f"{path}: {where} seed = {fig['seed']}, but the "
                                      f"experiment has seeds 0..{runs_ - 1}")
+  return checked
 
 
 def load_experiment(path):
@@ -165,8 +138,7 @@ def load_experiment(path):
   if "experiment" not in data or set(data) - {"experiment", "figure"}:
     raise taskfile.TaskFileError(f"{path}: needs one [experiment] section and [[figure]] "
                                  f"tables, got {sorted(data)}")
-  section = data["experiment"]
-  _check_table(path, "[experiment]", section, EXPERIMENT_SCHEMA)
+  section = taskfile.check_table(path, "[experiment]", data["experiment"], EXPERIMENT_SCHEMA)
   tasks = [kinds.load_task(t) for t in section["tasks"]]   # refused here, before any run
   worlds = sorted({t.section("environment")["world"] for t in tasks})
   if len(worlds) > 1:
@@ -175,8 +147,8 @@ def load_experiment(path):
   stems = [t.path.stem for t in tasks]
   if len(set(stems)) < len(stems):
     raise taskfile.TaskFileError(f"{path}: [experiment] tasks names a task twice: {stems}")
-  _check_figures(path, section, tasks, data.get("figure"))
-  return dict(section, path=path, task_files=tasks, figures=data["figure"])
+  figures_ = _check_figures(path, section, tasks, data.get("figure"))
+  return dict(section, path=path, task_files=tasks, figures=figures_)
 
 
 def shipped_experiments():

@@ -10,7 +10,9 @@ import pathlib
 import tomllib
 
 # Types accepted for a schema entry: "float" (int or float), "int", "bool",
-# "str", ("choice", options), ("int_list", length).
+# "str", "str_list" (a non-empty list of strings), ("choice", options),
+# ("int_list", length) (positive integers), ("int_min", least),
+# ("float_lists", length, description) (a non-empty list of lists of numbers).
 
 
 class TaskFileError(ValueError):
@@ -28,23 +30,33 @@ class TaskFile:
     return self.sections[name]
 
 
-def _check(path, section, key, value, kind):
-  where = f"{path}: [{section}] {key}"
+def _check(path, where, key, value, kind):
+  where = f"{path}: {where} {key}"
   if isinstance(kind, tuple) and kind[0] == "choice":
     if value not in kind[1]:
       raise TaskFileError(f"{where} = {value!r} is not allowed; allowed: {list(kind[1])}")
     return value
   if isinstance(kind, tuple) and kind[0] == "int_list":
     if (not isinstance(value, list) or len(value) != kind[1]
-        or not all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in value)):
+        or not all(_is_int(v) and v > 0 for v in value)):
       raise TaskFileError(f"{where} must be a list of {kind[1]} positive integers, got {value!r}")
     return tuple(value)
+  if isinstance(kind, tuple) and kind[0] == "int_min":
+    if not _is_int(value) or value < kind[1]:
+      raise TaskFileError(f"{where} must be {_describe(kind)}, got {value!r}")
+    return value
+  if isinstance(kind, tuple) and kind[0] == "float_lists":
+    if not isinstance(value, list) or not value or not all(
+        isinstance(v, list) and len(v) == kind[1] and all(_is_number(x) for x in v)
+        for v in value):
+      raise TaskFileError(f"{where} must be {_describe(kind)}, got {value!r}")
+    return [[float(x) for x in v] for v in value]
   if kind == "float":
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    if not _is_number(value):
       raise TaskFileError(f"{where} must be a number, got {value!r}")
     return float(value)
   if kind == "int":
-    if isinstance(value, bool) or not isinstance(value, int):
+    if not _is_int(value):
       raise TaskFileError(f"{where} must be an integer, got {value!r}")
     return value
   if kind == "bool":
@@ -55,7 +67,38 @@ def _check(path, section, key, value, kind):
     if not isinstance(value, str):
       raise TaskFileError(f"{where} must be a string, got {value!r}")
     return value
+  if kind == "str_list":
+    if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
+      raise TaskFileError(f"{where} must be {_describe(kind)}, got {value!r}")
+    return list(value)
   raise AssertionError(kind)
+
+
+def _is_int(value):
+  return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _is_number(value):
+  return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def check_table(path, where, table, required, optional=None):
+  """The values of one TOML table (`where`, e.g. "[root]"), converted, after
+  refusing unknown keys, missing required ones and wrong types; optional keys
+  may be left out."""
+  optional = optional or {}
+  allowed = {**required, **optional}
+  unknown = set(table) - set(allowed)
+  if unknown:
+    raise TaskFileError(f"{path}: {where} unknown key(s) {sorted(unknown)}; allowed: "
+                        f"{sorted(allowed)}")
+  values = {}
+  for key, kind in allowed.items():
+    if key in table:
+      values[key] = _check(path, where, key, table[key], kind)
+    elif key in required:
+      raise TaskFileError(f"{path}: {where} {key} is missing ({_describe(kind)})")
+  return values
 
 
 def load(path, schemas):
@@ -90,21 +133,16 @@ def load(path, schemas):
     if not isinstance(given, dict):
       raise TaskFileError(f"{path}: section [{section}] is missing; it needs the keys "
                           f"{sorted(keys)}")
-    unknown = set(given) - set(keys)
-    if unknown:
-      raise TaskFileError(f"{path}: [{section}] unknown key(s) {sorted(unknown)}; allowed: "
-                          f"{sorted(keys)}")
-    values = {}
-    for key, kind_of in keys.items():
-      if key not in given:
-        raise TaskFileError(f"{path}: [{section}] {key} is missing ({_describe(kind_of)})")
-      values[key] = _check(path, section, key, given[key], kind_of)
+    values = check_table(path, f"[{section}]", given, keys)
     sections[section] = values
   return TaskFile(path, kind, sections, text)
 
 
 def _describe(kind):
   if isinstance(kind, tuple):
-    return f"one of {list(kind[1])}" if kind[0] == "choice" else f"a list of {kind[1]} integers"
+    return {"choice": lambda: f"one of {list(kind[1])}",
+            "int_list": lambda: f"a list of {kind[1]} integers",
+            "int_min": lambda: "a positive integer" if kind[1] == 1 else f"an integer >= {kind[1]}",
+            "float_lists": lambda: f"a non-empty list of {kind[2]}"}[kind[0]]()
   return {"float": "a number", "int": "an integer", "bool": "true or false",
-          "str": "a string"}[kind]
+          "str": "a string", "str_list": "a non-empty list of strings"}[kind]
