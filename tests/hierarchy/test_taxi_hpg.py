@@ -3,10 +3,10 @@ HPG's compiled loop (hpg_mj.hierarchy.taxi_compiled): exact returns of a
 hand-set optimal policy, determinism under a seed, and (slow) learning to 95%
 of the optimal mean return."""
 import collections
-import functools
 
 import numpy as np
 import pytest
+from taxi_grid import moves_from
 
 from hpg_mj.hierarchy import taxi_compiled as tcp
 from hpg_mj.hierarchy import taxi_rules as tr
@@ -29,21 +29,6 @@ def mask_of(fill, *args):
   mask = np.zeros(tr.MAX_CHILDREN, dtype=np.bool_)
   fill(*args, mask)
   return mask
-
-
-@functools.lru_cache(maxsize=None)
-def moves_from(start):
-  """Shortest number of moves from `start` to every square (breadth-first)."""
-  dist = {start: 0}
-  queue = collections.deque([start])
-  while queue:
-    square = queue.popleft()
-    for action in (tc.SOUTH, tc.NORTH, tc.EAST, tc.WEST):
-      nxt = tuple(int(v) for v in tc.taxi_step(*square, 0, 1, 12, action, False)[:2])
-      if nxt not in dist:
-        dist[nxt] = dist[square] + 1
-        queue.append(nxt)
-  return dist
 
 
 # --- abstract states ------------------------------------------------------------

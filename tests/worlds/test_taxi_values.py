@@ -1,11 +1,9 @@
 """Known answers for the exact values of taxi-fuel and the classic taxi
 (hpg_mj.worlds.taxi_values): hand-computed states, the Bellman optimality
 equation everywhere, and the classic values against shortest paths by BFS."""
-import collections
-import functools
-
 import numpy as np
 import pytest
+from taxi_grid import moves_between
 
 from hpg_mj.worlds import taxi_core as tc
 from hpg_mj.worlds import taxi_values as tv
@@ -24,25 +22,6 @@ def fuel():
 @pytest.fixture(scope="module")
 def classic():
   return tv.taxi_values(False)
-
-
-def moves_between(start, goal):
-  """Shortest number of moves on the walled grid, by breadth-first search."""
-  return _moves_from(start)[goal]
-
-
-@functools.lru_cache(maxsize=None)
-def _moves_from(start):
-  dist = {start: 0}
-  queue = collections.deque([start])
-  while queue:
-    square = queue.popleft()
-    for action in (tc.SOUTH, tc.NORTH, tc.EAST, tc.WEST):
-      nxt = tuple(int(v) for v in tc.taxi_step(*square, 0, 1, 12, action, False)[:2])
-      if nxt not in dist:
-        dist[nxt] = dist[square] + 1
-        queue.append(nxt)
-  return dist
 
 
 # --- hand-computed states ------------------------------------------------------
