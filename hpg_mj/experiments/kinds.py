@@ -533,7 +533,25 @@ def build(task, seed=None):
   return KINDS[task.kind](task, seed)
 
 
-def train(task, episodes=None, seed=None, backend=None, progress=None, chunk=1000):
+CHUNK = 1000          # episodes per chunk of training (50 through MuJoCo)
+
+
+def chunks(agent, episodes, backend=None, done=0, every=None):
+  """Trains `agent` from episode `done` to `episodes` in chunks that never cross
+  a multiple of `every`; yields (episodes done, the chunk's record, its seconds)."""
+  backend = backend or agent.backend
+  chunk = min(CHUNK, 50) if backend == "mujoco" else CHUNK
+  while done < episodes:
+    n = min(chunk, episodes - done)
+    if every:
+      n = min(n, every - done % every)
+    start = time.perf_counter()
+    record = agent.run(n, backend)
+    done += n
+    yield done, record, time.perf_counter() - start
+
+
+def train(task, episodes=None, seed=None, backend=None, progress=None):
   """Trains a fresh agent; returns (agent, record, wall seconds).
 
   `progress(done, total, summary)` is called after each chunk of episodes.
@@ -542,18 +560,12 @@ def train(task, episodes=None, seed=None, backend=None, progress=None, chunk=100
   episodes = task.section("protocol")["episodes"] if episodes is None else episodes
   if episodes < 1:
     raise ValueError(f"episodes must be positive, got {episodes}")
-  backend = backend or agent.backend
   records = []
   start = time.perf_counter()
-  done = 0
-  if backend == "mujoco":
-    chunk = min(chunk, 50)
-  while done < episodes:
-    n = min(chunk, episodes - done)
-    records.append(agent.run(n, backend))
-    done += n
+  for done, record, _ in chunks(agent, episodes, backend):
+    records.append(record)
     if progress is not None:
-      progress(done, episodes, agent.progress(records[-1]))
+      progress(done, episodes, agent.progress(record))
   return agent, np.concatenate(records), time.perf_counter() - start
 
 

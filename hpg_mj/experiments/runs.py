@@ -3,7 +3,7 @@ it goes, its whole training state checkpointed atomically, resumed exactly.
 
 A run folder (`OUT/<experiment>/<task>/seed<k>/`) holds:
 
-    progress.csv          one row per chunk of episodes, flushed as written:
+    progress.csv          one row per chunk of episodes (`kinds.chunks`), flushed:
                           episodes, wall_seconds, episodes_per_second and the
                           chunk's figure (gate_pass_rate or mean_return)
     checkpoints/ep<N>/    the agent after N episodes with its record so far
@@ -35,7 +35,6 @@ import numpy as np
 from hpg_mj.experiments import kinds
 from hpg_mj.experiments import storage
 
-CHUNK = 1000           # episodes between progress rows
 CHECKPOINT_EVERY = 10000
 KEEP_CHECKPOINTS = 2
 PROGRESS_COLUMNS = ("episodes", "wall_seconds", "episodes_per_second")
@@ -175,16 +174,13 @@ def run(task_path, seed, episodes, run_dir, checkpoint_every=CHECKPOINT_EVERY, s
     raise ValueError(f"{run_dir}: its checkpoint is at episode {done}, past the {episodes} "
                      f"episodes asked for; use another output folder")
   progress = _ProgressFile(run_dir, agent.figure, done)
-  chunk = 50 if agent.backend == "mujoco" else CHUNK
   try:
-    while done < episodes:
-      n = min(chunk, episodes - done, checkpoint_every - done % checkpoint_every)
-      start = time.perf_counter()
-      records.append(agent.run(n, agent.backend))
-      seconds = time.perf_counter() - start
+    for now, record, seconds in kinds.chunks(agent, episodes, done=done, every=checkpoint_every):
+      n, done = now - done, now
+      records.append(record)
       wall += seconds
-      done += n
-      progress.write(done, wall, n / max(seconds, 1e-9), next(iter(agent.progress(records[-1]).values())))
+      progress.write(done, wall, n / max(seconds, 1e-9),
+                     next(iter(agent.progress(record).values())))
       if done % checkpoint_every == 0 and done < episodes:
         records = [np.concatenate(records)]
         _write_checkpoint(agent, records[0], run_dir, done, wall)
