@@ -71,9 +71,9 @@ def _bench_experiments(args):
       start = time.perf_counter()
       for name in names:
         with contextlib.redirect_stdout(io.StringIO()):
-          rc = _cmd_run(argparse.Namespace(
-              experiment_file=name, quick=quick, out=out, workers=args.workers, quiet=True,
-              executor="process", address=None, checkpoint_every=10000))
+          rc = _cmd_run(build_parser().parse_args(
+              ["run", name, "--out", out, "--quiet"] + (["--quick"] if quick else [])
+              + (["--workers", str(args.workers)] if args.workers else [])))
         if rc:
           raise RuntimeError(f"bench experiments: {name} failed")
       seconds = time.perf_counter() - start
@@ -214,10 +214,7 @@ def _cmd_reproduce(args):
     raise ValueError(f"unknown figure {args.figure!r}; valid: all, {', '.join(FIGURE_EXPERIMENTS)}")
   rc = 0
   for name in names:
-    rc |= _cmd_run(argparse.Namespace(
-        experiment_file=name, quick=args.quick, out=args.out, workers=args.workers,
-        quiet=args.quiet, executor=args.executor, address=args.address,
-        checkpoint_every=args.checkpoint_every))
+    rc |= _cmd_run(argparse.Namespace(**{**vars(args), "experiment_file": name}))
   from hpg_mj.experiments import figures
   folders = [name + ("_quick" if args.quick else "") for name in names]
   print(f"reproduce: every figure beside the paper in "
