@@ -122,57 +122,29 @@ def format_rows(rows):
 
 
 def bench_train(min_seconds=2.0):
-  """Rows of (name, unit, steps per second) for the training paths."""
-  from hpg_mj import suite
-  from hpg_mj.hierarchy import executor
-  from hpg_mj.hierarchy import ship as ship_hierarchy
-  from hpg_mj.hierarchy import ship_compiled as sc
+  """Rows of (name, unit, steps per second): every shipped task file's agent on its
+  compiled path, learning, and the hybrid step by step through dm_control."""
+  from hpg_mj import agents
 
   rows = []
-  agent = ship_hierarchy.ShipHybrid(seed=0)
-  agent.train_compiled(50)                          # compile, warm up
-  steps, start = 0, time.perf_counter()
-  while time.perf_counter() - start < min_seconds:
-    steps += int(agent.train_compiled(1000)[:, sc.STEPS].sum())
-  rows.append(("ship hybrid, compiled loop, learning (analytic)", "control steps/s",
-               _rate(steps, time.perf_counter() - start)))
-
-  from hpg_mj.baselines import ship_flat
-  for label, make in (("ship flat policy gradient, compiled, learning",
-                       lambda: ship_flat.FlatPolicyGradient(seed=0)),
-                      ("ship actor-critic, compiled, learning",
-                       lambda: ship_flat.ActorCriticAgent(seed=0))):
-    flat = make()
-    flat.train_compiled(5)
+  for name, path in agents.shipped_tasks().items():
+    task = agents.load_task(path)
+    agent = agents.build(task, seed=0)
+    unit = "control steps/s" if task.section("environment")["world"] == "ship" else \
+        "primitive steps/s"
+    chunk = 100 if "flat_pg" in name or "actor_critic" in name else 1000
+    agent.train(5, "analytic")                          # compile, warm up
     steps, start = 0, time.perf_counter()
     while time.perf_counter() - start < min_seconds:
-      steps += int(flat.train_compiled(100)[:, ship_flat.STEPS].sum())
-    rows.append((label, "control steps/s", _rate(steps, time.perf_counter() - start)))
+      steps += int(agent.train(chunk, "analytic")["steps"].sum())
+    rows.append((f"{name}, compiled, learning", unit, _rate(steps, time.perf_counter() - start)))
 
-  from hpg_mj.baselines import taxi_flat_q
-  from hpg_mj.baselines import taxi_maxq
-  from hpg_mj.hierarchy import taxi_compiled
-  for label, make, column in (
-      ("taxi-fuel HPG, compiled, learning", lambda: taxi_compiled.TaxiHPG(seed=0),
-       taxi_compiled.STEPS),
-      ("taxi-fuel flat Q-learning, compiled, learning", lambda: taxi_flat_q.FlatQ(seed=0),
-       taxi_flat_q.STEPS),
-      ("taxi-fuel MAXQ-Q, compiled, learning", lambda: taxi_maxq.TaxiMAXQ(seed=0),
-       taxi_maxq.STEPS)):
-    taxi_agent = make()
-    run = taxi_agent.run if hasattr(taxi_agent, "run") else taxi_agent.train_compiled
-    run(200)
-    steps, start = 0, time.perf_counter()
-    while time.perf_counter() - start < min_seconds:
-      steps += int(run(5000)[:, column].sum())
-    rows.append((label, "primitive steps/s", _rate(steps, time.perf_counter() - start)))
-
-  agent = ship_hierarchy.ShipHybrid(seed=0)
-  adapter = executor.DmControlAdapter(suite.load("ship", "steer", {"random": 0}))
-  agent.train_stepwise(adapter, 2)
+  agent = agents.build(agents.load_task("ship_hybrid"), seed=0)
+  env = agent.make_env("dm_control")
+  agent.train_stepwise(env, 2)
   steps, start = 0, time.perf_counter()
   while time.perf_counter() - start < min_seconds:
-    steps += int(agent.train_stepwise(adapter, 5)[:, sc.STEPS].sum())
+    steps += int(agent.train_stepwise(env, 5)["steps"].sum())
   rows.append(("ship hybrid, step by step through dm_control (MuJoCo)", "control steps/s",
                _rate(steps, time.perf_counter() - start)))
   return rows

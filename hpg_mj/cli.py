@@ -19,11 +19,12 @@ def _cmd_verify(args):
 def _cmd_render(args):
   from hpg_mj.render import video
   if getattr(args, "agent", None) is not None:
-    from hpg_mj.experiments import kinds
-    agent, _, _ = kinds.load(args.agent)
+    from hpg_mj import agents
+    from hpg_mj.experiments import videos
+    agent, _, _ = agents.load(args.agent)
     out = args.out or f"videos/{agent.name}.{'gif' if args.gif else 'mp4'}"
-    path, record = kinds.render_agent(agent, out, seed=args.seed, width=args.width,
-                                      height=args.height)
+    path, record = videos.render_agent(agent, out, seed=args.seed, width=args.width,
+                                       height=args.height)
     summary = agent.metrics(record)
     print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB): a greedy episode of "
           f"{args.agent}, return {summary['mean_return']:.1f}"
@@ -104,21 +105,21 @@ def _print_metrics(metrics, as_json):
 def _cmd_train(args):
   import pathlib
 
-  from hpg_mj.experiments import kinds
-  task = kinds.load_task(args.task_file)
-  seed = task.section("protocol")["seed"] if args.seed is None else args.seed
-  episodes = task.section("protocol")["episodes"] if args.episodes is None else args.episodes
+  from hpg_mj import agents
+  task = agents.load_task(args.task_file)
+  seed = task.protocol.seed if args.seed is None else args.seed
+  episodes = task.protocol.episodes if args.episodes is None else args.episodes
   bar, update = _progress_bar(episodes, args.quiet or args.json, task.path.stem)
   try:
-    agent, record, wall = kinds.train(task, episodes=episodes, seed=seed, backend=args.backend,
-                                      progress=update)
+    agent, record, wall = agents.train(task, episodes=episodes, seed=seed, backend=args.backend,
+                                       progress=update)
   finally:
     bar.close()
   out = pathlib.Path(args.out) if args.out else pathlib.Path("runs") / f"{task.path.stem}-seed{seed}"
   metrics = agent.metrics(record)
   metrics.update({"task": str(task.path), "seed": seed, "episodes": episodes,
                   "backend": args.backend or agent.backend, "wall_seconds": round(wall, 3)})
-  kinds.save(agent, out, record, {"metrics": metrics})
+  agents.save(agent, out, record, {"metrics": metrics})
   metrics["agent_dir"] = str(out)
   _print_metrics(metrics, args.json)
   return 0
@@ -127,13 +128,13 @@ def _cmd_train(args):
 def _cmd_evaluate(args):
   import time
 
-  from hpg_mj.experiments import kinds
-  agent, _, meta = kinds.load(args.agent_dir)
+  from hpg_mj import agents
+  agent, _, meta = agents.load(args.agent_dir)
   if args.seed is not None:
     agent.set_seed(args.seed)
   backend = args.backend or agent.backend
   start = time.perf_counter()
-  record = agent.run(args.episodes, backend, learn=False, sample=args.policy == "sampled")
+  record = agent.evaluate(args.episodes, backend, policy=args.policy)
   metrics = agent.metrics(record)
   metrics.update({"agent_dir": str(args.agent_dir), "episodes": args.episodes,
                   "backend": backend, "policy": args.policy,
@@ -153,9 +154,9 @@ def _cmd_run(args):
              dynamic_ncols=True, disable=args.quiet or not sys.stderr.isatty())
   done = []
 
-  from hpg_mj.experiments import kinds
-  shown = {t.path.stem: {"gate_pass_rate": "gate", "mean_return": "return"}[
-      kinds.KINDS[t.kind].figure] for t in experiment["task_files"]}
+  from hpg_mj import agents
+  shown = {t.path.stem: agents.lookup(t.kind).figure.replace("_pass_rate", "").replace(
+      "mean_", "") for t in experiment["task_files"]}
 
   import os
   common = os.path.commonprefix(list(shown)) if len(shown) > 1 else ""
@@ -187,8 +188,7 @@ def _cmd_run(args):
       drawn[fig["name"]] = figures.draw_curve(root, fig, experiment["task_files"], records,
                                               optimal)
       continue
-    from hpg_mj.experiments import kinds
-    agent, _, _ = kinds.load(root / fig["task"] / f"seed{fig['seed']}" / "agent")
+    agent, _, _ = agents.load(root / fig["task"] / f"seed{fig['seed']}" / "agent")
     drawn[fig["name"]] = figures.draw_trajectories(root, fig, agent)
     for s in drawn[fig["name"]]:
       print(f"{fig['name']}: from {tuple(s['start'])}: "

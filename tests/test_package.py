@@ -46,10 +46,10 @@ def test_every_subpackage_is_in_the_wheel():
 
 
 def test_shipped_tasks_load_by_name():
-  from hpg_mj.experiments import kinds
-  names = kinds.shipped_tasks()
+  from hpg_mj import agents
+  names = agents.shipped_tasks()
   assert {"ship_hybrid", "ship_flat_pg", "ship_actor_critic", "taxi_fuel_hpg",
           "taxi_fuel_flat_q"} <= set(names)
-  assert kinds.load_task("ship_hybrid").kind == "ship_hybrid"
+  assert agents.load_task("ship_hybrid").kind == "ship_hybrid"
   with pytest.raises(ValueError, match=r"no shipped task of that name; shipped: \['ship_"):
-    kinds.load_task("ship_hybird")
+    agents.load_task("ship_hybird")

@@ -95,31 +95,3 @@ class FlatQ:
     if learn:
       self.episodes += episodes
     return record
-
-  def graph(self):
-    from hpg_mj.hierarchy.graph import Primitive, Subtask, TaskGraph
-    fuel = self.task.fuel_enabled
-    return TaskGraph("policy", [
-        Subtask("policy", children=list(core.ACTION_NAMES[:self.n_actions]), learner=self.learner,
-                view=lambda call, obs: core.encode_state(*(int(v) for v in obs[:4]),
-                                                         int(obs[4]) if fuel else core.CLASSIC_FUEL,
-                                                         fuel),
-                termination=lambda call, step: False),
-        *[Primitive(name, action=i) for i, name in enumerate(core.ACTION_NAMES[:self.n_actions])],
-    ])
-
-  def train_stepwise(self, adapter, episodes, learn=True, sample=None):
-    from hpg_mj.hierarchy import executor
-    run = executor.Executor(self.graph(), adapter, self.rng_state)
-    record = np.zeros((episodes, N_RECORD))
-    start = np.empty(5, dtype=np.int64)
-    for i in range(episodes):
-      taxi_compiled.sample_start(self.rng_state, self.world, start)
-      begin = start if self.task.fuel_enabled else start[:4]
-      total, steps, last = run.run_episode(begin.copy(), learn=learn, sample=sample)
-      outcome = (rules.TRUNCATED if last.truncated else
-                 rules.DELIVERED if last.reward == core.DELIVERY_REWARD else rules.OUT_OF_FUEL)
-      record[i] = (total, steps, outcome)
-      if learn:
-        self.episodes += 1
-    return record

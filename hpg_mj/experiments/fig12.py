@@ -10,17 +10,12 @@ from hpg_mj.worlds import ship_core as core
 STARTS = ((700.0, 700.0, 100.0, 3.65), (750.0, 180.0, 80.0, 7.9))
 
 
-def sail(agent_kind, start):
-  """One greedy episode from `start` on the MuJoCo ship: (path, decisions, record)."""
-  import gymnasium
-
-  import hpg_mj  # noqa: F401
+def sail(agent, start):
+  """One greedy episode of a ship agent from `start` on the MuJoCo ship: (path, the
+  root's decisions as (x, y, direction) where each call began, record row)."""
   from hpg_mj.hierarchy import executor
-  env_cfg = agent_kind.task.section("environment")
-  env = gymnasium.make("hpg_mj/ShipSteering-v0", backend="mujoco",
-                       max_steps=env_cfg["max_steps"], gate_reward=env_cfg["gate_reward"],
-                       out_of_bounds_reward=env_cfg["out_of_bounds_reward"]).unwrapped
-  path = []
+  env = agent.make_env("gymnasium", backend="mujoco")
+  path, decisions = [], []
 
   class Tracing(executor.GymAdapter):
     def reset(self, start=None):
@@ -33,16 +28,20 @@ def sail(agent_kind, start):
       path.append(np.array(step.obs))
       return step
 
-  hybrid = agent_kind.agent
-  hybrid.call_log = []
+  def on_call(call):
+    if "direction" in call.args:           # a call of the root's (a compass direction)
+      decisions.append((float(call.origin[0]), float(call.origin[1]),
+                        int(call.args["direction"])))
+
   try:
-    record = hybrid.train_stepwise(Tracing(env), 1, learn=False, start=start)
+    record = agent.run_stepwise(Tracing(env.unwrapped), 1, learn=False, start=start,
+                                on_call=on_call)
   finally:
-    decisions, hybrid.call_log = hybrid.call_log, None
+    env.close()
   return np.array(path), decisions, record[0]
 
 
-def draw(agent_kind, out, video=True, width=640, height=480, starts=STARTS, name="fig12",
+def draw(agent, out, video=True, width=640, height=480, starts=STARTS, name="fig12",
          title="Learned hybrid from the paper's two starts (dots: root decisions)"):
   """Writes <name>.png and, with `video`, <name>_<k>.mp4 for each start; returns a
   summary per start."""
@@ -56,7 +55,7 @@ def draw(agent_kind, out, video=True, width=640, height=480, starts=STARTS, name
   ax.plot(core.GATE[:, 0], core.GATE[:, 1], color="goldenrod", linewidth=4, label="gate")
   summary = []
   for k, start in enumerate(starts):
-    path, decisions, record = sail(agent_kind, start)
+    path, decisions, record = sail(agent, start)
     line, = ax.plot(path[:, 0], path[:, 1], linewidth=1.5,
                     label=f"from ({start[0]:.0f}, {start[1]:.0f}, {start[2]:.0f} deg, "
                           f"{start[3]} deg/s)")
@@ -65,8 +64,8 @@ def draw(agent_kind, out, video=True, width=640, height=480, starts=STARTS, name
     for x, y, d in decisions:
       ax.annotate(core.DIRECTIONS[d], (x, y), textcoords="offset points", xytext=(5, 5),
                   fontsize=8)
-    summary.append({"start": list(start), "steps": int(record[1]),
-                    "passed": bool(record[0]), "calls": len(decisions),
+    summary.append({"start": list(start), "steps": int(record["steps"]),
+                    "passed": bool(record["passed"]), "calls": len(decisions),
                     "decisions": [core.DIRECTIONS[d] for _, _, d in decisions]})
     if video:
       _video(path, marks, out / f"{name}_{k}.mp4", width, height)

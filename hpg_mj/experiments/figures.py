@@ -8,14 +8,13 @@ gives one, and the data beside the PNG as CSV. A "trajectories" figure (Figure
 12) sails a run's final agent from given starts on the MuJoCo ship
 (`experiments.fig12`).
 
-Every task record starts with the same two columns: the ship's (passed the gate,
-control steps), the taxi's (return, primitive steps); the hybrid adds its own.
+Records have named fields (`Agent.record_fields`): a metric is drawn for every
+task whose agent records the fields it needs; every record has "steps".
 """
 import pathlib
 
 import numpy as np
 
-from hpg_mj.hierarchy import ship_compiled as sc
 
 BLOCK = 1000   # episodes per point
 
@@ -30,24 +29,26 @@ def _blocks(values, weights=None):
     return v.sum(axis=1) / w.sum(axis=1)
 
 
-# metric -> (which tasks have it: a world, or the ship_hybrid kind; per-block values)
+# metric -> (the record fields it needs, its per-block values); a task has a metric
+# when its agent's record has those fields.
 METRICS = {
-    "gate_passes": ("ship", lambda r: _blocks(r[:, 0]) * BLOCK),
-    "steps_to_gate": ("ship", lambda r: _blocks(r[:, 1] * r[:, 0], r[:, 0])),
-    "calls_per_episode": ("ship_hybrid", lambda r: _blocks(r[:, sc.CALLS])),
-    "diagonal_successes": ("ship_hybrid",
-                           lambda r: _blocks(r[:, sc.DIAG_SUCCESS], r[:, sc.DIAG_RUNS]) * BLOCK),
-    "straight_successes": ("ship_hybrid", lambda r: _blocks(r[:, sc.STRAIGHT_SUCCESS],
-                                                            r[:, sc.STRAIGHT_RUNS]) * BLOCK),
-    "mean_return": ("taxi", lambda r: _blocks(r[:, 0])),
+    "gate_passes": (("passed",), lambda r: _blocks(r["passed"]) * BLOCK),
+    "steps_to_gate": (("passed", "steps"),
+                      lambda r: _blocks(r["steps"] * r["passed"], r["passed"])),
+    "calls_per_episode": (("calls",), lambda r: _blocks(r["calls"])),
+    "diagonal_successes": (("diagonal_successes", "diagonal_runs"),
+                           lambda r: _blocks(r["diagonal_successes"], r["diagonal_runs"]) * BLOCK),
+    "straight_successes": (("straight_successes", "straight_runs"),
+                           lambda r: _blocks(r["straight_successes"], r["straight_runs"]) * BLOCK),
+    "mean_return": (("return",), lambda r: _blocks(r["return"])),
 }
 X_AXES = ("episodes", "steps")
 REFERENCES = ("optimal",)
 
 
 def _has(task, metric):
-  owner = METRICS[metric][0]
-  return task.kind == owner or task.section("environment")["world"] == owner
+  from hpg_mj import agents
+  return set(METRICS[metric][0]) <= set(agents.lookup(task.kind).record_fields)
 
 
 def check_curve(fig, tasks):
@@ -63,8 +64,8 @@ def check_curve(fig, tasks):
   if "reference" in fig and fig["metric"] != "mean_return":
     return "reference = 'optimal' needs metric = 'mean_return' (the taxi's exact optimum)"
   if not any(_has(t, fig["metric"]) for t in tasks):
-    return (f"metric {fig['metric']!r} belongs to {METRICS[fig['metric']][0]} tasks; none of "
-            f"{[t.path.stem for t in tasks]} has it")
+    return (f"metric {fig['metric']!r} needs the record fields {list(METRICS[fig['metric']][0])}; "
+            f"none of {[t.path.stem for t in tasks]} has them")
   return None
 
 
@@ -86,7 +87,7 @@ def draw_curve(root, fig, tasks, records_by_task, optimal=None):
     records = records_by_task[name]
     data = np.array([METRICS[fig["metric"]][1](r) for r in records])
     if fig["x"] == "steps":
-      x = np.mean([np.cumsum(r[:, 1])[BLOCK - 1::BLOCK][:data.shape[1]] for r in records], axis=0)
+      x = np.mean([np.cumsum(r["steps"])[BLOCK - 1::BLOCK][:data.shape[1]] for r in records], axis=0)
     else:
       x = (np.arange(data.shape[1]) + 1.0) * BLOCK
     mean = np.nanmean(data, axis=0)
@@ -99,9 +100,9 @@ def draw_curve(root, fig, tasks, records_by_task, optimal=None):
     if fig.get("reference") == "optimal":
       threshold = taxi_values.performance_threshold(optimal, 0.95)
       for r in records:
-        trailing = np.convolve(r[:, 0], np.ones(BLOCK) / BLOCK, mode="valid")
+        trailing = np.convolve(r["return"], np.ones(BLOCK) / BLOCK, mode="valid")
         hit = np.nonzero(trailing >= threshold)[0]
-        reached.append(np.cumsum(r[:, 1])[hit[0] + BLOCK - 1] if len(hit) else np.nan)
+        reached.append(np.cumsum(r["steps"])[hit[0] + BLOCK - 1] if len(hit) else np.nan)
     hits = [v for v in reached if not np.isnan(v)]
     summary[name] = (float(mean[-1]), float(np.mean(hits)) if hits else None, len(hits))
   if fig.get("reference") == "optimal":

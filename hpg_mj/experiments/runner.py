@@ -54,9 +54,9 @@ import time
 
 import numpy as np
 
-from hpg_mj.experiments import kinds
+from hpg_mj import agents
 from hpg_mj.experiments import runs
-from hpg_mj.experiments import taskfile
+from hpg_mj.agents import taskfile
 
 POSITIVE = ("int_min", 1)
 EXPERIMENT_SCHEMA = {"name": "str", "description": "str", "tasks": "str_list", "runs": POSITIVE,
@@ -139,7 +139,7 @@ def load_experiment(path):
     raise taskfile.TaskFileError(f"{path}: needs one [experiment] section and [[figure]] "
                                  f"tables, got {sorted(data)}")
   section = taskfile.check_table(path, "[experiment]", data["experiment"], EXPERIMENT_SCHEMA)
-  tasks = [kinds.load_task(t) for t in section["tasks"]]   # refused here, before any run
+  tasks = [agents.load_task(t) for t in section["tasks"]]   # refused here, before any run
   worlds = sorted({t.section("environment")["world"] for t in tasks})
   if len(worlds) > 1:
     raise taskfile.TaskFileError(f"{path}: [experiment] tasks compare one world, ship or "
@@ -153,7 +153,7 @@ def load_experiment(path):
 
 def shipped_experiments():
   return {p.stem: p for p in sorted(
-      (p for folder in kinds.shipped_tasks_dirs() for p in (folder / "experiments").glob("*.toml")),
+      (p for folder in agents.shipped_tasks_dirs() for p in (folder / "experiments").glob("*.toml")),
       key=lambda p: p.stem)}
 
 

@@ -3,11 +3,11 @@ it goes, its whole training state checkpointed atomically, resumed exactly.
 
 A run folder (`OUT/<experiment>/<task>/seed<k>/`) holds:
 
-    progress.csv          one row per chunk of episodes (`kinds.chunks`), flushed:
+    progress.csv          one row per chunk of episodes (`agents.chunks`), flushed:
                           episodes, wall_seconds, episodes_per_second and the
                           chunk's figure (gate_pass_rate or mean_return)
     checkpoints/ep<N>/    the agent after N episodes with its record so far
-                          (`kinds.save`); the newest two are kept
+                          (`agents.save`); the newest two are kept
     events.log            what happened to the run: started, resumed from
                           episode N, a damaged checkpoint set aside
     record.npy            the per-episode record       } written when the run
@@ -32,8 +32,8 @@ import time
 
 import numpy as np
 
-from hpg_mj.experiments import kinds
-from hpg_mj.experiments import storage
+from hpg_mj import agents
+from hpg_mj.agents import storage
 
 CHECKPOINT_EVERY = 10000
 KEEP_CHECKPOINTS = 2
@@ -82,7 +82,7 @@ def _write_checkpoint(agent, record, run_dir, done, wall):
   tmp = folder / f".tmp-ep{done}"
   if tmp.exists():
     shutil.rmtree(tmp)
-  kinds.save(agent, tmp, record, {"episodes_done": done, "wall_seconds": wall})
+  agents.save(agent, tmp, record, {"episodes_done": done, "wall_seconds": wall})
   os.replace(tmp, folder / f"ep{done}")
   for old in _checkpoints(run_dir)[KEEP_CHECKPOINTS:]:
     shutil.rmtree(old)
@@ -96,7 +96,7 @@ def _resume(task, seed, run_dir):
     shutil.rmtree(tmp)
   for path in _checkpoints(run_dir):
     try:
-      agent, record, meta = kinds.load(path)
+      agent, record, meta = agents.load(path)
       done = int(meta["episodes_done"])
       if record is None or len(record) != done or agent.seed != seed:
         raise storage.AgentFileError(f"{path}: holds {None if record is None else len(record)} "
@@ -111,7 +111,7 @@ def _resume(task, seed, run_dir):
       continue
     _log(run_dir, f"resumed from checkpoint {path.name} (episode {done})")
     return agent, [record], done, float(meta.get("wall_seconds", 0.0))
-  agent = kinds.build(task, seed)
+  agent = agents.build(task, seed)
   _log(run_dir, f"started seed {seed}")
   return agent, [], 0, 0.0
 
@@ -167,7 +167,7 @@ def run(task_path, seed, episodes, run_dir, checkpoint_every=CHECKPOINT_EVERY, s
   if checkpoint_every < 1:
     raise ValueError(f"checkpoint_every must be a positive number of episodes, got "
                      f"{checkpoint_every}")
-  task = kinds.load_task(task_path)
+  task = agents.load_task(task_path)
   (run_dir / "checkpoints").mkdir(parents=True, exist_ok=True)
   agent, records, done, wall = _resume(task, seed, run_dir)
   if done > episodes:
@@ -175,7 +175,7 @@ def run(task_path, seed, episodes, run_dir, checkpoint_every=CHECKPOINT_EVERY, s
                      f"episodes asked for; use another output folder")
   progress = _ProgressFile(run_dir, agent.figure, done)
   try:
-    for now, record, seconds in kinds.chunks(agent, episodes, done=done, every=checkpoint_every):
+    for now, record, seconds in agents.chunks(agent, episodes, done=done, every=checkpoint_every):
       n, done = now - done, now
       records.append(record)
       wall += seconds
@@ -195,7 +195,7 @@ def run(task_path, seed, episodes, run_dir, checkpoint_every=CHECKPOINT_EVERY, s
   agent_dir = run_dir / "agent"
   if agent_dir.exists():
     shutil.rmtree(agent_dir)
-  kinds.save(agent, agent_dir, record, {"metrics": metrics})
+  agents.save(agent, agent_dir, record, {"metrics": metrics})
   tmp = run_dir / "record.npy.tmp"
   with open(tmp, "wb") as f:
     np.save(f, record)

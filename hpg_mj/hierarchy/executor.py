@@ -66,14 +66,28 @@ class DmControlAdapter:
                 last and ts.discount != 0.0, info)
 
 
-class Executor:
-  """Executes episodes of `graph` on `adapter`, drawing randomness from `rng_state`."""
+def adapter_for(env):
+  """The adapter of a Gymnasium environment (unwrapped: the checks of
+  `gymnasium.make`'s wrappers cost more than a step) or a dm_control one."""
+  if isinstance(env, (GymAdapter, DmControlAdapter)):
+    return env
+  if hasattr(env, "physics") and hasattr(env, "task"):
+    return DmControlAdapter(env)
+  if hasattr(env, "unwrapped") and hasattr(env, "step"):
+    return GymAdapter(env.unwrapped)
+  raise TypeError(f"{env!r} is neither a Gymnasium nor a dm_control environment")
 
-  def __init__(self, graph, adapter, rng_state):
+
+class Executor:
+  """Executes episodes of `graph` on `adapter`, drawing randomness from `rng_state`;
+  `on_call(call)`, if given, is told of every subtask called below the root."""
+
+  def __init__(self, graph, adapter, rng_state, on_call=None):
     self.graph = graph
     self.adapter = adapter
     self.rng_state = rng_state
     self.primitive_steps = 0
+    self.on_call = on_call
 
   def run_episode(self, start=None, learn=True, sample=None):
     """One episode from `start` (or the environment's own start). Returns
@@ -120,6 +134,8 @@ class Executor:
         else:
           args = ref.args if ref.bind is None else {**ref.args, **ref.bind(call, obs)}
           child_call = Call(ref.node, args, obs)
+          if self.on_call is not None:
+            self.on_call(child_call)
           child_reward, step, _ = self._execute(child_call, obs)
           call.steps += child_call.steps
       obs = step.obs

@@ -137,25 +137,3 @@ class TaxiHierarchy:
     for i in (rules.GET, rules.PUT, rules.REFUEL):
       views[i] = lambda call, obs, i=i: int(rules.carry_state(i, self._s(obs)))
     return taxi_graph(w, self.learners, self._s, views.__getitem__)
-
-  def train_stepwise(self, adapter, episodes, learn=True, sample=None):
-    """Episodes through a taxi environment adapter; returns TaxiHPG's record."""
-    hpg = self.hpg
-    run = executor_mod.Executor(self.graph(), adapter, hpg.rng_state)
-    record = np.zeros((episodes, taxi_compiled.N_RECORD))
-    start = np.empty(5, dtype=np.int64)
-    schedule = hpg.config.schedule()
-    for e in range(episodes):
-      taxi_compiled.sample_start(hpg.rng_state, self.world, start)
-      taxi_compiled.step_sizes(schedule, hpg.episodes, self._alphas)
-      for learner, alpha in zip(self.learners, self._alphas):
-        learner.alpha = float(alpha)
-      begin = start.copy() if hpg.task.fuel_enabled else start[:4].copy()
-      total, steps, last = run.run_episode(begin, learn=learn, sample=sample)
-      record[e, taxi_compiled.RETURN] = total
-      record[e, taxi_compiled.STEPS] = steps
-      record[e, taxi_compiled.OUTCOME] = outcome_of(last)
-      if learn:
-        hpg.episodes += 1
-        hpg.primitive_steps += steps
-    return record

@@ -103,25 +103,3 @@ class TaxiMAXQHierarchy:
 
   def graph(self):
     return taxi.taxi_graph(self.world, self.learners, self._s, lambda subtask: self._view)
-
-  def train_stepwise(self, adapter, episodes, learn=True, sample=None):
-    """Episodes through a taxi environment adapter, from the agent's random
-    starts; returns TaxiMAXQ's record. Learning explores; without it the policy
-    is greedy unless `sample`."""
-    agent = self.agent
-    run = executor_mod.Executor(self.graph(), adapter, agent.rng_state)
-    record = np.zeros((episodes, mq.N_RECORD))
-    start = np.empty(5, dtype=np.int64)
-    for e in range(episodes):
-      taxi_compiled.sample_start(agent.rng_state, self.world, start)
-      mq.epsilons_at(self.settings, agent.episodes, self.epsilons)
-      self.cursor[0] = 0
-      begin = start.copy() if agent.task.fuel_enabled else start[:4].copy()
-      total, steps, last = run.run_episode(begin, learn=learn, sample=sample)
-      record[e, mq.RETURN] = total
-      record[e, mq.STEPS] = steps
-      record[e, mq.OUTCOME] = taxi.outcome_of(last)
-      if learn:
-        agent.episodes += 1
-        agent.primitive_steps += steps
-    return record

@@ -1,11 +1,11 @@
 """The learners reach the levels the issues ask for, through the shipped task
-files and the product's training path (`kinds.train`, as `hpg-mj train` runs it).
+files and the product's training path (`agents.train`, as `hpg-mj train` runs it).
 Taxi: the mean return of the last 1,000 of 100,000 online training episodes, mean
 of seeds 0-4, against the exact optimum (value iteration)."""
 import numpy as np
 import pytest
 
-from hpg_mj.experiments import kinds
+from hpg_mj import agents
 from hpg_mj.worlds import taxi_values
 
 
@@ -14,11 +14,11 @@ from hpg_mj.worlds import taxi_values
                                                 ("taxi_fuel_maxq", 0.95),
                                                 ("taxi_fuel_flat_q", 0.98)])
 def test_shipped_taxi_learners_reach_their_level(task_name, fraction):
-  task = kinds.load_task(task_name)
+  task = agents.load_task(task_name)
   assert task.section("protocol")["episodes"] == 100_000
   last = []
   for seed in range(5):
-    agent, record, _ = kinds.train(task, seed=seed)
+    agent, record, _ = agents.train(task, seed=seed)
     metrics = agent.metrics(record)
     last.append(metrics["mean_return"])
   optimal = taxi_values.optimal_mean_return(True)
@@ -30,7 +30,7 @@ def test_shipped_ship_hybrid_learns():
   """One seed of the full protocol (50,000 episodes) of tasks/ship_hybrid.toml: the
   gate passes, about 4 calls per episode, both subtasks succeed (seed 0 gives 0.936,
   4.17 calls, 0.964 and 0.982; the mean over 5 seeds is in the README)."""
-  agent, record, _ = kinds.train(kinds.load_task("ship_hybrid"), seed=0)
+  agent, record, _ = agents.train(agents.load_task("ship_hybrid"), seed=0)
   metrics = agent.metrics(record)
   assert metrics["gate_pass_rate"] >= 0.8
   assert 3.0 <= metrics["calls_per_episode"] <= 5.0

@@ -13,7 +13,9 @@ import numpy as np
 import pytest
 
 import hpg_mj
-from hpg_mj.experiments import kinds, runner, runs, storage
+from hpg_mj import agents
+from hpg_mj.agents import storage
+from hpg_mj.experiments import runner, runs
 
 EXPERIMENT = """
 [experiment]
@@ -62,7 +64,7 @@ def _assert_same(a, b):
 
 def test_progress_is_written_as_the_run_goes(tmp_path):
   run_dir = tmp_path / "run"
-  task = kinds.load_task("taxi_fuel_flat_q")
+  task = agents.load_task("taxi_fuel_flat_q")
   with pytest.raises(runs.RunInterrupted):
     runs.run(str(task.path), 0, 5000, run_dir, checkpoint_every=2000, stop_after=3000)
   lines = (run_dir / "progress.csv").read_text().splitlines()
@@ -116,7 +118,7 @@ def test_a_run_killed_with_sigkill_resumes_bit_identical(tmp_path):
 
 
 def test_a_damaged_checkpoint_falls_back_to_the_previous_good_one(tmp_path, capsys):
-  task = str(kinds.load_task("ship_flat_pg").path)
+  task = str(agents.load_task("ship_flat_pg").path)
   runs.run(task, 1, 4000, tmp_path / "whole", checkpoint_every=1000)
   run_dir = tmp_path / "broken"
   with pytest.raises(runs.RunInterrupted):
@@ -136,7 +138,7 @@ def test_a_damaged_checkpoint_falls_back_to_the_previous_good_one(tmp_path, caps
 
 
 def test_a_checkpoint_cut_short_is_ignored(tmp_path):
-  task = str(kinds.load_task("taxi_fuel_hpg").path)
+  task = str(agents.load_task("taxi_fuel_hpg").path)
   run_dir = tmp_path / "run"
   with pytest.raises(runs.RunInterrupted):
     runs.run(task, 0, 3000, run_dir, checkpoint_every=1000, stop_after=1000)
@@ -150,7 +152,7 @@ def test_a_checkpoint_cut_short_is_ignored(tmp_path):
 
 def test_bad_checkpoint_interval_is_refused(tmp_path):
   with pytest.raises(ValueError, match="checkpoint_every must be a positive number"):
-    runs.run(str(kinds.load_task("ship_hybrid").path), 0, 10, tmp_path, checkpoint_every=0)
+    runs.run(str(agents.load_task("ship_hybrid").path), 0, 10, tmp_path, checkpoint_every=0)
 
 
 def test_ray_gives_the_same_results_as_the_process_pool(tmp_path):

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from hpg_mj import cli
-from hpg_mj.experiments import runner, taskfile
+from hpg_mj.agents import taskfile
+from hpg_mj.experiments import runner
 
 EXPERIMENT = """
 [experiment]
@@ -136,9 +137,10 @@ def test_reproduce_quick_figure_6(tmp_path, capsys):
 
 
 def test_figure_12_marks_the_root_decisions(tmp_path, capsys):
-  from hpg_mj.experiments import fig12, kinds
+  from hpg_mj import agents
+  from hpg_mj.experiments import fig12
   task = tmp_path / "short.toml"
-  task.write_text((kinds.shipped_tasks()["ship_hybrid"]).read_text()
+  task.write_text((agents.shipped_tasks()["ship_hybrid"]).read_text()
                   .replace("max_steps = 5000", "max_steps = 40"))
   text = runner.shipped_experiments()["fig12"].read_text()
   text = text.replace('tasks = ["ship_hybrid"]', f'tasks = ["{task}"]').replace(
@@ -158,10 +160,9 @@ def test_figure_12_marks_the_root_decisions(tmp_path, capsys):
     assert 1 <= s["calls"] == len(s["decisions"]) and 1 <= s["steps"] <= 40
     assert (folder / f"fig12_{k}.mp4").stat().st_size > 1000
   assert "from (750, 180):" in (folder / "REPORT.md").read_text()
-  agent, _, _ = kinds.load(folder / "short" / "seed0" / "agent")
+  agent, _, _ = agents.load(folder / "short" / "seed0" / "agent")
   path_, decisions, _ = fig12.sail(agent, fig12.STARTS[0])
   assert decisions[0][:2] == pytest.approx(fig12.STARTS[0][:2])   # the first call starts there
-  assert agent.agent.call_log is None
 
 
 @pytest.mark.parametrize("old,new,message", [

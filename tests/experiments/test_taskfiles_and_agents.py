@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from hpg_mj import cli
-from hpg_mj.experiments import kinds, storage, taskfile
+from hpg_mj import agents
+from hpg_mj.agents import storage, taskfile
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
 SHIP = REPO / "tasks" / "ship_hybrid.toml"
@@ -22,7 +23,7 @@ def _variant(tmp_path, old, new):
 
 
 def test_shipped_task_files_load():
-  task = kinds.load_task(SHIP)
+  task = agents.load_task(SHIP)
   assert task.kind == "ship_hybrid"
   assert task.section("root")["alpha"] == 0.1
   assert task.section("low_level")["tiles"] == (5, 5, 36, 5)
@@ -37,13 +38,13 @@ def test_shipped_task_files_load():
     ("backend = \"analytic\"", "backend = \"bullet\"", r"allowed: \['analytic', 'mujoco'\]"),
     ("tiles = [5, 5, 36, 5]", "tiles = [5, 5, 36]", r"tiles must be a list of 4 positive"),
     ("[protocol]", "[protocols]", r"unknown section\(s\) \['protocols'\]"),
-    ("lambda = 0.9", "lambda = 1.9", r"\[root\] lambda = 1.9 is out of range"),
+    ("trace_decay = 0.9", "trace_decay = 1.9", r"\[root\] trace_decay = 1.9 is out of range; allowed: >= 0 and <= 1"),
     ("seed = 0", "seed = 0\nseed = 1", r"not valid TOML"),
 ])
 def test_malformed_task_files_are_refused(tmp_path, old, new, message):
   path = _variant(tmp_path, old, new)
   with pytest.raises(taskfile.TaskFileError, match=message) as info:
-    kinds.build(kinds.load_task(path))
+    agents.build(agents.load_task(path))
   assert str(path) in str(info.value)
 
 
@@ -55,27 +56,27 @@ def test_cli_train_refuses_a_bad_file_before_running(tmp_path, capsys):
 
 
 def test_train_save_load_and_resume_exactly(tmp_path):
-  task = kinds.load_task(SHIP)
-  agent, record, _ = kinds.train(task, episodes=300, seed=3)
-  kinds.save(agent, tmp_path / "a", record)
-  loaded, loaded_record, meta = kinds.load(tmp_path / "a")
+  task = agents.load_task(SHIP)
+  agent, record, _ = agents.train(task, episodes=300, seed=3)
+  agents.save(agent, tmp_path / "a", record)
+  loaded, loaded_record, meta = agents.load(tmp_path / "a")
   np.testing.assert_array_equal(loaded_record, record)
-  assert meta["episodes"] == 300 and loaded.episodes_trained == 300
-  for name, value in agent.arrays().items():
-    np.testing.assert_array_equal(loaded.arrays()[name], value)
+  assert meta["episodes"] == 300 and loaded.episodes == 300
+  for name, value in agent.state().items():
+    np.testing.assert_array_equal(loaded.state()[name], value)
   # Continuing the loaded agent == continuing the original: the state is whole.
-  more_a = agent.run(100, "analytic")
-  more_b = loaded.run(100, "analytic")
+  more_a = agent.train(100, "analytic")
+  more_b = loaded.train(100, "analytic")
   np.testing.assert_array_equal(more_a, more_b)
-  for name, value in agent.arrays().items():
-    np.testing.assert_array_equal(loaded.arrays()[name], value)
+  for name, value in agent.state().items():
+    np.testing.assert_array_equal(loaded.state()[name], value)
 
 
 def test_damaged_and_foreign_agents_are_refused(tmp_path):
-  task = kinds.load_task(SHIP)
-  agent, record, _ = kinds.train(task, episodes=10, seed=0)
+  task = agents.load_task(SHIP)
+  agent, record, _ = agents.train(task, episodes=10, seed=0)
   good = tmp_path / "good"
-  kinds.save(agent, good, record)
+  agents.save(agent, good, record)
   # Damaged arrays.
   damaged = tmp_path / "damaged"
   damaged.mkdir()
@@ -84,25 +85,25 @@ def test_damaged_and_foreign_agents_are_refused(tmp_path):
   blob[len(blob) // 2] ^= 0xFF
   (damaged / "arrays.npz").write_bytes(bytes(blob))
   with pytest.raises(storage.AgentFileError, match="damaged: its SHA-256 does not match"):
-    kinds.load(damaged)
+    agents.load(damaged)
   # Foreign metadata.
   foreign = tmp_path / "foreign"
   foreign.mkdir()
   (foreign / "arrays.npz").write_bytes((good / "arrays.npz").read_bytes())
   (foreign / "agent.json").write_text(json.dumps({"format": "something-else"}))
   with pytest.raises(storage.AgentFileError, match="not an hpg_mj agent"):
-    kinds.load(foreign)
+    agents.load(foreign)
   (foreign / "agent.json").write_text("{not json")
   with pytest.raises(storage.AgentFileError, match="not valid JSON"):
-    kinds.load(foreign)
+    agents.load(foreign)
   with pytest.raises(storage.AgentFileError, match="needs agent.json and arrays.npz"):
-    kinds.load(tmp_path / "nowhere")
+    agents.load(tmp_path / "nowhere")
   # A future version.
   meta = json.loads((good / "agent.json").read_text())
   meta["version"] = 99
   (foreign / "agent.json").write_text(json.dumps(meta))
   with pytest.raises(storage.AgentFileError, match="version 99"):
-    kinds.load(foreign)
+    agents.load(foreign)
   # Pickled objects are never loaded.
   assert "allow_pickle=False" in pathlib.Path(storage.__file__).read_text()
 
@@ -128,22 +129,22 @@ TASK_FILES = sorted((REPO / "tasks").glob("*.toml"))
 
 
 def test_every_kind_has_a_task_file():
-  assert {kinds.load_task(p).kind for p in TASK_FILES} == set(kinds.KINDS)
+  assert {agents.load_task(p).kind for p in TASK_FILES} == set(agents.names()) - {"tabular_q_example"}
 
 
 @pytest.mark.parametrize("path", TASK_FILES, ids=lambda p: p.stem)
 def test_every_task_file_trains_saves_and_resumes_exactly(tmp_path, path):
-  task = kinds.load_task(path)
-  agent, record, _ = kinds.train(task, episodes=60, seed=2)
+  task = agents.load_task(path)
+  agent, record, _ = agents.train(task, episodes=60, seed=2)
   metrics = agent.metrics(record)
   assert metrics["episodes_measured"] == 60
-  kinds.save(agent, tmp_path / "agent", record)
-  loaded, _, _ = kinds.load(tmp_path / "agent")
-  np.testing.assert_array_equal(agent.run(20, "analytic"), loaded.run(20, "analytic"))
-  for name, value in agent.arrays().items():
-    np.testing.assert_array_equal(loaded.arrays()[name], value)
+  agents.save(agent, tmp_path / "agent", record)
+  loaded, _, _ = agents.load(tmp_path / "agent")
+  np.testing.assert_array_equal(agent.train(20, "analytic"), loaded.train(20, "analytic"))
+  for name, value in agent.state().items():
+    np.testing.assert_array_equal(loaded.state()[name], value)
   # Evaluation through the MuJoCo world (dm_control / Gymnasium) works too.
-  evaluation = loaded.run(2, "mujoco", learn=False)
+  evaluation = loaded.evaluate(2, "mujoco")
   assert len(evaluation) == 2
 
 

@@ -5,7 +5,7 @@ import pytest
 
 import hpg_mj  # noqa: F401
 from hpg_mj.hierarchy import executor
-from hpg_mj.hierarchy import ship as ship_hierarchy
+from hpg_mj.agents.ship_hybrid import ShipHybrid
 from hpg_mj.hierarchy import ship_rules
 from hpg_mj.hierarchy.graph import Child, GraphError, Primitive, Subtask, TaskGraph
 from hpg_mj.learners import agents, rng, tiles
@@ -92,7 +92,7 @@ def test_a_new_hierarchy_over_the_ship():
 
 
 def test_paper_ship_graph_shape():
-  graph = ship_hierarchy.ShipHybrid().graph()
+  graph = ShipHybrid().graph()
   refs = graph.children("root")
   assert [r.node for r in refs] == ["straight", "diagonal"] * 4
   assert [r.args["direction"] for r in refs] == list(range(8))

@@ -7,8 +7,6 @@ import pytest
 import hpg_mj  # noqa: F401
 from hpg_mj import suite
 from hpg_mj.baselines import taxi_maxq as mq
-from hpg_mj.hierarchy import executor
-from hpg_mj.hierarchy import taxi_maxq as taxi_maxq_graph
 from hpg_mj.hierarchy import taxi_rules as rules
 from hpg_mj.worlds import taxi_core, taxi_values
 
@@ -161,37 +159,49 @@ EAGER = mq.MAXQConfig(epsilon_root=0.2, epsilon_episodes_root=300, epsilon_episo
                       epsilon_episodes_navigate=100)
 
 
+def _eager_agent(seed, fuel=True):
+  """The MAXQ-Q agent with EAGER's schedules, from its task-file configuration."""
+  import dataclasses
+  from hpg_mj.agents import taxi_maxq
+  c = taxi_maxq.Config()
+  config = dataclasses.replace(
+      c, environment=dataclasses.replace(c.environment, fuel=fuel),
+      root=dataclasses.replace(c.root, epsilon=0.2, epsilon_episodes=300),
+      carry=dataclasses.replace(c.carry, epsilon_episodes=200),
+      navigate=dataclasses.replace(c.navigate, epsilon_episodes=100))
+  agent = taxi_maxq.TaxiMAXQ(config, seed=seed)
+  assert agent.engine.config == EAGER
+  return agent
+
+
 def _assert_same_agents(a, b):
-  for name in ("values", "c_tilde", "c", "rng_state"):
-    np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
-  assert a.episodes == b.episodes and a.primitive_steps == b.primitive_steps
+  for name, value in a.state().items():
+    np.testing.assert_array_equal(value, b.state()[name])
+  assert a.episodes == b.episodes and a.engine.primitive_steps == b.engine.primitive_steps
 
 
 @pytest.mark.parametrize("fuel,env_id", [(True, "hpg_mj/TaxiFuel-v0"), (False, "hpg_mj/Taxi-v0")])
 def test_stepwise_and_compiled_maxq_agree_bit_for_bit(fuel, env_id):
-  task = taxi_core.TaxiRules(fuel_enabled=fuel)
-  a, b = mq.TaxiMAXQ(seed=4, config=EAGER, task=task), mq.TaxiMAXQ(seed=4, config=EAGER, task=task)
-  env = gymnasium.make(env_id).unwrapped
-  ra = taxi_maxq_graph.TaxiMAXQHierarchy(a).train_stepwise(executor.GymAdapter(env), 300)
-  rb = b.run(300)
+  a, b = _eager_agent(4, fuel), _eager_agent(4, fuel)
+  env = gymnasium.make(env_id)
+  ra = a.train_stepwise(env, 300)
+  rb = b.train(300, "analytic")
   np.testing.assert_array_equal(ra, rb)
   _assert_same_agents(a, b)
   # Every subtask learned (Refuel only with fuel).
   for i in range(rules.N_SUBTASKS):
-    table = a.completions(i) - (EAGER.initial_root if i == rules.ROOT else 0.0)
+    table = a.engine.completions(i) - (EAGER.initial_root if i == rules.ROOT else 0.0)
     assert np.any(table != 0) == (fuel or i != rules.REFUEL)
   # Greedy evaluation too.
-  ga = taxi_maxq_graph.TaxiMAXQHierarchy(a).train_stepwise(executor.GymAdapter(env), 20,
-                                                          learn=False)
-  np.testing.assert_array_equal(ga, b.run(20, learn=False))
+  ga = a.run_stepwise(env, 20, learn=False)
+  np.testing.assert_array_equal(ga, b.evaluate(20, "analytic"))
   _assert_same_agents(a, b)
 
 
 def test_maxq_through_dm_control_matches_the_compiled_loop():
-  a, b = mq.TaxiMAXQ(seed=1, config=EAGER), mq.TaxiMAXQ(seed=1, config=EAGER)
-  ra = taxi_maxq_graph.TaxiMAXQHierarchy(a).train_stepwise(
-      executor.DmControlAdapter(suite.load("taxi", "fuel", {"random": 0})), 40)
-  np.testing.assert_array_equal(ra, b.run(40))
+  a, b = _eager_agent(1), _eager_agent(1)
+  ra = a.train_stepwise(suite.load("taxi", "fuel", {"random": 0}), 40)
+  np.testing.assert_array_equal(ra, b.train(40, "analytic"))
   _assert_same_agents(a, b)
 
 

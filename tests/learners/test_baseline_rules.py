@@ -6,7 +6,9 @@ import math
 import numba
 import numpy as np
 
-from hpg_mj.baselines import ship_flat
+import dataclasses
+
+from hpg_mj.agents import ship_actor_critic, ship_flat_pg
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import policies
 from hpg_mj.learners import qlambda
@@ -68,30 +70,36 @@ def test_td_lambda_critic_converges_to_the_exact_action_values():
 
 def test_flat_policy_gradient_single_step_by_hand():
   # One control step from a fixed start: w changes by alpha * R * psi on the 9 tiles.
-  agent = ship_flat.FlatPolicyGradient(alpha=0.01, trace_gamma=1.0, seed=9, max_steps=1)
+  c = ship_flat_pg.Config()
+  agent = ship_flat_pg.ShipFlatPG(dataclasses.replace(
+      c, environment=dataclasses.replace(c.environment, max_steps=1),
+      policy=ship_flat_pg.Policy(alpha=0.01, trace_gamma=1.0)), seed=9)
   probe = agent.rng_state.copy()
   start = np.array([500.0, 500.0, 30.0, 2.0])
   tiles = agent.coder.active(start)
   u = 0.0 + rng.normal(probe)                          # m = 0 for zero weights
-  record = agent.train_compiled(1, start=start)
-  assert record[0, ship_flat.STEPS] == 1 and record[0, ship_flat.RETURN] == -1.0
+  record = agent.as_record(agent.compiled(1, True, True, start=start))
+  assert record["steps"][0] == 1 and record["return"][0] == -1.0
   w = agent.learner.parameters()
   np.testing.assert_allclose(w[tiles], 0.01 * -1.0 * u / 9, rtol=1e-12)
   assert np.count_nonzero(w) == 9
 
 
 def test_actor_critic_single_step_by_hand():
-  agent = ship_flat.ActorCriticAgent(alpha_actor=0.1, alpha_critic=0.5, lam=0.9, seed=4,
-                                     max_steps=1)
+  c = ship_actor_critic.Config()
+  agent = ship_actor_critic.ShipActorCritic(dataclasses.replace(
+      c, environment=dataclasses.replace(c.environment, max_steps=1),
+      actor=ship_actor_critic.Actor(alpha=0.1),
+      critic=ship_actor_critic.Critic(alpha=0.5, trace_decay=0.9)), seed=4)
   lr = agent.learner
   lr.critic["w"][:] = 0.25                  # Q(s, a) = 9 * 0.25 = 2.25 for every (s, a)
   probe = agent.rng_state.copy()
   start = np.array([200.0, 700.0, -45.0, 0.0])
-  a_tiles = agent.actor.active(start)
+  a_tiles = ship_flat_pg.actor_coder().active(start)
   u = rng.normal(probe)
   r = 15.0 * math.tanh(u / 2)
-  c_tiles = agent.critic.active([*start, r])
-  agent.train_compiled(1, start=start)
+  c_tiles = ship_actor_critic.critic_coder().active([*start, r])
+  agent.compiled(1, True, True, start=start)
   # Truncated after one step: delta = R + Q(s', a') - Q(s, a) = -1 + 2.25 - 2.25.
   c = lr.critic
   critic = c["w"] + c["zs"] * c["acc"][0] - c["y"]        # pending trace updates applied

@@ -1,0 +1,113 @@
+"""What the taxi agents share: the [environment] section, the environments, the
+starts (drawn by the compiled rules, as the fused loops draw them), the episode's
+outcome, and the metrics against the exact optimum."""
+import dataclasses
+
+import numpy as np
+
+from hpg_mj.agents import base
+from hpg_mj.agents.taskfile import param
+from hpg_mj.hierarchy import taxi as taxi_hierarchy
+from hpg_mj.hierarchy import taxi_compiled
+from hpg_mj.hierarchy import taxi_rules as rules
+from hpg_mj.worlds import taxi_core
+
+METRIC_WINDOW = 1000
+
+
+@dataclasses.dataclass(frozen=True)
+class TaxiEnvironment:
+  """[environment] of a taxi task file (SPEC section 5)."""
+  world: str = param("taxi", "the world", choices=("taxi",))
+  backend: str = param("analytic", "the compiled loop (analytic) or the dm_control board "
+                       "(mujoco)", choices=base.BACKENDS)
+  fuel: bool = param(True, "taxi-fuel (true) or Dietterich's classic taxi (false)")
+  capacity: int = param(taxi_core.FUEL_CAPACITY, "the tank", low=1)
+  max_steps: int = param(taxi_core.MAX_STEPS, "primitive steps, then truncated", low=1)
+
+
+class TaxiAgent(base.Agent):
+  """An agent on the taxi (subclass it for your own): the environments, starts,
+  the outcome of each episode and the metrics against the exact optimum. Its
+  Config needs an `environment: TaxiEnvironment` section; its record the fields
+  return, steps, outcome. A shipped agent's `engine` holds its learners and its
+  episode count (which drives their schedules)."""
+
+  figure = "mean_return"
+
+  def __init__(self, config=None, seed=0, task=None):
+    super().__init__(config, seed, task)
+    env = self.config.environment
+    self.rules = taxi_core.TaxiRules(env.fuel, capacity=env.capacity, max_steps=env.max_steps)
+    self.world = rules.world_config(self.rules)
+    self._start = np.empty(5, dtype=np.int64)
+    self._optimal = None
+
+  def _adopt(self, engine):
+    """Shares one generator and one episode count with the engine."""
+    engine.rng_state = self.rng_state
+    self.engine = engine
+
+  @property
+  def episodes(self):
+    engine = self.__dict__.get("engine")
+    return engine.episodes if engine is not None else self.__dict__.get("_episodes", 0)
+
+  @episodes.setter
+  def episodes(self, value):
+    engine = self.__dict__.get("engine")
+    if engine is not None:
+      engine.episodes = int(value)
+    else:
+      self.__dict__["_episodes"] = int(value)
+
+  def make_env(self, api="gymnasium", backend="analytic", **kwargs):
+    r = self.rules
+    if api == "gymnasium":
+      import gymnasium
+
+      import hpg_mj  # noqa: F401  (registers the ids)
+      extra = {"capacity": r.capacity} if r.fuel_enabled else {}
+      return gymnasium.make("hpg_mj/TaxiFuel-v0" if r.fuel_enabled else "hpg_mj/Taxi-v0",
+                            max_steps=r.max_steps, **extra, **kwargs)
+    if api == "dm_control":
+      from hpg_mj import suite
+      task_kwargs = {"random": 0, "max_steps": r.max_steps, **kwargs}
+      if r.fuel_enabled:
+        task_kwargs["capacity"] = r.capacity
+      return suite.load("taxi", "fuel" if r.fuel_enabled else "classic", task_kwargs)
+    raise ValueError(f"unknown environment api {api!r}; allowed: ['gymnasium', 'dm_control']")
+
+  def stepwise_env(self, backend):
+    # The taxi's MuJoCo world is the dm_control board; its Gymnasium one is the rules.
+    return self.make_env("dm_control" if backend == "mujoco" else "gymnasium")
+
+  def start_state(self):
+    taxi_compiled.sample_start(self.rng_state, self.world, self._start)
+    return self._start.copy() if self.rules.fuel_enabled else self._start[:4].copy()
+
+  def end_episode(self, row, total, steps, last, learn):
+    row[self.record_fields.index("return")] = total
+    row[self.record_fields.index("steps")] = steps
+    row[self.record_fields.index("outcome")] = taxi_hierarchy.outcome_of(last)
+    engine = self.__dict__.get("engine")
+    if learn and engine is not None:
+      engine.primitive_steps += steps
+
+  def optimal_mean_return(self):
+    if self._optimal is None:
+      from hpg_mj.worlds import taxi_values
+      self._optimal = taxi_values.optimal_mean_return(self.rules.fuel_enabled,
+                                                      capacity=self.rules.capacity)
+    return self._optimal
+
+  def metrics(self, record):
+    from hpg_mj.worlds import taxi_values
+    w = record[-METRIC_WINDOW:]
+    optimal = self.optimal_mean_return()
+    mean = float(w["return"].mean()) if len(w) else None
+    return {"episodes_measured": int(len(w)), "mean_return": mean,
+            "optimal_mean_return": optimal,
+            "reaches_95_percent": bool(mean is not None and mean >=
+                                       taxi_values.performance_threshold(optimal, 0.95)),
+            "primitive_steps": int(record["steps"].sum())}

@@ -1,0 +1,172 @@
+"""The agent interface: what every agent answers, so that the experiments, the
+command line, the figures, the reports and `hpg-mj render --agent` work with any
+agent, the shipped ones and a user's (registered with `hpg_mj.agents.register`).
+
+An agent is one class with:
+
+  name            the task files' `[task] kind`
+  Config          a dataclass of section dataclasses: the task file's schema
+                  (`hpg_mj.agents.taskfile.param` fields: default, meaning, range)
+  record_fields   the names of its per-episode record's fields (float64 each)
+  figure          the metric its progress reports, by name (a key of `metrics`)
+  tags            e.g. ("baseline",): what it is, for listings
+
+and it implements
+
+  state()                      its whole training state: name -> array (the
+                               live arrays: restoring writes into them)
+  make_env(api, backend, ...)  an environment of its task ("gymnasium" or
+                               "dm_control"), configured from its task file
+  metrics(record)              what a record says (a dict of numbers)
+  compiled(n, learn, sample)   optional: the fused loop over the analytic world,
+                               returning (n, len(record_fields)) float rows
+  graph(), start_state(),      the step-by-step path: the task graph its learners
+  begin_episode(learn),        form, a start drawn from its generator, what
+  end_episode(row, ...)        happens around each episode (fills the row)
+
+The base class gives the rest: `train`, `evaluate`, `run_stepwise` (the one
+step-by-step loop over any Gymnasium or dm_control environment), records with
+named fields, seeding, progress. A minimal agent can skip `compiled`: the
+"analytic" backend then runs its step-by-step path on the Gymnasium
+environment.
+"""
+import numpy as np
+
+from hpg_mj.hierarchy import executor as executor_mod
+from hpg_mj.learners import rng
+
+BACKENDS = ("analytic", "mujoco")
+POLICIES = ("greedy", "sampled")
+
+
+class Agent:
+  """Base class of every agent (see the module docstring)."""
+
+  name = None
+  Config = None
+  record_fields = ()
+  figure = None
+  tags = ()
+
+  def __init__(self, config=None, seed=0, task=None):
+    if self.Config is not None and config is None:
+      config = self.Config()
+    self.config = config
+    self.task = task                 # the TaskFile it came from, if any
+    self.seed = int(seed)
+    self.rng_state = rng.make_state(self.seed)
+    self.episodes = 0                # learning episodes so far
+    self.row = None                  # the record row of the step-by-step episode running
+
+  # ---- what a subclass provides -------------------------------------------
+
+  def state(self):
+    raise NotImplementedError
+
+  def make_env(self, api="gymnasium", backend="analytic", **kwargs):
+    raise NotImplementedError
+
+  def metrics(self, record):
+    raise NotImplementedError
+
+  compiled = None                    # or a method: (episodes, learn, sample) -> float rows
+
+  def graph(self):
+    raise NotImplementedError
+
+  def start_state(self):
+    """The start of the next step-by-step episode (None: the environment's own)."""
+    return None
+
+  def begin_episode(self, learn):
+    """Called before each step-by-step episode."""
+
+  def end_episode(self, row, total, steps, last, learn):
+    """Fills the record row of a finished step-by-step episode."""
+
+  @property
+  def backend(self):
+    """The backend its task file trains on."""
+    env = getattr(self.config, "environment", None)
+    return getattr(env, "backend", "analytic")
+
+  # ---- records ---------------------------------------------------------------
+
+  @classmethod
+  def record_dtype(cls):
+    return np.dtype([(name, np.float64) for name in cls.record_fields])
+
+  @classmethod
+  def as_record(cls, rows):
+    """Float rows (episodes, fields) as a record with named fields."""
+    rows = np.ascontiguousarray(rows, dtype=np.float64).reshape(-1, len(cls.record_fields))
+    return rows.view(cls.record_dtype()).reshape(-1)
+
+  @classmethod
+  def empty_record(cls):
+    return np.zeros(0, dtype=cls.record_dtype())
+
+  # ---- training and evaluation -------------------------------------------------
+
+  def set_seed(self, seed):
+    """Restarts the agent's generator from `seed` (its learned state is kept)."""
+    self.rng_state[:] = rng.make_state(int(seed))
+
+  def train(self, episodes, backend=None):
+    """Learns for `episodes` episodes; returns their record."""
+    return self.run(episodes, backend, learn=True)
+
+  def evaluate(self, episodes, backend=None, policy="greedy"):
+    """Runs `episodes` episodes without learning, greedily or sampling its policy."""
+    if policy not in POLICIES:
+      raise ValueError(f"policy {policy!r} is not known; allowed: {list(POLICIES)}")
+    return self.run(episodes, backend, learn=False, sample=policy == "sampled")
+
+  def run(self, episodes, backend=None, learn=True, sample=None):
+    """Episodes on a backend: "analytic" (the compiled loop, or the step-by-step
+    path on the analytic Gymnasium environment), "mujoco" (step by step through
+    the MuJoCo world)."""
+    backend = backend or self.backend
+    if backend not in BACKENDS:
+      raise ValueError(f"unknown backend {backend!r}; valid backends: {list(BACKENDS)}")
+    if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 0:
+      raise ValueError(f"episodes must be a non-negative integer, got {episodes!r}")
+    if backend == "analytic" and self.compiled is not None:
+      sample = learn if sample is None else (sample or learn)
+      rows = self.compiled(int(episodes), learn, sample)
+      if learn:
+        self.episodes += int(episodes)
+      return self.as_record(rows)
+    return self.run_stepwise(self.stepwise_env(backend), episodes, learn=learn, sample=sample)
+
+  def stepwise_env(self, backend):
+    """The environment the step-by-step path uses on `backend`."""
+    return self.make_env("gymnasium", backend=backend)
+
+  def train_stepwise(self, env, episodes):
+    """Learns step by step through `env` (a Gymnasium or dm_control environment)."""
+    return self.run_stepwise(env, episodes, learn=True)
+
+  def run_stepwise(self, env, episodes, learn=True, sample=None, start=None, on_call=None):
+    """The one step-by-step loop: `episodes` episodes of the agent's task graph
+    through `env`, from starts drawn from the agent's generator (or `start`).
+    Without learning the policies are greedy unless `sample`. `on_call(call)`
+    is told of every subtask called."""
+    adapter = executor_mod.adapter_for(env)
+    run = executor_mod.Executor(self.graph(), adapter, self.rng_state, on_call=on_call)
+    rows = np.zeros((int(episodes), len(self.record_fields)))
+    for i in range(int(episodes)):
+      self.row = rows[i]
+      begin = self.start_state() if start is None else np.array(start)
+      self.begin_episode(learn)
+      total, steps, last = run.run_episode(begin, learn=learn, sample=sample)
+      self.end_episode(rows[i], total, steps, last, learn)
+      if learn:
+        self.episodes += 1
+    self.row = None
+    return self.as_record(rows)
+
+  def progress(self, record):
+    """{short name: value} of the figure's metric over `record`, for progress bars."""
+    value = self.metrics(record)[self.figure]
+    return {self.figure: float("nan") if value is None else float(value)}

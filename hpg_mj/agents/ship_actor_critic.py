@@ -1,0 +1,178 @@
+"""Konda's actor-critic on the full ship task (SPEC section 4): the flat PGRL
+actor (a Gaussian-with-sigmoid policy over its CMAC), stepped along
+Q_critic(s, a) * psi(s, a); the critic is linear over 9 tilings of
+5 x 5 x 36 x 5 x 30 = 135,000 tiles of (x, y, theta, theta_dot, r), learned by
+TD(lambda) (SARSA-style on the actions taken). Acts every 0.6 s with SPEC
+section 2's rewards. A baseline of the hierarchy (tag "baseline").
+"""
+import dataclasses
+
+import numba
+import numpy as np
+
+from hpg_mj.agents import _ship
+from hpg_mj.agents.taskfile import param
+from hpg_mj.agents.ship_flat_pg import N_RECORD, PASSED, RETURN, STEPS, actor_coder
+from hpg_mj.hierarchy import flat as flat_graph
+from hpg_mj.hierarchy import ship_compiled
+from hpg_mj.hierarchy import ship_rules as rules
+from hpg_mj.learners import agents as learners
+from hpg_mj.learners import eligibility as el
+from hpg_mj.learners import policies
+from hpg_mj.learners import tiles as tiles_mod
+from hpg_mj.worlds import ship_core as core
+
+def critic_coder(n_tilings=9, tiles=(5, 5, 36, 5, 30)):
+  return tiles_mod.TileCoder(
+      (0.0, 0.0, -180.0, -core.MAX_TURN_RATE, -core.MAX_TURN_RATE),
+      (core.FIELD_SIZE, core.FIELD_SIZE, 180.0, core.MAX_TURN_RATE, core.MAX_TURN_RATE),
+      tuple(tiles), (False, False, True, False, False), n_tilings)
+
+
+@numba.njit(cache=True)
+def _critic_value(cw, czs, cy, cacc, ctiles):
+  q = 0.0
+  for k in range(ctiles.shape[0]):
+    q += el.weight(cw, czs, cy, cacc, ctiles[k])
+  return q
+
+
+@numba.njit(cache=True)
+def train_actor_critic(n_episodes, learn, sample, rng_state, actor_w,
+                       a_low, a_width, a_n, a_wrap, a_offsets,
+                       cw, czs, cy, ctouched, cmarked, ccount, cacc,
+                       c_low, c_width, c_n, c_wrap, c_offsets,
+                       alpha_actor, alpha_critic, lam, max_steps, record, fixed_start,
+                       task_rewards):
+  """Konda's actor-critic on the full task.
+
+  Per step, with a = (u, r) drawn from the actor in s and a' in s':
+    delta = R + Q(s', a') - Q(s, a)                   (no Q(s', a') at the end)
+    e <- lambda e + phi(s, a);  w_c <- w_c + alpha_critic * delta * e     (TD(lambda))
+    theta <- theta + alpha_actor * Q(s, a) * psi(s, a)
+  Q(s, a) is the critic's value before this step's update.
+  """
+  state = np.empty(4)
+  samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
+  sa = np.empty(5)
+  a_tiles = np.empty(a_offsets.shape[0], dtype=np.int64)
+  a_next = np.empty_like(a_tiles)
+  c_tiles = np.empty(c_offsets.shape[0], dtype=np.int64)
+  c_next = np.empty_like(c_tiles)
+  ones = np.ones(c_offsets.shape[0])
+  n_actor = a_offsets.shape[0]
+  for episode in range(n_episodes):
+    if fixed_start.shape[0] == 4:
+      state[:] = fixed_start
+    else:
+      ship_compiled.sample_start(rng_state, state)
+    el.reset(cw, czs, cy, ctouched, cmarked, ccount, cacc)      # e <- 0
+    tiles_mod.active_tiles(state, a_low, a_width, a_n, a_wrap, a_offsets, a_tiles)
+    m = policies.tile_mean(actor_w, a_tiles)
+    u = policies.gaussian_draw(m, rng_state) if sample else m
+    total = 0.0
+    steps = 0
+    event = core.NO_EVENT
+    while True:
+      r = policies.squash(u, rules.R_MAX)
+      sa[:4] = state
+      sa[4] = r
+      tiles_mod.active_tiles(sa, c_low, c_width, c_n, c_wrap, c_offsets, c_tiles)
+      q = _critic_value(cw, czs, cy, cacc, c_tiles)
+      core.euler_control(state, r, samples)
+      steps += 1
+      event, reward = rules.global_outcome(samples, task_rewards[0], task_rewards[1])
+      total += reward
+      done = event != core.NO_EVENT or steps >= max_steps
+      target = reward
+      if not done or event == core.NO_EVENT:
+        # The next action (also at a truncation, to bootstrap from it).
+        tiles_mod.active_tiles(state, a_low, a_width, a_n, a_wrap, a_offsets, a_next)
+        m_next = policies.tile_mean(actor_w, a_next)
+        u_next = policies.gaussian_draw(m_next, rng_state) if sample else m_next
+        sa[:4] = state
+        sa[4] = policies.squash(u_next, rules.R_MAX)
+        tiles_mod.active_tiles(sa, c_low, c_width, c_n, c_wrap, c_offsets, c_next)
+        target += _critic_value(cw, czs, cy, cacc, c_next)
+      if learn:
+        delta = target - q
+        el.add_score(czs, cy, ctouched, cmarked, ccount, cacc, c_tiles, ones)
+        el.reward(cw, czs, cy, ctouched, cmarked, ccount, cacc, alpha_critic, delta, lam)
+        step = alpha_actor * q * (u - m) / n_actor
+        for k in range(n_actor):
+          actor_w[a_tiles[k]] += step
+      if done:
+        break
+      a_tiles[:] = a_next
+      m = m_next
+      u = u_next
+    record[episode, PASSED] = event == core.SUCCESS
+    record[episode, STEPS] = steps
+    record[episode, RETURN] = total
+
+
+
+@dataclasses.dataclass(frozen=True)
+class Actor:
+  """[actor]: flat PGRL's policy, stepped along Q(s, a) psi."""
+  learner: str = param("policy_gradient", "the actor", choices=("policy_gradient",))
+  alpha: float = param(1e-4, "actor step size", low=0, low_open=True)
+  tilings: int = param(9, "CMAC tilings", low=1)
+  tiles: tuple = param((20, 20, 36, 5), "tiles per tiling over x, y, theta, theta_dot",
+                       length=4, low=1)
+
+
+@dataclasses.dataclass(frozen=True)
+class Critic:
+  """[critic]: linear over tiles of (state, r), learned by TD(lambda)."""
+  learner: str = param("td_lambda", "the critic", choices=("td_lambda",))
+  alpha: float = param(0.01, "critic step size", low=0, low_open=True)
+  trace_decay: float = param(0.9, "TD(lambda)'s lambda", low=0, high=1, low_open=True)
+  tilings: int = param(9, "CMAC tilings", low=1)
+  tiles: tuple = param((5, 5, 36, 5, 30), "tiles per tiling over x, y, theta, theta_dot, r",
+                       length=5, low=1)
+
+
+@dataclasses.dataclass(frozen=True)
+class Config:
+  environment: _ship.ShipEnvironment = dataclasses.field(default_factory=_ship.ShipEnvironment)
+  actor: Actor = dataclasses.field(default_factory=Actor)
+  critic: Critic = dataclasses.field(default_factory=Critic)
+
+
+class ShipActorCritic(_ship.ShipAgent):
+  """The actor-critic's arrays and generator, trained step by step or compiled."""
+
+  name = "ship_actor_critic"
+  Config = Config
+  record_fields = ("passed", "steps", "return")
+  tags = ("baseline",)
+
+  def __init__(self, config=None, seed=0, task=None):
+    super().__init__(config, seed, task)
+    actor, critic = self.config.actor, self.config.critic
+    self.learner = learners.ActorCritic(actor_coder(actor.tilings, actor.tiles),
+                                        critic_coder(critic.tilings, critic.tiles), rules.R_MAX,
+                                        actor.alpha, critic.alpha, critic.trace_decay)
+
+  def state(self):
+    lr = self.learner
+    out = {"rng_state": self.rng_state, "actor_w": lr.actor_w}
+    out.update({f"critic_{k}": v for k, v in lr.critic.items()})
+    return out
+
+  def compiled(self, episodes, learn, sample, start=None):
+    lr = self.learner
+    c = lr.critic
+    rows = np.zeros((episodes, N_RECORD))
+    fixed = np.empty(0) if start is None else np.array(start, dtype=np.float64)
+    train_actor_critic(episodes, learn, sample, self.rng_state, lr.actor_w, *lr.actor_arrays,
+                       c["w"], c["zs"], c["y"], c["touched"], c["marked"], c["count"], c["acc"],
+                       *lr.critic_arrays, lr.alpha_actor, lr.alpha_critic, lr.lam,
+                       self.config.environment.max_steps, rows, fixed, self.task_rewards)
+    return rows
+
+  def graph(self):
+    return flat_graph.flat_graph(self.learner,
+                                 lambda call, obs: np.array(obs, dtype=np.float64), ["turn"],
+                                 continuous=True)

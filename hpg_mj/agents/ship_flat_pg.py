@@ -1,0 +1,132 @@
+"""Flat PGRL on the full ship task (paper section 5.2; SPEC section 4): Eq. 3 over
+the whole episode with the Gaussian-with-sigmoid policy on a CMAC of 9 tilings x
+20 x 20 x 36 x 5 = 72,000 tiles (648,000 weights), acting every 0.6 s with SPEC
+section 2's rewards. A baseline of the hierarchy (tag "baseline").
+
+Every step touches only the 9 active tiles: the trace is applied lazily
+(`learners.eligibility`), so a step's cost does not grow with the episode or the
+number of weights. Both paths (the fused loop `train_flat_pg`, the one-node task
+graph step by step) call the same compiled rules.
+"""
+import dataclasses
+
+import numba
+import numpy as np
+
+from hpg_mj.agents import _ship
+from hpg_mj.agents.taskfile import param
+from hpg_mj.hierarchy import flat as flat_graph
+from hpg_mj.hierarchy import ship_compiled
+from hpg_mj.hierarchy import ship_rules as rules
+from hpg_mj.learners import agents as learners
+from hpg_mj.learners import eligibility as el
+from hpg_mj.learners import policies
+from hpg_mj.learners import tiles as tiles_mod
+from hpg_mj.worlds import ship_core as core
+
+# Per-episode record columns (the order of `record_fields`).
+PASSED, STEPS, RETURN = 0, 1, 2
+N_RECORD = 3
+
+def actor_coder(n_tilings=9, tiles=(20, 20, 36, 5)):
+  return tiles_mod.TileCoder((0.0, 0.0, -180.0, -core.MAX_TURN_RATE),
+                             (core.FIELD_SIZE, core.FIELD_SIZE, 180.0, core.MAX_TURN_RATE),
+                             tuple(tiles), (False, False, True, False), n_tilings)
+
+
+
+@numba.njit(cache=True)
+def train_flat_pg(n_episodes, learn, sample, rng_state, w, zs, y, touched, marked, count, acc,
+                  t_low, t_width, t_n, t_wrap, t_offsets, alpha, gamma, max_steps, record,
+                  fixed_start, task_rewards):
+  """Flat PGRL (Eq. 3 over the full task): z <- 0 at the start of an episode."""
+  state = np.empty(4)
+  samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
+  active = np.empty(t_offsets.shape[0], dtype=np.int64)
+  psi = np.empty(t_offsets.shape[0])
+  for episode in range(n_episodes):
+    if fixed_start.shape[0] == 4:
+      state[:] = fixed_start
+    else:
+      ship_compiled.sample_start(rng_state, state)
+    el.reset(w, zs, y, touched, marked, count, acc)
+    total = 0.0
+    steps = 0
+    event = core.NO_EVENT
+    while True:
+      tiles_mod.active_tiles(state, t_low, t_width, t_n, t_wrap, t_offsets, active)
+      if sample:
+        r = policies.gaussian_act(w, zs, y, touched, marked, count, acc, active, rules.R_MAX,
+                                  rng_state, psi)
+      else:
+        r = policies.gaussian_greedy(w, zs, y, acc, active, rules.R_MAX)
+      core.euler_control(state, r, samples)
+      steps += 1
+      event, reward = rules.global_outcome(samples, task_rewards[0], task_rewards[1])
+      total += reward
+      if learn:
+        el.reward(w, zs, y, touched, marked, count, acc, alpha, reward, gamma)
+      if event != core.NO_EVENT or steps >= max_steps:
+        break
+    record[episode, PASSED] = event == core.SUCCESS
+    record[episode, STEPS] = steps
+    record[episode, RETURN] = total
+
+
+
+@dataclasses.dataclass(frozen=True)
+class Policy:
+  """[policy]: Eq. 3 over the full task."""
+  learner: str = param("policy_gradient", "Eq. 3", choices=("policy_gradient",))
+  alpha: float = param(0.01, "Eq. 3 step size", low=0, low_open=True)
+  trace_gamma: float = param(1.0, "discount on the Eq. 3 trace (1 = plain Eq. 3)", low=0,
+                             high=1, low_open=True)
+  tilings: int = param(9, "CMAC tilings", low=1)
+  tiles: tuple = param((20, 20, 36, 5), "tiles per tiling over x, y, theta, theta_dot",
+                       length=4, low=1)
+
+
+@dataclasses.dataclass(frozen=True)
+class Config:
+  environment: _ship.ShipEnvironment = dataclasses.field(default_factory=_ship.ShipEnvironment)
+  policy: Policy = dataclasses.field(default_factory=Policy)
+
+
+class ShipFlatPG(_ship.ShipAgent):
+  """Flat PGRL's learner and generator, trained step by step or compiled."""
+
+  name = "ship_flat_pg"
+  Config = Config
+  record_fields = ("passed", "steps", "return")
+  tags = ("baseline",)
+
+  def __init__(self, config=None, seed=0, task=None):
+    super().__init__(config, seed, task)
+    pol = self.config.policy
+    self.coder = actor_coder(pol.tilings, pol.tiles)
+    self.tile_arrays = self.coder.arrays()
+    self.learner = learners.GaussianPolicyGradient(self.coder.size, pol.tilings, rules.R_MAX,
+                                                   pol.alpha, pol.trace_gamma)
+    self._active = np.empty(pol.tilings, dtype=np.int64)
+
+  def state(self):
+    out = {"rng_state": self.rng_state}
+    out.update({f"policy_{k}": v for k, v in self.learner.trace.items()})
+    return out
+
+  def compiled(self, episodes, learn, sample, start=None):
+    t, pol = self.learner.trace, self.config.policy
+    rows = np.zeros((episodes, N_RECORD))
+    fixed = np.empty(0) if start is None else np.array(start, dtype=np.float64)
+    train_flat_pg(episodes, learn, sample, self.rng_state, t["w"], t["zs"], t["y"],
+                  t["touched"], t["marked"], t["count"], t["acc"], *self.tile_arrays,
+                  pol.alpha, pol.trace_gamma, self.config.environment.max_steps, rows, fixed,
+                  self.task_rewards)
+    return rows
+
+  def _view(self, call, obs):
+    tiles_mod.active_tiles(np.asarray(obs, dtype=np.float64), *self.tile_arrays, self._active)
+    return self._active
+
+  def graph(self):
+    return flat_graph.flat_graph(self.learner, self._view, ["turn"], continuous=True)

@@ -1,0 +1,296 @@
+"""Task files: TOML declarations of an agent (`[task] kind`), its configuration
+(one section per part: environment, root, low level, ...) and the protocol
+(tasks/*.toml).
+
+An agent's `Config` dataclass is the schema: its fields are the sections, each a
+dataclass whose fields (made with `param`) are the keys, with their types,
+defaults, meanings and allowed ranges. Every key of a section is required; an
+unknown key, a wrong type, a missing value or one out of range is refused with
+the file, the key and what is allowed, before anything runs.
+"""
+import dataclasses
+import pathlib
+import tomllib
+
+# Types accepted for a schema entry: "float" (int or float), "int", "bool",
+# "str", "str_list" (a non-empty list of strings), ("choice", options),
+# ("int_list", length) (positive integers), ("int_min", least),
+# ("float_lists", length, description) (a non-empty list of lists of numbers).
+
+
+class TaskFileError(ValueError):
+  """A task file that cannot be used; the message names the file and the key."""
+
+
+@dataclasses.dataclass
+class TaskFile:
+  path: pathlib.Path
+  kind: str
+  sections: dict
+  text: str
+
+  def section(self, name):
+    return self.sections[name]
+
+
+def _check(path, where, key, value, kind):
+  where = f"{path}: {where} {key}"
+  if isinstance(kind, tuple) and kind[0] == "choice":
+    if value not in kind[1]:
+      raise TaskFileError(f"{where} = {value!r} is not allowed; allowed: {list(kind[1])}")
+    return value
+  if isinstance(kind, tuple) and kind[0] == "int_list":
+    if (not isinstance(value, list) or len(value) != kind[1]
+        or not all(_is_int(v) and v > 0 for v in value)):
+      raise TaskFileError(f"{where} must be a list of {kind[1]} positive integers, got {value!r}")
+    return tuple(value)
+  if isinstance(kind, tuple) and kind[0] == "int_min":
+    if not _is_int(value) or value < kind[1]:
+      raise TaskFileError(f"{where} must be {_describe(kind)}, got {value!r}")
+    return value
+  if isinstance(kind, tuple) and kind[0] == "float_lists":
+    if not isinstance(value, list) or not value or not all(
+        isinstance(v, list) and len(v) == kind[1] and all(_is_number(x) for x in v)
+        for v in value):
+      raise TaskFileError(f"{where} must be {_describe(kind)}, got {value!r}")
+    return [[float(x) for x in v] for v in value]
+  if kind == "float":
+    if not _is_number(value):
+      raise TaskFileError(f"{where} must be a number, got {value!r}")
+    return float(value)
+  if kind == "int":
+    if not _is_int(value):
+      raise TaskFileError(f"{where} must be an integer, got {value!r}")
+    return value
+  if kind == "bool":
+    if not isinstance(value, bool):
+      raise TaskFileError(f"{where} must be true or false, got {value!r}")
+    return value
+  if kind == "str":
+    if not isinstance(value, str):
+      raise TaskFileError(f"{where} must be a string, got {value!r}")
+    return value
+  if kind == "int_list_any":
+    if not isinstance(value, list) or not all(_is_int(v) and v >= 0 for v in value):
+      raise TaskFileError(f"{where} must be {_describe(kind)}, got {value!r}")
+    return list(value)
+  if kind == "str_list":
+    if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
+      raise TaskFileError(f"{where} must be {_describe(kind)}, got {value!r}")
+    return list(value)
+  raise AssertionError(kind)
+
+
+def _is_int(value):
+  return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _is_number(value):
+  return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def check_table(path, where, table, required, optional=None):
+  """The values of one TOML table (`where`, e.g. "[root]"), converted, after
+  refusing unknown keys, missing required ones and wrong types; optional keys
+  may be left out."""
+  optional = optional or {}
+  allowed = {**required, **optional}
+  unknown = set(table) - set(allowed)
+  if unknown:
+    raise TaskFileError(f"{path}: {where} unknown key(s) {sorted(unknown)}; allowed: "
+                        f"{sorted(allowed)}")
+  values = {}
+  for key, kind in allowed.items():
+    if key in table:
+      values[key] = _check(path, where, key, table[key], kind)
+    elif key in required:
+      raise TaskFileError(f"{path}: {where} {key} is missing ({_describe(kind)})")
+  return values
+
+
+# ---- configurations as dataclasses: the schema of a task file -------------------
+
+def param(default, doc="", *, low=None, high=None, low_open=False, high_open=False,
+          choices=None, length=None):
+  """A field of a task file's section: its default, what it means, and what is
+  allowed (`low`/`high` bounds, open with `low_open`/`high_open`; `choices`;
+  `length` for a list of positive integers)."""
+  meta = {"doc": doc, "low": low, "high": high, "low_open": low_open,
+          "high_open": high_open, "choices": choices, "length": length}
+  if isinstance(default, (list, dict)):
+    return dataclasses.field(default_factory=lambda: type(default)(default), metadata=meta)
+  return dataclasses.field(default=default, metadata=meta)
+
+
+def _field_kind(field):
+  meta, typ = field.metadata, field.type
+  typ = typ if isinstance(typ, type) else {"float": float, "int": int, "bool": bool,
+                                           "str": str, "tuple": tuple, "list": list}[typ]
+  if meta.get("choices"):
+    return ("choice", tuple(meta["choices"]))
+  if typ is tuple:
+    return ("int_list", meta["length"])
+  if typ is list:
+    return "int_list_any"
+  return {float: "float", int: "int", bool: "bool", str: "str"}[typ]
+
+
+def section_schema(section_class):
+  """{key: type} of one section dataclass, for `check_table`."""
+  return {f.name: _field_kind(f) for f in dataclasses.fields(section_class)}
+
+
+def config_schema(config_class):
+  """{section: {key: type}} of a configuration dataclass whose fields are sections."""
+  return {f.name: section_schema(f.type if isinstance(f.type, type) else f.default_factory)
+          for f in dataclasses.fields(config_class)}
+
+
+def _range(meta):
+  parts = []
+  if meta.get("low") is not None:
+    parts.append(f"{'>' if meta['low_open'] else '>='} {meta['low']}")
+  if meta.get("high") is not None:
+    parts.append(f"{'<' if meta['high_open'] else '<='} {meta['high']}")
+  return " and ".join(parts)
+
+
+def check_range(where, section, field, value):
+  """Refuses a value outside its field's bounds, naming the key and what is allowed."""
+  meta = field.metadata
+  low, high = meta.get("low"), meta.get("high")
+  values = value if isinstance(value, (tuple, list)) else (value,)
+  for v in values:
+    bad = ((low is not None and (v <= low if meta["low_open"] else v < low)) or
+           (high is not None and (v >= high if meta["high_open"] else v > high)))
+    if bad:
+      raise TaskFileError(f"{where}: [{section}] {field.name} = {value!r} is out of range; "
+                          f"allowed: {_range(meta)}")
+
+
+def build_section(where, section, section_class, table):
+  """A section dataclass from a TOML table: keys, types and ranges checked."""
+  values = check_table(where, f"[{section}]", table, section_schema(section_class))
+  for field in dataclasses.fields(section_class):
+    check_range(where, section, field, values[field.name])
+  return section_class(**values)
+
+
+def describe_config(config_class):
+  """The sections and keys of a configuration, with their defaults and meanings."""
+  lines = []
+  for sec in dataclasses.fields(config_class):
+    cls = sec.type if isinstance(sec.type, type) else sec.default_factory
+    lines.append(f"[{sec.name}]")
+    for f in dataclasses.fields(cls):
+      default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
+      allowed = _range(f.metadata) or (f"one of {list(f.metadata['choices'])}"
+                                        if f.metadata.get("choices") else "")
+      lines.append(f"{f.name} = {default!r}  # {f.metadata.get('doc', '')}"
+                   + (f" ({allowed})" if allowed else ""))
+  return "\n".join(lines)
+
+
+# ---- task files ---------------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True)
+class Task:
+  """[task]: which agent (`kind`, a registered name) and what the file is for."""
+  kind: str = param("", "the agent, by its registered name")
+  description: str = param("", "one line on what this task file trains")
+
+
+@dataclasses.dataclass(frozen=True)
+class Protocol:
+  """[protocol]: how long a run trains, its default seed, and the seeds its
+  hyper-parameters were tuned on (never reported)."""
+  episodes: int = param(1000, "training episodes of one run", low=1)
+  seed: int = param(0, "the default seed", low=0)
+
+
+PROTOCOL_OPTIONAL = {"tuning_seeds": "int_list_any"}
+
+
+@dataclasses.dataclass
+class TaskFile:
+  """A loaded task file: its agent's kind and class, its configuration (the
+  agent's Config dataclass), its protocol, and its text (saved with agents)."""
+  path: pathlib.Path
+  kind: str
+  description: str
+  config: object
+  protocol: Protocol
+  tuning_seeds: tuple
+  text: str
+
+  def section(self, name):
+    """A section's values as a dict (`protocol` included)."""
+    if name == "protocol":
+      return dataclasses.asdict(self.protocol)
+    return dataclasses.asdict(getattr(self.config, name))
+
+
+def load(path, registry):
+  """Reads and validates a task file.
+
+  `registry.lookup(kind)` gives the agent class for the file's `[task] kind`;
+  the class's `Config` (a dataclass of section dataclasses) is the schema.
+  """
+  path = pathlib.Path(path)
+  if not path.is_file():
+    raise TaskFileError(f"{path}: no such task file")
+  text = path.read_text()
+  return loads(text, path, registry)
+
+
+def loads(text, path, registry):
+  """`load` from the file's text (`path` names it in errors)."""
+  path = pathlib.Path(path)
+  try:
+    data = tomllib.loads(text)
+  except tomllib.TOMLDecodeError as err:
+    raise TaskFileError(f"{path}: not valid TOML: {err}") from None
+  task = data.get("task")
+  if not isinstance(task, dict) or "kind" not in task:
+    raise TaskFileError(f"{path}: [task] kind is missing; allowed kinds: {registry.names()}")
+  kind = task["kind"]
+  if not isinstance(kind, str) or kind not in registry.names():
+    raise TaskFileError(f"{path}: [task] kind = {kind!r} is not allowed; allowed: "
+                        f"{registry.names()}")
+  agent_class = registry.lookup(kind)
+  schema = {"task": section_schema(Task), **config_schema(agent_class.Config),
+            "protocol": section_schema(Protocol)}
+  unknown_sections = set(data) - set(schema)
+  if unknown_sections:
+    raise TaskFileError(f"{path}: unknown section(s) {sorted(unknown_sections)}; allowed: "
+                        f"{sorted(schema)}")
+  for section, keys in schema.items():
+    if not isinstance(data.get(section), dict):
+      raise TaskFileError(f"{path}: section [{section}] is missing; it needs the keys "
+                          f"{sorted(keys)}")
+  head = build_section(path, "task", Task, task)
+  proto_table = dict(data["protocol"])
+  tuning = check_table(path, "[protocol]", {k: proto_table.pop(k) for k in PROTOCOL_OPTIONAL
+                                            if k in proto_table},
+                       {}, PROTOCOL_OPTIONAL).get("tuning_seeds", [])
+  protocol = build_section(path, "protocol", Protocol, proto_table)
+  sections = {}
+  for sec in dataclasses.fields(agent_class.Config):
+    cls = sec.type if isinstance(sec.type, type) else sec.default_factory
+    sections[sec.name] = build_section(path, sec.name, cls, data[sec.name])
+  try:
+    config = agent_class.Config(**sections)
+  except (TypeError, ValueError) as err:
+    raise TaskFileError(f"{path}: {err}") from None
+  return TaskFile(path, kind, head.description, config, protocol, tuple(tuning), text)
+
+
+def _describe(kind):
+  if isinstance(kind, tuple):
+    return {"choice": lambda: f"one of {list(kind[1])}",
+            "int_list": lambda: f"a list of {kind[1]} integers",
+            "int_min": lambda: "a positive integer" if kind[1] == 1 else f"an integer >= {kind[1]}",
+            "float_lists": lambda: f"a non-empty list of {kind[2]}"}[kind[0]]()
+  return {"float": "a number", "int": "an integer", "bool": "true or false",
+          "str": "a string", "str_list": "a non-empty list of strings",
+          "int_list_any": "a list of non-negative integers"}[kind]
