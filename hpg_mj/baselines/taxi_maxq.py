@@ -50,7 +50,7 @@ training episodes average 97.8% of 6.14458 (seeds 0-4: 97.8, 98.3, 99.5, 97.0,
 million primitive steps (seeds 0-9).
 
 One implementation: the fused loop (`train`) and the per-subtask learners of
-`hpg_mj.hierarchy.taxi_maxq` (the task-graph path) call the same compiled
+`hpg_mj.agents.taxi_maxq` (the task-graph path) call the same compiled
 rules - `choose`, `update_primitive`, `update_completion` - on the same arrays.
 Randomness (`learners.rng`): per episode the start (`taxi_compiled.sample_start`),
 then per choice of any subtask, when sampling (training), one uniform (explore or not),
