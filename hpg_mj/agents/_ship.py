@@ -1,13 +1,15 @@
 """What the ship agents share: the [environment] section, the environments, the
-starts of the full task, and the gate metrics."""
+starts of the full task (drawn from the agent's generator, the same way on every
+path), and the gate metrics."""
 import dataclasses
 
+import numba
 import numpy as np
 
 from hpg_mj.agents import base
 from hpg_mj.agents.taskfile import param
 from hpg_mj.worlds import ship_core as core
-from hpg_mj.hierarchy import ship_compiled
+from hpg_mj.learners import rng
 
 METRIC_WINDOW = 1000   # online metrics are over the last 1,000 episodes
 
@@ -21,6 +23,15 @@ class ShipEnvironment:
   gate_reward: float = param(core.GATE_REWARD, "reward for passing the gate")
   out_of_bounds_reward: float = param(core.OUT_OF_BOUNDS_REWARD, "reward for leaving the field")
   max_steps: int = param(core.STEER_MAX_STEPS, "control steps, then truncated", low=1)
+
+
+@numba.njit(cache=True)
+def sample_start(rng_state, out):
+  """A start of the full task (SPEC section 2), drawn in the order x, y, theta, theta_dot."""
+  out[0] = rng.uniform_range(rng_state, 0.0, core.FIELD_SIZE)
+  out[1] = rng.uniform_range(rng_state, 0.0, core.FIELD_SIZE)
+  out[2] = core.wrap_deg(rng.uniform_range(rng_state, -180.0, 180.0))
+  out[3] = rng.uniform_range(rng_state, -core.MAX_TURN_RATE, core.MAX_TURN_RATE)
 
 
 class ShipAgent(base.Agent):
@@ -51,7 +62,7 @@ class ShipAgent(base.Agent):
 
   def start_state(self):
     start = np.empty(4)
-    ship_compiled.sample_start(self.rng_state, start)
+    sample_start(self.rng_state, start)
     return start
 
   def end_episode(self, row, total, steps, last, learn):

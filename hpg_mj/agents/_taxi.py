@@ -3,16 +3,36 @@ starts (drawn by the compiled rules, as the fused loops draw them), the episode'
 outcome, and the metrics against the exact optimum."""
 import dataclasses
 
+import numba
 import numpy as np
 
 from hpg_mj.agents import base
 from hpg_mj.agents.taskfile import param
-from hpg_mj.hierarchy import taxi as taxi_hierarchy
-from hpg_mj.hierarchy import taxi_compiled
-from hpg_mj.hierarchy import taxi_rules as rules
+from hpg_mj.learners import rng
 from hpg_mj.worlds import taxi_core
+from hpg_mj.worlds import taxi_core as core
+from hpg_mj.worlds import taxi_rules as world_rules
 
 METRIC_WINDOW = 1000
+
+
+@numba.njit(cache=True)
+def sample_start(rng_state, world, state):
+  """A start state (SPEC section 5), drawn in the order square, passenger
+  station, destination among the other three, fuel (fuel task only)."""
+  square = rng.randint(rng_state, world_rules.N_SQUARES)
+  station = rng.randint(rng_state, world_rules.N_STATIONS)
+  other = rng.randint(rng_state, world_rules.N_STATIONS - 1)
+  fuel = core.CLASSIC_FUEL
+  if world[world_rules.W_FUEL_ENABLED] != 0:
+    fuel = world[world_rules.W_START_FUEL_MIN] + rng.randint(
+        rng_state, world[world_rules.W_START_FUEL_MAX] - world[world_rules.W_START_FUEL_MIN] + 1)
+  row, col, passenger, destination, fuel = core.state_from_draws(square, station, other, fuel)
+  state[world_rules.ROW] = row
+  state[world_rules.COL] = col
+  state[world_rules.PASSENGER] = passenger
+  state[world_rules.DESTINATION] = destination
+  state[world_rules.FUEL] = fuel
 
 
 @dataclasses.dataclass(frozen=True)
@@ -39,7 +59,7 @@ class TaxiAgent(base.Agent):
     super().__init__(config, seed, task)
     env = self.config.environment
     self.rules = taxi_core.TaxiRules(env.fuel, capacity=env.capacity, max_steps=env.max_steps)
-    self.world = rules.world_config(self.rules)
+    self.world = world_rules.world_config(self.rules)
     self._start = np.empty(5, dtype=np.int64)
     self._optimal = None
 
@@ -83,13 +103,13 @@ class TaxiAgent(base.Agent):
     return self.make_env("dm_control" if backend == "mujoco" else "gymnasium")
 
   def start_state(self):
-    taxi_compiled.sample_start(self.rng_state, self.world, self._start)
+    sample_start(self.rng_state, self.world, self._start)
     return self._start.copy() if self.rules.fuel_enabled else self._start[:4].copy()
 
   def end_episode(self, row, total, steps, last, learn):
     row[self.record_fields.index("return")] = total
     row[self.record_fields.index("steps")] = steps
-    row[self.record_fields.index("outcome")] = taxi_hierarchy.outcome_of(last)
+    row[self.record_fields.index("outcome")] = world_rules.outcome_of(last)
     engine = self.__dict__.get("engine")
     if learn and engine is not None:
       engine.primitive_steps += steps

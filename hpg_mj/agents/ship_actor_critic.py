@@ -14,8 +14,6 @@ from hpg_mj.agents import _ship
 from hpg_mj.agents.taskfile import param
 from hpg_mj.agents.ship_flat_pg import N_RECORD, PASSED, RETURN, STEPS, actor_coder
 from hpg_mj.hierarchy import flat as flat_graph
-from hpg_mj.hierarchy import ship_compiled
-from hpg_mj.hierarchy import ship_rules as rules
 from hpg_mj.learners import agents as learners
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import policies
@@ -65,7 +63,7 @@ def train_actor_critic(n_episodes, learn, sample, rng_state, actor_w,
     if fixed_start.shape[0] == 4:
       state[:] = fixed_start
     else:
-      ship_compiled.sample_start(rng_state, state)
+      _ship.sample_start(rng_state, state)
     el.reset(cw, czs, cy, ctouched, cmarked, ccount, cacc)      # e <- 0
     tiles_mod.active_tiles(state, a_low, a_width, a_n, a_wrap, a_offsets, a_tiles)
     m = policies.tile_mean(actor_w, a_tiles)
@@ -74,14 +72,14 @@ def train_actor_critic(n_episodes, learn, sample, rng_state, actor_w,
     steps = 0
     event = core.NO_EVENT
     while True:
-      r = policies.squash(u, rules.R_MAX)
+      r = policies.squash(u, core.MAX_TURN_RATE)
       sa[:4] = state
       sa[4] = r
       tiles_mod.active_tiles(sa, c_low, c_width, c_n, c_wrap, c_offsets, c_tiles)
       q = _critic_value(cw, czs, cy, cacc, c_tiles)
       core.euler_control(state, r, samples)
       steps += 1
-      event, reward = rules.global_outcome(samples, task_rewards[0], task_rewards[1])
+      event, reward = core.global_outcome(samples, task_rewards[0], task_rewards[1])
       total += reward
       done = event != core.NO_EVENT or steps >= max_steps
       target = reward
@@ -91,7 +89,7 @@ def train_actor_critic(n_episodes, learn, sample, rng_state, actor_w,
         m_next = policies.tile_mean(actor_w, a_next)
         u_next = policies.gaussian_draw(m_next, rng_state) if sample else m_next
         sa[:4] = state
-        sa[4] = policies.squash(u_next, rules.R_MAX)
+        sa[4] = policies.squash(u_next, core.MAX_TURN_RATE)
         tiles_mod.active_tiles(sa, c_low, c_width, c_n, c_wrap, c_offsets, c_next)
         target += _critic_value(cw, czs, cy, cacc, c_next)
       if learn:
@@ -152,7 +150,7 @@ class ShipActorCritic(_ship.ShipAgent):
     super().__init__(config, seed, task)
     actor, critic = self.config.actor, self.config.critic
     self.learner = learners.ActorCritic(actor_coder(actor.tilings, actor.tiles),
-                                        critic_coder(critic.tilings, critic.tiles), rules.R_MAX,
+                                        critic_coder(critic.tilings, critic.tiles), core.MAX_TURN_RATE,
                                         actor.alpha, critic.alpha, critic.trace_decay)
 
   def state(self):

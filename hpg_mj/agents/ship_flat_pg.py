@@ -16,8 +16,6 @@ import numpy as np
 from hpg_mj.agents import _ship
 from hpg_mj.agents.taskfile import param
 from hpg_mj.hierarchy import flat as flat_graph
-from hpg_mj.hierarchy import ship_compiled
-from hpg_mj.hierarchy import ship_rules as rules
 from hpg_mj.learners import agents as learners
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import policies
@@ -48,7 +46,7 @@ def train_flat_pg(n_episodes, learn, sample, rng_state, w, zs, y, touched, marke
     if fixed_start.shape[0] == 4:
       state[:] = fixed_start
     else:
-      ship_compiled.sample_start(rng_state, state)
+      _ship.sample_start(rng_state, state)
     el.reset(w, zs, y, touched, marked, count, acc)
     total = 0.0
     steps = 0
@@ -56,13 +54,13 @@ def train_flat_pg(n_episodes, learn, sample, rng_state, w, zs, y, touched, marke
     while True:
       tiles_mod.active_tiles(state, t_low, t_width, t_n, t_wrap, t_offsets, active)
       if sample:
-        r = policies.gaussian_act(w, zs, y, touched, marked, count, acc, active, rules.R_MAX,
+        r = policies.gaussian_act(w, zs, y, touched, marked, count, acc, active, core.MAX_TURN_RATE,
                                   rng_state, psi)
       else:
-        r = policies.gaussian_greedy(w, zs, y, acc, active, rules.R_MAX)
+        r = policies.gaussian_greedy(w, zs, y, acc, active, core.MAX_TURN_RATE)
       core.euler_control(state, r, samples)
       steps += 1
-      event, reward = rules.global_outcome(samples, task_rewards[0], task_rewards[1])
+      event, reward = core.global_outcome(samples, task_rewards[0], task_rewards[1])
       total += reward
       if learn:
         el.reward(w, zs, y, touched, marked, count, acc, alpha, reward, gamma)
@@ -105,7 +103,7 @@ class ShipFlatPG(_ship.ShipAgent):
     pol = self.config.policy
     self.coder = actor_coder(pol.tilings, pol.tiles)
     self.tile_arrays = self.coder.arrays()
-    self.learner = learners.GaussianPolicyGradient(self.coder.size, pol.tilings, rules.R_MAX,
+    self.learner = learners.GaussianPolicyGradient(self.coder.size, pol.tilings, core.MAX_TURN_RATE,
                                                    pol.alpha, pol.trace_gamma)
     self._active = np.empty(pol.tilings, dtype=np.int64)
 

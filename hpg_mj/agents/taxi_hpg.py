@@ -1,21 +1,535 @@
-"""Tabular HPG (the paper's Algorithm 1) on taxi-fuel (paper section 5.1; SPEC
-section 5): a Gibbs policy per subtask of MAXQ's task graph with Refuel, learned
-by Eq. 3 with a warm-up of the step sizes and a baseline (both declared).
+"""Tabular HPG (Algorithm 1) on taxi-fuel (SPEC section 5, paper section 5.1): its
+configuration, its fused compiled loop (`train`), its step-by-step learners on the
+task graph of `hierarchy.taxi` (`TaxiHierarchy`, over the same arrays) and its agent.
 
-The fused loop is `hierarchy.taxi_compiled.train`; the step-by-step path is the
-task graph of `hierarchy.taxi` over the same arrays (`TaxiHierarchy`).
+Every non-primitive subtask of the task graph (`taxi_rules`) holds one policy
+parameter per (abstract state, child) and acts with a softmax (Gibbs) policy;
+each learns by Eq. 3 on its own trace (`learners.eligibility`):
+
+    on every call of subtask i:    z_i <- 0                            (Algorithm 1, lines 11-12)
+    each choice a in state s:      z_i <- gamma_i z_i + psi_i(s, a)    (line 14; `softmax_act`)
+    when the child a returns R:    theta_i <- theta_i + alpha_i R z_i  (line 16, read as Eq. 3)
+
+R is the sum of the primitive rewards earned while the child ran (line 17); the
+taxi has no internal reward G. The trace is reset when a subtask starts rather
+than when it ends (line 12): the same thing, except that the final child's
+reward - a delivery's +20 - is applied with the trace still holding the
+choices that led to it, as Eq. 3 does (z is reset at s*, and R(s*, .) = 0).
+
+Two deliberate departures from the paper, each an option of `HPGConfig` (and
+of tasks/taxi_fuel_hpg.toml) explained there: the step sizes warm up instead
+of never increasing, and each subtask subtracts a learned baseline b_i(s) from
+its reward-to-go (REINFORCE's baseline), which adds to the rule above
+
+    each choice a in state s:      theta_i <- theta_i - alpha_i b_i(s) psi_i(s, a)
+    when the child a returns R:    b_i(s) <- b_i(s) + beta_i (R + b_i(s') - b_i(s))
+
+Algorithm 1 is recursive; numba is not good at recursion, and this graph has a
+fixed depth, so each level is its own function and the call stack is the
+native one: `run_episode` (Root) -> `run_carry` (Get, Put or Refuel) ->
+`run_navigate` (Navigate(t)) -> `taxi_rules.primitive_step`. Each function is
+the `while i has not terminated` loop of Algorithm 1 for its level.
+
+Randomness: only `learners.rng` (xoshiro256** over a uint64[4] state), drawn
+in this order: per episode the start (square 0..24, passenger station 0..3,
+destination among the other three 0..2, then with fuel the start fuel), then
+one uniform per choice of any subtask, forced choices included, in the order
+the choices are made. Greedy runs draw only the starts.
+
+A trace is the tuple `(w, zs, y, touched, marked, count, acc)` of `eligibility`'s
+arrays; `new_traces` makes one per subtask. The baselines are a tuple of five
+float64 tables over the subtasks' abstract states (`new_values`).
+
+Speed: the three levels and `train` are compiled without numba's reference
+counting (`_nrt=False`), which otherwise spends about half the time counting
+references to the arrays handed down at every call (3.3 million primitive steps
+per second with it, about 7 million without; `hpg-mj bench train`). That is safe
+because nothing here allocates (numba refuses to compile an allocation without
+NRT), and the shared `learners` and `taxi_rules` functions they use are inlined
+(`inline="always"`), so no reference-count-free copy of them is cached for other
+callers; the only other callees (`taxi_core.taxi_step`, `state_from_draws`)
+return scalars.
 """
+
 import dataclasses
 
+import numba
 import numpy as np
 
 from hpg_mj.agents import _taxi
 from hpg_mj.agents.taskfile import param
 from hpg_mj.hierarchy import taxi as taxi_hierarchy
-from hpg_mj.hierarchy import taxi_compiled
+from hpg_mj.hierarchy import taxi_rules as rules
+from hpg_mj.learners import agents as learners
+from hpg_mj.learners import eligibility as el
+from hpg_mj.learners import policies
+from hpg_mj.learners import rng
+from hpg_mj.worlds import taxi_core as core
+
+_TRACE_KEYS = ("w", "zs", "y", "touched", "marked", "count", "acc")
+
+# Per-episode record columns: the return, the primitive steps, how the episode
+# ended (taxi_rules.DELIVERED, OUT_OF_FUEL or TRUNCATED), illegal Pickups/Dropoffs.
+RETURN, STEPS, OUTCOME, ILLEGAL = range(4)
+N_RECORD = 4
+
+
+# Rows of the step-size schedule array handed to the compiled loop (one column
+# per subtask id, see `HPGConfig.schedule`).
+S_ALPHA, S_START_FRACTION, S_DELAY, S_RAMP = range(4)
+
+
+@dataclasses.dataclass(frozen=True)
+class HPGConfig:
+  """HPG's hyper-parameters for the taxi, by level: Root; Get, Put and Refuel
+  ("carry"); Navigate(t).
+
+  Step sizes warm up: subtask i learns with alpha_i * f_i(e) in its e-th learning
+  episode, f_i = start_i for the first delay_i episodes, then rising linearly to
+  1 over ramp_i episodes. The paper's assumptions A4-A5 ask for non-increasing
+  step sizes; a constant alpha large enough to learn in 100,000 episodes makes
+  Eq. 3 (REINFORCE, no baseline) commit early to wrong children for good: the
+  first calls are long random walks that mostly end with the tank dry, so every
+  choice in them gets the same large negative reward-to-go, pure noise that
+  drives the softmax to a corner, and a subtask whose calls from a state always
+  run dry never again sees a reward that tells its children apart. Small steps
+  while calls are long and doomed, full steps once they are short, avoid it.
+  Root also waits (delay) with a uniform policy while its children learn, or it
+  learns to avoid a child (Refuel, say) that is merely still bad.
+
+  Each subtask may also subtract a baseline b_i(s) from its reward-to-go, a
+  second declared departure (REINFORCE's baseline, Williams 1992; the paper's
+  Eq. 3 has none): a choice a made in state s then moves theta_i along
+  psi(s, a) times (the rewards of the rest of the call - b_i(s)) instead of the
+  rewards alone. In Eq. 3's online form that is one extra step at the choice,
+  theta_i <- theta_i - alpha_i b_i(s) psi(s, a) (`subtract_baseline`), next to the
+  unchanged z and theta updates. b_i is a table over subtask i's abstract states,
+  learned by TD(0) on the subtask's own rewards with step size baseline_i
+  (`learn_baseline`; 0 keeps b_i = 0, Eq. 3 exactly). Any b(s) that does not
+  depend on the choice made in s leaves the gradient estimate unbiased
+  (E[psi(s, a)] = 0 under the policy); it only removes variance. Why it is
+  needed: without it every call's reward-to-go is of one sign (Navigate's only
+  ever negative, Root's mostly the +20 delivery), so each choice is pushed the
+  same way whatever its worth, and only the small differences between those
+  large pushes carry the gradient. Root, whose decisions (refuel now, later or
+  never) differ by a few steps out of a return of about 6, learned them too
+  slowly: about 93% of the optimal mean return after 100,000 episodes (online,
+  last 1,000 episodes, seeds 0-4) with alpha 0.1 / 0.03 / 0.03 and no
+  baseline, while the larger step sizes below run away without one (51%).
+  With the baseline and them: 98.8% (97.2% over seeds 5-24). The baseline's
+  step size is 1 at most: b(s) moves part of the way to its TD target. The
+  baselines learn from the first episode, Root's too while Root waits.
+  """
+  alpha_root: float = 0.3            # Eq. 3 step size of Root, after warm-up
+  alpha_carry: float = 0.1           # of Get, Put and Refuel
+  alpha_navigate: float = 0.1        # of Navigate(t) (one table for the five targets)
+  start_root: float = 0.0            # f at the first episode (fraction of alpha)
+  start_carry: float = 0.1
+  start_navigate: float = 0.1
+  delay_root: int = 15_000           # episodes at the start fraction
+  delay_carry: int = 0
+  delay_navigate: int = 0
+  ramp_root: int = 20_000            # episodes of the linear rise to alpha
+  ramp_carry: int = 25_000
+  ramp_navigate: int = 25_000
+  gamma_root: float = 1.0            # trace discount (Eq. 3's variant; 1: Eq. 3 exactly)
+  gamma_carry: float = 1.0
+  gamma_navigate: float = 1.0
+  baseline_root: float = 0.3         # TD(0) step size of the baseline b_i (0: none, Eq. 3 exactly)
+  baseline_carry: float = 0.3
+  baseline_navigate: float = 0.3
+  initial: float = 0.0               # every parameter's start value (0: uniform policies)
+
+  def __post_init__(self):
+    for level in ("root", "carry", "navigate"):
+      alpha = getattr(self, "alpha_" + level)
+      if not (np.isfinite(alpha) and alpha >= 0.0):
+        raise ValueError(f"HPGConfig: alpha_{level} must be a finite number >= 0, got {alpha!r}")
+      start = getattr(self, "start_" + level)
+      if not 0.0 <= start <= 1.0:
+        raise ValueError(f"HPGConfig: start_{level} must be in [0, 1], got {start!r}")
+      delay = getattr(self, "delay_" + level)
+      if not isinstance(delay, (int, np.integer)) or delay < 0:
+        raise ValueError(f"HPGConfig: delay_{level} must be an integer >= 0, got {delay!r}")
+      ramp = getattr(self, "ramp_" + level)
+      if not isinstance(ramp, (int, np.integer)) or ramp < 1:
+        raise ValueError(f"HPGConfig: ramp_{level} must be an integer >= 1, got {ramp!r}")
+      gamma = getattr(self, "gamma_" + level)
+      if not 0.0 < gamma <= 1.0:
+        raise ValueError(f"HPGConfig: gamma_{level} must be in (0, 1], got {gamma!r}")
+      baseline = getattr(self, "baseline_" + level)
+      if not 0.0 <= baseline <= 1.0:
+        raise ValueError(f"HPGConfig: baseline_{level} must be in [0, 1], got {baseline!r}")
+    if not np.isfinite(self.initial):
+      raise ValueError(f"HPGConfig: initial must be finite, got {self.initial!r}")
+
+  def _by_subtask(self, name):
+    """A per-level field as float64[5] by subtask id (ROOT, GET, PUT, REFUEL, NAVIGATE)."""
+    root, carry, navigate = (float(getattr(self, f"{name}_{level}"))
+                             for level in ("root", "carry", "navigate"))
+    return np.array([root, carry, carry, carry, navigate])
+
+  def schedule(self) -> np.ndarray:
+    """float64[4, 5]: rows S_ALPHA, S_START_FRACTION, S_DELAY, S_RAMP by subtask id."""
+    return np.stack([self._by_subtask("alpha"), self._by_subtask("start"),
+                     self._by_subtask("delay"), self._by_subtask("ramp")])
+
+  def gammas(self) -> np.ndarray:
+    return self._by_subtask("gamma")
+
+  def betas(self) -> np.ndarray:
+    """float64[5]: the baselines' TD(0) step sizes by subtask id."""
+    return self._by_subtask("baseline")
+
+
+def new_trace(n_states: int, n_children: int, initial: float = 0.0):
+  """One subtask's Eq. 3 learner over an (n_states x n_children) table, as a tuple."""
+  t = el.new_trace(n_states * n_children, initial)
+  return (t["w"], t["zs"], t["y"], t["touched"], t["marked"], t["count"], t["acc"])
+
+
+def new_traces(fuel_enabled: bool = True, capacity: int = core.FUEL_CAPACITY,
+               initial: float = 0.0):
+  """The five learners, by subtask id: Root, Get, Put, Refuel, Navigate."""
+  sizes = rules.n_abstract_states(fuel_enabled, capacity)
+  return tuple(new_trace(sizes[i], rules.N_CHILDREN[i], initial)
+               for i in range(rules.N_SUBTASKS))
+
+
+def new_values(fuel_enabled: bool = True, capacity: int = core.FUEL_CAPACITY):
+  """The five baselines b_i (zero), by subtask id: one value per abstract state."""
+  return tuple(np.zeros(n) for n in rules.n_abstract_states(fuel_enabled, capacity))
+
+
+def policy_table(trace, n_children: int) -> np.ndarray:
+  """A copy of the trace's current parameters as an (n_states, n_children) table."""
+  w, zs, y, _, _, _, acc = trace
+  return (w + zs * acc[0] - y).reshape(-1, n_children)
+
+
+@numba.njit(cache=True, inline="always")
+def choose(trace, abstract, n_children, mask, learn, greedy, rng_state, probs, index, psi):
+  """Algorithm 1, line 8: a child from the subtask's softmax policy in its
+  abstract state; when learning, also line 14: z <- z + psi (`softmax_act`)."""
+  w, zs, y, touched, marked, count, acc = trace
+  if greedy:
+    return policies.softmax_greedy(w, zs, y, acc, abstract, n_children, mask)
+  if learn:
+    return policies.softmax_act(w, zs, y, touched, marked, count, acc, abstract, n_children,
+                                mask, rng_state, probs, index, psi)
+  policies.softmax_probabilities(w, zs, y, acc, abstract, n_children, mask, probs)
+  return policies.sample_index(probs[:n_children], rng.uniform(rng_state))
+
+
+@numba.njit(cache=True, inline="always")
+def begin_call(trace, learn):
+  """Eq. 3: z <- 0 when a subtask is called."""
+  if learn:
+    w, zs, y, touched, marked, count, acc = trace
+    el.reset(w, zs, y, touched, marked, count, acc)
+
+
+@numba.njit(cache=True, inline="always")
+def learn_from(trace, learn, alpha, reward, gamma):
+  """Algorithm 1, line 16 read as Eq. 3: theta <- theta + alpha R z, then z <- gamma z."""
+  if learn:
+    w, zs, y, touched, marked, count, acc = trace
+    el.reward(w, zs, y, touched, marked, count, acc, alpha, reward, gamma)
+
+
+@numba.njit(cache=True, inline="always")
+def subtract_baseline(w, values, abstract, n_children, mask, learn, alpha, index, psi):
+  """Eq. 3 with a baseline (`HPGConfig`): theta <- theta - alpha b(s) psi(s, a) for
+  the choice a just made in abstract state s, whose score `softmax_act` left in
+  `index`, `psi` (one entry per child allowed by `mask`). Nothing when b(s) = 0."""
+  if learn:
+    amount = alpha * values[abstract]
+    if amount != 0.0:
+      n = 0
+      for b in range(n_children):
+        if mask[b]:
+          w[index[n]] -= amount * psi[n]
+          n += 1
+
+
+@numba.njit(cache=True, inline="always")
+def learn_baseline(values, abstract, learn, beta, reward, done, next_abstract):
+  """The baseline's TD(0) step on the subtask's own return, once the child
+  that was chosen in s returned R: b(s) <- b(s) + beta (R + b(s') - b(s)), with
+  b(s') = 0 when the call (or the episode) ended."""
+  if learn and beta != 0.0:
+    target = reward
+    if not done:
+      target += values[next_abstract]
+    values[abstract] += beta * (target - values[abstract])
+
+
+# The three levels of Algorithm 1's recursion. Each is the `while i has not
+# terminated` loop (lines 7-19) of its subtask; a call returns the sum of the
+# primitive rewards earned during it (R~, line 17). Nothing here allocates: the
+# scratch arrays come from the caller (see the module docstring on _nrt=False).
+
+@numba.njit(cache=True, _nrt=False)
+def run_navigate(target, nav, state, episode, world, alphas, gammas, values, betas, learn,
+                 greedy, rng_state, mask, probs, index, psi):
+  """One call of Navigate(target)."""
+  begin_call(nav, learn)
+  n = rules.N_CHILDREN[rules.NAVIGATE]
+  total = 0.0
+  done = rules.episode_over(episode) or rules.navigate_done(target, state, world)
+  here = rules.navigate_state(target, state)
+  while not done:
+    rules.navigate_children(mask)
+    move = choose(nav, here, n, mask, learn, greedy, rng_state, probs, index, psi)
+    subtract_baseline(nav[0], values[rules.NAVIGATE], here, n, mask, learn,
+                      alphas[rules.NAVIGATE], index, psi)
+    reward = rules.primitive_step(state, episode, move, world)  # child index = action index
+    learn_from(nav, learn, alphas[rules.NAVIGATE], reward, gammas[rules.NAVIGATE])
+    done = rules.episode_over(episode) or rules.navigate_done(target, state, world)
+    there = rules.navigate_state(target, state)
+    learn_baseline(values[rules.NAVIGATE], here, learn, betas[rules.NAVIGATE], reward, done,
+                   there)
+    here = there
+    total += reward
+  return total
+
+
+@numba.njit(cache=True, _nrt=False)
+def run_carry(subtask, carry, nav, state, episode, world, alphas, gammas, values, betas, learn,
+              greedy, rng_state, mask, probs, index, psi):
+  """One call of Get, Put or Refuel (`subtask`, with its trace `carry`)."""
+  begin_call(carry, learn)
+  n = rules.N_CHILDREN[subtask]
+  total = 0.0
+  done = rules.episode_over(episode) or rules.carry_done(subtask, state, world)
+  here = rules.carry_state(subtask, state)
+  while not done:
+    rules.carry_children(subtask, state, world, mask)
+    child = choose(carry, here, n, mask, learn, greedy, rng_state, probs, index, psi)
+    subtract_baseline(carry[0], values[subtask], here, n, mask, learn, alphas[subtask], index, psi)
+    if child == rules.CARRY_NAVIGATE:
+      reward = run_navigate(rules.carry_target(subtask, state), nav, state, episode, world,
+                            alphas, gammas, values, betas, learn, greedy, rng_state, mask, probs,
+                            index, psi)
+    else:
+      reward = rules.primitive_step(state, episode, rules.carry_primitive(subtask), world)
+    learn_from(carry, learn, alphas[subtask], reward, gammas[subtask])
+    done = rules.episode_over(episode) or rules.carry_done(subtask, state, world)
+    there = rules.carry_state(subtask, state)
+    learn_baseline(values[subtask], here, learn, betas[subtask], reward, done, there)
+    here = there
+    total += reward
+  return total
+
+
+@numba.njit(cache=True, _nrt=False)
+def run_episode(root, get, put, refuel, nav, state, episode, world, alphas, gammas, values,
+                betas, learn, greedy, rng_state, mask, probs, index, psi):
+  """One call of Root: the whole episode from `state`. Returns its return."""
+  begin_call(root, learn)
+  n = rules.N_CHILDREN[rules.ROOT]
+  total = 0.0
+  here = rules.root_state(state, world)
+  while not rules.episode_over(episode):
+    rules.root_children(state, world, mask)
+    child = choose(root, here, n, mask, learn, greedy, rng_state, probs, index, psi)
+    subtract_baseline(root[0], values[rules.ROOT], here, n, mask, learn, alphas[rules.ROOT], index,
+                      psi)
+    if child == rules.ROOT_GET:
+      reward = run_carry(rules.GET, get, nav, state, episode, world, alphas, gammas, values,
+                         betas, learn, greedy, rng_state, mask, probs, index, psi)
+    elif child == rules.ROOT_PUT:
+      reward = run_carry(rules.PUT, put, nav, state, episode, world, alphas, gammas, values,
+                         betas, learn, greedy, rng_state, mask, probs, index, psi)
+    else:
+      reward = run_carry(rules.REFUEL, refuel, nav, state, episode, world, alphas, gammas,
+                         values, betas, learn, greedy, rng_state, mask, probs, index, psi)
+    learn_from(root, learn, alphas[rules.ROOT], reward, gammas[rules.ROOT])
+    there = rules.root_state(state, world)
+    learn_baseline(values[rules.ROOT], here, learn, betas[rules.ROOT], reward,
+                   rules.episode_over(episode), there)
+    here = there
+    total += reward
+  return total
+
+
+@numba.njit(cache=True, inline="always")
+def step_sizes(schedule, episode_index, alphas):
+  """Writes alpha_i * f_i(e) for learning episode e (see `HPGConfig`) into `alphas`."""
+  for i in range(alphas.shape[0]):
+    fraction = schedule[S_START_FRACTION, i]
+    delay = schedule[S_DELAY, i]
+    if episode_index >= delay:
+      rise = min(1.0, (episode_index - delay + 1.0) / schedule[S_RAMP, i])
+      fraction += (1.0 - fraction) * rise
+    alphas[i] = schedule[S_ALPHA, i] * fraction
+
+
+@numba.njit(cache=True, _nrt=False)
+def train(n_episodes, learn, greedy, rng_state, world, root, get, put, refuel, nav, schedule,
+          first_episode, gammas, values, betas, record, starts, scratch_int, scratch_float, mask):
+  """Runs `n_episodes` episodes of HPG: learning (`learn`), or evaluating the
+  current policies by sampling (`learn=False`) or greedily (`greedy`, which
+  needs `learn=False`).
+
+  `schedule` (HPGConfig.schedule) gives the step sizes of learning episode
+  `first_episode + e`; `gammas` float64[5] the trace discounts, by subtask id;
+  `values` the baselines (`new_values`) and `betas` float64[5] their step sizes.
+  `record` (n_episodes, N_RECORD) receives one row per episode. `starts`
+  int64[k, 5]: with k = 0 every episode starts at random (SPEC section 5),
+  otherwise episode e starts at starts[e % k]. Scratch (nothing here
+  allocates, see above): `scratch_int` int64[12], `scratch_float` float64[13],
+  `mask` bool[MAX_CHILDREN].
+  Returns the primitive steps run.
+  """
+  if learn and greedy:
+    raise ValueError("taxi_hpg.train: greedy runs do not learn; pass learn=False")
+  state = scratch_int[0:5]
+  episode = scratch_int[5:8]
+  index = scratch_int[8:12]
+  probs = scratch_float[0:4]
+  psi = scratch_float[4:8]
+  alphas = scratch_float[8:13]
+  total_steps = 0
+  for e in range(n_episodes):
+    if starts.shape[0] > 0:
+      for i in range(5):
+        state[i] = starts[e % starts.shape[0], i]
+    else:
+      _taxi.sample_start(rng_state, world, state)
+    for i in range(3):
+      episode[i] = 0
+    step_sizes(schedule, first_episode + e, alphas)
+    ret = run_episode(root, get, put, refuel, nav, state, episode, world, alphas, gammas, values,
+                      betas, learn, greedy, rng_state, mask, probs, index, psi)
+    record[e, RETURN] = ret
+    record[e, STEPS] = episode[rules.E_STEPS]
+    record[e, OUTCOME] = episode[rules.E_OUTCOME]
+    record[e, ILLEGAL] = episode[rules.E_ILLEGAL]
+    total_steps += episode[rules.E_STEPS]
+  return total_steps
+
+
+class HPGTables:
+  """HPG on one taxi task: its learners (`traces`, and the baselines `values`),
+  its generator, and a `run` for training and evaluation that wraps the
+  compiled `train`."""
+
+  def __init__(self, seed: int = 0, config: HPGConfig = HPGConfig(),
+               task: core.TaxiRules = None):
+    """Args:
+      seed: the integer seed of the `learners.rng` generator.
+      config: the hyper-parameters (`HPGConfig`).
+      task: the taxi task (`taxi_core.TaxiRules`; SPEC taxi-fuel if None).
+    """
+    if not isinstance(config, HPGConfig):
+      raise ValueError(f"HPGTables: config must be an HPGConfig, got {type(config).__name__}")
+    self.task = task if task is not None else core.TaxiRules()
+    self.world = rules.world_config(self.task)
+    self.config = config
+    self.rng_state = rng.make_state(seed)
+    self.traces = new_traces(self.task.fuel_enabled, self.task.capacity, config.initial)
+    self.values = new_values(self.task.fuel_enabled, self.task.capacity)   # the baselines
+    self.episodes = 0          # learning episodes so far (they drive the step-size warm-up)
+    self.primitive_steps = 0   # primitive steps of learning so far
+
+  def run(self, n_episodes: int, learn: bool = True, greedy: bool = False, starts=None):
+    """`n_episodes` episodes; returns the (n_episodes, N_RECORD) record.
+
+    learn=True trains; learn=False evaluates the current policies, sampling
+    from them or, with greedy=True, taking each subtask's most probable child.
+    `starts`: None for random starts (SPEC section 5), or one state
+    `[row, col, passenger, destination, fuel]` or a list of them, used in turn.
+    """
+    if not isinstance(n_episodes, (int, np.integer)) or n_episodes < 0:
+      raise ValueError(f"HPGTables.run: n_episodes must be an integer >= 0, got {n_episodes!r}")
+    if learn and greedy:
+      raise ValueError("HPGTables.run: greedy=True evaluates without learning; pass learn=False")
+    start = np.zeros((0, 5), dtype=np.int64)
+    if starts is not None:
+      rows = np.asarray(starts)
+      rows = rows[None] if rows.ndim == 1 else rows
+      start = np.array([self.task.check_state(row) for row in rows], dtype=np.int64)
+      start = start.reshape(-1, 5)
+    record = np.zeros((int(n_episodes), N_RECORD))
+    steps = train(int(n_episodes), bool(learn), bool(greedy), self.rng_state, self.world,
+                  *self.traces, self.config.schedule(), self.episodes, self.config.gammas(),
+                  self.values, self.config.betas(), record, start, np.zeros(12, dtype=np.int64),
+                  np.zeros(13), np.zeros(rules.MAX_CHILDREN, dtype=np.bool_))
+    if learn:
+      self.episodes += int(n_episodes)
+      self.primitive_steps += int(steps)
+    return record
+
+  def policy_tables(self):
+    """Each subtask's current parameters, an (abstract states, children) table."""
+    return tuple(policy_table(t, rules.N_CHILDREN[i]) for i, t in enumerate(self.traces))
+
+
+class _BaselinedSoftmax(learners.SoftmaxPolicyGradient):
+  """The Gibbs learner with the compiled loop's baseline b(s) (`train`):
+  Eq. 3, plus theta <- theta - alpha b(s) psi(s, a) for each choice and a TD(0)
+  step of b when the child returns, by the same compiled functions.
+
+  theta <- theta - alpha b(s) psi(s, a) is applied when the child returns, not
+  at the choice as in the compiled loop: the child never touches this
+  subtask's parameters, so the numbers are the same, and only then does the
+  executor say whether it is learning.
+  """
+
+  def __init__(self, n_states, n_actions, values, beta):
+    super().__init__(n_states, n_actions, alpha=1.0)
+    self.values = values      # the compiled loop's baseline table (shared)
+    self.beta = float(beta)
+    self._here = 0
+    self._mask = self._all
+
+  def act(self, features, mask, rng_state, sample):
+    self._here = int(features)
+    self._mask = self._all if mask is None else mask
+    return super().act(features, mask, rng_state, sample)
+
+  def observe(self, signal, next_features, done, terminal, learn):
+    subtract_baseline(self.trace["w"], self.values, self._here, self.n_actions,
+                                    self._mask, learn, self.alpha, self._index, self._psi)
+    super().observe(signal, next_features, done, terminal, learn)
+    learn_baseline(self.values, self._here, learn, self.beta, signal, done,
+                                 0 if next_features is None else int(next_features))
+
+
+class TaxiHierarchy:
+  """The task graph over an `HPGTables`'s learners (shared arrays)."""
+
+  def __init__(self, hpg: HPGTables):
+    self.hpg = hpg
+    self.world = hpg.world
+    sizes = rules.n_abstract_states(hpg.task.fuel_enabled, hpg.task.capacity)
+    self.learners = []
+    betas = hpg.config.betas()
+    for i, trace in enumerate(hpg.traces):
+      learner = _BaselinedSoftmax(sizes[i], rules.N_CHILDREN[i], hpg.values[i], betas[i])
+      learner.trace = dict(zip(_TRACE_KEYS, trace))       # the compiled loop's arrays
+      learner.gamma = float(hpg.config.gammas()[i])
+      self.learners.append(learner)
+    self._alphas = np.zeros(rules.N_SUBTASKS)
+    self._state = np.zeros(5, dtype=np.int64)
+
+  def _s(self, obs):
+    return taxi_hierarchy.rules_state(obs, self.hpg.task.fuel_enabled, self._state)
+
+  def graph(self):
+    w = self.world
+    views = {
+        rules.ROOT: lambda call, obs: int(rules.root_state(self._s(obs), w)),
+        rules.NAVIGATE: lambda call, obs: int(rules.navigate_state(call.args["target"],
+                                                                   self._s(obs))),
+    }
+    for i in (rules.GET, rules.PUT, rules.REFUEL):
+      views[i] = lambda call, obs, i=i: int(rules.carry_state(i, self._s(obs)))
+    return taxi_hierarchy.taxi_graph(w, self.learners, self._s, views.__getitem__)
+
 
 LEVELS = ("root", "carry", "navigate")
-_TRACE_KEYS = ("w", "zs", "y", "touched", "marked", "count", "acc")
 
 
 def _level(alpha, start_fraction, delay, ramp, doc):
@@ -63,9 +577,9 @@ class TaxiHPG(_taxi.TaxiAgent):
       kwargs.update({f"alpha_{level}": sec.alpha, f"start_{level}": sec.start_fraction,
                      f"delay_{level}": sec.delay, f"ramp_{level}": sec.ramp,
                      f"gamma_{level}": sec.trace_gamma, f"baseline_{level}": sec.baseline})
-    self._adopt(taxi_compiled.TaxiHPG(seed=seed, config=taxi_compiled.HPGConfig(**kwargs),
+    self._adopt(HPGTables(seed=seed, config=HPGConfig(**kwargs),
                                       task=self.rules))
-    self.hierarchy = taxi_hierarchy.TaxiHierarchy(self.engine)
+    self.hierarchy = TaxiHierarchy(self.engine)
     self._schedule = self.engine.config.schedule()
     self._alphas = np.zeros(len(self.hierarchy.learners))
 
@@ -88,6 +602,6 @@ class TaxiHPG(_taxi.TaxiAgent):
     return self.hierarchy.graph()
 
   def begin_episode(self, learn):
-    taxi_compiled.step_sizes(self._schedule, self.engine.episodes, self._alphas)
+    step_sizes(self._schedule, self.engine.episodes, self._alphas)
     for learner, alpha in zip(self.hierarchy.learners, self._alphas):
       learner.alpha = float(alpha)

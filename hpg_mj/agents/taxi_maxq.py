@@ -1,19 +1,735 @@
-"""MAXQ-Q (Dietterich 2000) on taxi-fuel over the task graph of SPEC section 5: a
-baseline of HPG (tag "baseline"). The fused loop is `baselines.taxi_maxq.train`;
-the step-by-step path runs the same compiled rules through `MAXQNode` learners on
-the shared taxi graph (`hierarchy.taxi.taxi_graph`), below. A node's choice needs
-its children's values, which MAXQ evaluates recursively down the graph, so a node
-sees the full state (its view is `(t, state)`) and abstracts it itself.
+"""MAXQ-Q (Dietterich 2000) on taxi-fuel, over the task graph of `taxi_rules`.
+
+Each subtask i keeps two completion functions over its abstract state and
+children: C~(i, s, a), learned with i's pseudo-reward, which picks i's children,
+and C(i, s, a) without it, which gives i's value to its parent. Primitive
+actions keep V(a, s). Values are evaluated recursively (MAXQ's decomposition):
+
+    V(i, s) = V(a*, s) + C(i, s, a*),  a* = argmax_a [V(a, s) + C~(i, s, a)]
+    V(i, s) = 0 when i has terminated in s, or the episode has ended.
+
+When child a of i, chosen in s, returns in s':
+    C~(i, s, a) <- (1 - alpha_i) C~(i, s, a) + alpha_i [C~(i, s', a') + V(a', s')]
+    C(i, s, a)  <- (1 - alpha_i) C(i, s, a)  + alpha_i [C(i, s', a') + V(a', s')]
+with a' = argmax_a' [V(a', s') + C~(i, s', a')]; the targets are i's
+pseudo-reward and 0 when i terminated in s', and 0 when the episode ended
+(delivery, empty tank); a 200-step truncation bootstraps. A primitive a learns
+V(a, s) <- (1 - alpha) V(a, s) + alpha r.
+
+All-states updating (Dietterich's enhancement of MAXQ-Q): a child run from s
+visits s = s_1, ..., s_k before it returns in s'; started in any s_j it would
+have ended in the same s', so C(i, s_j, a) gets the same target for every j.
+It multiplies the experience of the upper subtasks by the length of their
+children's runs (`MAXQConfig.all_states`).
+
+Exploration is epsilon-greedy in every subtask, each level's epsilon decaying
+linearly to 0, bottom-up (see `MAXQConfig`); greedy choices break ties at
+random; Root's completions start optimistic.
+
+State abstraction (MAXQ's, chosen so that every abstraction is safe: a
+subtask's values and completions are exact functions of its abstract state, so
+MAXQ-Q can converge to the recursively optimal values; `exact_values` computes
+them, and raises if an abstraction were not safe):
+
+- V(a, s) sees the classic state and whether the tank is empty: a primitive's
+  reward depends on the fuel only through -20 on an empty tank.
+- Navigate(t) sees (t, row, col, fuel): 5 * 25 * 13 states.
+- Get sees (row, col, passenger station, fuel), Put (row, col, destination,
+  fuel), Refuel (row, col, fuel).
+- Root sees the full state (6,500 with fuel, 500 without).
+
+Fuel appears in every subtask's view, unlike HPG's policies (`taxi_rules`): an
+empty tank ends the episode inside any subtask, with -20, and a fuel-blind
+V(Get, s) would hide that from Root. Root sees the destination while the
+passenger waits: C(Root, s, Get) is the value of the ride that follows, which
+depends on it. With these the recursively optimal policy is optimal: its
+V(Root, s) is V*(s) on every start, 6.14458 on average with fuel, 7.93 without.
+With the defaults (those of tasks/taxi_fuel_maxq.toml), the last 1,000 of 100,000
+training episodes average 97.8% of 6.14458 (seeds 0-4: 97.8, 98.3, 99.5, 97.0,
+96.5%), and the trailing 1,000-episode mean first reaches 95% after about 0.21
+million primitive steps (seeds 0-9).
+
+One implementation: the fused loop (`train`) and the per-subtask learners of
+`hpg_mj.agents.taxi_maxq` (the task-graph path) call the same compiled
+rules - `choose`, `update_primitive`, `update_completion` - on the same arrays.
+Randomness (`learners.rng`): per episode the start (`agents._taxi.sample_start`),
+then per choice of any subtask, when sampling (training), one uniform (explore or not),
+and one randint when it explores or when the best children tie.
+
+Speed (about 6 million primitive steps per second learning, `hpg-mj bench
+train`): as in `taxi_hpg`, the graph's fixed depth gives one function per
+level (`run_navigate`, `run_carry`, `run_episode`; `navigate_value`,
+`carry_value`, `root_scores` for the recursive values), compiled without
+reference counting (`_nrt=False`) and allocating nothing: the scratch arrays
+come from the caller. Navigate's rules are inlined into its loop, and Get's,
+Put's and Refuel's values into Root's; the upper levels call `choose_child` and
+`learn_completion`, the same rules as called functions. Inlining more would
+make the first compile take minutes (everything is cached afterwards).
+
+This module holds all of MAXQ-Q: the configuration, the fused loop, the
+step-by-step nodes (below) and the agent, a baseline of HPG (tag "baseline").
 """
+
 import dataclasses
 
+import numba
 import numpy as np
 
 from hpg_mj.agents import _taxi
 from hpg_mj.agents.taskfile import param
-from hpg_mj.baselines import taxi_maxq as mq
 from hpg_mj.hierarchy import taxi
 from hpg_mj.hierarchy import taxi_rules as rules
+from hpg_mj.learners import rng
+from hpg_mj.learners import schedules
+from hpg_mj.worlds import taxi_core as core
+
+# Per-episode record columns, as taxi_flat_q's.
+RETURN, STEPS, OUTCOME = 0, 1, 2
+N_RECORD = 3
+N_PRIMITIVES = core.NUM_ACTIONS_FUEL      # V(a, s) columns (the classic taxi leaves Fillup 0)
+
+# Levels of the graph, for scratch rows and per-level settings: Navigate 0,
+# Get/Put/Refuel 1, Root 2.
+LEVEL = (2, 1, 1, 1, 0)                   # by subtask id
+N_LEVELS = 3
+
+# Rows of the per-subtask settings array (`MAXQConfig.settings`).
+P_ALPHA, P_PSEUDO_REWARD, P_EPSILON_START, P_EPSILON_END, P_EPSILON_EPISODES = range(5)
+
+
+@dataclasses.dataclass(frozen=True)
+class MAXQConfig:
+  """MAXQ-Q's hyper-parameters, by level: Root; Get, Put and Refuel ("carry");
+  Navigate(t); and the primitives' V(a, s)."""
+  alpha_root: float = 1.0            # completion step sizes: the taxi is deterministic,
+  alpha_carry: float = 1.0           #   and once the children are greedy so is every target
+  alpha_navigate: float = 1.0
+  alpha_primitive: float = 1.0       # V(a, s)
+  # Epsilon-greedy, decaying linearly from epsilon_* to 0 over epsilon_episodes_*,
+  # bottom-up: a parent learns C from its children's actual runs, so a child's
+  # exploration writes wrong completions into its parent (an exploring Navigate
+  # that runs the tank dry on the way teaches Put that the way is fatal). Each
+  # level keeps exploring after the one below has turned greedy, to repair them.
+  # Root starts fully random: it decides a few times an episode, so exploring
+  # there is cheap, and it has 6,500 rows to visit (tasks/taxi_fuel_maxq.toml).
+  epsilon_root: float = 1.0
+  epsilon_carry: float = 0.1
+  epsilon_navigate: float = 0.1
+  epsilon_episodes_root: int = 14_000
+  epsilon_episodes_carry: int = 6_000
+  epsilon_episodes_navigate: int = 1_000
+  pseudo_reward_carry: float = 0.0   # C~'s reward when Get, Put or Refuel terminates
+  pseudo_reward_navigate: float = 0.0  # ... when Navigate(t) reaches t
+  initial_root: float = 20.0         # C~ and C before learning: Root's optimism explores
+  initial_carry: float = 0.0
+  initial_navigate: float = 0.0
+  all_states: bool = True            # all-states updating (module docstring)
+
+  def __post_init__(self):
+    for level in ("root", "carry", "navigate", "primitive"):
+      alpha = getattr(self, "alpha_" + level)
+      if not 0.0 < alpha <= 1.0:
+        raise ValueError(f"MAXQConfig: alpha_{level} must be in (0, 1], got {alpha!r}")
+    for level in ("root", "carry", "navigate"):
+      epsilon = getattr(self, "epsilon_" + level)
+      if not 0.0 <= epsilon <= 1.0:
+        raise ValueError(f"MAXQConfig: epsilon_{level} must be in [0, 1], got {epsilon!r}")
+      episodes = getattr(self, "epsilon_episodes_" + level)
+      if not isinstance(episodes, (int, np.integer)) or episodes < 0:
+        raise ValueError(f"MAXQConfig: epsilon_episodes_{level} must be an integer >= 0, "
+                         f"got {episodes!r}")
+    for name in ("pseudo_reward_carry", "pseudo_reward_navigate", "initial_root",
+                 "initial_carry", "initial_navigate"):
+      if not np.isfinite(getattr(self, name)):
+        raise ValueError(f"MAXQConfig: {name} must be finite, got {getattr(self, name)!r}")
+
+  def settings(self) -> np.ndarray:
+    """float64[5, 5]: rows P_* by subtask id (Root, Get, Put, Refuel, Navigate)."""
+    def by_subtask(name, root_value=None):
+      root = getattr(self, f"{name}_root") if root_value is None else root_value
+      carry, navigate = getattr(self, f"{name}_carry"), getattr(self, f"{name}_navigate")
+      return [root, carry, carry, carry, navigate]
+    return np.array([by_subtask("alpha"), by_subtask("pseudo_reward", 0.0),
+                     by_subtask("epsilon"), [0.0] * 5, by_subtask("epsilon_episodes")],
+                    dtype=np.float64)
+
+
+def table_sizes(fuel_enabled: bool = True, capacity: int = core.FUEL_CAPACITY):
+  """Rows (abstract states) of each subtask's completion tables, by subtask id."""
+  levels = capacity + 1 if fuel_enabled else 1
+  classic = rules.n_abstract_states(False)
+  return (core.num_states(fuel_enabled, capacity),) + tuple(n * levels for n in classic[1:])
+
+
+def table_offsets(fuel_enabled: bool = True, capacity: int = core.FUEL_CAPACITY):
+  """int64[6]: subtask i's completions are entries offsets[i]:offsets[i + 1] of the
+  flat C~ and C arrays, row-major over (abstract state, child)."""
+  sizes = table_sizes(fuel_enabled, capacity)
+  return np.concatenate([[0], np.cumsum([sizes[i] * rules.N_CHILDREN[i]
+                                         for i in range(rules.N_SUBTASKS)])]).astype(np.int64)
+
+
+def new_tables(fuel_enabled: bool = True, capacity: int = core.FUEL_CAPACITY):
+  """(V, C~, C, offsets): V(a, s) float64[states * 7]; C~ and C flat over the subtasks."""
+  offsets = table_offsets(fuel_enabled, capacity)
+  return (np.zeros(n_primitive_states(fuel_enabled) * N_PRIMITIVES),
+          np.zeros(offsets[-1]), np.zeros(offsets[-1]), offsets)
+
+
+def completion_table(flat, offsets, subtask):
+  """Subtask i's part of a flat C~ or C array as an (abstract states, children) view."""
+  return flat[offsets[subtask]:offsets[subtask + 1]].reshape(-1, rules.N_CHILDREN[subtask])
+
+
+def new_scratch():
+  """The scratch arrays the compiled functions write in (nothing there allocates):
+  q, v float64[levels, children], mask bool[levels, children]."""
+  return (np.zeros((N_LEVELS, rules.MAX_CHILDREN)), np.zeros((N_LEVELS, rules.MAX_CHILDREN)),
+          np.zeros((N_LEVELS, rules.MAX_CHILDREN), dtype=np.bool_))
+
+
+# --- abstraction, initiation, termination ------------------------------------------
+
+@numba.njit(cache=True, inline="always")
+def full_state(state, world):
+  """The full state's index (`taxi_core.encode_state`): Root's rows."""
+  return core.encode_state(state[rules.ROW], state[rules.COL], state[rules.PASSENGER],
+                           state[rules.DESTINATION], state[rules.FUEL],
+                           world[rules.W_FUEL_ENABLED] != 0)
+
+
+def n_primitive_states(fuel_enabled: bool = True):
+  """Rows of V(a, s): the classic state, and with fuel whether the tank is empty."""
+  return core.NUM_CLASSIC_STATES * (2 if fuel_enabled else 1)
+
+
+@numba.njit(cache=True, inline="always")
+def primitive_state(state, world):
+  """The primitives' abstract state, V(a, s)'s row: a primitive's reward depends on
+  the fuel only through an empty tank (-20), so the level itself is left out
+  (Dietterich's leaf irrelevance)."""
+  s = core.encode_state(state[rules.ROW], state[rules.COL], state[rules.PASSENGER],
+                        state[rules.DESTINATION], 0, False)
+  if world[rules.W_FUEL_ENABLED] != 0:
+    return s * 2 + (state[rules.FUEL] == 0)
+  return s
+
+
+@numba.njit(cache=True, inline="always")
+def abstract_state(subtask, target, state, world):
+  """The subtask's row in its completion tables (module docstring): `taxi_rules`'
+  abstraction with the fuel level added, and the full state for Root."""
+  if subtask == rules.ROOT:
+    return full_state(state, world)
+  levels = 1
+  fuel = 0
+  if world[rules.W_FUEL_ENABLED] != 0:
+    levels = world[rules.W_CAPACITY] + 1
+    fuel = state[rules.FUEL]
+  if subtask == rules.NAVIGATE:
+    return rules.navigate_state(target, state) * levels + fuel
+  return rules.carry_state(subtask, state) * levels + fuel
+
+
+@numba.njit(cache=True, inline="always")
+def terminated(subtask, target, state, world):
+  """Has the subtask terminated in `state` (MAXQ's termination, `taxi_rules`)?"""
+  if subtask == rules.NAVIGATE:
+    return rules.navigate_done(target, state, world)
+  if subtask == rules.ROOT:
+    return False
+  return rules.carry_done(subtask, state, world)
+
+
+@numba.njit(cache=True, inline="always")
+def available(subtask, state, world, mask):
+  """The children available in `state` (`taxi_rules`' initiation) into mask[:n]."""
+  if subtask == rules.ROOT:
+    rules.root_children(state, world, mask)
+  elif subtask == rules.NAVIGATE:
+    rules.navigate_children(mask)
+  else:
+    rules.carry_children(subtask, state, world, mask)
+
+
+@numba.njit(cache=True, inline="always")
+def episode_ended(episode):
+  """A delivery or an empty tank ends the episode; a truncation does not (SPEC 5)."""
+  o = episode[rules.E_OUTCOME]
+  return o == rules.DELIVERED or o == rules.OUT_OF_FUEL
+
+
+@numba.njit(cache=True, inline="always")
+def greedy(q, mask, n):
+  """The first best available index of q[:n] (the values' a*: any tie gives the same value)."""
+  best = -np.inf
+  first = -1
+  for a in range(n):
+    if mask[a] and q[a] > best:
+      best = q[a]
+      first = a
+  return first
+
+
+@numba.njit(cache=True, inline="always")
+def greedy_random_ties(q, mask, n, rng_state):
+  """The best available index of q[:n], one of the ties at random (one randint,
+  only when there is a tie)."""
+  first = greedy(q, mask, n)
+  ties = 0
+  for a in range(first, n):
+    ties += mask[a] and q[a] == q[first]
+  if ties < 2:
+    return first
+  pick = rng.randint(rng_state, ties)
+  for a in range(first, n):
+    if mask[a] and q[a] == q[first]:
+      if pick == 0:
+        return a
+      pick -= 1
+  return first
+
+
+# --- values: one function per level (the graph's depth is fixed) --------------------
+# `*_scores` fill, for every available child a of the subtask in `state`, the
+# level's scratch rows: v = V(a, s) and q = V(a, s) + C~(i, s, a). They return
+# the subtask's row offset in the flat tables.
+
+@numba.njit(cache=True, inline="always")
+def navigate_scores(target, state, world, values, c_tilde, offsets, q, v, mask):
+  n = rules.N_CHILDREN[rules.NAVIGATE]
+  lv = LEVEL[rules.NAVIGATE]
+  available(rules.NAVIGATE, state, world, mask[lv])
+  s = primitive_state(state, world) * N_PRIMITIVES
+  base = offsets[rules.NAVIGATE] + abstract_state(rules.NAVIGATE, target, state, world) * n
+  for a in range(n):
+    v[lv, a] = values[s + a]                   # Navigate's child index is the move's action
+    q[lv, a] = v[lv, a] + c_tilde[base + a]
+  return base
+
+
+@numba.njit(cache=True, inline="always")
+def navigate_value(target, state, world, values, c_tilde, c, offsets, q, v, mask):
+  """V(Navigate(t), s)."""
+  if rules.navigate_done(target, state, world):
+    return 0.0
+  lv = LEVEL[rules.NAVIGATE]
+  base = navigate_scores(target, state, world, values, c_tilde, offsets, q, v, mask)
+  a = greedy(q[lv], mask[lv], rules.N_CHILDREN[rules.NAVIGATE])
+  return v[lv, a] + c[base + a]
+
+
+@numba.njit(cache=True, inline="always")
+def carry_scores(subtask, state, world, values, c_tilde, c, offsets, q, v, mask):
+  n = rules.N_CHILDREN[subtask]
+  lv = LEVEL[subtask]
+  available(subtask, state, world, mask[lv])
+  base = offsets[subtask] + abstract_state(subtask, 0, state, world) * n
+  for a in range(n):
+    if mask[lv, a]:
+      if a == rules.CARRY_PRIMITIVE:
+        v[lv, a] = values[primitive_state(state, world) * N_PRIMITIVES
+                          + rules.carry_primitive(subtask)]
+      else:
+        v[lv, a] = navigate_value(rules.carry_target(subtask, state), state, world, values,
+                                  c_tilde, c, offsets, q, v, mask)
+      q[lv, a] = v[lv, a] + c_tilde[base + a]
+  return base
+
+
+@numba.njit(cache=True, inline="always")
+def carry_value(subtask, state, world, values, c_tilde, c, offsets, q, v, mask):
+  """V(Get / Put / Refuel, s)."""
+  if rules.carry_done(subtask, state, world):
+    return 0.0
+  lv = LEVEL[subtask]
+  base = carry_scores(subtask, state, world, values, c_tilde, c, offsets, q, v, mask)
+  a = greedy(q[lv], mask[lv], rules.N_CHILDREN[subtask])
+  return v[lv, a] + c[base + a]
+
+
+@numba.njit(cache=True, _nrt=False)
+def carry_scores_call(subtask, state, world, values, c_tilde, c, offsets, q, v, mask):
+  """`carry_scores` as a called function (it is inlined into `root_scores`)."""
+  return carry_scores(subtask, state, world, values, c_tilde, c, offsets, q, v, mask)
+
+
+@numba.njit(cache=True, _nrt=False)
+def root_scores(state, world, values, c_tilde, c, offsets, q, v, mask):
+  n = rules.N_CHILDREN[rules.ROOT]
+  lv = LEVEL[rules.ROOT]
+  available(rules.ROOT, state, world, mask[lv])
+  base = offsets[rules.ROOT] + abstract_state(rules.ROOT, 0, state, world) * n
+  for a in range(n):
+    if mask[lv, a]:
+      v[lv, a] = carry_value(a + 1, state, world, values, c_tilde, c, offsets, q, v, mask)
+      q[lv, a] = v[lv, a] + c_tilde[base + a]
+  return base
+
+
+@numba.njit(cache=True, inline="always")
+def scores(subtask, target, state, world, values, c_tilde, c, offsets, q, v, mask):
+  """The subtask's scores in its level's scratch rows; returns its row offset."""
+  if subtask == rules.NAVIGATE:
+    return navigate_scores(target, state, world, values, c_tilde, offsets, q, v, mask)
+  if subtask == rules.ROOT:
+    return root_scores(state, world, values, c_tilde, c, offsets, q, v, mask)
+  return carry_scores_call(subtask, state, world, values, c_tilde, c, offsets, q, v, mask)
+
+
+# --- the rules the two paths share ----------------------------------------------------
+
+@numba.njit(cache=True, inline="always")
+def choose(subtask, target, state, world, values, c_tilde, c, offsets, epsilon, sample,
+           rng_state, q, v, mask):
+  """Epsilon-greedy choice of a child of `subtask` in `state` (greedy if not
+  `sample`): one uniform when sampling; a randint to explore or to break a tie."""
+  n = rules.N_CHILDREN[subtask]
+  lv = LEVEL[subtask]
+  if sample and rng.uniform(rng_state) < epsilon:
+    available(subtask, state, world, mask[lv])
+    k = 0
+    for a in range(n):
+      k += mask[lv, a]
+    pick = rng.randint(rng_state, k)
+    for a in range(n):
+      if mask[lv, a]:
+        if pick == 0:
+          return a
+        pick -= 1
+  scores(subtask, target, state, world, values, c_tilde, c, offsets, q, v, mask)
+  return greedy_random_ties(q[lv], mask[lv], n, rng_state)
+
+
+@numba.njit(cache=True, inline="always")
+def update_primitive(values, index, reward, alpha):
+  """V(a, s) <- (1 - alpha) V(a, s) + alpha r, at index = full state * 7 + a."""
+  values[index] = (1.0 - alpha) * values[index] + alpha * reward
+
+
+@numba.njit(cache=True, inline="always")
+def update_completion(subtask, target, child, path, first, last, after, ended, world, values,
+                      c_tilde, c, offsets, settings, all_states, q, v, mask):
+  """Dietterich's update of C~(i, s, a) and C(i, s, a) after child a of subtask i,
+  chosen in s = path[first], returned in `after` (`ended`: the episode ended).
+  With `all_states`, every state path[first:last] the child's run visited gets
+  the same target (module docstring)."""
+  alpha = settings[P_ALPHA, subtask]
+  if ended:
+    tilde = 0.0
+    plain = 0.0
+  elif terminated(subtask, target, after, world):
+    tilde = settings[P_PSEUDO_REWARD, subtask]
+    plain = 0.0
+  else:
+    lv = LEVEL[subtask]
+    base = scores(subtask, target, after, world, values, c_tilde, c, offsets, q, v, mask)
+    a = greedy(q[lv], mask[lv], rules.N_CHILDREN[subtask])
+    tilde = c_tilde[base + a] + v[lv, a]
+    plain = c[base + a] + v[lv, a]
+  n = rules.N_CHILDREN[subtask]
+  stop = last if all_states else first + 1
+  for j in range(first, stop):
+    i = offsets[subtask] + abstract_state(subtask, target, path[j], world) * n + child
+    c_tilde[i] = (1.0 - alpha) * c_tilde[i] + alpha * tilde
+    c[i] = (1.0 - alpha) * c[i] + alpha * plain
+
+
+@numba.njit(cache=True, _nrt=False)
+def choose_child(subtask, target, state, world, values, c_tilde, c, offsets, epsilon, sample,
+                 rng_state, q, v, mask):
+  """`choose` as a called function (`choose` itself is inlined into Navigate's loop)."""
+  return choose(subtask, target, state, world, values, c_tilde, c, offsets, epsilon, sample,
+                rng_state, q, v, mask)
+
+
+@numba.njit(cache=True, _nrt=False)
+def learn_completion(subtask, target, child, path, first, last, after, ended, world, values,
+                     c_tilde, c, offsets, settings, all_states, q, v, mask):
+  """`update_completion` as a called function (inlined into Navigate's loop)."""
+  update_completion(subtask, target, child, path, first, last, after, ended, world, values,
+                    c_tilde, c, offsets, settings, all_states, q, v, mask)
+
+
+@numba.njit(cache=True, inline="always")
+def record_state(path, state, steps):
+  """path[steps] <- state: the state a primitive is taken in (all-states updating)."""
+  for k in range(5):
+    path[steps, k] = state[k]
+
+
+@numba.njit(cache=True, inline="always")
+def epsilons_at(settings, episode_index, epsilons):
+  """Each subtask's epsilon for learning episode e: linear from its start to its end."""
+  for i in range(epsilons.shape[0]):
+    epsilons[i] = schedules.linear(episode_index, settings[P_EPSILON_START, i],
+                                   settings[P_EPSILON_END, i], settings[P_EPSILON_EPISODES, i])
+
+
+# --- the fused loop: Algorithm 1's stack discipline, one function per level -----------
+
+@numba.njit(cache=True, _nrt=False)
+def run_navigate(target, state, episode, world, values, c_tilde, c, offsets, settings,
+                 epsilons, alpha_primitive, all_states, learn, sample, rng_state, path, q, v,
+                 mask):
+  """One call of Navigate(target); returns the rewards earned."""
+  total = 0.0
+  while not rules.episode_over(episode) and not rules.navigate_done(target, state, world):
+    a = choose(rules.NAVIGATE, target, state, world, values, c_tilde, c, offsets,
+               epsilons[rules.NAVIGATE], sample, rng_state, q, v, mask)
+    first = episode[rules.E_STEPS]
+    record_state(path, state, first)
+    s = primitive_state(state, world)
+    reward = rules.primitive_step(state, episode, a, world)
+    if learn:
+      update_primitive(values, s * N_PRIMITIVES + a, reward, alpha_primitive)
+      update_completion(rules.NAVIGATE, target, a, path, first, first + 1, state,
+                        episode_ended(episode), world, values, c_tilde, c, offsets, settings,
+                        all_states, q, v, mask)
+    total += reward
+  return total
+
+
+@numba.njit(cache=True, _nrt=False)
+def run_carry(subtask, state, episode, world, values, c_tilde, c, offsets, settings, epsilons,
+              alpha_primitive, all_states, learn, sample, rng_state, path, q, v, mask):
+  """One call of Get, Put or Refuel; returns the rewards earned."""
+  total = 0.0
+  while not rules.episode_over(episode) and not rules.carry_done(subtask, state, world):
+    a = choose_child(subtask, 0, state, world, values, c_tilde, c, offsets,
+                     epsilons[subtask], sample, rng_state, q, v, mask)
+    first = episode[rules.E_STEPS]
+    if a == rules.CARRY_PRIMITIVE:
+      action = rules.carry_primitive(subtask)
+      record_state(path, state, first)
+      s = primitive_state(state, world)
+      reward = rules.primitive_step(state, episode, action, world)
+      if learn:
+        update_primitive(values, s * N_PRIMITIVES + action, reward, alpha_primitive)
+    else:
+      reward = run_navigate(rules.carry_target(subtask, state), state, episode, world, values,
+                            c_tilde, c, offsets, settings, epsilons, alpha_primitive, all_states,
+                            learn, sample, rng_state, path, q, v, mask)
+    if learn:
+      learn_completion(subtask, 0, a, path, first, episode[rules.E_STEPS], state,
+                       episode_ended(episode), world, values, c_tilde, c, offsets, settings,
+                       all_states, q, v, mask)
+    total += reward
+  return total
+
+
+@numba.njit(cache=True, _nrt=False)
+def run_episode(state, episode, world, values, c_tilde, c, offsets, settings, epsilons,
+                alpha_primitive, all_states, learn, sample, rng_state, path, q, v, mask):
+  """One call of Root: the whole episode from `state`; returns its return."""
+  total = 0.0
+  while not rules.episode_over(episode):
+    a = choose_child(rules.ROOT, 0, state, world, values, c_tilde, c, offsets,
+                     epsilons[rules.ROOT], sample, rng_state, q, v, mask)
+    first = episode[rules.E_STEPS]
+    reward = run_carry(a + 1, state, episode, world, values, c_tilde, c, offsets, settings,
+                       epsilons, alpha_primitive, all_states, learn, sample, rng_state, path, q,
+                       v, mask)
+    if learn:
+      learn_completion(rules.ROOT, 0, a, path, first, episode[rules.E_STEPS], state,
+                       episode_ended(episode), world, values, c_tilde, c, offsets, settings,
+                       all_states, q, v, mask)
+    total += reward
+  return total
+
+
+@numba.njit(cache=True, _nrt=False)
+def train(n_episodes, first_episode, learn, sample, rng_state, world, values, c_tilde, c,
+          offsets, settings, alpha_primitive, all_states, record, scratch_int, path, epsilons,
+          q, v, mask):
+  """MAXQ-Q for `n_episodes` from random starts (SPEC section 5): learning
+  (`learn`), exploring by each subtask's epsilon (`sample`) or greedy.
+
+  `first_episode` places the episodes on the epsilon schedule; `record`
+  (n_episodes, N_RECORD) receives one row per episode. Scratch (nothing here
+  allocates): `scratch_int` int64[8], `path` int64[max_steps, 5], `epsilons`
+  float64[5], and `new_scratch()`'s q, v, mask. Returns the primitive steps run.
+  """
+  state = scratch_int[0:5]
+  episode = scratch_int[5:8]
+  total_steps = 0
+  for e in range(n_episodes):
+    _taxi.sample_start(rng_state, world, state)
+    for i in range(3):
+      episode[i] = 0
+    epsilons_at(settings, first_episode + e, epsilons)
+    ret = run_episode(state, episode, world, values, c_tilde, c, offsets, settings, epsilons,
+                      alpha_primitive, all_states, learn, sample, rng_state, path, q, v, mask)
+    record[e, RETURN] = ret
+    record[e, STEPS] = episode[rules.E_STEPS]
+    record[e, OUTCOME] = episode[rules.E_OUTCOME]
+    total_steps += episode[rules.E_STEPS]
+  return total_steps
+
+
+class MAXQTables:
+  """MAXQ-Q on one taxi task: its tables, its generator, and `run`, which wraps
+  the compiled `train`."""
+
+  def __init__(self, seed: int = 0, config: MAXQConfig = MAXQConfig(),
+               task: core.TaxiRules = None):
+    if not isinstance(config, MAXQConfig):
+      raise ValueError(f"MAXQTables: config must be a MAXQConfig, got {type(config).__name__}")
+    self.task = task if task is not None else core.TaxiRules()
+    self.world = rules.world_config(self.task)
+    self.config = config
+    self.settings = config.settings()
+    self.values, self.c_tilde, self.c, self.offsets = new_tables(self.task.fuel_enabled,
+                                                                 self.task.capacity)
+    for i, level in enumerate(("root", "carry", "carry", "carry", "navigate")):
+      initial = getattr(config, "initial_" + level)
+      completion_table(self.c_tilde, self.offsets, i)[:] = initial
+      completion_table(self.c, self.offsets, i)[:] = initial
+    self.rng_state = rng.make_state(seed)
+    self.episodes = 0          # learning episodes so far (they drive the epsilon schedule)
+    self.primitive_steps = 0   # primitive steps of learning so far
+
+  def run(self, n_episodes: int, learn: bool = True, sample=None):
+    """`n_episodes` episodes from random starts; returns the (n, N_RECORD) record.
+    Learning explores (epsilon-greedy); without learning the policy is greedy
+    unless `sample`."""
+    if not isinstance(n_episodes, (int, np.integer)) or n_episodes < 0:
+      raise ValueError(f"MAXQTables.run: n_episodes must be an integer >= 0, got {n_episodes!r}")
+    sample = learn if sample is None else bool(sample or learn)
+    record = np.zeros((int(n_episodes), N_RECORD))
+    q, v, mask = new_scratch()
+    steps = train(int(n_episodes), self.episodes, bool(learn), sample, self.rng_state,
+                  self.world, self.values, self.c_tilde, self.c, self.offsets, self.settings,
+                  float(self.config.alpha_primitive), bool(self.config.all_states), record,
+                  np.zeros(8, dtype=np.int64), np.zeros((self.task.max_steps, 5), dtype=np.int64),
+                  np.zeros(rules.N_SUBTASKS), q, v, mask)
+    if learn:
+      self.episodes += int(n_episodes)
+      self.primitive_steps += int(steps)
+    return record
+
+  def completions(self, subtask: int, pseudo: bool = False):
+    """Subtask i's C (or C~ with `pseudo`) as an (abstract states, children) view."""
+    return completion_table(self.c_tilde if pseudo else self.c, self.offsets, subtask)
+
+
+# --- the exact values of the recursively optimal policy ------------------------------
+
+def exact_values(task: core.TaxiRules = None):
+  """The values MAXQ-Q converges to, computed exactly on the full state space.
+
+  Bottom-up, each subtask's SMDP is solved by value iteration over the full
+  states given its children's exact values V(a, s) and the states their
+  (greedy, first-of-ties) runs end in, as in Dietterich's recursive
+  optimality: Navigate(t) for each t, then Get, Put and Refuel, then Root.
+
+      V(i, s) = max_a [V(a, s) + C(i, s, a)],   C(i, s, a) = V(i, s'_a)
+      V(i, s) = 0 where i has terminated or the episode ended (s'_a = ended)
+
+  (zero pseudo-rewards, so C~ = C). The taxi is deterministic with integer
+  rewards, so the iterates are exact integers and stop when one repeats.
+
+  Returns `(c, known, v)`: `c` float64 in the flat layout of the learner's C
+  (`table_offsets`), `known` bool marking the entries of states where the
+  subtask can run and the child is available (the others are never updated),
+  and `v` float64[4 + 5, full states]: V(i, s) of Root, Get, Put and Refuel by
+  subtask id, then of Navigate(t) in row 4 + t. Raises ValueError if two full
+  states that share an abstract state get different completions: the
+  abstraction would not be safe.
+  """
+  from hpg_mj.worlds import taxi_values
+  task = task if task is not None else core.TaxiRules()
+  fuel = task.fuel_enabled
+  model = taxi_values.taxi_values(fuel, tuple(task.fuel_station), task.capacity)
+  world = rules.world_config(task)
+  n = model.v.shape[0]
+  ended = n                                     # the extra index: "the episode ended"
+  nxt = np.where(model.terminal, ended, model.next_state)
+  states = np.array([core.decode_state(s, fuel) for s in range(n)], dtype=np.int64)
+  offsets = table_offsets(fuel, task.capacity)
+  c = np.zeros(offsets[-1])
+  known = np.zeros(offsets[-1], dtype=np.bool_)
+  mask = np.zeros(rules.MAX_CHILDREN, dtype=np.bool_)
+
+  def by_state(fn):
+    return np.array([fn(s) for s in states])
+
+  def solve(children_value, children_result, live, done):
+    """V(i, .) and the end state of i's greedy run, over the full states (+ ended)."""
+    v = np.zeros(n + 1)
+    while True:
+      q = np.where(live, children_value + v[children_result], -np.inf)
+      new = np.where(done, 0.0, q.max(axis=1))
+      new = np.append(np.where(np.isfinite(new), new, 0.0), 0.0)
+      if np.array_equal(new, v):
+        break
+      v = new
+    best = np.argmax(q, axis=1)                  # the first of the ties, as `greedy`
+    result = np.append(np.arange(n), ended)
+    step = np.append(children_result[np.arange(n), best], ended)
+    for _ in range(n + 1):
+      new = np.where(np.append(done, True), result, result[step])
+      if np.array_equal(new, result):
+        break
+      result = new
+    return v, result
+
+  def store(subtask, target_of, q_children, live, active):
+    """C(i, s, a) = q - V(a, s) into the flat layout, checking the abstraction."""
+    k = rules.N_CHILDREN[subtask]
+    for s in np.flatnonzero(active):
+      row = offsets[subtask] + abstract_state(subtask, target_of(s), states[s], world) * k
+      for a in range(k):
+        if live[s, a]:
+          if known[row + a] and c[row + a] != q_children[s, a]:
+            raise ValueError(f"exact_values: subtask {rules.SUBTASK_NAMES[subtask]} sees two "
+                             f"completions for one abstract state (at {states[s]})")
+          c[row + a] = q_children[s, a]
+          known[row + a] = True
+
+  moves = np.arange(4)
+  nav_v, nav_result = [], []
+  for t in range(rules.N_TARGETS):
+    done = by_state(lambda s: rules.navigate_done(t, s, world))
+    live = np.ones((n, 4), dtype=np.bool_)
+    v, result = solve(model.reward[:, moves], nxt[:, moves], live, done)
+    nav_v.append(v)
+    nav_result.append(result)
+    store(rules.NAVIGATE, lambda s: t, np.where(live, v[nxt[:, moves]], 0.0), live, ~done)
+  carry_v, carry_result = {}, {}
+  waiting = states[:, rules.PASSENGER] != core.IN_TAXI
+  reachable = ~waiting | (states[:, rules.PASSENGER] != states[:, rules.DESTINATION])
+  domain = {rules.GET: waiting & reachable, rules.PUT: ~waiting,
+            rules.REFUEL: reachable if fuel else np.zeros(n, dtype=np.bool_)}
+  for subtask in (rules.GET, rules.PUT, rules.REFUEL):
+    prim = rules.carry_primitive(subtask)
+    target = by_state(lambda s: rules.carry_target(subtask, s))
+    idx = np.arange(n)
+    value = np.stack([np.array([nav_v[t][s] for s, t in zip(idx, target)]),
+                      model.reward[:, prim] if prim < model.reward.shape[1] else np.zeros(n)], 1)
+    result = np.stack([np.array([nav_result[t][s] for s, t in zip(idx, target)]),
+                       nxt[:, prim] if prim < nxt.shape[1] else np.full(n, ended)], 1)
+    done = by_state(lambda s: rules.carry_done(subtask, s, world)) | ~domain[subtask]
+
+    def live_of(s):
+      rules.carry_children(subtask, s, world, mask)
+      return mask[:2].copy()
+    live = by_state(live_of)
+    v, res = solve(value, result, live, done)
+    carry_v[subtask], carry_result[subtask] = v, res
+    store(subtask, lambda s: 0, np.where(live, v[result], 0.0), live, ~done)
+  value = np.stack([carry_v[i][:n] for i in (rules.GET, rules.PUT, rules.REFUEL)], 1)
+  result = np.stack([carry_result[i][:n] for i in (rules.GET, rules.PUT, rules.REFUEL)], 1)
+
+  def root_live(s):
+    rules.root_children(s, world, mask)
+    return mask[:3].copy()
+  live = by_state(root_live)
+  v, _ = solve(value, result, live, ~reachable)
+  store(rules.ROOT, lambda s: 0, np.where(live, v[result], 0.0), live, reachable)
+  rows = [v] + [carry_v[i] for i in (rules.GET, rules.PUT, rules.REFUEL)] + nav_v
+  return c, known, np.stack(rows)[:, :n]
+
 
 LEVELS = ("root", "carry", "navigate")
 
@@ -78,7 +794,7 @@ class MAXQNode:
   def act(self, features, mask, rng_state, sample):
     target, state = features
     h = self.shared
-    a = mq.choose_child(self.subtask, target, state, h.world, h.values, h.c_tilde, h.c,
+    a = choose_child(self.subtask, target, state, h.world, h.values, h.c_tilde, h.c,
                         h.offsets, h.epsilons[self.subtask], sample, rng_state, *h.scratch)
     self._child, self._target, self._first = a, target, int(h.cursor[0])
     self._primitive = -1
@@ -86,8 +802,8 @@ class MAXQNode:
         rules.carry_primitive(self.subtask) if a == rules.CARRY_PRIMITIVE and
         self.subtask != rules.ROOT else -1)
     if action >= 0:
-      mq.record_state(h.path, state, self._first)
-      self._primitive = mq.primitive_state(state, h.world) * mq.N_PRIMITIVES + action
+      record_state(h.path, state, self._first)
+      self._primitive = primitive_state(state, h.world) * N_PRIMITIVES + action
     return a
 
   def observe(self, signal, next_features, done, terminal, learn):
@@ -95,23 +811,23 @@ class MAXQNode:
     if self._primitive >= 0:
       h.cursor[0] += 1
       if learn:
-        mq.update_primitive(h.values, self._primitive, signal, h.alpha_primitive)
+        update_primitive(h.values, self._primitive, signal, h.alpha_primitive)
     if learn:
       ended = next_features is None                 # a delivery or an empty tank
       after = h.path[self._first] if ended else next_features[1]
-      mq.learn_completion(self.subtask, self._target, self._child, h.path, self._first,
+      learn_completion(self.subtask, self._target, self._child, h.path, self._first,
                           int(h.cursor[0]), after, ended, h.world, h.values, h.c_tilde, h.c,
                           h.offsets, h.settings, h.all_states, *h.scratch)
 
   def parameters(self):
     """This subtask's C (a copy), (abstract states, children)."""
-    return mq.completion_table(self.shared.c, self.shared.offsets, self.subtask).copy()
+    return completion_table(self.shared.c, self.shared.offsets, self.subtask).copy()
 
 
 class TaxiMAXQHierarchy:
   """The task graph over a `TaxiMAXQ`'s tables (shared arrays, same generator)."""
 
-  def __init__(self, agent: mq.TaxiMAXQ):
+  def __init__(self, agent: "MAXQTables"):
     self.agent = agent
     self.world = agent.world
     self.values, self.c_tilde, self.c, self.offsets = (agent.values, agent.c_tilde, agent.c,
@@ -120,7 +836,7 @@ class TaxiMAXQHierarchy:
     self.alpha_primitive = float(agent.config.alpha_primitive)
     self.all_states = bool(agent.config.all_states)
     self.epsilons = np.zeros(rules.N_SUBTASKS)
-    self.scratch = mq.new_scratch()
+    self.scratch = new_scratch()
     self.path = np.zeros((agent.task.max_steps, 5), dtype=np.int64)
     self.cursor = np.zeros(1, dtype=np.int64)          # primitive steps in this episode
     self.learners = [MAXQNode(i, self) for i in range(rules.N_SUBTASKS)]
@@ -155,9 +871,9 @@ class TaxiMAXQ(_taxi.TaxiAgent):
       if level != "root":
         kwargs[f"pseudo_reward_{level}"] = sec.pseudo_reward
     prim = self.config.primitive
-    config = mq.MAXQConfig(alpha_primitive=prim.alpha, all_states=prim.all_states_updating,
+    config = MAXQConfig(alpha_primitive=prim.alpha, all_states=prim.all_states_updating,
                            **kwargs)
-    self._adopt(mq.TaxiMAXQ(seed=seed, config=config, task=self.rules))
+    self._adopt(MAXQTables(seed=seed, config=config, task=self.rules))
     self.hierarchy = TaxiMAXQHierarchy(self.engine)
 
   def state(self):
@@ -176,5 +892,5 @@ class TaxiMAXQ(_taxi.TaxiAgent):
 
   def begin_episode(self, learn):
     h = self.hierarchy
-    mq.epsilons_at(h.settings, self.engine.episodes, h.epsilons)
+    epsilons_at(h.settings, self.engine.episodes, h.epsilons)
     h.cursor[0] = 0

@@ -7,7 +7,7 @@ whose learner picks the turning rate from the active CMAC tiles of the local sta
 
 `ship_graph` builds that task graph over given learners; the agent that owns
 them (`hpg_mj.agents.ship_hybrid`) runs it step by step through any ship
-environment, and its fused compiled loop (`ship_compiled`) runs the same rules.
+environment, and its fused compiled loop (`train` there) runs the same rules.
 """
 import numpy as np
 
@@ -36,7 +36,7 @@ def ship_graph(root_learner, low_learners, tile_arrays, subtask_max_steps, on_ru
     return scratch_tiles
 
   def low_internal_reward(call, step):
-    event, internal = rules.low_level_outcome(
+    event, internal = core.low_level_outcome(
         step.info["positions"], step.obs, call.memo["origin"], call.args["direction"],
         call.steps, local_samples, local, subtask_max_steps)
     call.memo["event"] = event

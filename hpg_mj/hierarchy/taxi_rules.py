@@ -14,7 +14,7 @@ t/destination), so Get, Put and Refuel each choose between two children.
 For each subtask this module gives its abstract state (MAXQ-style state
 abstraction: the index of its row in the subtask's policy table), the children
 available in a state (initiation) and its termination. Shared by the fused
-compiled loop (`taxi_compiled`) and any step-by-step executor, so both see the
+compiled loops (`hpg_mj.agents.taxi_hpg`, `taxi_maxq`) and any step-by-step executor, so both see the
 same numbers.
 
 A world state is an int64[5] array `(row, col, passenger, destination, fuel)`
@@ -66,12 +66,19 @@ Termination (MAXQ's):
   with a full tank (moves burn fuel), so this is "after a Fillup at F".
 - Root: the episode ends.
 - Every subtask also returns when the episode ends: delivery, the tank running
-  dry, or the 200-step truncation (`primitive_step` records which).
+  dry, or the 200-step truncation (`worlds.taxi_rules.primitive_step` records which).
 """
 import numba
 import numpy as np
 
 from hpg_mj.worlds import taxi_core as core
+# The world's rules (state layout, world array, primitive step, outcomes), used here
+# by the names the hierarchy's code has always used.
+from hpg_mj.worlds.taxi_rules import (  # noqa: F401
+    COL, DELIVERED, DESTINATION, E_ILLEGAL, E_OUTCOME, E_STEPS, FUEL, N_SQUARES, N_STATIONS,
+    OUT_OF_FUEL, PASSENGER, ROW, RUNNING, TRUNCATED, W_CAPACITY, W_FUEL_COL, W_FUEL_ENABLED,
+    W_FUEL_ROW, W_MAX_STEPS, W_START_FUEL_MAX, W_START_FUEL_MIN, episode_over, outcome_of,
+    primitive_step, world_config)
 
 # Subtask ids: one policy table and one trace each (Navigate's table is shared by
 # its five targets).
@@ -85,35 +92,10 @@ SUBTASK_NAMES = ("Root", "Get", "Put", "Refuel", "Navigate")
 # primitive.
 ROOT_GET, ROOT_PUT, ROOT_REFUEL = range(3)       # Root's child c is subtask c + 1
 CARRY_NAVIGATE, CARRY_PRIMITIVE = range(2)
-N_STATIONS = 4
 TARGET_F = 4                                     # Navigate's targets: R, G, Y, B, F
 N_TARGETS = 5
 N_CHILDREN = (3, 2, 2, 2, 4)                     # Navigate's child = the move's action index
 MAX_CHILDREN = 4
-N_SQUARES = core.GRID_SIZE * core.GRID_SIZE
-
-# The state array's fields.
-ROW, COL, PASSENGER, DESTINATION, FUEL = range(5)
-
-# `world_config`'s fields.
-W_FUEL_ENABLED, W_FUEL_ROW, W_FUEL_COL, W_CAPACITY, W_MAX_STEPS, W_START_FUEL_MIN, \
-    W_START_FUEL_MAX = range(7)
-
-# The episode array: primitive steps, outcome, illegal Pickups/Dropoffs.
-E_STEPS, E_OUTCOME, E_ILLEGAL = range(3)
-RUNNING, DELIVERED, OUT_OF_FUEL, TRUNCATED = range(4)
-
-
-def world_config(rules: core.TaxiRules = None) -> np.ndarray:
-  """The int64 `world` array of a `taxi_core.TaxiRules` (SPEC defaults if None)."""
-  if rules is None:
-    rules = core.TaxiRules()
-  if not isinstance(rules, core.TaxiRules):
-    raise ValueError(f"taxi_rules: rules must be a taxi_core.TaxiRules, got {type(rules).__name__}")
-  return np.array([rules.fuel_enabled, rules.fuel_station[0], rules.fuel_station[1],
-                   rules.capacity, rules.max_steps, rules.start_fuel[0], rules.start_fuel[1]],
-                  dtype=np.int64)
-
 
 def n_abstract_states(fuel_enabled: bool = True, capacity: int = core.FUEL_CAPACITY):
   """Rows of each subtask's policy table, by subtask id."""
@@ -248,35 +230,3 @@ def carry_done(subtask, state, world):
   if subtask == PUT:
     return state[PASSENGER] == state[DESTINATION]
   return tank_full_at_f(state, world)
-
-
-@numba.njit(cache=True, inline="always")
-def episode_over(episode):
-  return episode[E_OUTCOME] != RUNNING
-
-
-# --- the world ------------------------------------------------------------------
-
-@numba.njit(cache=True, inline="always")
-def primitive_step(state, episode, action, world):
-  """Executes a primitive action (Algorithm 1, line 4) and returns its reward.
-
-  Updates `state` and `episode` (steps, illegal count, outcome: DELIVERED, OUT_OF_FUEL,
-  or TRUNCATED after `world[W_MAX_STEPS]` steps - not terminal, SPEC section 5).
-  """
-  row, col, passenger, destination, fuel, reward, terminated = core.taxi_step(
-      state[ROW], state[COL], state[PASSENGER], state[DESTINATION], state[FUEL], action,
-      world[W_FUEL_ENABLED] != 0, world[W_FUEL_ROW], world[W_FUEL_COL], world[W_CAPACITY])
-  state[ROW] = row
-  state[COL] = col
-  state[PASSENGER] = passenger
-  state[DESTINATION] = destination
-  state[FUEL] = fuel
-  episode[E_STEPS] += 1
-  if reward == core.ILLEGAL_REWARD:
-    episode[E_ILLEGAL] += 1
-  if terminated:
-    episode[E_OUTCOME] = DELIVERED if reward == core.DELIVERY_REWARD else OUT_OF_FUEL
-  elif episode[E_STEPS] >= world[W_MAX_STEPS]:
-    episode[E_OUTCOME] = TRUNCATED
-  return float(reward)

@@ -318,3 +318,42 @@ def gate_pilot_target(state, phase):
     else:
       return ax, ay, 0
   return mid_x, mid_y - side * 60.0, phase
+
+
+# ---- outcomes of one control step (shared by every path) ----------------------------
+
+@numba.njit(cache=True)
+def low_level_outcome(samples, state, origin, direction, steps_in_call, local_samples,
+                      local_state, max_steps):
+  """After one control step inside a low-level call: (local event, G).
+
+  The local event is SUCCESS (goal within 10 m), FAILURE (left the 150 m frame,
+  or `max_steps` control steps without success) or NO_EVENT. G is the internal
+  reward: the heading shaping and the local +100 / -100; it never reaches the
+  root. The low level learns from R + G with R the step's -1.
+  """
+  samples_to_local(samples, origin, direction, local_samples)
+  gx, gy = local_goal(direction)
+  goal = np.array([gx, gy])
+  event, _ = subtask_event(local_samples, goal, GOAL_RADIUS, LOCAL_SIZE)
+  if event == NO_EVENT and steps_in_call >= max_steps:
+    event = FAILURE
+  global_to_local(state, origin, direction, local_state)
+  internal = shaping_reward(local_state[0], local_state[1], local_state[2], gx, gy)
+  if event == SUCCESS:
+    internal += GATE_REWARD
+  elif event == FAILURE:
+    internal += OUT_OF_BOUNDS_REWARD
+  return event, internal
+
+
+@numba.njit(cache=True)
+def global_outcome(samples, gate_reward, out_of_bounds_reward):
+  """The full task's event and reward for one control step (SPEC section 2)."""
+  event, _ = steer_event(samples, GATE, FIELD_SIZE)
+  reward = STEP_REWARD
+  if event == SUCCESS:
+    reward += gate_reward
+  elif event == FAILURE:
+    reward += out_of_bounds_reward
+  return event, reward

@@ -6,7 +6,6 @@ import pytest
 import hpg_mj  # noqa: F401
 from hpg_mj.hierarchy import executor
 from hpg_mj.agents.ship_hybrid import ShipHybrid
-from hpg_mj.hierarchy import ship_rules
 from hpg_mj.hierarchy.graph import Child, GraphError, Primitive, Subtask, TaskGraph
 from hpg_mj.learners import agents, rng, tiles
 from hpg_mj.worlds import ship_core as core
@@ -63,7 +62,7 @@ def test_a_new_hierarchy_over_the_ship():
     return active
 
   def leg_reward(call, step):
-    event, internal = ship_rules.low_level_outcome(
+    event, internal = core.low_level_outcome(
         step.info["positions"], step.obs, call.memo["origin"], call.args["direction"],
         call.steps, local_samples, local, 300)
     call.memo["event"] = event

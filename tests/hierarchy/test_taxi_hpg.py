@@ -1,5 +1,5 @@
 """The taxi task graph (hpg_mj.hierarchy.taxi_rules) on hand-built states, and
-HPG's compiled loop (hpg_mj.hierarchy.taxi_compiled): exact returns of a
+HPG's compiled loop (hpg_mj.agents.taxi_hpg): exact returns of a
 hand-set optimal policy, determinism under a seed, and (slow) learning to 95%
 of the optimal mean return."""
 import collections
@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from taxi_grid import moves_from
 
-from hpg_mj.hierarchy import taxi_compiled as tcp
+from hpg_mj.agents import _taxi
+from hpg_mj.agents import taxi_hpg as tcp
 from hpg_mj.hierarchy import taxi_rules as tr
 from hpg_mj.learners import rng
 from hpg_mj.worlds import taxi_core as tc
@@ -188,7 +189,7 @@ def optimal_tables():
 
 def test_optimal_hierarchy_earns_v_star_exactly():
   values = tv.taxi_values(True)
-  agent = tcp.TaxiHPG(0)
+  agent = tcp.HPGTables(0)
   for trace, table in zip(agent.traces, optimal_tables()):
     trace[0][:] = table.ravel()
   starts, expected = [], []
@@ -211,7 +212,7 @@ def tables_of(agent):
 
 
 def test_same_seed_same_run():
-  a, b, c = tcp.TaxiHPG(3), tcp.TaxiHPG(3), tcp.TaxiHPG(4)
+  a, b, c = tcp.HPGTables(3), tcp.HPGTables(3), tcp.HPGTables(4)
   rec_a, rec_b, rec_c = a.run(3000), b.run(3000), c.run(3000)
   np.testing.assert_array_equal(rec_a, rec_b)
   for ta, tb in zip(tables_of(a), tables_of(b)):
@@ -222,7 +223,7 @@ def test_same_seed_same_run():
 
 
 def test_evaluation_leaves_the_policies_alone():
-  agent = tcp.TaxiHPG(5)
+  agent = tcp.HPGTables(5)
   agent.run(2000)
   before = tables_of(agent)
   sampled = agent.run(500, learn=False)
@@ -234,11 +235,11 @@ def test_evaluation_leaves_the_policies_alone():
 
 
 def test_greedy_runs_draw_only_the_starts():
-  agent = tcp.TaxiHPG(6)
+  agent = tcp.HPGTables(6)
   expected = agent.rng_state.copy()
   scratch = np.zeros(5, dtype=np.int64)
   for _ in range(50):
-    tcp.sample_start(expected, agent.world, scratch)
+    _taxi.sample_start(expected, agent.world, scratch)
   agent.run(50, learn=False, greedy=True)
   np.testing.assert_array_equal(agent.rng_state, expected)
 
@@ -248,7 +249,7 @@ def test_start_states_follow_the_spec_distribution():
   rs = rng.make_state(11)
   counts = collections.Counter()
   for _ in range(48_000):
-    tcp.sample_start(rs, WORLD, state_)
+    _taxi.sample_start(rs, WORLD, state_)
     row, col, passenger, destination, fuel = state_
     assert passenger != destination and 5 <= fuel <= 12
     counts[(row, col, passenger, destination, fuel)] += 1
@@ -256,7 +257,7 @@ def test_start_states_follow_the_spec_distribution():
 
 
 def test_classic_task_never_refuels():
-  agent = tcp.TaxiHPG(7, task=tc.TaxiRules(False))
+  agent = tcp.HPGTables(7, task=tc.TaxiRules(False))
   record = agent.run(2000)
   assert not np.any(record[:, tcp.OUTCOME] == tr.OUT_OF_FUEL)
   assert not np.any(agent.policy_tables()[tr.REFUEL])
@@ -301,7 +302,7 @@ def test_baseline_steps_by_hand():
 
 def test_baseline_is_an_option():
   off = tcp.HPGConfig(baseline_root=0.0, baseline_carry=0.0, baseline_navigate=0.0)
-  plain, based = tcp.TaxiHPG(2, off), tcp.TaxiHPG(2)
+  plain, based = tcp.HPGTables(2, off), tcp.HPGTables(2)
   plain.run(3000)
   based.run(3000)
   assert not any(np.any(v) for v in plain.values)          # b = 0: Eq. 3 exactly
@@ -327,7 +328,7 @@ def test_bad_arguments():
     tcp.HPGConfig(gamma_navigate=0.0)
   with pytest.raises(ValueError, match="ramp_carry"):
     tcp.HPGConfig(ramp_carry=0)
-  agent = tcp.TaxiHPG(0)
+  agent = tcp.HPGTables(0)
   with pytest.raises(ValueError, match="greedy"):
     agent.run(1, learn=True, greedy=True)
   with pytest.raises(ValueError, match="n_episodes"):
@@ -350,7 +351,7 @@ def test_hpg_reaches_95_percent_of_optimal():
   optimal = tv.optimal_mean_return(True)
   last = []
   for seed in range(5):
-    returns = tcp.TaxiHPG(seed).run(100_000)[:, tcp.RETURN]
+    returns = tcp.HPGTables(seed).run(100_000)[:, tcp.RETURN]
     last.append(returns[-1000:].mean())
   assert np.mean(last) >= tv.performance_threshold(optimal, 0.95)
   assert min(last) >= tv.performance_threshold(optimal, 0.90)

@@ -6,7 +6,7 @@ import pytest
 
 import hpg_mj  # noqa: F401
 from hpg_mj import suite
-from hpg_mj.baselines import taxi_maxq as mq
+from hpg_mj.agents import taxi_maxq as mq
 from hpg_mj.hierarchy import taxi_rules as rules
 from hpg_mj.worlds import taxi_core, taxi_values
 
@@ -32,7 +32,7 @@ def _entry(agent, subtask, target, state, child):
 def test_completion_updates_match_hand_worked_steps():
   config = mq.MAXQConfig(alpha_navigate=0.5, alpha_carry=0.25, pseudo_reward_navigate=-3.0,
                          initial_root=0.0)
-  agent = mq.TaxiMAXQ(config=config)
+  agent = mq.MAXQTables(config=config)
   # Navigate(G = (0, 4)) moves East from (0, 3) onto G: it terminated there, so C~
   # gets the pseudo-reward and C gets 0: C~ = 0.5 * -3, C = 0.5 * 0.
   before, after = [0, 3, 2, 1, 9], [0, 4, 2, 1, 8]
@@ -61,7 +61,7 @@ def test_completion_updates_match_hand_worked_steps():
 
 
 def test_all_states_updating_updates_every_state_of_the_childs_run():
-  agent = mq.TaxiMAXQ(config=mq.MAXQConfig(initial_root=0.0))
+  agent = mq.MAXQTables(config=mq.MAXQConfig(initial_root=0.0))
   # Get's Navigate(R) ran (2, 0) -> (1, 0) -> (0, 0): both states where it was
   # running get the target of the state it returned in.
   path = np.array([[2, 0, 0, 3, 9], [1, 0, 0, 3, 8], [0, 0, 0, 3, 7]], dtype=np.int64)
@@ -118,7 +118,7 @@ def _greedy_visits(agent):
 
 
 def test_converged_completions_match_the_exact_values_on_the_classic_taxi():
-  agent = mq.TaxiMAXQ(seed=0, config=SHORT, task=CLASSIC)
+  agent = mq.MAXQTables(seed=0, config=SHORT, task=CLASSIC)
   record = agent.run(30_000)
   assert record[-1000:, mq.RETURN].mean() >= 0.98 * taxi_values.optimal_mean_return(False)
   exact, known, _ = mq.exact_values(CLASSIC)
@@ -147,7 +147,7 @@ def test_converged_completions_match_the_exact_values_on_the_classic_taxi():
 
 
 def test_a_greedy_policy_delivers_every_passenger():
-  agent = mq.TaxiMAXQ(seed=2, config=SHORT, task=CLASSIC)
+  agent = mq.MAXQTables(seed=2, config=SHORT, task=CLASSIC)
   agent.run(25_000)
   greedy = agent.run(500, learn=False)
   assert np.all(greedy[:, mq.OUTCOME] == rules.DELIVERED)
