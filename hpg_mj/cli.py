@@ -326,14 +326,15 @@ def build_parser():
 
 
 def main(argv=None):
-  import hpg_mj  # noqa: F401  (picks the OpenGL backend before MuJoCo loads)
+  import hpg_mj  # noqa: F401  (registers the Gymnasium ids)
+  from hpg_mj.render.worker import RenderingUnavailable
   parser = build_parser()
   args = parser.parse_args(argv)
   if args.command == "render" and args.task is None:
     args.task = "steer" if args.domain == "ship" else "fuel"
   try:
     return args.func(args)
-  except (ValueError, FileNotFoundError) as err:
+  except (ValueError, FileNotFoundError, RenderingUnavailable) as err:
     print(f"hpg-mj {args.command}: error: {err}", file=sys.stderr)
     return 2
   except KeyboardInterrupt:

@@ -3,9 +3,6 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
-if [ -z "${MUJOCO_GL:-}" ]; then
-  if [ -e /dev/nvidia0 ]; then export MUJOCO_GL=egl; else export MUJOCO_GL=osmesa; fi
-fi
 # .venv/bin/pytest (not `python -m pytest`) keeps the checkout off sys.path, so the
 # tests import the installed hpg_mj and its packaged assets.
 exec .venv/bin/pytest -q -p no:cacheprovider "$@"
