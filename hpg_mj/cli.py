@@ -40,6 +40,11 @@ def _cmd_render(args):
   return 0
 
 
+def _cmd_doctor(args):
+  from hpg_mj import doctor
+  return 1 if doctor.run() else 0
+
+
 def _cmd_bench(args):
   from hpg_mj import bench
   if args.what == "envs":
@@ -317,6 +322,10 @@ def build_parser():
   p.add_argument("--seconds", type=float, default=1.0, help="measuring time per row")
   p.add_argument("--workers", type=int, default=None, help="experiments: processes")
   p.set_defaults(func=_cmd_bench)
+
+  p = sub.add_parser("doctor", help="the renderer, versions and numba cache found here, "
+                     "and what to do about each problem")
+  p.set_defaults(func=_cmd_doctor)
 
   p = sub.add_parser("demo", help="the README's main job: videos, verification, benchmark")
   p.add_argument("--out", default="videos")

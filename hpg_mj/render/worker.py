@@ -39,7 +39,14 @@ INSTALL_HINT = ("install OSMesa for software rendering (Debian/Ubuntu: `apt-get 
 
 
 class RenderingUnavailable(RuntimeError):
-  """No OpenGL backend works for the worker; says what to install."""
+  """No OpenGL backend works for the worker; says what to install.
+
+  `failures` holds one "backend: why" string per backend tried.
+  """
+
+  def __init__(self, message, failures=()):
+    super().__init__(message)
+    self.failures = list(failures)
 
 
 class RenderWorkerError(RuntimeError):
@@ -100,12 +107,15 @@ class RenderWorker:
     """The worker's process id, or None before it started."""
     return None if self._process is None else self._process.pid
 
-  def start(self):
-    """Starts the worker if it is not running; returns the backend it uses."""
+  def start(self, backends=None):
+    """Starts the worker if it is not running; returns the backend it uses.
+
+    `backends`: the ones to try, in order (default `candidate_backends()`).
+    """
     if self._process is not None:
       return self.backend
     failures = []
-    for backend in candidate_backends():
+    for backend in backends or candidate_backends():
       started = self._try_start(backend)
       if isinstance(started, str):
         failures.append(f"{backend}: {started}")
@@ -115,7 +125,8 @@ class RenderWorker:
       self._finalizer = weakref.finalize(self, _shutdown, self._process, self._conn, log)
       return backend
     raise RenderingUnavailable("hpg_mj cannot render: no OpenGL backend works here ("
-                               + "; ".join(failures) + "). To render, " + INSTALL_HINT)
+                               + "; ".join(failures) + "). To render, " + INSTALL_HINT,
+                               failures)
 
   def _try_start(self, backend):
     """(process, connection, log, info) on success, else the reason as a string."""
@@ -237,12 +248,14 @@ def _open_scene(scene, options):
   raise ValueError(f"unknown scene {scene!r}; valid scenes: 'ship', 'physics'")
 
 
-def _gl_renderer_name():
+def _gl_strings():
+  """The GL renderer and version of the current context (for `hpg-mj doctor`)."""
   try:
     from OpenGL import GL
-    return GL.glGetString(GL.GL_RENDERER).decode()
+    return {"gl_renderer": GL.glGetString(GL.GL_RENDERER).decode(),
+            "gl_version": GL.glGetString(GL.GL_VERSION).decode()}
   except Exception:   # only a description; the frame is what counts
-    return "unknown"
+    return {"gl_renderer": "unknown", "gl_version": "unknown"}
 
 
 def _serve(fd):
@@ -259,8 +272,8 @@ def _serve(fd):
     library = _LIBRARIES.get(os.environ["MUJOCO_GL"], "its library")
     conn.send(("error", f"{type(err).__name__}: {err} ({library} is missing or does not work)"))
     return 1
-  conn.send(("ready", {"backend": os.environ["MUJOCO_GL"], "gl_renderer": _gl_renderer_name(),
-                       "mujoco": mujoco.__version__}))
+  conn.send(("ready", {"backend": os.environ["MUJOCO_GL"], "mujoco": mujoco.__version__,
+                       **_gl_strings()}))
   while True:
     try:
       kind, request = conn.recv()
