@@ -11,6 +11,7 @@ One control step is 0.6 s: the desired turning rate r (deg/s) is held for three
 0.2 s sampling intervals, and the rules look at each sampled position.
 """
 import collections
+import math
 
 import numpy as np
 
@@ -62,37 +63,43 @@ class Physics(mujoco.Physics):
   def _reload_from_data(self, data):
     super()._reload_from_data(data)
     set_orthographic_extents(self.model.ptr)
+    # The raw MuJoCo structures and the bow's offset, read once: the readings
+    # below run several times per control step, and dm_control's named and
+    # wrapped access costs microseconds each (hpg-mj bench envs).
+    self._model_ptr, self._data_ptr = self.model.ptr, self.data.ptr
+    self._bow = float(self.named.model.site_pos["bow", 1])
 
   def _substeps_per_sample(self):
-    substeps = core.SAMPLING_INTERVAL / self.model.opt.timestep
+    substeps = core.SAMPLING_INTERVAL / self._model_ptr.opt.timestep
     n = int(round(substeps))
     if n < 1 or abs(n - substeps) > 1e-9:
-      raise ValueError(f"ship model timestep {self.model.opt.timestep} s must divide the "
+      raise ValueError(f"ship model timestep {self._model_ptr.opt.timestep} s must divide the "
                        f"{core.SAMPLING_INTERVAL} s sampling interval")
     return n
 
   def bow_offset(self):
     """Distance (m) from the joint origin to the bow site, the reported position."""
-    return float(self.named.model.site_pos["bow", 1])
+    return self._bow
 
   def heading_deg(self):
     """Heading, degrees clockwise from +y, wrapped to [-180, 180)."""
-    return float(core.wrap_deg(np.degrees(self.data.qpos[2])))
+    return (math.degrees(self._data_ptr.qpos[2]) + 180.0) % 360.0 - 180.0   # core.wrap_deg
 
   def turning_rate_deg(self):
     """Actual turning rate theta_dot (deg/s): the state of the rudder filter."""
-    return float(self.data.act[0])
+    return float(self._data_ptr.act[0])
+
+  def _position(self):
+    x, y, theta = self._data_ptr.qpos.tolist()
+    return x + self._bow * math.sin(theta), y + self._bow * math.cos(theta)
 
   def position(self):
     """(x, y) of the ship in metres (the bow site, see assets/ship.xml)."""
-    qpos = self.data.qpos
-    c = self.bow_offset()
-    return np.array([qpos[0] + c * np.sin(qpos[2]), qpos[1] + c * np.cos(qpos[2])])
+    return np.array(self._position())
 
   def ship_state(self):
     """[x, y, theta_deg, theta_dot_deg] as a new array."""
-    x, y = self.position()
-    return np.array([x, y, self.heading_deg(), self.turning_rate_deg()])
+    return np.array([*self._position(), self.heading_deg(), self.turning_rate_deg()])
 
   def set_ship_state(self, state):
     """Places the ship at [x, y, theta_deg, theta_dot_deg], sailing at speed V."""
@@ -108,8 +115,9 @@ class Physics(mujoco.Physics):
 
   def set_turn_command(self, r_deg):
     """Sets the desired turning rate r (deg/s) on both rudder filters."""
-    self.data.ctrl[0] = r_deg
-    self.data.ctrl[1] = r_deg
+    ctrl = self._data_ptr.ctrl
+    ctrl[0] = r_deg
+    ctrl[1] = r_deg
 
   def place_target(self, xy):
     """Shows a subtask's goal disc at `xy`, or hides it when `xy` is None."""
@@ -129,13 +137,12 @@ class Physics(mujoco.Physics):
       raise ValueError(f"the ship steps whole 0.2 s sampling intervals ({substeps} MuJoCo "
                        f"steps each), got nstep={nstep}")
     n = nstep // substeps
-    samples = np.empty((n + 1, 2))
-    samples[0] = self.position()
-    model, data = self.model.ptr, self.data.ptr
-    for k in range(1, n + 1):
+    rows = [self._position()]
+    model, data = self._model_ptr, self._data_ptr
+    for _ in range(n):
       mj.mj_step(model, data, substeps)
-      samples[k] = self.position()
-    self._samples = samples
+      rows.append(self._position())
+    self._samples = np.array(rows)
 
   def render(self, height=240, width=320, camera_id=-1, **options):
     """dm_control's `render`, drawn in a worker process (SPEC section 9)."""

@@ -67,8 +67,8 @@ class ShipRules:
       name = {core.SUCCESS: "goal", core.FAILURE: "out_of_bounds"}.get(event)
       if event == core.NO_EVENT and steps >= self.max_steps:
         event, name = core.FAILURE, "timeout"   # SPEC section 3: 300 steps is failure
-      reward += core.shaping_reward(end_state[0], end_state[1], end_state[2],
-                                    self.goal[0], self.goal[1])
+      reward += core.shaping_reward(end_state[0], end_state[1], end_state[2],   # all given:
+                                    self.goal[0], self.goal[1], core.SHAPING_WIDTH_DEG)  # fast
     if event == core.SUCCESS:
       reward += self.success_reward
     elif event == core.FAILURE:
