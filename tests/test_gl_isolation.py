@@ -160,7 +160,9 @@ def test_a_crashing_renderer_is_an_error_not_the_end_of_the_process():
     RESULT["again"] = list(env.render().shape)       # a new worker
     RESULT["new_pid"] = first.pid != pid
   """)
-  assert "render worker failed" in report["error"] and "this process is unaffected" in report["error"]
+  error = report["error"]
+  assert error is not None and "render worker failed" in error and "exit code -11" in error
+  assert "this process is unaffected" in error and "None render worker" not in error
   assert report["again"] == [32, 32, 3] and report["new_pid"]
   assert report["gl"] == []
 

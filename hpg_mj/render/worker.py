@@ -170,9 +170,13 @@ class RenderWorker:
         raise TimeoutError(f"no frame in {FRAME_TIMEOUT_S:.0f} s")
       kind, payload = self._conn.recv()
     except (OSError, EOFError, TimeoutError) as err:
-      code = self._process.poll()
+      backend = self.backend
+      try:
+        code = self._process.wait(timeout=5)   # how it ended, for the message
+      except subprocess.TimeoutExpired:
+        code = "none yet: still running"
       self.close()
-      raise RenderWorkerError(f"the {self.backend} render worker failed ({err}; exit code "
+      raise RenderWorkerError(f"the {backend} render worker failed ({err}; exit code "
                               f"{code}); this process is unaffected and the next render "
                               "starts a new worker") from None
     if kind == "error":
