@@ -3,17 +3,13 @@
 Importing the package registers the Gymnasium environments
 (`hpg_mj/ShipSteering-v0`, ... see `hpg_mj.envs`). The dm_control suite is
 `hpg_mj.suite`.
+
+Importing hpg_mj changes no environment variable and loads no OpenGL library:
+simulation never needs one, and rendering happens in a worker process
+(`hpg_mj.render.worker`, SPEC section 9).
 """
-import os as _os
-
-# Headless rendering: MuJoCo picks its OpenGL backend when first imported.
-# Without a display, use EGL where an NVIDIA device is present, OSMesa otherwise.
-if "MUJOCO_GL" not in _os.environ and not _os.environ.get("DISPLAY"):
-  _os.environ["MUJOCO_GL"] = "egl" if _os.path.exists("/dev/nvidia0") else "osmesa"
-  _os.environ.setdefault("PYOPENGL_PLATFORM", _os.environ["MUJOCO_GL"])
-
 __version__ = "0.1.0"
 
-from hpg_mj import envs as _envs  # noqa: E402  (registers the Gymnasium ids)
+from hpg_mj import envs as _envs  # registers the Gymnasium ids
 
 _envs.register_all()

@@ -41,6 +41,11 @@ def _cmd_render(args):
   return 0
 
 
+def _cmd_doctor(args):
+  from hpg_mj import doctor
+  return 1 if doctor.run() else 0
+
+
 def _cmd_bench(args):
   from hpg_mj import bench
   if args.what == "envs":
@@ -318,6 +323,10 @@ def build_parser():
   p.add_argument("--workers", type=int, default=None, help="experiments: processes")
   p.set_defaults(func=_cmd_bench)
 
+  p = sub.add_parser("doctor", help="the renderer, versions and numba cache found here, "
+                     "and what to do about each problem")
+  p.set_defaults(func=_cmd_doctor)
+
   p = sub.add_parser("demo", help="the README's main job: videos, verification, benchmark")
   p.add_argument("--out", default="videos")
   p.add_argument("--seconds", type=float, default=1.0)
@@ -326,14 +335,15 @@ def build_parser():
 
 
 def main(argv=None):
-  import hpg_mj  # noqa: F401  (picks the OpenGL backend before MuJoCo loads)
+  import hpg_mj  # noqa: F401  (registers the Gymnasium ids)
+  from hpg_mj.render.worker import RenderingUnavailable
   parser = build_parser()
   args = parser.parse_args(argv)
   if args.command == "render" and args.task is None:
     args.task = "steer" if args.domain == "ship" else "fuel"
   try:
     return args.func(args)
-  except (ValueError, FileNotFoundError) as err:
+  except (ValueError, FileNotFoundError, RenderingUnavailable) as err:
     print(f"hpg-mj {args.command}: error: {err}", file=sys.stderr)
     return 2
   except KeyboardInterrupt:

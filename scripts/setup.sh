@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
-# Sets hpg_mj up on a fresh machine: OSMesa for headless rendering where there
-# is no GPU, a virtual environment in .venv, and the package (with its test
-# extras) installed from this checkout as a wheel, assets included.
+# Sets hpg_mj up on a fresh machine: OSMesa for the render worker's headless
+# rendering where there is no GPU, a virtual environment in .venv, and the
+# package installed from this checkout as a wheel, assets included.
+# `scripts/setup.sh test` adds the test-only dependencies (pytest, Ray); the
+# main job (scripts/run.sh) installs none of them.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -19,5 +21,6 @@ if [ ! -x .venv/bin/python ]; then
   "$PYTHON" -m venv .venv
 fi
 .venv/bin/python -m pip install -q --disable-pip-version-check --upgrade pip
-echo "setup: installing hpg_mj and its pinned dependencies into .venv"
-.venv/bin/python -m pip install -q --disable-pip-version-check ".[test]"
+EXTRAS=${1:+[$1]}
+echo "setup: installing hpg_mj${EXTRAS} and its pinned dependencies into .venv"
+.venv/bin/python -m pip install -q --disable-pip-version-check ".${EXTRAS}"

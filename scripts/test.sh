@@ -1,11 +1,9 @@
 #!/usr/bin/env bash
-# Sets up (scripts/setup.sh) and runs the test suite against the installed package.
+# Sets up (scripts/setup.sh, with the test extras) and runs the test suite against
+# the installed package.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/setup.sh
-if [ -z "${MUJOCO_GL:-}" ]; then
-  if [ -e /dev/nvidia0 ]; then export MUJOCO_GL=egl; else export MUJOCO_GL=osmesa; fi
-fi
+bash scripts/setup.sh test
 # .venv/bin/pytest (not `python -m pytest`) keeps the checkout off sys.path, so the
 # tests import the installed hpg_mj and its packaged assets.
 exec .venv/bin/pytest -q -p no:cacheprovider "$@"

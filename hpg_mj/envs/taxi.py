@@ -232,7 +232,7 @@ class TaxiEnv(gymnasium.Env):
     if self._state is None:
       raise RuntimeError(f"{self.name}: call reset() before render()")
     if self._physics is None:
-      from hpg_mj.worlds import taxi  # dm_control and MuJoCo only when rendering
+      from hpg_mj.worlds import taxi  # simulated here, drawn in a worker (SPEC section 9)
       self._physics = taxi.Physics.from_xml_string(*taxi.get_model_and_assets())
       self._physics.set_fuel_station(*self.rules.fuel_station, show=self.rules.fuel_enabled)
     self._physics.set_board_state(self._state, self.rules.fuel_enabled, self.rules.capacity)

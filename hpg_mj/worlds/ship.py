@@ -11,18 +11,24 @@ One control step is 0.6 s: the desired turning rate r (deg/s) is held for three
 0.2 s sampling intervals, and the rules look at each sampled position.
 """
 import collections
+import math
 
-import mujoco as mj
 import numpy as np
-from dm_control import mujoco
-from dm_control.rl import control
-from dm_control.suite import base
-from dm_control.utils import containers
-from dm_env import specs
 
 from hpg_mj import _assets
+from hpg_mj import _headless
 from hpg_mj import _validation
+from hpg_mj.render import worker
 from hpg_mj.worlds import ship_core as core
+from hpg_mj.worlds.ship_task import ShipRules
+
+with _headless.simulation_imports():   # no GL in the simulating process (SPEC section 9)
+  import mujoco as mj
+  from dm_control import mujoco
+  from dm_control.rl import control
+  from dm_control.suite import base
+  from dm_control.utils import containers
+  from dm_env import specs
 
 SUITE = containers.TaggedTasks()
 
@@ -57,37 +63,43 @@ class Physics(mujoco.Physics):
   def _reload_from_data(self, data):
     super()._reload_from_data(data)
     set_orthographic_extents(self.model.ptr)
+    # The raw MuJoCo structures and the bow's offset, read once: the readings
+    # below run several times per control step, and dm_control's named and
+    # wrapped access costs microseconds each (hpg-mj bench envs).
+    self._model_ptr, self._data_ptr = self.model.ptr, self.data.ptr
+    self._bow = float(self.named.model.site_pos["bow", 1])
 
   def _substeps_per_sample(self):
-    substeps = core.SAMPLING_INTERVAL / self.model.opt.timestep
+    substeps = core.SAMPLING_INTERVAL / self._model_ptr.opt.timestep
     n = int(round(substeps))
     if n < 1 or abs(n - substeps) > 1e-9:
-      raise ValueError(f"ship model timestep {self.model.opt.timestep} s must divide the "
+      raise ValueError(f"ship model timestep {self._model_ptr.opt.timestep} s must divide the "
                        f"{core.SAMPLING_INTERVAL} s sampling interval")
     return n
 
   def bow_offset(self):
     """Distance (m) from the joint origin to the bow site, the reported position."""
-    return float(self.named.model.site_pos["bow", 1])
+    return self._bow
 
   def heading_deg(self):
     """Heading, degrees clockwise from +y, wrapped to [-180, 180)."""
-    return float(core.wrap_deg(np.degrees(self.data.qpos[2])))
+    return (math.degrees(self._data_ptr.qpos[2]) + 180.0) % 360.0 - 180.0   # core.wrap_deg
 
   def turning_rate_deg(self):
     """Actual turning rate theta_dot (deg/s): the state of the rudder filter."""
-    return float(self.data.act[0])
+    return float(self._data_ptr.act[0])
+
+  def _position(self):
+    x, y, theta = self._data_ptr.qpos.tolist()
+    return x + self._bow * math.sin(theta), y + self._bow * math.cos(theta)
 
   def position(self):
     """(x, y) of the ship in metres (the bow site, see assets/ship.xml)."""
-    qpos = self.data.qpos
-    c = self.bow_offset()
-    return np.array([qpos[0] + c * np.sin(qpos[2]), qpos[1] + c * np.cos(qpos[2])])
+    return np.array(self._position())
 
   def ship_state(self):
     """[x, y, theta_deg, theta_dot_deg] as a new array."""
-    x, y = self.position()
-    return np.array([x, y, self.heading_deg(), self.turning_rate_deg()])
+    return np.array([*self._position(), self.heading_deg(), self.turning_rate_deg()])
 
   def set_ship_state(self, state):
     """Places the ship at [x, y, theta_deg, theta_dot_deg], sailing at speed V."""
@@ -103,8 +115,9 @@ class Physics(mujoco.Physics):
 
   def set_turn_command(self, r_deg):
     """Sets the desired turning rate r (deg/s) on both rudder filters."""
-    self.data.ctrl[0] = r_deg
-    self.data.ctrl[1] = r_deg
+    ctrl = self._data_ptr.ctrl
+    ctrl[0] = r_deg
+    ctrl[1] = r_deg
 
   def place_target(self, xy):
     """Shows a subtask's goal disc at `xy`, or hides it when `xy` is None."""
@@ -124,90 +137,20 @@ class Physics(mujoco.Physics):
       raise ValueError(f"the ship steps whole 0.2 s sampling intervals ({substeps} MuJoCo "
                        f"steps each), got nstep={nstep}")
     n = nstep // substeps
-    samples = np.empty((n + 1, 2))
-    samples[0] = self.position()
-    model, data = self.model.ptr, self.data.ptr
-    for k in range(1, n + 1):
+    rows = [self._position()]
+    model, data = self._model_ptr, self._data_ptr
+    for _ in range(n):
       mj.mj_step(model, data, substeps)
-      samples[k] = self.position()
-    self._samples = samples
+      rows.append(self._position())
+    self._samples = np.array(rows)
 
-  def render(self, *args, **kwargs):
-    # mj_step leaves body poses one MuJoCo step old; bring them up to date first.
-    mj.mj_kinematics(self.model.ptr, self.data.ptr)
-    return super().render(*args, **kwargs)
+  def render(self, height=240, width=320, camera_id=-1, **options):
+    """dm_control's `render`, drawn in a worker process (SPEC section 9)."""
+    return worker.render_physics(self, "ship.xml", height, width, camera_id, **options)
 
-
-class ShipRules:
-  """The start, reward and ending of one ship task, shared by every backend.
-
-  `kind` is "steer" (SPEC section 2), "diagonal" or "straight" (SPEC section 3,
-  the local frame). The Gymnasium environment and the dm_control tasks both
-  call these, so the rules live in one place.
-  """
-
-  KINDS = ("steer", "diagonal", "straight")
-
-  def __init__(self, kind, max_steps=None, gate_reward=core.GATE_REWARD,
-               out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD):
-    if kind not in self.KINDS:
-      raise ValueError(f"unknown ship task {kind!r}; valid tasks: {list(self.KINDS)}")
-    self.kind = kind
-    if kind == "steer":
-      self.size = core.FIELD_SIZE
-      self.start = None
-      self.goal = None
-      default_steps = core.STEER_MAX_STEPS
-    else:
-      self.size = core.LOCAL_SIZE
-      diagonal = kind == "diagonal"
-      self.start = (core.DIAGONAL_START if diagonal else core.STRAIGHT_START).copy()
-      self.goal = (core.DIAGONAL_GOAL if diagonal else core.STRAIGHT_GOAL).copy()
-      default_steps = core.SUBTASK_MAX_STEPS
-    self.max_steps = default_steps if max_steps is None else int(max_steps)
-    # SPEC section 2's +100 / -100 (and the subtasks' local +100 / -100).
-    self.success_reward = float(gate_reward)
-    self.failure_reward = float(out_of_bounds_reward)
-    if self.max_steps < 1:
-      raise ValueError(f"max_steps must be a positive number of control steps, got {max_steps!r}")
-
-  def sample_start(self, random):
-    """A random start; `random` is a np.random.RandomState or Generator."""
-    theta = random.uniform(-180.0, 180.0)
-    theta_dot = random.uniform(-core.MAX_TURN_RATE, core.MAX_TURN_RATE)
-    if self.start is None:
-      x, y = random.uniform(0.0, self.size), random.uniform(0.0, self.size)
-    else:
-      x, y = self.start
-    return np.array([x, y, core.wrap_deg(theta), theta_dot])
-
-  def check_state(self, state, task_name):
-    return core.check_state(state, task_name, 0.0, self.size)
-
-  def evaluate(self, samples, end_state, steps):
-    """(reward, terminated, truncated, event name) after a control step.
-
-    `samples` are the positions sampled during the step, `end_state` the state
-    at its end, `steps` the control steps taken so far, this one included.
-    """
-    reward = core.STEP_REWARD
-    if self.goal is None:
-      event, _ = core.steer_event(samples, core.GATE, self.size)
-      name = {core.SUCCESS: "gate", core.FAILURE: "out_of_bounds"}.get(event)
-    else:
-      event, _ = core.subtask_event(samples, self.goal, core.GOAL_RADIUS, self.size)
-      name = {core.SUCCESS: "goal", core.FAILURE: "out_of_bounds"}.get(event)
-      if event == core.NO_EVENT and steps >= self.max_steps:
-        event, name = core.FAILURE, "timeout"   # SPEC section 3: 300 steps is failure
-      reward += core.shaping_reward(end_state[0], end_state[1], end_state[2],
-                                    self.goal[0], self.goal[1])
-    if event == core.SUCCESS:
-      reward += self.success_reward
-    elif event == core.FAILURE:
-      reward += self.failure_reward
-    terminated = event != core.NO_EVENT
-    truncated = not terminated and steps >= self.max_steps
-    return reward, terminated, truncated, name
+  def free(self):
+    worker.close_physics_worker(self)
+    super().free()
 
 
 class ShipTask(base.Task):

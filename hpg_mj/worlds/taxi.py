@@ -19,15 +19,19 @@ time_step = env.step(taxi.taxi_core.NORTH)
 import collections
 
 import numpy as np
-from dm_control import mujoco
-from dm_control.rl import control
-from dm_control.suite import base
-from dm_control.utils import containers
-from dm_env import specs
 
 from hpg_mj import _assets
+from hpg_mj import _headless
 from hpg_mj import _validation
+from hpg_mj.render import worker
 from hpg_mj.worlds import taxi_core
+
+with _headless.simulation_imports():   # no GL in the simulating process (SPEC section 9)
+  from dm_control import mujoco
+  from dm_control.rl import control
+  from dm_control.suite import base
+  from dm_control.utils import containers
+  from dm_env import specs
 
 SUITE = containers.TaggedTasks()
 
@@ -122,6 +126,14 @@ class Physics(mujoco.Physics):
       else:
         rgba[self._gauge, 3] = 0.0
       self._gauge_shown = gauge
+
+  def render(self, height=240, width=320, camera_id=-1, **options):
+    """dm_control's `render`, drawn in a worker process (SPEC section 9)."""
+    return worker.render_physics(self, "taxi.xml", height, width, camera_id, **options)
+
+  def free(self):
+    worker.close_physics_worker(self)
+    super().free()
 
   def set_fuel_station(self, row, col, show=True):
     """Moves the fuel station F (pad and pump) to square (row, col), or hides it."""

@@ -1,0 +1,78 @@
+"""The start, reward and ending of each ship task (SPEC sections 2-3), shared by
+the analytic and the MuJoCo backend; free of MuJoCo, so that the analytic ship
+imports neither mujoco nor dm_control (SPEC section 9)."""
+import numpy as np
+
+from hpg_mj.worlds import ship_core as core
+
+
+class ShipRules:
+  """The start, reward and ending of one ship task, shared by every backend.
+
+  `kind` is "steer" (SPEC section 2), "diagonal" or "straight" (SPEC section 3,
+  the local frame). The Gymnasium environment and the dm_control tasks both
+  call these, so the rules live in one place.
+  """
+
+  KINDS = ("steer", "diagonal", "straight")
+
+  def __init__(self, kind, max_steps=None, gate_reward=core.GATE_REWARD,
+               out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD):
+    if kind not in self.KINDS:
+      raise ValueError(f"unknown ship task {kind!r}; valid tasks: {list(self.KINDS)}")
+    self.kind = kind
+    if kind == "steer":
+      self.size = core.FIELD_SIZE
+      self.start = None
+      self.goal = None
+      default_steps = core.STEER_MAX_STEPS
+    else:
+      self.size = core.LOCAL_SIZE
+      diagonal = kind == "diagonal"
+      self.start = (core.DIAGONAL_START if diagonal else core.STRAIGHT_START).copy()
+      self.goal = (core.DIAGONAL_GOAL if diagonal else core.STRAIGHT_GOAL).copy()
+      default_steps = core.SUBTASK_MAX_STEPS
+    self.max_steps = default_steps if max_steps is None else int(max_steps)
+    # SPEC section 2's +100 / -100 (and the subtasks' local +100 / -100).
+    self.success_reward = float(gate_reward)
+    self.failure_reward = float(out_of_bounds_reward)
+    if self.max_steps < 1:
+      raise ValueError(f"max_steps must be a positive number of control steps, got {max_steps!r}")
+
+  def sample_start(self, random):
+    """A random start; `random` is a np.random.RandomState or Generator."""
+    theta = random.uniform(-180.0, 180.0)
+    theta_dot = random.uniform(-core.MAX_TURN_RATE, core.MAX_TURN_RATE)
+    if self.start is None:
+      x, y = random.uniform(0.0, self.size), random.uniform(0.0, self.size)
+    else:
+      x, y = self.start
+    return np.array([x, y, core.wrap_deg(theta), theta_dot])
+
+  def check_state(self, state, task_name):
+    return core.check_state(state, task_name, 0.0, self.size)
+
+  def evaluate(self, samples, end_state, steps):
+    """(reward, terminated, truncated, event name) after a control step.
+
+    `samples` are the positions sampled during the step, `end_state` the state
+    at its end, `steps` the control steps taken so far, this one included.
+    """
+    reward = core.STEP_REWARD
+    if self.goal is None:
+      event, _ = core.steer_event(samples, core.GATE, self.size)
+      name = {core.SUCCESS: "gate", core.FAILURE: "out_of_bounds"}.get(event)
+    else:
+      event, _ = core.subtask_event(samples, self.goal, core.GOAL_RADIUS, self.size)
+      name = {core.SUCCESS: "goal", core.FAILURE: "out_of_bounds"}.get(event)
+      if event == core.NO_EVENT and steps >= self.max_steps:
+        event, name = core.FAILURE, "timeout"   # SPEC section 3: 300 steps is failure
+      reward += core.shaping_reward(end_state[0], end_state[1], end_state[2],   # all given:
+                                    self.goal[0], self.goal[1], core.SHAPING_WIDTH_DEG)  # fast
+    if event == core.SUCCESS:
+      reward += self.success_reward
+    elif event == core.FAILURE:
+      reward += self.failure_reward
+    terminated = event != core.NO_EVENT
+    truncated = not terminated and steps >= self.max_steps
+    return reward, terminated, truncated, name
