@@ -6,7 +6,7 @@ Importing the package registers the Gymnasium environments
 
 Importing hpg_mj changes no environment variable and loads no OpenGL library:
 simulation never needs one, and rendering happens in a worker process
-(`hpg_mj.render.worker`, SPEC section 9).
+(`hpg_mj._render_worker`, SPEC section 9).
 """
 __version__ = "0.1.0"
 

@@ -7,7 +7,7 @@ EGL, GL and Mesa's LLVM into the process, and Mesa's LLVM beside the one torch
 loads through triton crashes the process (mujoco issue #644). hpg_mj therefore
 imports MuJoCo and dm_control for simulation with `MUJOCO_GL=disable`, only for
 the duration of that import, and renders in a separate process
-(`hpg_mj.render.worker`).
+(`hpg_mj._render_worker`).
 """
 import contextlib
 import os

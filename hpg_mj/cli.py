@@ -336,7 +336,7 @@ def build_parser():
 
 def main(argv=None):
   import hpg_mj  # noqa: F401  (registers the Gymnasium ids)
-  from hpg_mj.render.worker import RenderingUnavailable
+  from hpg_mj._render_worker import RenderingUnavailable
   parser = build_parser()
   args = parser.parse_args(argv)
   if args.command == "render" and args.task is None:

@@ -63,7 +63,7 @@ def check_process_gl():
 
 def check_renderers():
   """(lines, problems): each render backend, tried in a worker of its own."""
-  from hpg_mj.render import worker
+  from hpg_mj import _render_worker as worker
   lines = []
   user = os.environ.get("MUJOCO_GL")
   order = worker.candidate_backends()

@@ -145,7 +145,7 @@ def test_a_crashing_renderer_is_an_error_not_the_end_of_the_process():
   report = _run("""
     import signal, gymnasium
     import hpg_mj
-    from hpg_mj.render import worker
+    from hpg_mj import _render_worker as worker
     env = gymnasium.make("hpg_mj/Taxi-v0", render_mode="rgb_array", width=32, height=32)
     env.reset(seed=0)
     env.render()
@@ -185,7 +185,7 @@ def test_without_egl_and_osmesa_only_rendering_fails_and_names_the_package(tmp_p
   report = _run("""
     import gymnasium, numpy as np
     import hpg_mj
-    from hpg_mj.render import worker
+    from hpg_mj import _render_worker as worker
     env = gymnasium.make("hpg_mj/ShipSteering-v0", render_mode="rgb_array", width=32, height=32)
     env.reset(seed=0)
     for _ in range(3):

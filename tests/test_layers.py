@@ -1,6 +1,7 @@
 """Folders import one way only: worlds and learners at the bottom knowing nothing of
 each other, hierarchies above them, agents above those, experiments and the
-command line on top; no folder-level cycle."""
+command line on top; no folder-level cycle. (Top-level `_` modules are shared
+utilities: the assets, validation, headless imports, the render worker.)"""
 import ast
 import pathlib
 
@@ -10,9 +11,9 @@ PACKAGE = pathlib.Path(__file__).resolve().parents[1] / "hpg_mj"
 # folder -> the hpg_mj folders (and top-level modules) it may import
 ALLOWED = {
     "learners": set(),
-    "worlds": {"_assets", "_validation"},
-    "envs": {"worlds", "render", "_validation", "_assets"},
-    "render": {"worlds", "_assets", "_validation"},
+    "worlds": {"_assets", "_validation", "_headless", "_render_worker"},
+    "envs": {"worlds", "render", "_validation", "_assets", "_headless"},
+    "render": {"worlds", "_assets", "_validation", "_headless", "_render_worker"},
     "hierarchy": {"learners", "worlds"},
     "agents": {"hierarchy", "learners", "worlds", "envs", "suite", "render"},
     "experiments": {"agents", "hierarchy", "learners", "worlds", "envs", "suite", "render"},

@@ -1,6 +1,6 @@
 """The pictures themselves, drawn by MuJoCo in the render worker.
 
-Only `hpg_mj.render.worker` imports this module, in its own process, after it
+Only `hpg_mj._render_worker` imports this module, in its own process, after it
 has chosen its OpenGL backend (SPEC section 9); the user's process uses the
 proxies of `hpg_mj.render.scenes` and the worlds' `Physics.render`.
 """

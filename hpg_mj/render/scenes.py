@@ -1,11 +1,11 @@
 """Pictures of the worlds for the user's process, drawn in the render worker.
 
-Nothing here loads OpenGL: the frames come from `hpg_mj.render.worker`, which
+Nothing here loads OpenGL: the frames come from `hpg_mj._render_worker`, which
 picks EGL, then OSMesa, in its own process (SPEC section 9).
 """
 import numpy as np
 
-from hpg_mj.render import worker
+from hpg_mj import _render_worker as worker
 
 
 class ShipScene:

@@ -18,7 +18,7 @@ import numpy as np
 from hpg_mj import _assets
 from hpg_mj import _headless
 from hpg_mj import _validation
-from hpg_mj.render import worker
+from hpg_mj import _render_worker as worker
 from hpg_mj.worlds import ship_core as core
 from hpg_mj.worlds.ship_task import ShipRules
 

@@ -23,7 +23,7 @@ import numpy as np
 from hpg_mj import _assets
 from hpg_mj import _headless
 from hpg_mj import _validation
-from hpg_mj.render import worker
+from hpg_mj import _render_worker as worker
 from hpg_mj.worlds import taxi_core
 
 with _headless.simulation_imports():   # no GL in the simulating process (SPEC section 9)

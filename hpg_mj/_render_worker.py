@@ -4,7 +4,7 @@ SPEC section 9: OSMesa, EGL and Mesa's LLVM in the process that also holds
 torch crash it (mujoco issue #644). Every picture hpg_mj draws (Gymnasium's
 `render_mode="rgb_array"`, the dm_control tasks' `physics.render`, `hpg-mj
 render`, Figure 12's videos) is drawn here instead: a `RenderWorker` starts
-`python -m hpg_mj.render.worker` on the first frame, sends it what the scene
+`python -m hpg_mj._render_worker` on the first frame, sends it what the scene
 needs (the ship's state and wake, or the MuJoCo state arrays) and receives the
 frame. The worker sets its own `MUJOCO_GL`, trying EGL, then OSMesa (or only
 the backend the user's `MUJOCO_GL` names); the user's process maps no GL
@@ -134,7 +134,7 @@ class RenderWorker:
     log = tempfile.TemporaryFile()
     try:   # -P: not the working directory's hpg_mj, the one PYTHONPATH names
       process = subprocess.Popen(
-          [sys.executable, "-P", "-m", "hpg_mj.render.worker", str(theirs.fileno())],
+          [sys.executable, "-P", "-m", "hpg_mj._render_worker", str(theirs.fileno())],
           pass_fds=[theirs.fileno()], env=_worker_environment(backend),
           stdin=subprocess.DEVNULL, stdout=log, stderr=log)
     except OSError as err:
