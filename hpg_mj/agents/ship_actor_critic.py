@@ -5,6 +5,7 @@ Q_critic(s, a) * psi(s, a); the critic is linear over 9 tilings of
 TD(lambda) (SARSA-style on the actions taken). Acts every 0.6 s with SPEC
 section 2's rewards. A baseline of the hierarchy (tag "baseline").
 """
+import collections
 import dataclasses
 
 import numba
@@ -14,6 +15,7 @@ from hpg_mj.agents import _ship
 from hpg_mj.agents.taskfile import param
 from hpg_mj.agents.ship_flat_pg import N_RECORD, PASSED, RETURN, STEPS, actor_coder
 from hpg_mj.hierarchy import flat as flat_graph
+from hpg_mj.learners import actor_critic
 from hpg_mj.learners import agents as learners
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import policies
@@ -27,45 +29,43 @@ def critic_coder(n_tilings=9, tiles=(5, 5, 36, 5, 30)):
       tuple(tiles), (False, False, True, False, False), n_tilings)
 
 
-@numba.njit(cache=True)
-def _critic_value(cw, czs, cy, cacc, ctiles):
-  q = 0.0
-  for k in range(ctiles.shape[0]):
-    q += el.weight(cw, czs, cy, cacc, ctiles[k])
-  return q
+# The hyper-parameters the compiled loop takes, named [section] key as in the task file.
+Settings = collections.namedtuple("Settings", (
+    "actor_alpha", "critic_alpha", "critic_trace_decay", "environment_max_steps",
+    "environment_gate_reward", "environment_out_of_bounds_reward"))
+
+
+def settings(config):
+  actor, critic, env = config.actor, config.critic, config.environment
+  return Settings(float(actor.alpha), float(critic.alpha), float(critic.trace_decay),
+                  int(env.max_steps), float(env.gate_reward), float(env.out_of_bounds_reward))
 
 
 @numba.njit(cache=True)
-def train_actor_critic(n_episodes, learn, sample, rng_state, actor_w,
-                       a_low, a_width, a_n, a_wrap, a_offsets,
-                       cw, czs, cy, ctouched, cmarked, ccount, cacc,
-                       c_low, c_width, c_n, c_wrap, c_offsets,
-                       alpha_actor, alpha_critic, lam, max_steps, record, fixed_start,
-                       task_rewards):
-  """Konda's actor-critic on the full task.
+def train_actor_critic(n_episodes, learn, sample, rng_state, actor_w, actor_tiling, critic,
+                       critic_tiling, s, record, fixed_start):
+  """Konda's actor-critic on the full task: the actor's weights over `actor_tiling`,
+  the critic's TD(lambda) trace over `critic_tiling` (`learners.actor_critic`).
 
   Per step, with a = (u, r) drawn from the actor in s and a' in s':
     delta = R + Q(s', a') - Q(s, a)                   (no Q(s', a') at the end)
-    e <- lambda e + phi(s, a);  w_c <- w_c + alpha_critic * delta * e     (TD(lambda))
-    theta <- theta + alpha_actor * Q(s, a) * psi(s, a)
-  Q(s, a) is the critic's value before this step's update.
+  then `actor_critic.learn`. Q(s, a) is the critic's value before this step's update.
   """
   state = np.empty(4)
   samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
   sa = np.empty(5)
-  a_tiles = np.empty(a_offsets.shape[0], dtype=np.int64)
+  a_tiles = np.empty(actor_tiling.offsets.shape[0], dtype=np.int64)
   a_next = np.empty_like(a_tiles)
-  c_tiles = np.empty(c_offsets.shape[0], dtype=np.int64)
+  c_tiles = np.empty(critic_tiling.offsets.shape[0], dtype=np.int64)
   c_next = np.empty_like(c_tiles)
-  ones = np.ones(c_offsets.shape[0])
-  n_actor = a_offsets.shape[0]
+  ones = np.ones(critic_tiling.offsets.shape[0])
   for episode in range(n_episodes):
     if fixed_start.shape[0] == 4:
       state[:] = fixed_start
     else:
       _ship.sample_start(rng_state, state)
-    el.reset(cw, czs, cy, ctouched, cmarked, ccount, cacc)      # e <- 0
-    tiles_mod.active_tiles(state, a_low, a_width, a_n, a_wrap, a_offsets, a_tiles)
+    el.reset(critic)                                   # e <- 0
+    tiles_mod.active_tiles(state, actor_tiling, a_tiles)
     m = policies.tile_mean(actor_w, a_tiles)
     u = policies.gaussian_draw(m, rng_state) if sample else m
     total = 0.0
@@ -75,30 +75,27 @@ def train_actor_critic(n_episodes, learn, sample, rng_state, actor_w,
       r = policies.squash(u, core.MAX_TURN_RATE)
       sa[:4] = state
       sa[4] = r
-      tiles_mod.active_tiles(sa, c_low, c_width, c_n, c_wrap, c_offsets, c_tiles)
-      q = _critic_value(cw, czs, cy, cacc, c_tiles)
+      tiles_mod.active_tiles(sa, critic_tiling, c_tiles)
+      q = actor_critic.critic_value(critic, c_tiles)
       core.euler_control(state, r, samples)
       steps += 1
-      event, reward = core.global_outcome(samples, task_rewards[0], task_rewards[1])
+      event, reward = core.global_outcome(samples, s.environment_gate_reward,
+                                          s.environment_out_of_bounds_reward)
       total += reward
-      done = event != core.NO_EVENT or steps >= max_steps
+      done = event != core.NO_EVENT or steps >= s.environment_max_steps
       target = reward
       if not done or event == core.NO_EVENT:
         # The next action (also at a truncation, to bootstrap from it).
-        tiles_mod.active_tiles(state, a_low, a_width, a_n, a_wrap, a_offsets, a_next)
+        tiles_mod.active_tiles(state, actor_tiling, a_next)
         m_next = policies.tile_mean(actor_w, a_next)
         u_next = policies.gaussian_draw(m_next, rng_state) if sample else m_next
         sa[:4] = state
         sa[4] = policies.squash(u_next, core.MAX_TURN_RATE)
-        tiles_mod.active_tiles(sa, c_low, c_width, c_n, c_wrap, c_offsets, c_next)
-        target += _critic_value(cw, czs, cy, cacc, c_next)
+        tiles_mod.active_tiles(sa, critic_tiling, c_next)
+        target += actor_critic.critic_value(critic, c_next)
       if learn:
-        delta = target - q
-        el.add_score(czs, cy, ctouched, cmarked, ccount, cacc, c_tiles, ones)
-        el.reward(cw, czs, cy, ctouched, cmarked, ccount, cacc, alpha_critic, delta, lam)
-        step = alpha_actor * q * (u - m) / n_actor
-        for k in range(n_actor):
-          actor_w[a_tiles[k]] += step
+        actor_critic.learn(critic, c_tiles, ones, s.critic_alpha, target - q,
+                           s.critic_trace_decay, actor_w, a_tiles, s.actor_alpha, q, u, m)
       if done:
         break
       a_tiles[:] = a_next
@@ -107,7 +104,6 @@ def train_actor_critic(n_episodes, learn, sample, rng_state, actor_w,
     record[episode, PASSED] = event == core.SUCCESS
     record[episode, STEPS] = steps
     record[episode, RETURN] = total
-
 
 
 @dataclasses.dataclass(frozen=True)
@@ -156,18 +152,15 @@ class ShipActorCritic(_ship.ShipAgent):
   def state(self):
     lr = self.learner
     out = {"rng_state": self.rng_state, "actor_w": lr.actor_w}
-    out.update({f"critic_{k}": v for k, v in lr.critic.items()})
+    out.update({f"critic_{k}": v for k, v in lr.critic._asdict().items()})
     return out
 
   def compiled(self, episodes, learn, sample, start=None):
     lr = self.learner
-    c = lr.critic
     rows = np.zeros((episodes, N_RECORD))
     fixed = np.empty(0) if start is None else np.array(start, dtype=np.float64)
-    train_actor_critic(episodes, learn, sample, self.rng_state, lr.actor_w, *lr.actor_arrays,
-                       c["w"], c["zs"], c["y"], c["touched"], c["marked"], c["count"], c["acc"],
-                       *lr.critic_arrays, lr.alpha_actor, lr.alpha_critic, lr.lam,
-                       self.config.environment.max_steps, rows, fixed, self.task_rewards)
+    train_actor_critic(episodes, learn, sample, self.rng_state, lr.actor_w, lr.actor_arrays,
+                       lr.critic, lr.critic_arrays, settings(self.config), rows, fixed)
     return rows
 
   def graph(self):

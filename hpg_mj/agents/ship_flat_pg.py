@@ -8,6 +8,7 @@ Every step touches only the 9 active tiles: the trace is applied lazily
 number of weights. Both paths (the fused loop `train_flat_pg`, the one-node task
 graph step by step) call the same compiled rules.
 """
+import collections
 import dataclasses
 
 import numba
@@ -33,43 +34,53 @@ def actor_coder(n_tilings=9, tiles=(20, 20, 36, 5)):
 
 
 
+# The hyper-parameters the compiled loop takes, named [section] key as in the task file.
+Settings = collections.namedtuple("Settings", (
+    "policy_alpha", "policy_trace_gamma", "environment_max_steps", "environment_gate_reward",
+    "environment_out_of_bounds_reward"))
+
+
+def settings(config):
+  pol, env = config.policy, config.environment
+  return Settings(float(pol.alpha), float(pol.trace_gamma), int(env.max_steps),
+                  float(env.gate_reward), float(env.out_of_bounds_reward))
+
+
 @numba.njit(cache=True)
-def train_flat_pg(n_episodes, learn, sample, rng_state, w, zs, y, touched, marked, count, acc,
-                  t_low, t_width, t_n, t_wrap, t_offsets, alpha, gamma, max_steps, record,
-                  fixed_start, task_rewards):
-  """Flat PGRL (Eq. 3 over the full task): z <- 0 at the start of an episode."""
+def train_flat_pg(n_episodes, learn, sample, rng_state, policy, tiling, s, record, fixed_start):
+  """Flat PGRL (Eq. 3 over the full task, trace `policy` over `tiling`): z <- 0 at
+  the start of an episode."""
   state = np.empty(4)
   samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
-  active = np.empty(t_offsets.shape[0], dtype=np.int64)
-  psi = np.empty(t_offsets.shape[0])
+  active = np.empty(tiling.offsets.shape[0], dtype=np.int64)
+  psi = np.empty(tiling.offsets.shape[0])
   for episode in range(n_episodes):
     if fixed_start.shape[0] == 4:
       state[:] = fixed_start
     else:
       _ship.sample_start(rng_state, state)
-    el.reset(w, zs, y, touched, marked, count, acc)
+    el.reset(policy)
     total = 0.0
     steps = 0
     event = core.NO_EVENT
     while True:
-      tiles_mod.active_tiles(state, t_low, t_width, t_n, t_wrap, t_offsets, active)
+      tiles_mod.active_tiles(state, tiling, active)
       if sample:
-        r = policies.gaussian_act(w, zs, y, touched, marked, count, acc, active, core.MAX_TURN_RATE,
-                                  rng_state, psi)
+        r = policies.gaussian_act(policy, active, core.MAX_TURN_RATE, rng_state, psi)
       else:
-        r = policies.gaussian_greedy(w, zs, y, acc, active, core.MAX_TURN_RATE)
+        r = policies.gaussian_greedy(policy, active, core.MAX_TURN_RATE)
       core.euler_control(state, r, samples)
       steps += 1
-      event, reward = core.global_outcome(samples, task_rewards[0], task_rewards[1])
+      event, reward = core.global_outcome(samples, s.environment_gate_reward,
+                                          s.environment_out_of_bounds_reward)
       total += reward
       if learn:
-        el.reward(w, zs, y, touched, marked, count, acc, alpha, reward, gamma)
-      if event != core.NO_EVENT or steps >= max_steps:
+        el.learn(policy, s.policy_alpha, reward, s.policy_trace_gamma)
+      if event != core.NO_EVENT or steps >= s.environment_max_steps:
         break
     record[episode, PASSED] = event == core.SUCCESS
     record[episode, STEPS] = steps
     record[episode, RETURN] = total
-
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,21 +120,18 @@ class ShipFlatPG(_ship.ShipAgent):
 
   def state(self):
     out = {"rng_state": self.rng_state}
-    out.update({f"policy_{k}": v for k, v in self.learner.trace.items()})
+    out.update({f"policy_{k}": v for k, v in self.learner.trace._asdict().items()})
     return out
 
   def compiled(self, episodes, learn, sample, start=None):
-    t, pol = self.learner.trace, self.config.policy
     rows = np.zeros((episodes, N_RECORD))
     fixed = np.empty(0) if start is None else np.array(start, dtype=np.float64)
-    train_flat_pg(episodes, learn, sample, self.rng_state, t["w"], t["zs"], t["y"],
-                  t["touched"], t["marked"], t["count"], t["acc"], *self.tile_arrays,
-                  pol.alpha, pol.trace_gamma, self.config.environment.max_steps, rows, fixed,
-                  self.task_rewards)
+    train_flat_pg(episodes, learn, sample, self.rng_state, self.learner.trace, self.tile_arrays,
+                  settings(self.config), rows, fixed)
     return rows
 
   def _view(self, call, obs):
-    tiles_mod.active_tiles(np.asarray(obs, dtype=np.float64), *self.tile_arrays, self._active)
+    tiles_mod.active_tiles(np.asarray(obs, dtype=np.float64), self.tile_arrays, self._active)
     return self._active
 
   def graph(self):

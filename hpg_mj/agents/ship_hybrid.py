@@ -7,6 +7,7 @@ Both paths work on the same arrays and call the same compiled rules: the fused
 loop over the analytic ship (`train`, Algorithm 1 unrolled for Figure 3's graph) and the task graph
 of Figure 3 run step by step through any ship environment (`graph`).
 """
+import collections
 import dataclasses
 
 import numba
@@ -26,103 +27,105 @@ from hpg_mj.learners import tiles as tiles_mod
 from hpg_mj.worlds import ship_core as core
 
 
-# Per-episode record columns.
+# Per-episode record columns (the order of `ShipHybrid.record_fields`).
 # A subtask's runs count the calls that ended by its own success or failure; a call
 # cut short by the end of the episode (gate, bounds, time limit) is no run.
 PASSED, STEPS, CALLS, DIAG_RUNS, DIAG_SUCCESS, STRAIGHT_RUNS, STRAIGHT_SUCCESS, RETURN = range(8)
 N_RECORD = 8
 
+# The hyper-parameters the compiled loop takes, each named [section] key as in the
+# task file (`settings` fills them from a Config).
+Settings = collections.namedtuple("Settings", (
+    "root_alpha", "root_trace_decay", "root_epsilon_threshold", "root_epsilon_every",
+    "root_epsilon_divisor", "low_level_alpha", "low_level_trace_gamma", "low_level_max_steps",
+    "environment_max_steps", "environment_gate_reward", "environment_out_of_bounds_reward"))
+# The root's Q(lambda) table and trace; the epsilon schedule's arrays.
+RootTable = collections.namedtuple("RootTable", ("q", "index", "value", "count"))
+
+
+def settings(config):
+  root, low, env = config.root, config.low_level, config.environment
+  return Settings(float(root.alpha), float(root.trace_decay), float(root.epsilon_threshold),
+                  int(root.epsilon_every), float(root.epsilon_divisor), float(low.alpha),
+                  float(low.trace_gamma), int(low.max_steps), int(env.max_steps),
+                  float(env.gate_reward), float(env.out_of_bounds_reward))
+
 
 @numba.njit(cache=True)
-def run_low_level(state, direction, low_w, low_zs, low_y, low_touched, low_marked, low_count,
-                  low_acc, tile_low, tile_width, tile_n, tile_wrap, tile_offsets, alpha_low,
-                  gamma_low, learn, sample, rng_state, steps_before, max_steps_episode,
-                  max_steps_call, scratch_tiles, scratch_psi, samples, local_samples,
-                  local_state, origin, task_rewards):
-  """One call of a low-level subtask from `state` (modified in place).
+def run_low_level(state, direction, low, tiling, s, learn, sample, rng_state, steps_before,
+                  scratch):
+  """One call of a low-level subtask (trace `low`) from `state` (modified in place).
 
   Returns (global event, local event, reward to the root, control steps).
   """
+  scratch_tiles, scratch_psi, samples, local_samples, local_state, origin = scratch
   origin[0] = state[0]
   origin[1] = state[1]
-  el.reset(low_w, low_zs, low_y, low_touched, low_marked, low_count, low_acc)  # Eq. 3: z <- 0
+  el.reset(low)                                        # Eq. 3: z <- 0
   reward_root = 0.0
   k = 0
   global_event = core.NO_EVENT
   local_event = core.NO_EVENT
   while True:
     core.global_to_local(state, origin, direction, local_state)
-    tiles_mod.active_tiles(local_state, tile_low, tile_width, tile_n, tile_wrap, tile_offsets,
-                           scratch_tiles)
+    tiles_mod.active_tiles(local_state, tiling, scratch_tiles)
     if sample:
-      r = policies.gaussian_act(low_w, low_zs, low_y, low_touched, low_marked, low_count,
-                                low_acc, scratch_tiles, rules.R_MAX, rng_state, scratch_psi)
+      r = policies.gaussian_act(low, scratch_tiles, core.MAX_TURN_RATE, rng_state, scratch_psi)
     else:
-      r = policies.gaussian_greedy(low_w, low_zs, low_y, low_acc, scratch_tiles, rules.R_MAX)
+      r = policies.gaussian_greedy(low, scratch_tiles, core.MAX_TURN_RATE)
     core.euler_control(state, r, samples)
     k += 1
-    global_event, reward = core.global_outcome(samples, task_rewards[0], task_rewards[1])
+    global_event, reward = core.global_outcome(samples, s.environment_gate_reward,
+                                               s.environment_out_of_bounds_reward)
     reward_root += reward
     local_event, internal = core.low_level_outcome(samples, state, origin, direction, k,
-                                                    local_samples, local_state, max_steps_call)
-    if learn:
-      el.reward(low_w, low_zs, low_y, low_touched, low_marked, low_count, low_acc, alpha_low,
-                core.STEP_REWARD + internal, gamma_low)
+                                                   local_samples, local_state,
+                                                   s.low_level_max_steps)
+    if learn:                                          # Eq. 3 with R + G
+      el.learn(low, s.low_level_alpha, core.STEP_REWARD + internal, s.low_level_trace_gamma)
     if (global_event != core.NO_EVENT or local_event != core.NO_EVENT
-        or steps_before + k >= max_steps_episode):
+        or steps_before + k >= s.environment_max_steps):
       return global_event, local_event, reward_root, k
 
 
 @numba.njit(cache=True)
-def train(n_episodes, learn, sample, rng_state, q, q_index, q_value, q_count, alpha_root, lam,
-          schedule, outcomes, counts, eps_threshold, eps_every, eps_divisor,
-          diag_w, diag_zs, diag_y, diag_touched, diag_marked, diag_count, diag_acc,
-          str_w, str_zs, str_y, str_touched, str_marked, str_count, str_acc,
-          tile_low, tile_width, tile_n, tile_wrap, tile_offsets, alpha_low, gamma_low,
-          max_steps_episode, max_steps_call, record, fixed_start, task_rewards):
-  """Trains for `n_episodes` episodes; with learn=False it only runs the policy,
-  sampling it (sample=True) or greedily (sample=False: epsilon 0, u = m).
+def train(n_episodes, learn, sample, rng_state, root, schedule, diagonal, straight, tiling, s,
+          record, fixed_start):
+  """Trains for `n_episodes` episodes (Algorithm 1 over Figure 3's graph); with
+  learn=False it only runs the policy, sampling it (sample=True) or greedily
+  (sample=False: epsilon 0, u = m).
 
-  `task_rewards` = [gate bonus, out-of-bounds penalty] (SPEC: +100, -100).
-  `record` (n_episodes, N_RECORD) receives one row per episode. With
-  `fixed_start` of length 4, every episode starts there instead of at random.
+  `root` is the root's `RootTable`, `schedule` the epsilon schedule's arrays
+  (`schedules.new_schedule`), `diagonal` and `straight` the subtasks' Eq. 3
+  traces over `tiling`, `s` the `Settings`. `record` (n_episodes, N_RECORD)
+  receives one row per episode. With `fixed_start` of length 4, every episode
+  starts there instead of at random.
   """
+  eps_state, outcomes, counts = schedule
   state = np.empty(4)
   samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
-  local_samples = np.empty_like(samples)
-  local_state = np.empty(4)
-  origin = np.empty(2)
-  n_tilings = tile_offsets.shape[0]
-  scratch_tiles = np.empty(n_tilings, dtype=np.int64)
-  scratch_psi = np.empty(n_tilings)
+  n_tilings = tiling.offsets.shape[0]
+  scratch = (np.empty(n_tilings, dtype=np.int64), np.empty(n_tilings), samples,
+             np.empty_like(samples), np.empty(4), np.empty(2))
   for episode in range(n_episodes):
     if fixed_start.shape[0] == 4:
       state[:] = fixed_start
     else:
       _ship.sample_start(rng_state, state)
-    qlambda.clear(q_count)
+    qlambda.clear(root.count)
     steps = 0
     total = 0.0
     cell = rules.root_cell(state[0], state[1])
-    epsilon = schedule[0] if sample else 0.0
-    a = qlambda.epsilon_greedy(q, cell, rules.N_DIRECTIONS, epsilon, rng_state)
+    epsilon = eps_state[0] if sample else 0.0
+    a = qlambda.epsilon_greedy(root.q, cell, rules.N_DIRECTIONS, epsilon, rng_state)
     row = record[episode]
     row[:] = 0.0
     while True:
       sub = rules.subtask_of(a)
-      if sub == rules.DIAGONAL:
-        g_event, l_event, reward, k = run_low_level(
-            state, a, diag_w, diag_zs, diag_y, diag_touched, diag_marked, diag_count, diag_acc,
-            tile_low, tile_width, tile_n, tile_wrap, tile_offsets, alpha_low, gamma_low, learn,
-            sample, rng_state, steps, max_steps_episode, max_steps_call, scratch_tiles, scratch_psi,
-            samples, local_samples, local_state, origin, task_rewards)
-      else:
-        g_event, l_event, reward, k = run_low_level(
-            state, a, str_w, str_zs, str_y, str_touched, str_marked, str_count, str_acc,
-            tile_low, tile_width, tile_n, tile_wrap, tile_offsets, alpha_low, gamma_low, learn,
-            sample, rng_state, steps, max_steps_episode, max_steps_call, scratch_tiles, scratch_psi,
-            samples, local_samples, local_state, origin, task_rewards)
-      if g_event == core.NO_EVENT and steps + k < max_steps_episode:
+      low = diagonal if sub == rules.DIAGONAL else straight
+      g_event, l_event, reward, k = run_low_level(state, a, low, tiling, s, learn, sample,
+                                                  rng_state, steps, scratch)
+      if g_event == core.NO_EVENT and steps + k < s.environment_max_steps:
         success = l_event == core.SUCCESS
         if sub == rules.DIAGONAL:
           row[DIAG_RUNS] += 1
@@ -136,25 +139,27 @@ def train(n_episodes, learn, sample, rng_state, q, q_index, q_value, q_count, al
       total += reward
       row[CALLS] += 1
       terminal = g_event != core.NO_EVENT
-      truncated = (not terminal) and steps >= max_steps_episode
+      truncated = (not terminal) and steps >= s.environment_max_steps
       next_cell = rules.root_cell(state[0], state[1])
       if terminal or truncated:
         if learn:
-          qlambda.update(q, rules.N_DIRECTIONS, q_index, q_value, q_count, cell, a, reward,
-                         next_cell, 0, terminal, alpha_root, 1.0, lam)
-          qlambda.clear(q_count)
+          qlambda.update(root.q, rules.N_DIRECTIONS, root.index, root.value, root.count, cell,
+                         a, reward, next_cell, 0, terminal, s.root_alpha, 1.0,
+                         s.root_trace_decay)
+          qlambda.clear(root.count)
         break
-      a_next = qlambda.epsilon_greedy(q, next_cell, rules.N_DIRECTIONS, epsilon, rng_state)
+      a_next = qlambda.epsilon_greedy(root.q, next_cell, rules.N_DIRECTIONS, epsilon, rng_state)
       if learn:
-        qlambda.update(q, rules.N_DIRECTIONS, q_index, q_value, q_count, cell, a, reward,
-                       next_cell, a_next, False, alpha_root, 1.0, lam)
+        qlambda.update(root.q, rules.N_DIRECTIONS, root.index, root.value, root.count, cell, a,
+                       reward, next_cell, a_next, False, s.root_alpha, 1.0, s.root_trace_decay)
       cell = next_cell
       a = a_next
     row[PASSED] = g_event == core.SUCCESS
     row[STEPS] = steps
     row[RETURN] = total
     if learn:
-      schedules.end_episode(schedule, outcomes, counts, eps_threshold, eps_every, eps_divisor)
+      schedules.end_episode(eps_state, outcomes, counts, s.root_epsilon_threshold,
+                            s.root_epsilon_every, s.root_epsilon_divisor)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -212,7 +217,7 @@ class ShipHybrid(_ship.ShipAgent):
                                                                    root.epsilon_window)
     self.root = learners.QLambda(rules.ROOT_GRID ** 2, rules.N_DIRECTIONS, root.alpha,
                                  root.trace_decay, epsilon_source=lambda: self.schedule[0])
-    self.low = [learners.GaussianPolicyGradient(self.coder.size, low.tilings, rules.R_MAX,
+    self.low = [learners.GaussianPolicyGradient(self.coder.size, low.tilings, core.MAX_TURN_RATE,
                                                 low.alpha, low.trace_gamma)
                 for _ in (rules.DIAGONAL, rules.STRAIGHT)]
     self._learn = True
@@ -223,7 +228,7 @@ class ShipHybrid(_ship.ShipAgent):
            "root_trace_count": self.root.count, "epsilon_schedule": self.schedule,
            "subtask_outcomes": self.outcomes, "subtask_counts": self.counts}
     for name, learner in (("diagonal", self.low[0]), ("straight", self.low[1])):
-      for key, value in learner.trace.items():
+      for key, value in learner.trace._asdict().items():
         out[f"{name}_{key}"] = value
     return out
 
@@ -236,18 +241,12 @@ class ShipHybrid(_ship.ShipAgent):
   # ---- the compiled path ---------------------------------------------------------
 
   def compiled(self, episodes, learn, sample, start=None):
-    root, low, env = self.config.root, self.config.low_level, self.config.environment
     rows = np.zeros((episodes, N_RECORD))
-    d, s = self.low[rules.DIAGONAL].trace, self.low[rules.STRAIGHT].trace
     fixed = np.empty(0) if start is None else np.array(start, dtype=np.float64)
-    train(
-        episodes, learn, sample, self.rng_state, self.root.q, self.root.index, self.root.value,
-        self.root.count, root.alpha, root.trace_decay, self.schedule, self.outcomes,
-        self.counts, root.epsilon_threshold, root.epsilon_every, root.epsilon_divisor,
-        d["w"], d["zs"], d["y"], d["touched"], d["marked"], d["count"], d["acc"],
-        s["w"], s["zs"], s["y"], s["touched"], s["marked"], s["count"], s["acc"],
-        *self.tile_arrays, low.alpha, low.trace_gamma, env.max_steps, low.max_steps, rows,
-        fixed, self.task_rewards)
+    train(episodes, learn, sample, self.rng_state,
+          RootTable(self.root.q, self.root.index, self.root.value, self.root.count),
+          (self.schedule, self.outcomes, self.counts), self.low[rules.DIAGONAL].trace,
+          self.low[rules.STRAIGHT].trace, self.tile_arrays, settings(self.config), rows, fixed)
     return rows
 
   # ---- the step-by-step path -----------------------------------------------------

@@ -36,8 +36,8 @@ destination among the other three 0..2, then with fuel the start fuel), then
 one uniform per choice of any subtask, forced choices included, in the order
 the choices are made. Greedy runs draw only the starts.
 
-A trace is the tuple `(w, zs, y, touched, marked, count, acc)` of `eligibility`'s
-arrays; `new_traces` makes one per subtask. The baselines are a tuple of five
+A trace is an `eligibility.Trace`; `new_traces` makes one per subtask (a tuple
+by subtask id). The baselines are a tuple of five
 float64 tables over the subtasks' abstract states (`new_values`).
 
 Speed: the three levels and `train` are compiled without numba's reference
@@ -65,8 +65,6 @@ from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import policies
 from hpg_mj.learners import rng
 from hpg_mj.worlds import taxi_core as core
-
-_TRACE_KEYS = ("w", "zs", "y", "touched", "marked", "count", "acc")
 
 # Per-episode record columns: the return, the primitive steps, how the episode
 # ended (taxi_rules.DELIVERED, OUT_OF_FUEL or TRUNCATED), illegal Pickups/Dropoffs.
@@ -183,9 +181,8 @@ class HPGConfig:
 
 
 def new_trace(n_states: int, n_children: int, initial: float = 0.0):
-  """One subtask's Eq. 3 learner over an (n_states x n_children) table, as a tuple."""
-  t = el.new_trace(n_states * n_children, initial)
-  return (t["w"], t["zs"], t["y"], t["touched"], t["marked"], t["count"], t["acc"])
+  """One subtask's Eq. 3 learner over an (n_states x n_children) table."""
+  return el.new_trace(n_states * n_children, initial)
 
 
 def new_traces(fuel_enabled: bool = True, capacity: int = core.FUEL_CAPACITY,
@@ -203,21 +200,18 @@ def new_values(fuel_enabled: bool = True, capacity: int = core.FUEL_CAPACITY):
 
 def policy_table(trace, n_children: int) -> np.ndarray:
   """A copy of the trace's current parameters as an (n_states, n_children) table."""
-  w, zs, y, _, _, _, acc = trace
-  return (w + zs * acc[0] - y).reshape(-1, n_children)
+  return el.parameters(trace).reshape(-1, n_children)
 
 
 @numba.njit(cache=True, inline="always")
 def choose(trace, abstract, n_children, mask, learn, greedy, rng_state, probs, index, psi):
   """Algorithm 1, line 8: a child from the subtask's softmax policy in its
   abstract state; when learning, also line 14: z <- z + psi (`softmax_act`)."""
-  w, zs, y, touched, marked, count, acc = trace
   if greedy:
-    return policies.softmax_greedy(w, zs, y, acc, abstract, n_children, mask)
+    return policies.softmax_greedy(trace, abstract, n_children, mask)
   if learn:
-    return policies.softmax_act(w, zs, y, touched, marked, count, acc, abstract, n_children,
-                                mask, rng_state, probs, index, psi)
-  policies.softmax_probabilities(w, zs, y, acc, abstract, n_children, mask, probs)
+    return policies.softmax_act(trace, abstract, n_children, mask, rng_state, probs, index, psi)
+  policies.softmax_probabilities(trace, abstract, n_children, mask, probs)
   return policies.sample_index(probs[:n_children], rng.uniform(rng_state))
 
 
@@ -225,20 +219,18 @@ def choose(trace, abstract, n_children, mask, learn, greedy, rng_state, probs, i
 def begin_call(trace, learn):
   """Eq. 3: z <- 0 when a subtask is called."""
   if learn:
-    w, zs, y, touched, marked, count, acc = trace
-    el.reset(w, zs, y, touched, marked, count, acc)
+    el.reset(trace)
 
 
 @numba.njit(cache=True, inline="always")
 def learn_from(trace, learn, alpha, reward, gamma):
   """Algorithm 1, line 16 read as Eq. 3: theta <- theta + alpha R z, then z <- gamma z."""
   if learn:
-    w, zs, y, touched, marked, count, acc = trace
-    el.reward(w, zs, y, touched, marked, count, acc, alpha, reward, gamma)
+    el.learn(trace, alpha, reward, gamma)
 
 
 @numba.njit(cache=True, inline="always")
-def subtract_baseline(w, values, abstract, n_children, mask, learn, alpha, index, psi):
+def subtract_baseline(theta, values, abstract, n_children, mask, learn, alpha, index, psi):
   """Eq. 3 with a baseline (`HPGConfig`): theta <- theta - alpha b(s) psi(s, a) for
   the choice a just made in abstract state s, whose score `softmax_act` left in
   `index`, `psi` (one entry per child allowed by `mask`). Nothing when b(s) = 0."""
@@ -248,7 +240,7 @@ def subtract_baseline(w, values, abstract, n_children, mask, learn, alpha, index
       n = 0
       for b in range(n_children):
         if mask[b]:
-          w[index[n]] -= amount * psi[n]
+          theta[index[n]] -= amount * psi[n]
           n += 1
 
 
@@ -270,9 +262,11 @@ def learn_baseline(values, abstract, learn, beta, reward, done, next_abstract):
 # scratch arrays come from the caller (see the module docstring on _nrt=False).
 
 @numba.njit(cache=True, _nrt=False)
-def run_navigate(target, nav, state, episode, world, alphas, gammas, values, betas, learn,
-                 greedy, rng_state, mask, probs, index, psi):
-  """One call of Navigate(target)."""
+def run_navigate(target, nav, state, episode, world, learning, learn, greedy, rng_state, scratch):
+  """One call of Navigate(target). `learning` = (alphas, gammas, values, betas) by
+  subtask id; `scratch` = (mask, probs, index, psi)."""
+  alphas, gammas, values, betas = learning
+  mask, probs, index, psi = scratch
   begin_call(nav, learn)
   n = rules.N_CHILDREN[rules.NAVIGATE]
   total = 0.0
@@ -281,7 +275,7 @@ def run_navigate(target, nav, state, episode, world, alphas, gammas, values, bet
   while not done:
     rules.navigate_children(mask)
     move = choose(nav, here, n, mask, learn, greedy, rng_state, probs, index, psi)
-    subtract_baseline(nav[0], values[rules.NAVIGATE], here, n, mask, learn,
+    subtract_baseline(nav.theta, values[rules.NAVIGATE], here, n, mask, learn,
                       alphas[rules.NAVIGATE], index, psi)
     reward = rules.primitive_step(state, episode, move, world)  # child index = action index
     learn_from(nav, learn, alphas[rules.NAVIGATE], reward, gammas[rules.NAVIGATE])
@@ -295,9 +289,11 @@ def run_navigate(target, nav, state, episode, world, alphas, gammas, values, bet
 
 
 @numba.njit(cache=True, _nrt=False)
-def run_carry(subtask, carry, nav, state, episode, world, alphas, gammas, values, betas, learn,
-              greedy, rng_state, mask, probs, index, psi):
+def run_carry(subtask, carry, nav, state, episode, world, learning, learn, greedy, rng_state,
+              scratch):
   """One call of Get, Put or Refuel (`subtask`, with its trace `carry`)."""
+  alphas, gammas, values, betas = learning
+  mask, probs, index, psi = scratch
   begin_call(carry, learn)
   n = rules.N_CHILDREN[subtask]
   total = 0.0
@@ -306,11 +302,10 @@ def run_carry(subtask, carry, nav, state, episode, world, alphas, gammas, values
   while not done:
     rules.carry_children(subtask, state, world, mask)
     child = choose(carry, here, n, mask, learn, greedy, rng_state, probs, index, psi)
-    subtract_baseline(carry[0], values[subtask], here, n, mask, learn, alphas[subtask], index, psi)
+    subtract_baseline(carry.theta, values[subtask], here, n, mask, learn, alphas[subtask], index, psi)
     if child == rules.CARRY_NAVIGATE:
       reward = run_navigate(rules.carry_target(subtask, state), nav, state, episode, world,
-                            alphas, gammas, values, betas, learn, greedy, rng_state, mask, probs,
-                            index, psi)
+                            learning, learn, greedy, rng_state, scratch)
     else:
       reward = rules.primitive_step(state, episode, rules.carry_primitive(subtask), world)
     learn_from(carry, learn, alphas[subtask], reward, gammas[subtask])
@@ -323,9 +318,11 @@ def run_carry(subtask, carry, nav, state, episode, world, alphas, gammas, values
 
 
 @numba.njit(cache=True, _nrt=False)
-def run_episode(root, get, put, refuel, nav, state, episode, world, alphas, gammas, values,
-                betas, learn, greedy, rng_state, mask, probs, index, psi):
+def run_episode(traces, state, episode, world, learning, learn, greedy, rng_state, scratch):
   """One call of Root: the whole episode from `state`. Returns its return."""
+  root, get, put, refuel, nav = traces
+  alphas, gammas, values, betas = learning
+  mask, probs, index, psi = scratch
   begin_call(root, learn)
   n = rules.N_CHILDREN[rules.ROOT]
   total = 0.0
@@ -333,17 +330,17 @@ def run_episode(root, get, put, refuel, nav, state, episode, world, alphas, gamm
   while not rules.episode_over(episode):
     rules.root_children(state, world, mask)
     child = choose(root, here, n, mask, learn, greedy, rng_state, probs, index, psi)
-    subtract_baseline(root[0], values[rules.ROOT], here, n, mask, learn, alphas[rules.ROOT], index,
+    subtract_baseline(root.theta, values[rules.ROOT], here, n, mask, learn, alphas[rules.ROOT], index,
                       psi)
     if child == rules.ROOT_GET:
-      reward = run_carry(rules.GET, get, nav, state, episode, world, alphas, gammas, values,
-                         betas, learn, greedy, rng_state, mask, probs, index, psi)
+      reward = run_carry(rules.GET, get, nav, state, episode, world, learning, learn, greedy,
+                         rng_state, scratch)
     elif child == rules.ROOT_PUT:
-      reward = run_carry(rules.PUT, put, nav, state, episode, world, alphas, gammas, values,
-                         betas, learn, greedy, rng_state, mask, probs, index, psi)
+      reward = run_carry(rules.PUT, put, nav, state, episode, world, learning, learn, greedy,
+                         rng_state, scratch)
     else:
-      reward = run_carry(rules.REFUEL, refuel, nav, state, episode, world, alphas, gammas,
-                         values, betas, learn, greedy, rng_state, mask, probs, index, psi)
+      reward = run_carry(rules.REFUEL, refuel, nav, state, episode, world, learning, learn,
+                         greedy, rng_state, scratch)
     learn_from(root, learn, alphas[rules.ROOT], reward, gammas[rules.ROOT])
     there = rules.root_state(state, world)
     learn_baseline(values[rules.ROOT], here, learn, betas[rules.ROOT], reward,
@@ -366,24 +363,26 @@ def step_sizes(schedule, episode_index, alphas):
 
 
 @numba.njit(cache=True, _nrt=False)
-def train(n_episodes, learn, greedy, rng_state, world, root, get, put, refuel, nav, schedule,
-          first_episode, gammas, values, betas, record, starts, scratch_int, scratch_float, mask):
+def train(n_episodes, learn, greedy, rng_state, world, traces, values, settings, first_episode,
+          record, starts, scratch):
   """Runs `n_episodes` episodes of HPG: learning (`learn`), or evaluating the
   current policies by sampling (`learn=False`) or greedily (`greedy`, which
   needs `learn=False`).
 
-  `schedule` (HPGConfig.schedule) gives the step sizes of learning episode
-  `first_episode + e`; `gammas` float64[5] the trace discounts, by subtask id;
-  `values` the baselines (`new_values`) and `betas` float64[5] their step sizes.
-  `record` (n_episodes, N_RECORD) receives one row per episode. `starts`
-  int64[k, 5]: with k = 0 every episode starts at random (SPEC section 5),
-  otherwise episode e starts at starts[e % k]. Scratch (nothing here
-  allocates, see above): `scratch_int` int64[12], `scratch_float` float64[13],
-  `mask` bool[MAX_CHILDREN].
+  `traces`: the five `eligibility.Trace`s by subtask id (`new_traces`); `values`
+  the baselines (`new_values`); `settings` = (schedule, gammas, betas):
+  `HPGConfig.schedule()`, which gives the step sizes of learning episode
+  `first_episode + e`, the trace discounts and the baselines' step sizes, float64[5]
+  each by subtask id. `record` (n_episodes, N_RECORD) receives one row per
+  episode. `starts` int64[k, 5]: with k = 0 every episode starts at random (SPEC
+  section 5), otherwise episode e starts at starts[e % k]. `scratch` (nothing here
+  allocates, see above) = (int64[12], float64[13], bool[MAX_CHILDREN]).
   Returns the primitive steps run.
   """
   if learn and greedy:
     raise ValueError("taxi_hpg.train: greedy runs do not learn; pass learn=False")
+  schedule, gammas, betas = settings
+  scratch_int, scratch_float, mask = scratch
   state = scratch_int[0:5]
   episode = scratch_int[5:8]
   index = scratch_int[8:12]
@@ -400,8 +399,8 @@ def train(n_episodes, learn, greedy, rng_state, world, root, get, put, refuel, n
     for i in range(3):
       episode[i] = 0
     step_sizes(schedule, first_episode + e, alphas)
-    ret = run_episode(root, get, put, refuel, nav, state, episode, world, alphas, gammas, values,
-                      betas, learn, greedy, rng_state, mask, probs, index, psi)
+    ret = run_episode(traces, state, episode, world, (alphas, gammas, values, betas), learn,
+                      greedy, rng_state, (mask, probs, index, psi))
     record[e, RETURN] = ret
     record[e, STEPS] = episode[rules.E_STEPS]
     record[e, OUTCOME] = episode[rules.E_OUTCOME]
@@ -453,9 +452,11 @@ class HPGTables:
       start = start.reshape(-1, 5)
     record = np.zeros((int(n_episodes), N_RECORD))
     steps = train(int(n_episodes), bool(learn), bool(greedy), self.rng_state, self.world,
-                  *self.traces, self.config.schedule(), self.episodes, self.config.gammas(),
-                  self.values, self.config.betas(), record, start, np.zeros(12, dtype=np.int64),
-                  np.zeros(13), np.zeros(rules.MAX_CHILDREN, dtype=np.bool_))
+                  self.traces, self.values,
+                  (self.config.schedule(), self.config.gammas(), self.config.betas()),
+                  self.episodes, record, start,
+                  (np.zeros(12, dtype=np.int64), np.zeros(13),
+                   np.zeros(rules.MAX_CHILDREN, dtype=np.bool_)))
     if learn:
       self.episodes += int(n_episodes)
       self.primitive_steps += int(steps)
@@ -490,7 +491,7 @@ class _BaselinedSoftmax(learners.SoftmaxPolicyGradient):
     return super().act(features, mask, rng_state, sample)
 
   def observe(self, signal, next_features, done, terminal, learn):
-    subtract_baseline(self.trace["w"], self.values, self._here, self.n_actions,
+    subtract_baseline(self.trace.theta, self.values, self._here, self.n_actions,
                                     self._mask, learn, self.alpha, self._index, self._psi)
     super().observe(signal, next_features, done, terminal, learn)
     learn_baseline(self.values, self._here, learn, self.beta, signal, done,
@@ -508,7 +509,7 @@ class TaxiHierarchy:
     betas = hpg.config.betas()
     for i, trace in enumerate(hpg.traces):
       learner = _BaselinedSoftmax(sizes[i], rules.N_CHILDREN[i], hpg.values[i], betas[i])
-      learner.trace = dict(zip(_TRACE_KEYS, trace))       # the compiled loop's arrays
+      learner.trace = trace                               # the compiled loop's arrays
       learner.gamma = float(hpg.config.gammas()[i])
       self.learners.append(learner)
     self._alphas = np.zeros(rules.N_SUBTASKS)
@@ -587,7 +588,7 @@ class TaxiHPG(_taxi.TaxiAgent):
     out = {"rng_state": self.rng_state}
     names = ("root", "get", "put", "refuel", "navigate")
     for name, trace, values in zip(names, self.engine.traces, self.engine.values):
-      out.update({f"{name}_{k}": v for k, v in zip(_TRACE_KEYS, trace)})
+      out.update({f"{name}_{k}": v for k, v in trace._asdict().items()})
       out[f"{name}_baseline"] = values
     return out
 

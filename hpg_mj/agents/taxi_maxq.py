@@ -70,6 +70,7 @@ This module holds all of MAXQ-Q: the configuration, the fused loop, the
 step-by-step nodes (below) and the agent, a baseline of HPG (tag "baseline").
 """
 
+import collections
 import dataclasses
 
 import numba
@@ -167,6 +168,11 @@ def table_offsets(fuel_enabled: bool = True, capacity: int = core.FUEL_CAPACITY)
   sizes = table_sizes(fuel_enabled, capacity)
   return np.concatenate([[0], np.cumsum([sizes[i] * rules.N_CHILDREN[i]
                                          for i in range(rules.N_SUBTASKS)])]).astype(np.int64)
+
+
+# MAXQ-Q's tables as the compiled functions take them: V(a, s) of the primitives,
+# the completions C~ and C of every subtask (flat), and each subtask's offset in them.
+Tables = collections.namedtuple("Tables", ("values", "c_tilde", "c", "offsets"))
 
 
 def new_tables(fuel_enabled: bool = True, capacity: int = core.FUEL_CAPACITY):
@@ -296,7 +302,11 @@ def greedy_random_ties(q, mask, n, rng_state):
 # the subtask's row offset in the flat tables.
 
 @numba.njit(cache=True, inline="always")
-def navigate_scores(target, state, world, values, c_tilde, offsets, q, v, mask):
+def navigate_scores(target, state, world, tables, scratch):
+  values = tables.values
+  c_tilde = tables.c_tilde
+  offsets = tables.offsets
+  q, v, mask = scratch
   n = rules.N_CHILDREN[rules.NAVIGATE]
   lv = LEVEL[rules.NAVIGATE]
   available(rules.NAVIGATE, state, world, mask[lv])
@@ -309,18 +319,24 @@ def navigate_scores(target, state, world, values, c_tilde, offsets, q, v, mask):
 
 
 @numba.njit(cache=True, inline="always")
-def navigate_value(target, state, world, values, c_tilde, c, offsets, q, v, mask):
+def navigate_value(target, state, world, tables, scratch):
   """V(Navigate(t), s)."""
+  c = tables.c
+  q, v, mask = scratch
   if rules.navigate_done(target, state, world):
     return 0.0
   lv = LEVEL[rules.NAVIGATE]
-  base = navigate_scores(target, state, world, values, c_tilde, offsets, q, v, mask)
+  base = navigate_scores(target, state, world, tables, scratch)
   a = greedy(q[lv], mask[lv], rules.N_CHILDREN[rules.NAVIGATE])
   return v[lv, a] + c[base + a]
 
 
 @numba.njit(cache=True, inline="always")
-def carry_scores(subtask, state, world, values, c_tilde, c, offsets, q, v, mask):
+def carry_scores(subtask, state, world, tables, scratch):
+  values = tables.values
+  c_tilde = tables.c_tilde
+  offsets = tables.offsets
+  q, v, mask = scratch
   n = rules.N_CHILDREN[subtask]
   lv = LEVEL[subtask]
   available(subtask, state, world, mask[lv])
@@ -331,59 +347,64 @@ def carry_scores(subtask, state, world, values, c_tilde, c, offsets, q, v, mask)
         v[lv, a] = values[primitive_state(state, world) * N_PRIMITIVES
                           + rules.carry_primitive(subtask)]
       else:
-        v[lv, a] = navigate_value(rules.carry_target(subtask, state), state, world, values,
-                                  c_tilde, c, offsets, q, v, mask)
+        v[lv, a] = navigate_value(rules.carry_target(subtask, state), state, world, tables, scratch)
       q[lv, a] = v[lv, a] + c_tilde[base + a]
   return base
 
 
 @numba.njit(cache=True, inline="always")
-def carry_value(subtask, state, world, values, c_tilde, c, offsets, q, v, mask):
+def carry_value(subtask, state, world, tables, scratch):
   """V(Get / Put / Refuel, s)."""
+  c = tables.c
+  q, v, mask = scratch
   if rules.carry_done(subtask, state, world):
     return 0.0
   lv = LEVEL[subtask]
-  base = carry_scores(subtask, state, world, values, c_tilde, c, offsets, q, v, mask)
+  base = carry_scores(subtask, state, world, tables, scratch)
   a = greedy(q[lv], mask[lv], rules.N_CHILDREN[subtask])
   return v[lv, a] + c[base + a]
 
 
 @numba.njit(cache=True, _nrt=False)
-def carry_scores_call(subtask, state, world, values, c_tilde, c, offsets, q, v, mask):
+def carry_scores_call(subtask, state, world, tables, scratch):
   """`carry_scores` as a called function (it is inlined into `root_scores`)."""
-  return carry_scores(subtask, state, world, values, c_tilde, c, offsets, q, v, mask)
+  return carry_scores(subtask, state, world, tables, scratch)
 
 
 @numba.njit(cache=True, _nrt=False)
-def root_scores(state, world, values, c_tilde, c, offsets, q, v, mask):
+def root_scores(state, world, tables, scratch):
+  c_tilde = tables.c_tilde
+  offsets = tables.offsets
+  q, v, mask = scratch
   n = rules.N_CHILDREN[rules.ROOT]
   lv = LEVEL[rules.ROOT]
   available(rules.ROOT, state, world, mask[lv])
   base = offsets[rules.ROOT] + abstract_state(rules.ROOT, 0, state, world) * n
   for a in range(n):
     if mask[lv, a]:
-      v[lv, a] = carry_value(a + 1, state, world, values, c_tilde, c, offsets, q, v, mask)
+      v[lv, a] = carry_value(a + 1, state, world, tables, scratch)
       q[lv, a] = v[lv, a] + c_tilde[base + a]
   return base
 
 
 @numba.njit(cache=True, inline="always")
-def scores(subtask, target, state, world, values, c_tilde, c, offsets, q, v, mask):
+def scores(subtask, target, state, world, tables, scratch):
   """The subtask's scores in its level's scratch rows; returns its row offset."""
   if subtask == rules.NAVIGATE:
-    return navigate_scores(target, state, world, values, c_tilde, offsets, q, v, mask)
+    return navigate_scores(target, state, world, tables, scratch)
   if subtask == rules.ROOT:
-    return root_scores(state, world, values, c_tilde, c, offsets, q, v, mask)
-  return carry_scores_call(subtask, state, world, values, c_tilde, c, offsets, q, v, mask)
+    return root_scores(state, world, tables, scratch)
+  return carry_scores_call(subtask, state, world, tables, scratch)
 
 
 # --- the rules the two paths share ----------------------------------------------------
 
 @numba.njit(cache=True, inline="always")
-def choose(subtask, target, state, world, values, c_tilde, c, offsets, epsilon, sample,
-           rng_state, q, v, mask):
+def choose(subtask, target, state, world, tables, epsilon, sample, rng_state, scratch):
   """Epsilon-greedy choice of a child of `subtask` in `state` (greedy if not
   `sample`): one uniform when sampling; a randint to explore or to break a tie."""
+  q = scratch[0]
+  mask = scratch[2]
   n = rules.N_CHILDREN[subtask]
   lv = LEVEL[subtask]
   if sample and rng.uniform(rng_state) < epsilon:
@@ -397,7 +418,7 @@ def choose(subtask, target, state, world, values, c_tilde, c, offsets, epsilon, 
         if pick == 0:
           return a
         pick -= 1
-  scores(subtask, target, state, world, values, c_tilde, c, offsets, q, v, mask)
+  scores(subtask, target, state, world, tables, scratch)
   return greedy_random_ties(q[lv], mask[lv], n, rng_state)
 
 
@@ -408,12 +429,16 @@ def update_primitive(values, index, reward, alpha):
 
 
 @numba.njit(cache=True, inline="always")
-def update_completion(subtask, target, child, path, first, last, after, ended, world, values,
-                      c_tilde, c, offsets, settings, all_states, q, v, mask):
+def update_completion(subtask, target, child, path, first, last, after, ended, world, tables,
+                      settings, all_states, scratch):
   """Dietterich's update of C~(i, s, a) and C(i, s, a) after child a of subtask i,
   chosen in s = path[first], returned in `after` (`ended`: the episode ended).
   With `all_states`, every state path[first:last] the child's run visited gets
   the same target (module docstring)."""
+  c_tilde = tables.c_tilde
+  c = tables.c
+  offsets = tables.offsets
+  q, v, mask = scratch
   alpha = settings[P_ALPHA, subtask]
   if ended:
     tilde = 0.0
@@ -423,7 +448,7 @@ def update_completion(subtask, target, child, path, first, last, after, ended, w
     plain = 0.0
   else:
     lv = LEVEL[subtask]
-    base = scores(subtask, target, after, world, values, c_tilde, c, offsets, q, v, mask)
+    base = scores(subtask, target, after, world, tables, scratch)
     a = greedy(q[lv], mask[lv], rules.N_CHILDREN[subtask])
     tilde = c_tilde[base + a] + v[lv, a]
     plain = c[base + a] + v[lv, a]
@@ -436,19 +461,17 @@ def update_completion(subtask, target, child, path, first, last, after, ended, w
 
 
 @numba.njit(cache=True, _nrt=False)
-def choose_child(subtask, target, state, world, values, c_tilde, c, offsets, epsilon, sample,
-                 rng_state, q, v, mask):
+def choose_child(subtask, target, state, world, tables, epsilon, sample, rng_state, scratch):
   """`choose` as a called function (`choose` itself is inlined into Navigate's loop)."""
-  return choose(subtask, target, state, world, values, c_tilde, c, offsets, epsilon, sample,
-                rng_state, q, v, mask)
+  return choose(subtask, target, state, world, tables, epsilon, sample,
+                rng_state, scratch)
 
 
 @numba.njit(cache=True, _nrt=False)
-def learn_completion(subtask, target, child, path, first, last, after, ended, world, values,
-                     c_tilde, c, offsets, settings, all_states, q, v, mask):
+def learn_completion(subtask, target, child, path, first, last, after, ended, world, tables,
+                     settings, all_states, scratch):
   """`update_completion` as a called function (inlined into Navigate's loop)."""
-  update_completion(subtask, target, child, path, first, last, after, ended, world, values,
-                    c_tilde, c, offsets, settings, all_states, q, v, mask)
+  update_completion(subtask, target, child, path, first, last, after, ended, world, tables, settings, all_states, scratch)
 
 
 @numba.njit(cache=True, inline="always")
@@ -469,14 +492,14 @@ def epsilons_at(settings, episode_index, epsilons):
 # --- the fused loop: Algorithm 1's stack discipline, one function per level -----------
 
 @numba.njit(cache=True, _nrt=False)
-def run_navigate(target, state, episode, world, values, c_tilde, c, offsets, settings,
-                 epsilons, alpha_primitive, all_states, learn, sample, rng_state, path, q, v,
-                 mask):
+def run_navigate(target, state, episode, world, tables, settings, epsilons, alpha_primitive,
+                 all_states, learn, sample, rng_state, path, scratch):
   """One call of Navigate(target); returns the rewards earned."""
+  values = tables.values
   total = 0.0
   while not rules.episode_over(episode) and not rules.navigate_done(target, state, world):
-    a = choose(rules.NAVIGATE, target, state, world, values, c_tilde, c, offsets,
-               epsilons[rules.NAVIGATE], sample, rng_state, q, v, mask)
+    a = choose(rules.NAVIGATE, target, state, world, tables,
+               epsilons[rules.NAVIGATE], sample, rng_state, scratch)
     first = episode[rules.E_STEPS]
     record_state(path, state, first)
     s = primitive_state(state, world)
@@ -484,20 +507,21 @@ def run_navigate(target, state, episode, world, values, c_tilde, c, offsets, set
     if learn:
       update_primitive(values, s * N_PRIMITIVES + a, reward, alpha_primitive)
       update_completion(rules.NAVIGATE, target, a, path, first, first + 1, state,
-                        episode_ended(episode), world, values, c_tilde, c, offsets, settings,
-                        all_states, q, v, mask)
+                        episode_ended(episode), world, tables, settings,
+                        all_states, scratch)
     total += reward
   return total
 
 
 @numba.njit(cache=True, _nrt=False)
-def run_carry(subtask, state, episode, world, values, c_tilde, c, offsets, settings, epsilons,
-              alpha_primitive, all_states, learn, sample, rng_state, path, q, v, mask):
+def run_carry(subtask, state, episode, world, tables, settings, epsilons, alpha_primitive,
+              all_states, learn, sample, rng_state, path, scratch):
   """One call of Get, Put or Refuel; returns the rewards earned."""
+  values = tables.values
   total = 0.0
   while not rules.episode_over(episode) and not rules.carry_done(subtask, state, world):
-    a = choose_child(subtask, 0, state, world, values, c_tilde, c, offsets,
-                     epsilons[subtask], sample, rng_state, q, v, mask)
+    a = choose_child(subtask, 0, state, world, tables,
+                     epsilons[subtask], sample, rng_state, scratch)
     first = episode[rules.E_STEPS]
     if a == rules.CARRY_PRIMITIVE:
       action = rules.carry_primitive(subtask)
@@ -507,41 +531,38 @@ def run_carry(subtask, state, episode, world, values, c_tilde, c, offsets, setti
       if learn:
         update_primitive(values, s * N_PRIMITIVES + action, reward, alpha_primitive)
     else:
-      reward = run_navigate(rules.carry_target(subtask, state), state, episode, world, values,
-                            c_tilde, c, offsets, settings, epsilons, alpha_primitive, all_states,
-                            learn, sample, rng_state, path, q, v, mask)
+      reward = run_navigate(rules.carry_target(subtask, state), state, episode, world, tables, settings, epsilons, alpha_primitive, all_states,
+                            learn, sample, rng_state, path, scratch)
     if learn:
       learn_completion(subtask, 0, a, path, first, episode[rules.E_STEPS], state,
-                       episode_ended(episode), world, values, c_tilde, c, offsets, settings,
-                       all_states, q, v, mask)
+                       episode_ended(episode), world, tables, settings,
+                       all_states, scratch)
     total += reward
   return total
 
 
 @numba.njit(cache=True, _nrt=False)
-def run_episode(state, episode, world, values, c_tilde, c, offsets, settings, epsilons,
-                alpha_primitive, all_states, learn, sample, rng_state, path, q, v, mask):
+def run_episode(state, episode, world, tables, settings, epsilons, alpha_primitive, all_states,
+                learn, sample, rng_state, path, scratch):
   """One call of Root: the whole episode from `state`; returns its return."""
   total = 0.0
   while not rules.episode_over(episode):
-    a = choose_child(rules.ROOT, 0, state, world, values, c_tilde, c, offsets,
-                     epsilons[rules.ROOT], sample, rng_state, q, v, mask)
+    a = choose_child(rules.ROOT, 0, state, world, tables,
+                     epsilons[rules.ROOT], sample, rng_state, scratch)
     first = episode[rules.E_STEPS]
-    reward = run_carry(a + 1, state, episode, world, values, c_tilde, c, offsets, settings,
-                       epsilons, alpha_primitive, all_states, learn, sample, rng_state, path, q,
-                       v, mask)
+    reward = run_carry(a + 1, state, episode, world, tables, settings,
+                       epsilons, alpha_primitive, all_states, learn, sample, rng_state, path, scratch)
     if learn:
       learn_completion(rules.ROOT, 0, a, path, first, episode[rules.E_STEPS], state,
-                       episode_ended(episode), world, values, c_tilde, c, offsets, settings,
-                       all_states, q, v, mask)
+                       episode_ended(episode), world, tables, settings,
+                       all_states, scratch)
     total += reward
   return total
 
 
 @numba.njit(cache=True, _nrt=False)
-def train(n_episodes, first_episode, learn, sample, rng_state, world, values, c_tilde, c,
-          offsets, settings, alpha_primitive, all_states, record, scratch_int, path, epsilons,
-          q, v, mask):
+def train(n_episodes, first_episode, learn, sample, rng_state, world, tables, settings,
+          alpha_primitive, all_states, record, scratch_int, path, epsilons, scratch):
   """MAXQ-Q for `n_episodes` from random starts (SPEC section 5): learning
   (`learn`), exploring by each subtask's epsilon (`sample`) or greedy.
 
@@ -558,8 +579,8 @@ def train(n_episodes, first_episode, learn, sample, rng_state, world, values, c_
     for i in range(3):
       episode[i] = 0
     epsilons_at(settings, first_episode + e, epsilons)
-    ret = run_episode(state, episode, world, values, c_tilde, c, offsets, settings, epsilons,
-                      alpha_primitive, all_states, learn, sample, rng_state, path, q, v, mask)
+    ret = run_episode(state, episode, world, tables, settings, epsilons,
+                      alpha_primitive, all_states, learn, sample, rng_state, path, scratch)
     record[e, RETURN] = ret
     record[e, STEPS] = episode[rules.E_STEPS]
     record[e, OUTCOME] = episode[rules.E_OUTCOME]
@@ -579,8 +600,8 @@ class MAXQTables:
     self.world = rules.world_config(self.task)
     self.config = config
     self.settings = config.settings()
-    self.values, self.c_tilde, self.c, self.offsets = new_tables(self.task.fuel_enabled,
-                                                                 self.task.capacity)
+    self.tables = Tables(*new_tables(self.task.fuel_enabled, self.task.capacity))
+    self.values, self.c_tilde, self.c, self.offsets = self.tables
     for i, level in enumerate(("root", "carry", "carry", "carry", "navigate")):
       initial = getattr(config, "initial_" + level)
       completion_table(self.c_tilde, self.offsets, i)[:] = initial
@@ -597,12 +618,11 @@ class MAXQTables:
       raise ValueError(f"MAXQTables.run: n_episodes must be an integer >= 0, got {n_episodes!r}")
     sample = learn if sample is None else bool(sample or learn)
     record = np.zeros((int(n_episodes), N_RECORD))
-    q, v, mask = new_scratch()
     steps = train(int(n_episodes), self.episodes, bool(learn), sample, self.rng_state,
-                  self.world, self.values, self.c_tilde, self.c, self.offsets, self.settings,
+                  self.world, self.tables, self.settings,
                   float(self.config.alpha_primitive), bool(self.config.all_states), record,
                   np.zeros(8, dtype=np.int64), np.zeros((self.task.max_steps, 5), dtype=np.int64),
-                  np.zeros(rules.N_SUBTASKS), q, v, mask)
+                  np.zeros(rules.N_SUBTASKS), new_scratch())
     if learn:
       self.episodes += int(n_episodes)
       self.primitive_steps += int(steps)
@@ -794,8 +814,8 @@ class MAXQNode:
   def act(self, features, mask, rng_state, sample):
     target, state = features
     h = self.shared
-    a = choose_child(self.subtask, target, state, h.world, h.values, h.c_tilde, h.c,
-                        h.offsets, h.epsilons[self.subtask], sample, rng_state, *h.scratch)
+    a = choose_child(self.subtask, target, state, h.world, h.tables, h.epsilons[self.subtask],
+                     sample, rng_state, h.scratch)
     self._child, self._target, self._first = a, target, int(h.cursor[0])
     self._primitive = -1
     action = a if self.subtask == rules.NAVIGATE else (
@@ -816,8 +836,8 @@ class MAXQNode:
       ended = next_features is None                 # a delivery or an empty tank
       after = h.path[self._first] if ended else next_features[1]
       learn_completion(self.subtask, self._target, self._child, h.path, self._first,
-                          int(h.cursor[0]), after, ended, h.world, h.values, h.c_tilde, h.c,
-                          h.offsets, h.settings, h.all_states, *h.scratch)
+                       int(h.cursor[0]), after, ended, h.world, h.tables, h.settings,
+                       h.all_states, h.scratch)
 
   def parameters(self):
     """This subtask's C (a copy), (abstract states, children)."""
@@ -825,13 +845,13 @@ class MAXQNode:
 
 
 class TaxiMAXQHierarchy:
-  """The task graph over a `TaxiMAXQ`'s tables (shared arrays, same generator)."""
+  """The task graph over a `MAXQTables`' tables (shared arrays, same generator)."""
 
   def __init__(self, agent: "MAXQTables"):
     self.agent = agent
     self.world = agent.world
-    self.values, self.c_tilde, self.c, self.offsets = (agent.values, agent.c_tilde, agent.c,
-                                                       agent.offsets)
+    self.tables = agent.tables
+    self.values = agent.values
     self.settings = agent.settings
     self.alpha_primitive = float(agent.config.alpha_primitive)
     self.all_states = bool(agent.config.all_states)

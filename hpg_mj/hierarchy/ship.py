@@ -24,7 +24,7 @@ def ship_graph(root_learner, low_learners, tile_arrays, subtask_max_steps, on_ru
 
   `on_run(subtask, success, episode_over)` is told when a low-level call returns.
   """
-  n_tilings = tile_arrays[-1].shape[0]
+  n_tilings = tile_arrays.offsets.shape[0]
   scratch_tiles = np.empty(n_tilings, dtype=np.int64)
   local = np.empty(4)
   local_samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
@@ -32,7 +32,7 @@ def ship_graph(root_learner, low_learners, tile_arrays, subtask_max_steps, on_ru
   def low_view(call, obs):
     origin = call.memo.setdefault("origin", np.array(call.origin[:2], dtype=np.float64))
     core.global_to_local(obs, origin, call.args["direction"], local)
-    tiles.active_tiles(local, *tile_arrays, scratch_tiles)
+    tiles.active_tiles(local, tile_arrays, scratch_tiles)
     return scratch_tiles
 
   def low_internal_reward(call, step):

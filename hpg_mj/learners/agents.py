@@ -12,17 +12,14 @@ import dataclasses
 
 import numpy as np
 
+from hpg_mj.learners import actor_critic
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import policies
 from hpg_mj.learners import qlambda
 
 
-def _trace_args(t):
-  return t["w"], t["zs"], t["y"], t["touched"], t["marked"], t["count"], t["acc"]
-
-
 class _PolicyGradient:
-  """Eq. 3 (SPEC section 3): z <- 0 on start; z <- gamma z + psi; w <- w + alpha (R + G) z.
+  """Eq. 3 (SPEC section 3): z <- 0 on start; z <- gamma z + psi; theta <- theta + alpha (R + G) z.
 
   `reset_states`: optional predicate on features; when it holds at a step the
   trace is reset (the paper's variance-reduction variant with a set S*).
@@ -39,21 +36,20 @@ class _PolicyGradient:
     self.reset_states = reset_states
 
   def start(self):
-    el.reset(*_trace_args(self.trace))
+    el.reset(self.trace)
 
   def observe(self, signal, next_features, done, terminal, learn):
     if learn:
-      el.reward(*_trace_args(self.trace), self.alpha, signal, self.gamma)
+      el.learn(self.trace, self.alpha, signal, self.gamma)
       if self.reset_states is not None and not done and self.reset_states(next_features):
-        el.reset(*_trace_args(self.trace))
+        el.reset(self.trace)
 
   def parameters(self):
     """The current parameters with pending trace updates applied (a copy)."""
-    t = self.trace
-    return t["w"] + t["zs"] * t["acc"][0] - t["y"]
+    return el.parameters(self.trace)
 
   def state_arrays(self):
-    return dict(self.trace)
+    return self.trace._asdict()
 
 
 class SoftmaxPolicyGradient(_PolicyGradient):
@@ -70,11 +66,9 @@ class SoftmaxPolicyGradient(_PolicyGradient):
   def act(self, features, mask, rng_state, sample):
     mask = self._all if mask is None else mask
     if sample:
-      return policies.softmax_act(*_trace_args(self.trace), int(features), self.n_actions, mask,
+      return policies.softmax_act(self.trace, int(features), self.n_actions, mask,
                                   rng_state, self._probs, self._index, self._psi)
-    t = self.trace
-    return policies.softmax_greedy(t["w"], t["zs"], t["y"], t["acc"], int(features),
-                                   self.n_actions, mask)
+    return policies.softmax_greedy(self.trace, int(features), self.n_actions, mask)
 
 
 class GaussianPolicyGradient(_PolicyGradient):
@@ -90,10 +84,9 @@ class GaussianPolicyGradient(_PolicyGradient):
 
   def act(self, features, mask, rng_state, sample):
     if sample:
-      return policies.gaussian_act(*_trace_args(self.trace), features, self.r_max, rng_state,
+      return policies.gaussian_act(self.trace, features, self.r_max, rng_state,
                                    self._psi)
-    t = self.trace
-    return policies.gaussian_greedy(t["w"], t["zs"], t["y"], t["acc"], features, self.r_max)
+    return policies.gaussian_greedy(self.trace, features, self.r_max)
 
 
 @dataclasses.dataclass
@@ -186,7 +179,7 @@ class ActorCritic:
 
   def _choose(self, state, rng_state, sample):
     a = np.empty_like(self._a)
-    self._tiles.active_tiles(np.asarray(state, dtype=np.float64), *self.actor_arrays, a)
+    self._tiles.active_tiles(np.asarray(state, dtype=np.float64), self.actor_arrays, a)
     m = policies.tile_mean(self.actor_w, a)
     u = policies.gaussian_draw(m, rng_state) if sample else m
     return a, m, u
@@ -195,15 +188,11 @@ class ActorCritic:
     self._sa[:4] = state
     self._sa[4] = policies.squash(u, self.r_max)
     c = np.empty_like(self._c)
-    self._tiles.active_tiles(self._sa, *self.critic_arrays, c)
-    t = self.critic
-    q = 0.0
-    for i in c:
-      q += el.weight(t["w"], t["zs"], t["y"], t["acc"], i)
-    return c, q
+    self._tiles.active_tiles(self._sa, self.critic_arrays, c)
+    return c, actor_critic.critic_value(self.critic, c)
 
   def start(self):
-    el.reset(*_trace_args(self.critic))
+    el.reset(self.critic)
     self._next = None
 
   def act(self, features, mask, rng_state, sample):
@@ -225,9 +214,5 @@ class ActorCritic:
       _, q_next = self._q(next_features, self._next[2])
       target += q_next
     if learn:
-      el.add_score(self.critic["zs"], self.critic["y"], self.critic["touched"],
-                   self.critic["marked"], self.critic["count"], self.critic["acc"], c,
-                   self._ones)
-      el.reward(*_trace_args(self.critic), self.alpha_critic, target - q, self.lam)
-      step = self.alpha_actor * q * (u - m) / len(a)
-      self.actor_w[a] += step
+      actor_critic.learn(self.critic, c, self._ones, self.alpha_critic, target - q, self.lam,
+                         self.actor_w, a, self.alpha_actor, q, u, m)

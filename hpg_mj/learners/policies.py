@@ -1,12 +1,13 @@
 """The two policy forms of the paper, over Eq. 3 traces (see `eligibility`).
 
 * Tabular softmax (Gibbs), one parameter per (state, child): the taxi's HPG.
-* Gaussian with sigmoid over a CMAC (SPEC section 3): m = sum(w_i phi_i) / sum(phi_i),
+* Gaussian with sigmoid over a CMAC (SPEC section 3): m = sum(theta_i phi_i) / sum(phi_i),
   u ~ Normal(m, 1), r = r_max * (2 * sigmoid(u) - 1); score psi = (u - m) * phi / sum(phi).
 
 Each `act` samples an action with the shared generator and adds the action's
 score to the trace at once (Algorithm 1, line 14: z <- z + psi(s, a, theta_k)); the
-caller then applies the reward with `eligibility.reward` when the child returns.
+caller then applies R + G with `eligibility.learn` when the child returns. Each
+takes the subtask's `eligibility.Trace` as one argument.
 """
 import math
 
@@ -17,19 +18,19 @@ from hpg_mj.learners import rng
 
 
 @numba.njit(cache=True, inline="always")
-def softmax_probabilities(w, zs, y, acc, state, n_actions, mask, probs):
+def softmax_probabilities(t, state, n_actions, mask, probs):
   """pi(state, .) over the actions allowed by `mask` (others get probability 0)."""
   base = state * n_actions
   top = -math.inf
   for a in range(n_actions):
     if mask[a]:
-      v = el.weight(w, zs, y, acc, base + a)
+      v = el.parameter(t, base + a)
       if v > top:
         top = v
   total = 0.0
   for a in range(n_actions):
     if mask[a]:
-      p = math.exp(el.weight(w, zs, y, acc, base + a) - top)
+      p = math.exp(el.parameter(t, base + a) - top)
       probs[a] = p
       total += p
     else:
@@ -53,14 +54,13 @@ def sample_index(probs, u):
 
 
 @numba.njit(cache=True, inline="always")
-def softmax_act(w, zs, y, touched, marked, count, acc, state, n_actions, mask, rng_state,
-                probs, index, psi):
+def softmax_act(t, state, n_actions, mask, rng_state, probs, index, psi):
   """Samples a child from the Gibbs policy and adds its score to the trace.
 
   psi(s, a)[s, b] = 1{b = a} - pi(s, b) for the allowed b (zero elsewhere).
   `probs`, `index`, `psi` are scratch arrays of length n_actions.
   """
-  softmax_probabilities(w, zs, y, acc, state, n_actions, mask, probs)
+  softmax_probabilities(t, state, n_actions, mask, probs)
   a = sample_index(probs, rng.uniform(rng_state))
   n = 0
   for b in range(n_actions):
@@ -68,18 +68,18 @@ def softmax_act(w, zs, y, touched, marked, count, acc, state, n_actions, mask, r
       index[n] = state * n_actions + b
       psi[n] = (1.0 if b == a else 0.0) - probs[b]
       n += 1
-  el.add_score(zs, y, touched, marked, count, acc, index[:n], psi[:n])
+  el.add_score(t, index[:n], psi[:n])
   return a
 
 
 @numba.njit(cache=True, inline="always")
-def softmax_greedy(w, zs, y, acc, state, n_actions, mask):
+def softmax_greedy(t, state, n_actions, mask):
   """The most probable allowed child (lowest index on ties)."""
   best = -1
   top = -math.inf
   for a in range(n_actions):
     if mask[a]:
-      v = el.weight(w, zs, y, acc, state * n_actions + a)
+      v = el.parameter(t, state * n_actions + a)
       if v > top:
         top = v
         best = a
@@ -87,11 +87,11 @@ def softmax_greedy(w, zs, y, acc, state, n_actions, mask):
 
 
 @numba.njit(cache=True)
-def gaussian_mean(w, zs, y, acc, tiles):
-  """m = sum(w_i phi_i) / sum(phi_i) over the active tiles (phi binary)."""
+def gaussian_mean(t, tiles):
+  """m = sum(theta_i phi_i) / sum(phi_i) over the active tiles (phi binary)."""
   total = 0.0
   for k in range(tiles.shape[0]):
-    total += el.weight(w, zs, y, acc, tiles[k])
+    total += el.parameter(t, tiles[k])
   return total / tiles.shape[0]
 
 
@@ -117,19 +117,19 @@ def gaussian_draw(m, rng_state):
 
 
 @numba.njit(cache=True)
-def gaussian_act(w, zs, y, touched, marked, count, acc, tiles, r_max, rng_state, psi):
+def gaussian_act(t, tiles, r_max, rng_state, psi):
   """Samples u ~ Normal(m, 1), adds psi = (u - m) phi / sum(phi) to the trace,
   and returns the action r. `psi` is scratch of the length of `tiles`."""
-  m = gaussian_mean(w, zs, y, acc, tiles)
+  m = gaussian_mean(t, tiles)
   u = gaussian_draw(m, rng_state)
   g = (u - m) / tiles.shape[0]
   for k in range(tiles.shape[0]):
     psi[k] = g
-  el.add_score(zs, y, touched, marked, count, acc, tiles, psi)
+  el.add_score(t, tiles, psi)
   return squash(u, r_max)
 
 
 @numba.njit(cache=True)
-def gaussian_greedy(w, zs, y, acc, tiles, r_max):
+def gaussian_greedy(t, tiles, r_max):
   """The policy's mode: r at u = m."""
-  return squash(gaussian_mean(w, zs, y, acc, tiles), r_max)
+  return squash(gaussian_mean(t, tiles), r_max)

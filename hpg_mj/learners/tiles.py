@@ -8,10 +8,15 @@ asymmetric offsets), so that neighbouring states share most tiles.
 Every state activates exactly one tile per tiling; the tile indices of tiling k
 are offset by k * tiles_per_tiling, so all active indices are distinct.
 """
+import collections
 import dataclasses
 
 import numba
 import numpy as np
+
+
+# What the compiled functions take: the arrays of a `TileCoder`.
+Tiling = collections.namedtuple("Tiling", ("low", "width", "n_tiles", "wrap", "offsets"))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -51,18 +56,19 @@ class TileCoder:
     displacement = 2 * np.arange(len(self.low)) + 1
     offsets = ((np.arange(self.n_tilings)[:, None] * displacement[None, :])
                % self.n_tilings) / self.n_tilings
-    return low, width, n, wrap, offsets
+    return Tiling(low, width, n, wrap, offsets)
 
   def active(self, x):
     """The active tile indices of input `x` (a convenience for Python code)."""
     out = np.empty(self.n_tilings, dtype=np.int64)
-    active_tiles(np.asarray(x, dtype=np.float64), *self.arrays(), out)
+    active_tiles(np.asarray(x, dtype=np.float64), self.arrays(), out)
     return out
 
 
 @numba.njit(cache=True)
-def active_tiles(x, low, width, n_tiles, wrap, offsets, out):
+def active_tiles(x, tiling, out):
   """Writes the index of the active tile of every tiling into `out`."""
+  low, width, n_tiles, wrap, offsets = tiling
   n_tilings = offsets.shape[0]
   dims = x.shape[0]
   per_tiling = 1

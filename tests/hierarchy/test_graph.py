@@ -58,7 +58,7 @@ def test_a_new_hierarchy_over_the_ship():
   def leg_view(call, obs):
     origin = call.memo.setdefault("origin", np.array(call.origin[:2]))
     core.global_to_local(obs, origin, call.args["direction"], local)
-    tiles.active_tiles(local, *arrays, active)
+    tiles.active_tiles(local, arrays, active)
     return active
 
   def leg_reward(call, step):

@@ -20,8 +20,7 @@ def _update(agent, subtask, target, child, before, after, ended=False):
   """One completion update of `agent`'s tables, from `before` to `after`."""
   path = np.array([before], dtype=np.int64)
   mq.learn_completion(subtask, target, child, path, 0, 1, np.array(after, dtype=np.int64), ended,
-                      agent.world, agent.values, agent.c_tilde, agent.c, agent.offsets,
-                      agent.settings, True, *mq.new_scratch())
+                      agent.world, agent.tables, agent.settings, True, mq.new_scratch())
 
 
 def _entry(agent, subtask, target, state, child):
@@ -68,8 +67,7 @@ def test_all_states_updating_updates_every_state_of_the_childs_run():
   pickup = mq.primitive_state(path[2], agent.world) * mq.N_PRIMITIVES + taxi_core.PICKUP
   agent.values[pickup] = -1.0
   mq.learn_completion(rules.GET, 0, rules.CARRY_NAVIGATE, path, 0, 2, path[2], False,
-                      agent.world, agent.values, agent.c_tilde, agent.c, agent.offsets,
-                      agent.settings, True, *mq.new_scratch())
+                      agent.world, agent.tables, agent.settings, True, mq.new_scratch())
   for k in (0, 1):
     assert agent.c[_entry(agent, rules.GET, 0, path[k], rules.CARRY_NAVIGATE)] == -1.0
   assert np.count_nonzero(agent.c) == 2
@@ -96,8 +94,8 @@ def _greedy_visits(agent):
     total = 0.0
     while not rules.episode_over(episode) and not mq.terminated(subtask, target, state,
                                                                 agent.world):
-      a = mq.choose_child(subtask, target, state, agent.world, agent.values, agent.c_tilde,
-                          agent.c, agent.offsets, 0.0, False, agent.rng_state, q, v, mask)
+      a = mq.choose_child(subtask, target, state, agent.world, agent.tables, 0.0, False,
+                          agent.rng_state, (q, v, mask))
       visits.append((subtask, target, state.copy(), a))
       if subtask == rules.NAVIGATE:
         total += rules.primitive_step(state, episode, a, agent.world)
@@ -140,8 +138,7 @@ def test_converged_completions_match_the_exact_values_on_the_classic_taxi():
   q, v, mask = mq.new_scratch()
   for s in list(returns)[::7]:
     state = np.array(taxi_core.decode_state(s, False), dtype=np.int64)
-    base = mq.root_scores(state, agent.world, agent.values, agent.c_tilde, agent.c,
-                          agent.offsets, q, v, mask)
+    base = mq.root_scores(state, agent.world, agent.tables, (q, v, mask))
     a = mq.greedy(q[2], mask[2], rules.N_CHILDREN[rules.ROOT])
     assert v[2, a] + agent.c[base + a] == model.v[s]
 

@@ -35,24 +35,24 @@ def exact_q():
 
 
 @numba.njit
-def _td_lambda(episodes, lam, seed_state, w, zs, y, touched, marked, count, acc):
+def _td_lambda(episodes, lam, seed_state, t):
   one = np.ones(1)
   index = np.zeros(1, dtype=np.int64)
   for e in range(episodes):
     alpha = 0.5 / (1.0 + e / 100.0)
-    el.reset(w, zs, y, touched, marked, count, acc)
+    el.reset(t)
     s = rng.randint(seed_state, 3)
     a = policies.sample_index(PI[s], rng.uniform(seed_state))
     while True:
       s2 = policies.sample_index(P[s, a], rng.uniform(seed_state))
-      q = el.weight(w, zs, y, acc, s * 2 + a)
+      q = el.parameter(t, s * 2 + a)
       target = R[s, a]
       if s2 < 3:
         a2 = policies.sample_index(PI[s2], rng.uniform(seed_state))
-        target += el.weight(w, zs, y, acc, s2 * 2 + a2)
+        target += el.parameter(t, s2 * 2 + a2)
       index[0] = s * 2 + a
-      el.add_score(zs, y, touched, marked, count, acc, index, one)    # e <- lambda e + phi
-      el.reward(w, zs, y, touched, marked, count, acc, alpha, target - q, lam)
+      el.add_score(t, index, one)                  # e <- lambda e + phi
+      el.learn(t, alpha, target - q, lam)
       if s2 == 3:
         break
       s, a = s2, a2
@@ -62,9 +62,8 @@ def test_td_lambda_critic_converges_to_the_exact_action_values():
   expected = exact_q()
   for lam in (0.0, 0.9):
     t = el.new_trace(6)
-    _td_lambda(1_000_000, lam, rng.make_state(5), t["w"], t["zs"], t["y"], t["touched"],
-               t["marked"], t["count"], t["acc"])
-    current = t["w"] + t["zs"] * t["acc"][0] - t["y"]
+    _td_lambda(1_000_000, lam, rng.make_state(5), t)
+    current = el.parameters(t)
     np.testing.assert_allclose(current, expected, atol=0.03)
 
 
@@ -92,7 +91,7 @@ def test_actor_critic_single_step_by_hand():
       actor=ship_actor_critic.Actor(alpha=0.1),
       critic=ship_actor_critic.Critic(alpha=0.5, trace_decay=0.9)), seed=4)
   lr = agent.learner
-  lr.critic["w"][:] = 0.25                  # Q(s, a) = 9 * 0.25 = 2.25 for every (s, a)
+  lr.critic.theta[:] = 0.25                  # Q(s, a) = 9 * 0.25 = 2.25 for every (s, a)
   probe = agent.rng_state.copy()
   start = np.array([200.0, 700.0, -45.0, 0.0])
   a_tiles = ship_flat_pg.actor_coder().active(start)
@@ -101,8 +100,7 @@ def test_actor_critic_single_step_by_hand():
   c_tiles = ship_actor_critic.critic_coder().active([*start, r])
   agent.compiled(1, True, True, start=start)
   # Truncated after one step: delta = R + Q(s', a') - Q(s, a) = -1 + 2.25 - 2.25.
-  c = lr.critic
-  critic = c["w"] + c["zs"] * c["acc"][0] - c["y"]        # pending trace updates applied
+  critic = el.parameters(lr.critic)                      # pending trace updates applied
   np.testing.assert_allclose(critic[c_tiles], 0.25 + 0.5 * -1.0, rtol=1e-12)
   assert np.count_nonzero(critic != 0.25) == 9
   np.testing.assert_allclose(lr.actor_w[a_tiles], 0.1 * 2.25 * u / 9, rtol=1e-12)

@@ -50,6 +50,7 @@ def _estimates(theta, episodes, alpha, seed_state, out):
   marked = np.zeros(theta.shape[0], dtype=np.bool_)
   count = np.zeros(1, dtype=np.int64)
   acc = np.array([0.0, 1.0])
+  t = el.Trace(t_w, zs, y, touched, marked, count, acc)
   mask = np.ones(N_ACTIONS, dtype=np.bool_)
   probs = np.empty(N_ACTIONS)
   index = np.empty(N_ACTIONS, dtype=np.int64)
@@ -57,16 +58,15 @@ def _estimates(theta, episodes, alpha, seed_state, out):
   start = np.array([0.7, 0.3])
   for e in range(episodes):
     t_w[:] = theta
-    el.reset(t_w, zs, y, touched, marked, count, acc)      # z <- 0 at the start
+    el.reset(t)                                            # z <- 0 at the start
     t_w[:] = theta
     s = policies.sample_index(start, rng.uniform(seed_state))
     while s < N_STATES:
-      a = policies.softmax_act(t_w, zs, y, touched, marked, count, acc, s, N_ACTIONS, mask,
-                               seed_state, probs, index, psi)
-      el.reward(t_w, zs, y, touched, marked, count, acc, alpha, R[s, a], 1.0)
+      a = policies.softmax_act(t, s, N_ACTIONS, mask, seed_state, probs, index, psi)
+      el.learn(t, alpha, R[s, a], 1.0)
       s = policies.sample_index(P[s, a], rng.uniform(seed_state))
     for i in range(theta.shape[0]):
-      out[e, i] = (el.weight(t_w, zs, y, acc, i) - theta[i]) / alpha
+      out[e, i] = (el.parameter(t, i) - theta[i]) / alpha
 
 
 def test_equation_3_estimates_the_exact_gradient():

@@ -12,10 +12,6 @@ from hpg_mj.learners import rng
 from hpg_mj.learners import tiles
 
 
-def _args(t):
-  return t["w"], t["zs"], t["y"], t["touched"], t["marked"], t["count"], t["acc"]
-
-
 @pytest.mark.parametrize("gamma", [1.0, 0.9, 0.5])
 def test_lazy_trace_equals_equation_3_applied_literally(gamma):
   gen = np.random.default_rng(0)
@@ -25,67 +21,64 @@ def test_lazy_trace_equals_equation_3_applied_literally(gamma):
   z = np.zeros(n)
   for step in range(400):
     if step % 97 == 0:                         # a subtask starts: z <- 0
-      el.reset(*_args(lazy))
+      el.reset(lazy)
       z[:] = 0.0
     index = gen.choice(n, size=3, replace=False).astype(np.int64)
     psi = gen.normal(size=3)
     alpha, signal = 0.05, gen.normal()
-    el.add_score(lazy["zs"], lazy["y"], lazy["touched"], lazy["marked"], lazy["count"],
-                 lazy["acc"], index, psi)
+    el.add_score(lazy, index, psi)
     z[index] += psi                            # z <- z + psi
-    el.reward(*_args(lazy), alpha, signal, gamma)
-    w += alpha * signal * z                    # w <- w + alpha (R + G) z
+    el.learn(lazy, alpha, signal, gamma)
+    w += alpha * signal * z                    # theta <- theta + alpha (R + G) z
     z *= gamma                                 # discounted trace, for the next step
-    current = lazy["w"] + lazy["zs"] * lazy["acc"][0] - lazy["y"]
+    current = el.parameters(lazy)
     np.testing.assert_allclose(current, w, rtol=1e-9, atol=1e-9)
 
 
 def test_lazy_trace_touches_only_the_score():
   t = el.new_trace(1000)
-  el.add_score(t["zs"], t["y"], t["touched"], t["marked"], t["count"], t["acc"],
-               np.array([3, 7], dtype=np.int64), np.array([1.0, -1.0]))
-  el.reward(*_args(t), 0.5, 2.0, 1.0)
-  assert t["count"][0] == 2 and np.count_nonzero(t["w"]) == 0   # nothing written yet
-  assert el.weight(t["w"], t["zs"], t["y"], t["acc"], 3) == pytest.approx(1.0)
-  assert el.weight(t["w"], t["zs"], t["y"], t["acc"], 7) == pytest.approx(-1.0)
-  el.reset(*_args(t))
-  assert t["w"][3] == pytest.approx(1.0) and t["w"][7] == pytest.approx(-1.0)
-  assert t["count"][0] == 0 and not t["zs"].any()
+  el.add_score(t, np.array([3, 7], dtype=np.int64), np.array([1.0, -1.0]))
+  el.learn(t, 0.5, 2.0, 1.0)
+  assert t.count[0] == 2 and np.count_nonzero(t.theta) == 0   # nothing written yet
+  assert el.parameter(t, 3) == pytest.approx(1.0)
+  assert el.parameter(t, 7) == pytest.approx(-1.0)
+  el.reset(t)
+  assert t.theta[3] == pytest.approx(1.0) and t.theta[7] == pytest.approx(-1.0)
+  assert t.count[0] == 0 and not t.zs.any()
 
 
 def test_softmax_probabilities_and_score():
   t = el.new_trace(2 * 3)
-  t["w"][3:6] = [0.0, math.log(2.0), math.log(3.0)]      # state 1: probabilities 1:2:3
+  t.theta[3:6] = [0.0, math.log(2.0), math.log(3.0)]      # state 1: probabilities 1:2:3
   probs = np.empty(3)
-  policies.softmax_probabilities(t["w"], t["zs"], t["y"], t["acc"], 1, 3,
-                                 np.ones(3, dtype=np.bool_), probs)
+  policies.softmax_probabilities(t, 1, 3, np.ones(3, dtype=np.bool_), probs)
   np.testing.assert_allclose(probs, [1 / 6, 2 / 6, 3 / 6])
-  policies.softmax_probabilities(t["w"], t["zs"], t["y"], t["acc"], 1, 3,
-                                 np.array([True, False, True]), probs)
+  policies.softmax_probabilities(t, 1, 3, np.array([True, False, True]), probs)
   np.testing.assert_allclose(probs, [0.25, 0.0, 0.75])
   state = rng.make_state(1)
   index, psi = np.empty(3, dtype=np.int64), np.empty(3)
-  a = policies.softmax_act(*_args(t), 1, 3, np.ones(3, dtype=np.bool_), state, probs, index,
+  a = policies.softmax_act(t, 1, 3, np.ones(3, dtype=np.bool_), state, probs, index,
                            psi)
   expected = -np.array([1 / 6, 2 / 6, 3 / 6])
   expected[a] += 1.0                                       # psi = e_a - pi
-  np.testing.assert_allclose(t["zs"][3:6], expected)
-  assert t["zs"][3:6].sum() == pytest.approx(0.0, abs=1e-12)
+  np.testing.assert_allclose(t.zs[3:6], expected)
+  assert t.zs[3:6].sum() == pytest.approx(0.0, abs=1e-12)
 
 
 def test_gaussian_sigmoid_policy_and_score():
   t = el.new_trace(20)
   active = np.arange(0, 18, 2, dtype=np.int64)           # 9 active tiles
-  t["w"][active] = np.linspace(-1, 1, 9) + 0.5           # mean m = 0.5
+  t.theta[active] = np.linspace(-1, 1, 9) + 0.5           # mean m = 0.5
   state = rng.make_state(3)
   probe = state.copy()
   u = 0.5 + rng.normal(probe)
-  r = policies.gaussian_act(*_args(t), active, 15.0, state, np.empty(9))
+  r = policies.gaussian_act(t, active, 15.0, state, np.empty(9))
   assert r == pytest.approx(15.0 * (2.0 / (1.0 + math.exp(-u)) - 1.0))
-  np.testing.assert_allclose(t["zs"][active], (u - 0.5) / 9)     # psi = (u - m) phi / sum phi
-  assert not t["zs"][1::2].any()
-  assert policies.gaussian_greedy(t["w"], np.zeros(20), np.zeros(20), np.array([0.0, 1.0]),
-                                  active, 15.0) == pytest.approx(15 * math.tanh(0.25))
+  np.testing.assert_allclose(t.zs[active], (u - 0.5) / 9)     # psi = (u - m) phi / sum phi
+  assert not t.zs[1::2].any()
+  fresh = el.new_trace(20)
+  fresh.theta[:] = t.theta                                 # no pending trace: u = m
+  assert policies.gaussian_greedy(fresh, active, 15.0) == pytest.approx(15 * math.tanh(0.25))
 
 
 def test_cmac_activates_nine_tiles_wraps_and_shares():

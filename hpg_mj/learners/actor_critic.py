@@ -1,0 +1,33 @@
+"""Konda's actor-critic (SPEC section 4) as compiled rules over plain arrays, called
+by the fused loop and the step-by-step learner alike.
+
+The critic is linear over tiles of (state, action), learned by TD(lambda) on an
+Eq. 3-style lazy trace (`eligibility`); the actor is a Gaussian-with-sigmoid
+policy over its own tiles (plain weights), stepped along Q(s, a) psi(s, a).
+"""
+import numba
+
+from hpg_mj.learners import eligibility as el
+
+
+@numba.njit(cache=True)
+def critic_value(critic, tiles):
+  """Q(s, a): the critic's parameters summed over the active tiles of (s, a)."""
+  q = 0.0
+  for k in range(tiles.shape[0]):
+    q += el.parameter(critic, tiles[k])
+  return q
+
+
+@numba.njit(cache=True)
+def learn(critic, critic_tiles, ones, alpha_critic, delta, trace_decay, actor_w, actor_tiles,
+          alpha_actor, q, u, m):
+  """One step of both, after the action a = (u, r) drawn around the actor's mean m:
+    e <- lambda e + phi(s, a);  w_c <- w_c + alpha_critic * delta * e     (TD(lambda))
+    theta <- theta + alpha_actor * Q(s, a) * psi(s, a),  psi = (u - m) phi / sum(phi)
+  with delta = R + Q(s', a') - Q(s, a) and Q(s, a) the critic's value before the step."""
+  el.add_score(critic, critic_tiles, ones)
+  el.learn(critic, alpha_critic, delta, trace_decay)
+  step = alpha_actor * q * (u - m) / actor_tiles.shape[0]
+  for k in range(actor_tiles.shape[0]):
+    actor_w[actor_tiles[k]] += step
