@@ -145,8 +145,9 @@ class ShipActorCritic(_ship.ShipAgent):
   def __init__(self, config=None, seed=0, task=None):
     super().__init__(config, seed, task)
     actor, critic = self.config.actor, self.config.critic
-    self.learner = learners.ActorCritic(actor_coder(actor.tilings, actor.tiles),
-                                        critic_coder(critic.tilings, critic.tiles), core.MAX_TURN_RATE,
+    self.actor_coder = actor_coder(actor.tilings, actor.tiles)
+    self.critic_coder = critic_coder(critic.tilings, critic.tiles)
+    self.learner = learners.ActorCritic(self.actor_coder, self.critic_coder, core.MAX_TURN_RATE,
                                         actor.alpha, critic.alpha, critic.trace_decay)
 
   def state(self):

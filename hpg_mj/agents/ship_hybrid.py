@@ -37,7 +37,8 @@ N_RECORD = 8
 # task file (`settings` fills them from a Config).
 Settings = collections.namedtuple("Settings", (
     "root_alpha", "root_trace_decay", "root_epsilon_threshold", "root_epsilon_every",
-    "root_epsilon_divisor", "low_level_alpha", "low_level_trace_gamma", "low_level_max_steps",
+    "root_epsilon_divisor", "low_level_alpha", "low_level_trace_gamma", "low_level_baseline",
+    "low_level_max_steps",
     "environment_max_steps", "environment_gate_reward", "environment_out_of_bounds_reward"))
 # The root's Q(lambda) table and trace; the epsilon schedule's arrays.
 RootTable = collections.namedtuple("RootTable", ("q", "index", "value", "count"))
@@ -47,18 +48,22 @@ def settings(config):
   root, low, env = config.root, config.low_level, config.environment
   return Settings(float(root.alpha), float(root.trace_decay), float(root.epsilon_threshold),
                   int(root.epsilon_every), float(root.epsilon_divisor), float(low.alpha),
-                  float(low.trace_gamma), int(low.max_steps), int(env.max_steps),
+                  float(low.trace_gamma), float(low.baseline), int(low.max_steps),
+                  int(env.max_steps),
                   float(env.gate_reward), float(env.out_of_bounds_reward))
 
 
 @numba.njit(cache=True)
-def run_low_level(state, direction, low, tiling, s, learn, sample, rng_state, steps_before,
-                  scratch):
-  """One call of a low-level subtask (trace `low`) from `state` (modified in place).
+def run_low_level(state, direction, low, low_values, tiling, s, learn, sample, rng_state,
+                  steps_before, scratch):
+  """One call of a low-level subtask (trace `low`, baseline `low_values`) from
+  `state` (modified in place). The baseline b (`policies.subtract_baseline`) is
+  learned with step size s.low_level_baseline; 0 leaves it out (Eq. 3 exactly).
 
   Returns (global event, local event, reward to the root, control steps).
   """
-  scratch_tiles, scratch_psi, samples, local_samples, local_state, origin = scratch
+  scratch_tiles, scratch_psi, scratch_next, samples, local_samples, local_state, origin = scratch
+  beta = s.low_level_baseline
   origin[0] = state[0]
   origin[1] = state[1]
   el.reset(low)                                        # Eq. 3: z <- 0
@@ -71,6 +76,9 @@ def run_low_level(state, direction, low, tiling, s, learn, sample, rng_state, st
     tiles_mod.active_tiles(local_state, tiling, scratch_tiles)
     if sample:
       r = policies.gaussian_act(low, scratch_tiles, core.MAX_TURN_RATE, rng_state, scratch_psi)
+      if learn and beta != 0.0:
+        policies.subtract_baseline(low.theta, low_values, scratch_tiles, s.low_level_alpha,
+                                   scratch_psi)
     else:
       r = policies.gaussian_greedy(low, scratch_tiles, core.MAX_TURN_RATE)
     core.euler_control(state, r, samples)
@@ -81,23 +89,31 @@ def run_low_level(state, direction, low, tiling, s, learn, sample, rng_state, st
     local_event, internal = core.low_level_outcome(samples, state, origin, direction, k,
                                                    local_samples, local_state,
                                                    s.low_level_max_steps)
+    ended = (global_event != core.NO_EVENT or local_event != core.NO_EVENT
+             or steps_before + k >= s.environment_max_steps)
     if learn:                                          # Eq. 3 with R + G
       el.learn(low, s.low_level_alpha, core.STEP_REWARD + internal, s.low_level_trace_gamma)
-    if (global_event != core.NO_EVENT or local_event != core.NO_EVENT
-        or steps_before + k >= s.environment_max_steps):
+      if beta != 0.0:
+        next_value = 0.0
+        if not ended:
+          tiles_mod.active_tiles(local_state, tiling, scratch_next)
+          next_value = policies.tile_mean(low_values, scratch_next)
+        policies.learn_baseline(low_values, scratch_tiles, beta, core.STEP_REWARD + internal,
+                                s.low_level_trace_gamma, next_value)
+    if ended:
       return global_event, local_event, reward_root, k
 
 
 @numba.njit(cache=True)
-def train(n_episodes, learn, sample, rng_state, root, schedule, diagonal, straight, tiling, s,
-          record, fixed_start):
+def train(n_episodes, learn, sample, rng_state, root, schedule, diagonal, diagonal_values,
+          straight, straight_values, tiling, s, record, fixed_start):
   """Trains for `n_episodes` episodes (Algorithm 1 over Figure 3's graph); with
   learn=False it only runs the policy, sampling it (sample=True) or greedily
   (sample=False: epsilon 0, u = m).
 
   `root` is the root's `RootTable`, `schedule` the epsilon schedule's arrays
   (`schedules.new_schedule`), `diagonal` and `straight` the subtasks' Eq. 3
-  traces over `tiling`, `s` the `Settings`. `record` (n_episodes, N_RECORD)
+  traces over `tiling` (and their baselines' values), `s` the `Settings`. `record` (n_episodes, N_RECORD)
   receives one row per episode. With `fixed_start` of length 4, every episode
   starts there instead of at random.
   """
@@ -105,8 +121,9 @@ def train(n_episodes, learn, sample, rng_state, root, schedule, diagonal, straig
   state = np.empty(4)
   samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
   n_tilings = tiling.offsets.shape[0]
-  scratch = (np.empty(n_tilings, dtype=np.int64), np.empty(n_tilings), samples,
-             np.empty_like(samples), np.empty(4), np.empty(2))
+  scratch = (np.empty(n_tilings, dtype=np.int64), np.empty(n_tilings),
+             np.empty(n_tilings, dtype=np.int64), samples, np.empty_like(samples), np.empty(4),
+             np.empty(2))
   for episode in range(n_episodes):
     if fixed_start.shape[0] == 4:
       state[:] = fixed_start
@@ -122,9 +139,10 @@ def train(n_episodes, learn, sample, rng_state, root, schedule, diagonal, straig
     row[:] = 0.0
     while True:
       sub = rules.subtask_of(a)
-      low = diagonal if sub == rules.DIAGONAL else straight
-      g_event, l_event, reward, k = run_low_level(state, a, low, tiling, s, learn, sample,
-                                                  rng_state, steps, scratch)
+      low, low_values = ((diagonal, diagonal_values) if sub == rules.DIAGONAL else
+                         (straight, straight_values))
+      g_event, l_event, reward, k = run_low_level(state, a, low, low_values, tiling, s, learn,
+                                                  sample, rng_state, steps, scratch)
       if g_event == core.NO_EVENT and steps + k < s.environment_max_steps:
         success = l_event == core.SUCCESS
         if sub == rules.DIAGONAL:
@@ -184,6 +202,8 @@ class LowLevel:
   alpha: float = param(0.01, "Eq. 3 step size", low=0, low_open=True)
   trace_gamma: float = param(1.0, "discount on the Eq. 3 trace (1 = plain Eq. 3)", low=0,
                              high=1, low_open=True)
+  baseline: float = param(0.0, "TD(0) step size of a baseline b(s) over the policy's tiles "
+                          "(0: none, plain Eq. 3)", low=0, high=1)
   tilings: int = param(9, "CMAC tilings", low=1)
   tiles: tuple = param((5, 5, 36, 5), "tiles per tiling over local x, y, theta, theta_dot",
                        length=4, low=1)
@@ -218,7 +238,8 @@ class ShipHybrid(_ship.ShipAgent):
     self.root = learners.QLambda(rules.ROOT_GRID ** 2, rules.N_DIRECTIONS, root.alpha,
                                  root.trace_decay, epsilon_source=lambda: self.schedule[0])
     self.low = [learners.GaussianPolicyGradient(self.coder.size, low.tilings, core.MAX_TURN_RATE,
-                                                low.alpha, low.trace_gamma)
+                                                low.alpha, low.trace_gamma,
+                                                baseline=low.baseline)
                 for _ in (rules.DIAGONAL, rules.STRAIGHT)]
     self._learn = True
 
@@ -230,6 +251,7 @@ class ShipHybrid(_ship.ShipAgent):
     for name, learner in (("diagonal", self.low[0]), ("straight", self.low[1])):
       for key, value in learner.trace._asdict().items():
         out[f"{name}_{key}"] = value
+      out[f"{name}_baseline"] = learner.values
     return out
 
   def parameters(self):
@@ -245,8 +267,10 @@ class ShipHybrid(_ship.ShipAgent):
     fixed = np.empty(0) if start is None else np.array(start, dtype=np.float64)
     train(episodes, learn, sample, self.rng_state,
           RootTable(self.root.q, self.root.index, self.root.value, self.root.count),
-          (self.schedule, self.outcomes, self.counts), self.low[rules.DIAGONAL].trace,
-          self.low[rules.STRAIGHT].trace, self.tile_arrays, settings(self.config), rows, fixed)
+          (self.schedule, self.outcomes, self.counts),
+          self.low[rules.DIAGONAL].trace, self.low[rules.DIAGONAL].values,
+          self.low[rules.STRAIGHT].trace, self.low[rules.STRAIGHT].values, self.tile_arrays,
+          settings(self.config), rows, fixed)
     return rows
 
   # ---- the step-by-step path -----------------------------------------------------

@@ -71,7 +71,7 @@ def _check(path, where, key, value, kind):
       raise TaskFileError(f"{where} must be a string, got {value!r}")
     return value
   if kind == "int_list_any":
-    if not isinstance(value, list) or not all(_is_int(v) and v >= 0 for v in value):
+    if not isinstance(value, list) or not value or not all(_is_int(v) and v >= 0 for v in value):
       raise TaskFileError(f"{where} must be {_describe(kind)}, got {value!r}")
     return list(value)
   if kind == "str_list":
@@ -224,9 +224,9 @@ class TaskFile:
   text: str
 
   def section(self, name):
-    """A section's values as a dict (`protocol` included)."""
+    """A section's values as a dict (`protocol` included, with its tuning seeds)."""
     if name == "protocol":
-      return dataclasses.asdict(self.protocol)
+      return {**dataclasses.asdict(self.protocol), "tuning_seeds": list(self.tuning_seeds)}
     return dataclasses.asdict(getattr(self.config, name))
 
 
@@ -293,4 +293,4 @@ def _describe(kind):
             "float_lists": lambda: f"a non-empty list of {kind[2]}"}[kind[0]]()
   return {"float": "a number", "int": "an integer", "bool": "true or false",
           "str": "a string", "str_list": "a non-empty list of strings",
-          "int_list_any": "a list of non-negative integers"}[kind]
+          "int_list_any": "a non-empty list of integers >= 0"}[kind]

@@ -73,20 +73,39 @@ class SoftmaxPolicyGradient(_PolicyGradient):
 
 class GaussianPolicyGradient(_PolicyGradient):
   """Gaussian-with-sigmoid policy over CMAC tiles (SPEC section 3); `features` are
-  the active tile indices; the action is a continuous value in [-r_max, r_max]."""
+  the active tile indices; the action is a continuous value in [-r_max, r_max].
+
+  `baseline`: the TD(0) step size of a baseline b(s) over the same tiles
+  (`policies.subtract_baseline`; 0: none, Eq. 3 exactly), held in `values`."""
 
   def __init__(self, n_weights, n_active, r_max, alpha, gamma=1.0, reset_states=None,
-               sample_when_evaluating=False):
+               sample_when_evaluating=False, baseline=0.0):
     super().__init__(n_weights, alpha, gamma, reset_states)
+    if not 0.0 <= baseline <= 1.0:
+      raise ValueError(f"baseline step size must lie in [0, 1], got {baseline!r}")
     self.r_max = float(r_max)
     self._psi = np.empty(int(n_active))
+    self._tiles = np.empty(int(n_active), dtype=np.int64)
     self.sample_when_evaluating = sample_when_evaluating
+    self.baseline = float(baseline)
+    self.values = np.zeros(n_weights)
 
   def act(self, features, mask, rng_state, sample):
     if sample:
-      return policies.gaussian_act(self.trace, features, self.r_max, rng_state,
-                                   self._psi)
+      self._tiles[:] = features             # the view's array is reused for the next state
+      return policies.gaussian_act(self.trace, features, self.r_max, rng_state, self._psi)
     return policies.gaussian_greedy(self.trace, features, self.r_max)
+
+  def observe(self, signal, next_features, done, terminal, learn):
+    # In the order of the fused loop (hpg_mj.agents.ship_hybrid.run_low_level).
+    if learn and self.baseline != 0.0:
+      policies.subtract_baseline(self.trace.theta, self.values, self._tiles, self.alpha,
+                                 self._psi)
+    super().observe(signal, next_features, done, terminal, learn)
+    if learn and self.baseline != 0.0:
+      next_value = 0.0 if done else policies.tile_mean(self.values, next_features)
+      policies.learn_baseline(self.values, self._tiles, self.baseline, signal, self.gamma,
+                              next_value)
 
 
 @dataclasses.dataclass

@@ -2,7 +2,8 @@
 
 * Tabular softmax (Gibbs), one parameter per (state, child): the taxi's HPG.
 * Gaussian with sigmoid over a CMAC (SPEC section 3): m = sum(theta_i phi_i) / sum(phi_i),
-  u ~ Normal(m, 1), r = r_max * (2 * sigmoid(u) - 1); score psi = (u - m) * phi / sum(phi).
+  u ~ Normal(m, 1), r = r_max * (2 * sigmoid(u) - 1); score psi = (u - m) * phi / sum(phi);
+  optionally with a baseline b(s) linear over the same tiles (`subtract_baseline`).
 
 Each `act` samples an action with the shared generator and adds the action's
 score to the trace at once (Algorithm 1, line 14: z <- z + psi(s, a, theta_k)); the
@@ -133,3 +134,31 @@ def gaussian_act(t, tiles, r_max, rng_state, psi):
 def gaussian_greedy(t, tiles, r_max):
   """The policy's mode: r at u = m."""
   return squash(gaussian_mean(t, tiles), r_max)
+
+
+# REINFORCE's baseline for the CMAC policy (Williams 1992; a declared departure from
+# Eq. 3, as the taxi's in hpg_mj.agents.taxi_hpg): with the trace discounted by
+# gamma, Eq. 3 moves theta along psi_j times the discounted reward-to-go G_j of each
+# choice j; the baseline makes that G_j - b(s_j), one extra step at the choice,
+# theta <- theta - alpha b(s_j) psi_j. b is linear over the policy's tiles, b(s) = the
+# mean of `values` over the active tiles, learned by TD(0) on the subtask's own R + G.
+# b(s) does not depend on the action, so the gradient stays unbiased; it removes
+# the noise of calls whose reward-to-go is large and of one sign whatever the action.
+
+@numba.njit(cache=True)
+def subtract_baseline(theta, values, tiles, alpha, psi):
+  """theta <- theta - alpha b(s) psi for the choice just made in s (tiles, psi as
+  left by `gaussian_act`). Nothing when b(s) = 0."""
+  amount = alpha * tile_mean(values, tiles)
+  if amount != 0.0:
+    for k in range(tiles.shape[0]):
+      theta[tiles[k]] -= amount * psi[k]
+
+
+@numba.njit(cache=True)
+def learn_baseline(values, tiles, beta, signal, gamma, next_value):
+  """TD(0): b(s) <- b(s) + beta (signal + gamma b(s') - b(s)); next_value = b(s'),
+  0 when the call ended. Each active tile moves by beta * delta, so b(s) does too."""
+  delta = signal + gamma * next_value - tile_mean(values, tiles)
+  for k in range(tiles.shape[0]):
+    values[tiles[k]] += beta * delta

@@ -3,13 +3,17 @@
 A tiling divides each input dimension into `n_tiles[d]` equal tiles over
 [low[d], high[d]); a wrapping dimension (the heading) continues around the
 circle, the others clip to their edge tiles. Tiling k is shifted by k/n of a
-tile along the displacement vector (1, 3, 5, 7, ...) (Miller & Glanz's
-asymmetric offsets), so that neighbouring states share most tiles.
+tile along a displacement vector of the first integers coprime with n (for
+n = 9: 1, 2, 4, 5, 7, ...; SPEC section 3), so that every tiling is offset
+differently from every other in every dimension and neighbouring states share
+most tiles. (Miller & Glanz's odd vector 1, 3, 5, 7, ... is coprime only with a
+power of two: modulo 9 it gives the second dimension 3 offsets and the fifth none.)
 Every state activates exactly one tile per tiling; the tile indices of tiling k
 are offset by k * tiles_per_tiling, so all active indices are distinct.
 """
 import collections
 import dataclasses
+import math
 
 import numba
 import numpy as np
@@ -53,7 +57,7 @@ class TileCoder:
     width = (np.asarray(self.high, dtype=np.float64) - low) / np.asarray(self.n_tiles)
     n = np.asarray(self.n_tiles, dtype=np.int64)
     wrap = np.asarray(self.wrap, dtype=np.bool_)
-    displacement = 2 * np.arange(len(self.low)) + 1
+    displacement = coprime_displacement(len(self.low), self.n_tilings)
     offsets = ((np.arange(self.n_tilings)[:, None] * displacement[None, :])
                % self.n_tilings) / self.n_tilings
     return Tiling(low, width, n, wrap, offsets)
@@ -63,6 +67,18 @@ class TileCoder:
     out = np.empty(self.n_tilings, dtype=np.int64)
     active_tiles(np.asarray(x, dtype=np.float64), self.arrays(), out)
     return out
+
+
+def coprime_displacement(dims, n_tilings):
+  """The first `dims` positive integers coprime with `n_tilings` (SPEC section 3):
+  k * d mod n then differs for every pair of tilings, in every dimension."""
+  out = []
+  d = 1
+  while len(out) < dims:
+    if math.gcd(d, n_tilings) == 1:
+      out.append(d)
+    d += 1
+  return np.array(out, dtype=np.int64)
 
 
 @numba.njit(cache=True)

@@ -28,10 +28,12 @@ def test_shipped_taxi_learners_reach_their_level(task_name, fraction):
 @pytest.mark.slow
 def test_shipped_ship_hybrid_learns():
   """One seed of the full protocol (50,000 episodes) of tasks/ship_hybrid.toml: the
-  gate passes, about 4 calls per episode, both subtasks succeed (seed 0 gives 0.936,
-  4.17 calls, 0.964 and 0.982; the mean over 5 seeds is in the README)."""
+  gate passes, about 4 calls per episode, both subtasks succeed (seed 0 gives 0.929,
+  4.17 calls, 0.983 and 0.997; without the low level's baseline its diagonal subtask
+  stalls at 0.62 and the route at 395 steps)."""
   agent, record, _ = agents.train(agents.load_task("ship_hybrid"), seed=0)
   metrics = agent.metrics(record)
   assert metrics["gate_pass_rate"] >= 0.8
   assert 3.0 <= metrics["calls_per_episode"] <= 5.0
   assert metrics["diagonal_success_rate"] >= 0.9 and metrics["straight_success_rate"] >= 0.9
+  assert metrics["steps_to_gate"] <= 300

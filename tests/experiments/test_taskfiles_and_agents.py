@@ -27,6 +27,7 @@ def test_shipped_task_files_load():
   assert task.kind == "ship_hybrid"
   assert task.section("root")["alpha"] == 0.1
   assert task.section("low_level")["tiles"] == (5, 5, 36, 5)
+  assert task.section("protocol")["tuning_seeds"] == list(range(10))
 
 
 @pytest.mark.parametrize("old,new,message", [
@@ -40,6 +41,8 @@ def test_shipped_task_files_load():
     ("[protocol]", "[protocols]", r"unknown section\(s\) \['protocols'\]"),
     ("trace_decay = 0.9", "trace_decay = 1.9", r"\[root\] trace_decay = 1.9 is out of range; allowed: >= 0 and <= 1"),
     ("seed = 0", "seed = 0\nseed = 1", r"not valid TOML"),
+    ("tuning_seeds = [0,", "tuning_seeds = [-1,", r"tuning_seeds must be a non-empty list of"),
+    ("baseline = 0.3", "baseline = 1.5", r"\[low_level\] baseline = 1.5 is out of range"),
 ])
 def test_malformed_task_files_are_refused(tmp_path, old, new, message):
   path = _variant(tmp_path, old, new)

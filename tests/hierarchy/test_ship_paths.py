@@ -1,15 +1,22 @@
 """The two training paths of the ship hierarchy are one algorithm."""
+import dataclasses
+
 import gymnasium
 import numpy as np
+import pytest
 
 import hpg_mj  # noqa: F401
 from hpg_mj import suite
 from hpg_mj.agents.ship_hybrid import ShipHybrid
 
 
-def test_stepwise_and_compiled_give_identical_parameters():
-  stepwise = ShipHybrid(seed=5)
-  compiled = ShipHybrid(seed=5)
+@pytest.mark.parametrize("baseline", [0.0, 0.1])
+def test_stepwise_and_compiled_give_identical_parameters(baseline):
+  config = ShipHybrid.Config()
+  config = dataclasses.replace(config, low_level=dataclasses.replace(config.low_level,
+                                                                     baseline=baseline))
+  stepwise = ShipHybrid(config, seed=5)
+  compiled = ShipHybrid(config, seed=5)
   env = gymnasium.make("hpg_mj/ShipSteering-v0", backend="analytic")
   a = stepwise.train_stepwise(env, 200)
   b = compiled.train(200, "analytic")
@@ -21,6 +28,9 @@ def test_stepwise_and_compiled_give_identical_parameters():
     assert np.any(pa[name] != 0.0)
   np.testing.assert_array_equal(stepwise.rng_state, compiled.rng_state)
   assert stepwise.episodes == compiled.episodes == 200
+  for a_low, b_low in zip(stepwise.low, compiled.low):
+    np.testing.assert_array_equal(a_low.values, b_low.values)
+    assert np.any(a_low.values != 0.0) == (baseline != 0.0)
 
 
 def test_stepwise_through_dm_control_on_the_mujoco_ship():

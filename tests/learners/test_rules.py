@@ -101,6 +101,95 @@ def test_cmac_activates_nine_tiles_wraps_and_shares():
     tiles.TileCoder((0.0,), (0.0,), (5,), (False,))
 
 
+def test_cmac_baseline_hand_worked():
+  # Three active tiles; b(s) = mean of their values = (3 + 0 + 6) / 3 = 3.
+  values = np.array([3.0, 0.0, 6.0, 9.0])
+  w = np.array([1.0, 1.0, 1.0, 1.0])
+  tiles_s = np.array([0, 1, 2], dtype=np.int64)
+  psi = np.array([0.5, 0.5, 0.5])
+  policies.subtract_baseline(w, values, tiles_s, 0.1, psi)      # w -= alpha b(s) psi
+  np.testing.assert_allclose(w, [1 - 0.15, 1 - 0.15, 1 - 0.15, 1.0])
+  # TD(0): delta = -2 + 0.5 * b(s') - b(s) = -2 + 0.5 * 9 - 3 = -0.5; each tile moves beta delta.
+  policies.learn_baseline(values, tiles_s, 0.2, -2.0, 0.5, 9.0)
+  np.testing.assert_allclose(values, [2.9, -0.1, 5.9, 9.0])
+  # A doomed choice (b(s) = -100, the local failure): the baseline's step is the exact
+  # opposite of the -100 that Eq. 3 then applies along psi, so the choice moves w by 0.
+  values = np.array([-100.0, -100.0, -100.0, 0.0])
+  w = np.zeros(4)
+  policies.subtract_baseline(w, values, tiles_s, 0.1, psi)
+  np.testing.assert_allclose(w[:3], 0.1 * 100 * 0.5)
+
+
+def test_gaussian_agent_baseline_equals_the_compiled_rule_order():
+  """The step-by-step learner subtracts b(s) psi for the choice it made, applies Eq. 3,
+  then learns b, with the tiles of the choice even though the view's array is reused."""
+  gen = np.random.default_rng(2)
+  agent = agents.GaussianPolicyGradient(40, 3, 15.0, 0.05, 0.9, baseline=0.3)
+  w, values, z = np.zeros(40), np.zeros(40), np.zeros(40)
+  view = np.empty(3, dtype=np.int64)
+  probe = rng.make_state(4)
+  state = probe.copy()
+  agent.start()
+  for step in range(30):
+    view[:] = gen.choice(40, size=3, replace=False)
+    tiles_s = view.copy()
+    m = w[tiles_s].mean()
+    u = m + rng.normal(probe)
+    agent.act(view, None, state, True)
+    psi = (u - m) / 3
+    w[tiles_s] -= 0.05 * values[tiles_s].mean() * psi          # the baseline's step
+    z *= 0.9 if step else 0.0
+    z[tiles_s] += psi
+    signal = gen.normal() - 1.0
+    w += 0.05 * signal * z                                    # Eq. 3, literally
+    done = step == 29
+    view[:] = gen.choice(40, size=3, replace=False)          # the next state's view
+    next_value = 0.0 if done else values[view].mean()
+    values[tiles_s] += 0.3 * (signal + 0.9 * next_value - values[tiles_s].mean())
+    agent.observe(signal, view, done, done, True)
+  np.testing.assert_allclose(agent.parameters(), w, atol=1e-10)
+  np.testing.assert_allclose(agent.values, values, atol=1e-12)
+  assert np.abs(values).max() > 0.1
+
+
+def test_cmac_displacement_is_coprime_with_the_number_of_tilings():
+  np.testing.assert_array_equal(tiles.coprime_displacement(5, 9), [1, 2, 4, 5, 7])
+  np.testing.assert_array_equal(tiles.coprime_displacement(4, 8), [1, 3, 5, 7])
+  np.testing.assert_array_equal(tiles.coprime_displacement(3, 1), [1, 2, 3])
+
+
+@pytest.mark.parametrize("task_name,coder_names", [
+    ("ship_hybrid", ["coder"]), ("ship_flat_pg", ["coder"]),
+    ("ship_actor_critic", ["actor_coder", "critic_coder"])])
+def test_shipped_cmacs_offset_every_pair_of_tilings_in_every_dimension(task_name, coder_names):
+  """SPEC section 3: tiling k is shifted by k/n of a tile along a vector coprime with n."""
+  from hpg_mj import agents as registry
+  agent = registry.build(registry.load_task(task_name), seed=0)
+  for name in coder_names:
+    coder = getattr(agent, name)
+    offsets = coder.arrays().offsets
+    assert offsets.shape == (coder.n_tilings, len(coder.low))
+    for d in range(offsets.shape[1]):
+      assert len(set(offsets[:, d])) == coder.n_tilings, (task_name, name, d, offsets[:, d])
+    # And the tiles themselves: sliding across one tile in dimension d, in steps of
+    # a quarter of 1/n of a tile, every tiling changes tile once, each at its own step.
+    width = coder.arrays().width
+    for d in range(len(coder.low)):
+      x = np.array([(lo + hi) / 2 for lo, hi in zip(coder.low, coder.high)])
+      x[d] = coder.low[d] + 1.5 * width[d] + 1e-9
+      crossed = {}
+      previous = coder.active(x)
+      for step in range(1, 4 * coder.n_tilings + 1):
+        x[d] += width[d] / (4 * coder.n_tilings)
+        now = coder.active(x)
+        for k in np.flatnonzero(now != previous):
+          crossed.setdefault(int(k), []).append(step)
+        previous = now
+      assert sorted(crossed) == list(range(coder.n_tilings)), (task_name, name, d, crossed)
+      steps = [s for k in crossed for s in crossed[k]]
+      assert len(steps) == len(set(steps)) == coder.n_tilings, (task_name, name, d, crossed)
+
+
 def test_watkins_q_lambda_hand_worked():
   # 3 states x 2 actions, alpha 0.5, lambda 0.9, gamma 1.
   q = np.zeros(6)
