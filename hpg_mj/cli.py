@@ -106,16 +106,21 @@ def _cmd_train(args):
   import pathlib
 
   from hpg_mj import agents
+  from hpg_mj.agents import storage
   task = agents.load_task(args.task_file)
   seed = task.protocol.seed if args.seed is None else args.seed
   episodes = task.protocol.episodes if args.episodes is None else args.episodes
+  out = pathlib.Path(args.out) if args.out else pathlib.Path("runs") / f"{task.path.stem}-seed{seed}"
+  held = [n for n in (storage.METADATA, storage.ARRAYS) if (out / n).exists()]
+  if held and not args.force:       # refused before training, not after
+    raise ValueError(f"{out} holds a saved agent ({', '.join(held)}); pass --force to "
+                     f"replace it, or choose another --out")
   bar, update = _progress_bar(episodes, args.quiet or args.json, task.path.stem)
   try:
     agent, record, wall = agents.train(task, episodes=episodes, seed=seed, backend=args.backend,
                                        progress=update)
   finally:
     bar.close()
-  out = pathlib.Path(args.out) if args.out else pathlib.Path("runs") / f"{task.path.stem}-seed{seed}"
   metrics = agent.metrics(record)
   metrics.update({"task": str(task.path), "seed": seed, "episodes": episodes,
                   "backend": args.backend or agent.backend, "wall_seconds": round(wall, 3)})
@@ -144,7 +149,7 @@ def _cmd_evaluate(args):
 
 
 def _cmd_run(args):
-  from hpg_mj.experiments import figures, runner
+  from hpg_mj.experiments import locks, runner
   experiment = runner.load_experiment(args.experiment_file)   # refused before any run
   from tqdm import tqdm
   all_jobs = runner.jobs(experiment, args.out, args.quick)
@@ -176,9 +181,18 @@ def _cmd_run(args):
     results, root, wall = runner.run_experiment(
         experiment, args.out, quick=args.quick, workers=args.workers, progress=progress,
         on_finished=finished, executor=args.executor, address=args.address,
-        checkpoint_every=args.checkpoint_every)
+        checkpoint_every=args.checkpoint_every, wait=not args.no_wait,
+        command=locks.command_line(), on_wait=lambda m: bar.write(m, file=sys.stderr))
   finally:
     bar.close()
+  # Two commands on one folder: one at a time draws the figures and the report.
+  with locks.hold(root, wait=not args.no_wait, what="experiment folder"):
+    return _draw_and_report(args, experiment, results, root, wall, len(done))
+
+
+def _draw_and_report(args, experiment, results, root, wall, new_runs):
+  from hpg_mj import agents
+  from hpg_mj.experiments import figures, runner
   n_runs = experiment["quick_runs"] if args.quick else experiment["runs"]
   records = {task: runner.load_records(root, task, n_runs) for task in results}
   optimal = next(iter(results.values()))[0].get("optimal_mean_return")
@@ -196,7 +210,7 @@ def _cmd_run(args):
             f"steps, {s['calls']} calls ({' '.join(s['decisions'])})")
   figures.write_report(root, experiment, results, drawn)
   print(f"{experiment['name']}: {sum(len(r) for r in results.values())} runs "
-        f"({len(done)} new, {wall:.1f} s); {', '.join(drawn)} and REPORT.md in {root}")
+        f"({new_runs} new, {wall:.1f} s); {', '.join(drawn)} and REPORT.md in {root}")
   return 0
 
 
@@ -243,14 +257,33 @@ def _add_run_options(p):
   from hpg_mj.experiments import runs
   p.add_argument("--quick", action="store_true", help="fewer runs and episodes")
   p.add_argument("--out", default="runs", help="output folder (one subfolder per experiment)")
-  p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+  p.add_argument("--workers", type=_at_least(1), default=None,
+                 help="processes (default: all cores)")
   p.add_argument("--executor", choices=["process", "ray"], default="process",
                  help="a local process pool, or Ray (pip install 'hpg_mj[ray]')")
   p.add_argument("--address", default=None,
                  help="with --executor ray: a Ray cluster's address (default: a local Ray)")
-  p.add_argument("--checkpoint-every", type=int, default=runs.CHECKPOINT_EVERY, metavar="N",
+  p.add_argument("--checkpoint-every", type=_at_least(1), default=runs.CHECKPOINT_EVERY,
+                 metavar="N",
                  help=f"episodes between checkpoints (default {runs.CHECKPOINT_EVERY})")
   p.add_argument("--quiet", action="store_true", help="no progress bar")
+  p.add_argument("--no-wait", action="store_true",
+                 help="refuse, rather than wait, when another command holds a run of the "
+                      "experiment")
+
+
+def _at_least(low):
+  """An argparse type: an integer >= low, refused in the words of task-file ranges."""
+  def convert(text):
+    try:
+      value = int(text)
+    except ValueError:
+      raise argparse.ArgumentTypeError(f"{text!r} is not an integer; allowed: >= {low}") from None
+    if value < low:
+      raise argparse.ArgumentTypeError(f"{value} is out of range; allowed: >= {low}")
+    return value
+  convert.__name__ = f"integer >= {low}"
+  return convert
 
 
 def build_parser():
@@ -260,9 +293,10 @@ def build_parser():
 
   p = sub.add_parser("verify", help="check the MuJoCo ship against the continuous ODE")
   p.add_argument("what", choices=["ship"])
-  p.add_argument("--controls", type=int, default=1000, help="random 0.6 s controls per start")
-  p.add_argument("--starts", type=int, default=3, help="random starting states")
-  p.add_argument("--seed", type=int, default=0)
+  p.add_argument("--controls", type=_at_least(1), default=1000,
+                 help="random 0.6 s controls per start")
+  p.add_argument("--starts", type=_at_least(1), default=3, help="random starting states")
+  p.add_argument("--seed", type=_at_least(0), default=0)
   p.set_defaults(func=_cmd_verify)
 
   p = sub.add_parser("render", help="write a video of one episode")
@@ -270,12 +304,12 @@ def build_parser():
   p.add_argument("--task", default=None,
                  help="ship: steer, diagonal, straight; taxi: fuel, classic")
   p.add_argument("--policy", choices=["scripted", "random"], default="scripted")
-  p.add_argument("--seed", type=int, default=0)
+  p.add_argument("--seed", type=_at_least(0), default=0)
   p.add_argument("--out", default=None, help="output path (.mp4 or .gif)")
   p.add_argument("--gif", action="store_true", help="write an animated GIF instead of MP4")
-  p.add_argument("--width", type=int, default=640)
-  p.add_argument("--height", type=int, default=480)
-  p.add_argument("--max-steps", type=int, default=None)
+  p.add_argument("--width", type=_at_least(16), default=640)
+  p.add_argument("--height", type=_at_least(16), default=480)
+  p.add_argument("--max-steps", type=_at_least(1), default=None)
   p.add_argument("--backend", choices=["mujoco", "analytic"], default="mujoco")
   p.add_argument("--agent", default=None,
                  help="a saved agent folder: render its greedy policy on the MuJoCo world")
@@ -283,10 +317,13 @@ def build_parser():
 
   p = sub.add_parser("train", help="train the agent of a task file and save it")
   p.add_argument("task_file", help="a task file, or the name of a shipped one (ship_hybrid, ...)")
-  p.add_argument("--episodes", type=int, default=None, help="override [protocol] episodes")
-  p.add_argument("--seed", type=int, default=None, help="override [protocol] seed")
+  p.add_argument("--episodes", type=_at_least(1), default=None,
+                 help="override [protocol] episodes")
+  p.add_argument("--seed", type=_at_least(0), default=None, help="override [protocol] seed")
   p.add_argument("--backend", choices=["analytic", "mujoco"], default=None)
   p.add_argument("--out", default=None, help="agent folder (default runs/<task>-seed<S>)")
+  p.add_argument("--force", action="store_true",
+                 help="replace the agent saved in the --out folder (refused without it)")
   p.add_argument("--json", action="store_true", help="print one JSON object of metrics")
   p.add_argument("--quiet", action="store_true", help="no progress bar")
   p.set_defaults(func=_cmd_train)
@@ -304,8 +341,8 @@ def build_parser():
 
   p = sub.add_parser("evaluate", help="run a saved agent without learning")
   p.add_argument("agent_dir")
-  p.add_argument("--episodes", type=int, default=1000)
-  p.add_argument("--seed", type=int, default=None)
+  p.add_argument("--episodes", type=_at_least(1), default=1000)
+  p.add_argument("--seed", type=_at_least(0), default=None)
   p.add_argument("--backend", choices=["analytic", "mujoco"], default=None)
   p.add_argument("--policy", choices=["greedy", "sampled"], default="greedy")
   p.add_argument("--json", action="store_true")
@@ -315,7 +352,7 @@ def build_parser():
   p.add_argument("what", choices=["envs", "train", "experiments"],
                  help="environments, training loops, or the paper's protocols end to end")
   p.add_argument("--seconds", type=float, default=1.0, help="measuring time per row")
-  p.add_argument("--workers", type=int, default=None, help="experiments: processes")
+  p.add_argument("--workers", type=_at_least(1), default=None, help="experiments: processes")
   p.set_defaults(func=_cmd_bench)
 
   p = sub.add_parser("demo", help="the README's main job: videos, verification, benchmark")

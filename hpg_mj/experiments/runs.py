@@ -10,6 +10,8 @@ A run folder (`OUT/<experiment>/<task>/seed<k>/`) holds:
                           (`agents.save`); the newest two are kept
     events.log            what happened to the run: started, resumed from
                           episode N, a damaged checkpoint set aside
+    run.lock              held (flock) by the process writing the run
+                          (`hpg_mj.experiments.locks`)
     record.npy            the per-episode record       } written when the run
     agent/                the final agent (`hpg-mj     } finishes; metrics.json
                           evaluate`, `render --agent`)  } last, and a run with
@@ -34,6 +36,7 @@ import numpy as np
 
 from hpg_mj import agents
 from hpg_mj.agents import storage
+from hpg_mj.experiments import locks
 
 CHECKPOINT_EVERY = 10000
 KEEP_CHECKPOINTS = 2
@@ -158,15 +161,29 @@ def read_progress(run_dir):
   return 0, None
 
 
-def run(task_path, seed, episodes, run_dir, checkpoint_every=CHECKPOINT_EVERY, stop_after=None):
+def run(task_path, seed, episodes, run_dir, checkpoint_every=CHECKPOINT_EVERY, stop_after=None,
+        wait=True, command=None):
   """Trains one (task, seed) run to `episodes`, resuming from its checkpoints;
-  returns its metrics. A finished run is not run again."""
+  returns its metrics. A finished run is not run again.
+
+  The run folder is locked meanwhile (`locks`): a run that another process holds
+  is waited for (its metrics returned once it has finished them), or, with
+  `wait=False`, refused with `locks.RunLocked` naming the holder. `command` is
+  the command line written into the lock for the next one to read.
+  """
   run_dir = pathlib.Path(run_dir)
   if is_finished(run_dir):
     return read_metrics(run_dir)
   if checkpoint_every < 1:
     raise ValueError(f"checkpoint_every must be a positive number of episodes, got "
                      f"{checkpoint_every}")
+  with locks.hold(run_dir, wait=wait, command=command):
+    if is_finished(run_dir):            # finished by the process we waited for
+      return read_metrics(run_dir)
+    return _run_locked(task_path, seed, episodes, run_dir, checkpoint_every, stop_after)
+
+
+def _run_locked(task_path, seed, episodes, run_dir, checkpoint_every, stop_after):
   task = agents.load_task(task_path)
   (run_dir / "checkpoints").mkdir(parents=True, exist_ok=True)
   agent, records, done, wall = _resume(task, seed, run_dir)
