@@ -82,15 +82,63 @@ def _bench_experiments(args):
 
 
 def _progress_bar(total, quiet, label):
-  """A tqdm bar (episodes per second and the current figure), silent off a terminal."""
+  """A tqdm bar (episodes per second and the current figure), silent off a terminal.
+  While numba compiles (the first run after an install; numba caches the result)
+  the bar says so, and off a terminal one line on stderr does."""
+  import contextlib
+
   from tqdm import tqdm
   disable = quiet or not sys.stderr.isatty()
   bar = tqdm(total=total, unit="ep", desc=label, disable=disable, dynamic_ncols=True)
+  told = []
+
+  def compiling(name):
+    if name is None:
+      bar.set_description(label)
+    elif disable and not quiet and not told:
+      told.append(name)
+      print(f"{label}: compiling the training loop ({name}); numba caches it for the next "
+            "runs", file=sys.stderr, flush=True)
+    else:
+      bar.set_description(f"{label} (compiling {name}, cached for the next runs)")
 
   def update(done, _total, summary):
     bar.update(done - bar.n)
     bar.set_postfix({k: f"{v:.3f}" for k, v in summary.items()})
-  return bar, update
+  return bar, update, _compile_listener(compiling) if not quiet else contextlib.nullcontext()
+
+
+def _compile_listener(callback):
+  """A context in which `callback(function name)` is called when numba starts
+  compiling (not loading from its cache) an outermost function, and
+  `callback(None)` when it is done."""
+  import contextlib
+
+  from numba.core import event
+
+  class Listener(event.Listener):
+    depth = 0
+
+    def on_start(self, ev):
+      self.depth += 1
+      if self.depth == 1:
+        function = ev.data["dispatcher"].py_func
+        callback(f"{function.__module__.rsplit('.', 1)[-1]}.{function.__qualname__}")
+
+    def on_end(self, ev):
+      self.depth -= 1
+      if self.depth == 0:
+        callback(None)
+
+  @contextlib.contextmanager
+  def listening():
+    listener = Listener()
+    event.register("numba:compile", listener)
+    try:
+      yield
+    finally:
+      event.unregister("numba:compile", listener)
+  return listening()
 
 
 def _print_metrics(metrics, as_json):
@@ -115,10 +163,11 @@ def _cmd_train(args):
   if held and not args.force:       # refused before training, not after
     raise ValueError(f"{out} holds a saved agent ({', '.join(held)}); pass --force to "
                      f"replace it, or choose another --out")
-  bar, update = _progress_bar(episodes, args.quiet or args.json, task.path.stem)
+  bar, update, compiling = _progress_bar(episodes, args.quiet or args.json, task.path.stem)
   try:
-    agent, record, wall = agents.train(task, episodes=episodes, seed=seed, backend=args.backend,
-                                       progress=update)
+    with compiling:
+      agent, record, wall = agents.train(task, episodes=episodes, seed=seed,
+                                         backend=args.backend, progress=update)
   finally:
     bar.close()
   metrics = agent.metrics(record)
@@ -368,6 +417,17 @@ def main(argv=None):
   args = parser.parse_args(argv)
   if args.command == "render" and args.task is None:
     args.task = "steer" if args.domain == "ship" else "fuel"
+  import warnings
+
+  from hpg_mj import provenance
+  shown = warnings.showwarning
+
+  def show(message, category, *rest, **kwargs):   # a saved agent of another version
+    if issubclass(category, provenance.VersionWarning):
+      print(f"hpg-mj {args.command}: warning: {message}", file=sys.stderr)
+    else:
+      shown(message, category, *rest, **kwargs)
+  warnings.showwarning = show
   try:
     return args.func(args)
   except (ValueError, FileNotFoundError) as err:

@@ -16,6 +16,8 @@ A run folder (`OUT/<experiment>/<task>/seed<k>/`) holds:
     agent/                the final agent (`hpg-mj     } finishes; metrics.json
                           evaluate`, `render --agent`)  } last, and a run with
     metrics.json          metrics over the last 1,000   } it is never run again
+                          episodes, and what made them
+                          (`hpg_mj.provenance`)
 
 A checkpoint is written to `checkpoints/.tmp-ep<N>` and renamed into place, so a
 run killed at any moment leaves either the new checkpoint whole or none of it.
@@ -35,6 +37,7 @@ import time
 import numpy as np
 
 from hpg_mj import agents
+from hpg_mj import provenance
 from hpg_mj.agents import storage
 from hpg_mj.experiments import locks
 
@@ -208,7 +211,8 @@ def _run_locked(task_path, seed, episodes, run_dir, checkpoint_every, stop_after
   record = np.concatenate(records)
   metrics = agent.metrics(record)
   metrics.update({"task": task.path.stem, "seed": seed, "episodes": episodes,
-                  "wall_seconds": round(wall, 3)})
+                  "wall_seconds": round(wall, 3),
+                  "provenance": provenance.collect(task.text, seed)})
   agent_dir = run_dir / "agent"
   if agent_dir.exists():
     shutil.rmtree(agent_dir)
