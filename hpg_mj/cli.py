@@ -5,8 +5,18 @@ import sys
 
 def _cmd_verify(args):
   from hpg_mj import verify
+  if args.what == "golden":
+    print(f"golden trajectories from {verify.golden_dir()}, replayed against "
+          f"{verify.golden_versions()}", flush=True)
+    checks = verify.verify_golden()
+    for check in checks:
+      print("  " + check.line(), flush=True)
+    failed = [c for c in checks if not c.passed]
+    print(f"  {len(checks) - len(failed)} of {len(checks)} passed" + (
+        f"; FAILED: {', '.join(f'{c.task} {c.path}' for c in failed)}" if failed else ""))
+    return 1 if failed else 0
   if args.what != "ship":
-    raise SystemExit(f"hpg-mj verify: unknown model {args.what!r}; valid: ship")
+    raise SystemExit(f"hpg-mj verify: unknown check {args.what!r}; valid: ship, golden")
   result = verify.verify_ship(controls=args.controls, starts=args.starts, seed=args.seed)
   print("\n".join(result.lines()))
   # SPEC section 1: within 0.25 m and 0.25 deg, and at most half the Euler model's error.
@@ -340,8 +350,9 @@ def build_parser():
       prog="hpg-mj", description="Hierarchical policy gradient benchmarks on MuJoCo.")
   sub = parser.add_subparsers(dest="command", required=True)
 
-  p = sub.add_parser("verify", help="check the MuJoCo ship against the continuous ODE")
-  p.add_argument("what", choices=["ship"])
+  p = sub.add_parser("verify", help="ship: the MuJoCo ship against the continuous ODE; "
+                                    "golden: every task's stored trajectory, replayed")
+  p.add_argument("what", choices=["ship", "golden"])
   p.add_argument("--controls", type=_at_least(1), default=1000,
                  help="random 0.6 s controls per start")
   p.add_argument("--starts", type=_at_least(1), default=3, help="random starting states")
