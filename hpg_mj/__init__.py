@@ -3,6 +3,9 @@
 Importing the package registers the Gymnasium environments
 (`hpg_mj/ShipSteering-v0`, ... see `hpg_mj.envs`). The dm_control suite is
 `hpg_mj.suite`.
+
+"SPEC section N" in comments and docstrings is section N of the project's
+specification, docs/SPEC.md in the repository.
 """
 import os as _os
 
