@@ -39,6 +39,9 @@ ylabel = "a metric"
 paper = "nothing"
 """
 ENV = dict(os.environ, PYTHONPATH=str(pathlib.Path(hpg_mj.__file__).resolve().parents[1]))
+# The commands run from outside the checkout, so that they import the installed
+# hpg_mj, as this process does (`python -m` puts the working folder first).
+CWD = pathlib.Path(hpg_mj.__file__).resolve().parents[1]
 
 
 def _experiment(tmp_path, task="taxi_fuel_hpg", episodes=3000):
@@ -82,7 +85,7 @@ def _holder_process(run_dir):
   code = ("import sys, time; from hpg_mj.experiments import locks\n"
           f"with locks.hold({str(run_dir)!r}, command='the holder'):\n"
           "  print('held', flush=True); time.sleep(600)\n")
-  proc = subprocess.Popen([sys.executable, "-c", code], env=ENV, stdout=subprocess.PIPE,
+  proc = subprocess.Popen([sys.executable, "-c", code], env=ENV, cwd=CWD, stdout=subprocess.PIPE,
                           text=True)
   assert proc.stdout.readline().strip() == "held"
   return proc
@@ -92,7 +95,7 @@ def test_two_commands_at_once_give_the_run_made_alone(tmp_path, alone):
   path = _experiment(tmp_path)
   for attempt in range(3):
     out = tmp_path / f"out{attempt}"
-    procs = [subprocess.Popen(_command(path, out, "--workers", "2"), env=ENV,
+    procs = [subprocess.Popen(_command(path, out, "--workers", "2"), env=ENV, cwd=CWD,
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
              for _ in range(2)]
     results = [proc.communicate(timeout=300) for proc in procs]
@@ -114,7 +117,7 @@ def test_a_held_run_is_waited_for_then_run(tmp_path, alone):
   run_dir = out / "locked" / "taxi_fuel_hpg" / "seed0"
   holder = _holder_process(run_dir)
   try:
-    proc = subprocess.Popen(_command(path, out, "--workers", "1"), env=ENV,
+    proc = subprocess.Popen(_command(path, out, "--workers", "1"), env=ENV, cwd=CWD,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     line = proc.stderr.readline()
     assert f"run {run_dir} is held by pid {holder.pid}" in line and "'the holder'" in line
@@ -136,7 +139,7 @@ def test_no_wait_refuses_a_held_run_naming_it_and_its_holder(tmp_path):
   run_dir = out / "locked" / "taxi_fuel_hpg" / "seed1"
   holder = _holder_process(run_dir)
   try:
-    proc = subprocess.run(_command(path, out, "--no-wait"), env=ENV, capture_output=True,
+    proc = subprocess.run(_command(path, out, "--no-wait"), env=ENV, cwd=CWD, capture_output=True,
                           text=True, timeout=300)
   finally:
     holder.kill()
@@ -155,7 +158,7 @@ def test_a_lock_left_by_a_killed_process_blocks_nothing(tmp_path, alone):
   holder.wait()
   assert (run_dir / locks.LOCK_FILE).is_file()             # the file stays; its lock went
   assert locks.holder_if_locked(run_dir) is None
-  proc = subprocess.run(_command(_experiment(tmp_path), out, "--no-wait"), env=ENV,
+  proc = subprocess.run(_command(_experiment(tmp_path), out, "--no-wait"), env=ENV, cwd=CWD,
                         capture_output=True, text=True, timeout=300)
   assert proc.returncode == 0, proc.stderr
   _assert_same(_final(run_dir), alone[0])
