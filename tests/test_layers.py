@@ -14,8 +14,9 @@ ALLOWED = {
     "envs": {"worlds", "render", "_validation", "_assets"},
     "render": {"worlds", "_assets", "_validation"},
     "hierarchy": {"learners", "worlds"},
-    "agents": {"hierarchy", "learners", "worlds", "envs", "suite", "render"},
-    "experiments": {"agents", "hierarchy", "learners", "worlds", "envs", "suite", "render"},
+    "agents": {"hierarchy", "learners", "worlds", "envs", "suite", "render", "provenance"},
+    "experiments": {"agents", "hierarchy", "learners", "worlds", "envs", "suite", "render",
+                    "provenance"},
 }
 
 

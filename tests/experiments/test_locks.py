@@ -59,6 +59,7 @@ def _command(path, out, *extra):
 def _final(run_dir):
   metrics = json.loads((run_dir / "metrics.json").read_text())
   metrics.pop("wall_seconds")
+  metrics.pop("provenance")     # what made it, not what it is (a Ray worker may run the checkout)
   _, arrays = storage.load(run_dir / "agent")
   return metrics, np.load(run_dir / "record.npy"), arrays
 
