@@ -7,6 +7,9 @@ Importing the package registers the Gymnasium environments
 Importing hpg_mj changes no environment variable and loads no OpenGL library:
 simulation never needs one, and rendering happens in a worker process
 (`hpg_mj._render_worker`, SPEC section 9).
+
+"SPEC section N" in comments and docstrings is section N of the project's
+specification, docs/SPEC.md in the repository.
 """
 __version__ = "0.1.0"
 

@@ -5,8 +5,18 @@ import sys
 
 def _cmd_verify(args):
   from hpg_mj import verify
+  if args.what == "golden":
+    print(f"golden trajectories from {verify.golden_dir()}, replayed against "
+          f"{verify.golden_versions()}", flush=True)
+    checks = verify.verify_golden()
+    for check in checks:
+      print("  " + check.line(), flush=True)
+    failed = [c for c in checks if not c.passed]
+    print(f"  {len(checks) - len(failed)} of {len(checks)} passed" + (
+        f"; FAILED: {', '.join(f'{c.task} {c.path}' for c in failed)}" if failed else ""))
+    return 1 if failed else 0
   if args.what != "ship":
-    raise SystemExit(f"hpg-mj verify: unknown model {args.what!r}; valid: ship")
+    raise SystemExit(f"hpg-mj verify: unknown check {args.what!r}; valid: ship, golden")
   result = verify.verify_ship(controls=args.controls, starts=args.starts, seed=args.seed)
   print("\n".join(result.lines()))
   # SPEC section 1: within 0.25 m and 0.25 deg, and at most half the Euler model's error.
@@ -87,15 +97,63 @@ def _bench_experiments(args):
 
 
 def _progress_bar(total, quiet, label):
-  """A tqdm bar (episodes per second and the current figure), silent off a terminal."""
+  """A tqdm bar (episodes per second and the current figure), silent off a terminal.
+  While numba compiles (the first run after an install; numba caches the result)
+  the bar says so, and off a terminal one line on stderr does."""
+  import contextlib
+
   from tqdm import tqdm
   disable = quiet or not sys.stderr.isatty()
   bar = tqdm(total=total, unit="ep", desc=label, disable=disable, dynamic_ncols=True)
+  told = []
+
+  def compiling(name):
+    if name is None:
+      bar.set_description(label)
+    elif disable and not quiet and not told:
+      told.append(name)
+      print(f"{label}: compiling the training loop ({name}); numba caches it for the next "
+            "runs", file=sys.stderr, flush=True)
+    else:
+      bar.set_description(f"{label} (compiling {name}, cached for the next runs)")
 
   def update(done, _total, summary):
     bar.update(done - bar.n)
     bar.set_postfix({k: f"{v:.3f}" for k, v in summary.items()})
-  return bar, update
+  return bar, update, _compile_listener(compiling) if not quiet else contextlib.nullcontext()
+
+
+def _compile_listener(callback):
+  """A context in which `callback(function name)` is called when numba starts
+  compiling (not loading from its cache) an outermost function, and
+  `callback(None)` when it is done."""
+  import contextlib
+
+  from numba.core import event
+
+  class Listener(event.Listener):
+    depth = 0
+
+    def on_start(self, ev):
+      self.depth += 1
+      if self.depth == 1:
+        function = ev.data["dispatcher"].py_func
+        callback(f"{function.__module__.rsplit('.', 1)[-1]}.{function.__qualname__}")
+
+    def on_end(self, ev):
+      self.depth -= 1
+      if self.depth == 0:
+        callback(None)
+
+  @contextlib.contextmanager
+  def listening():
+    listener = Listener()
+    event.register("numba:compile", listener)
+    try:
+      yield
+    finally:
+      event.unregister("numba:compile", listener)
+  return listening()
 
 
 def _print_metrics(metrics, as_json):
@@ -111,16 +169,22 @@ def _cmd_train(args):
   import pathlib
 
   from hpg_mj import agents
+  from hpg_mj.agents import storage
   task = agents.load_task(args.task_file)
   seed = task.protocol.seed if args.seed is None else args.seed
   episodes = task.protocol.episodes if args.episodes is None else args.episodes
-  bar, update = _progress_bar(episodes, args.quiet or args.json, task.path.stem)
+  out = pathlib.Path(args.out) if args.out else pathlib.Path("runs") / f"{task.path.stem}-seed{seed}"
+  held = [n for n in (storage.METADATA, storage.ARRAYS) if (out / n).exists()]
+  if held and not args.force:       # refused before training, not after
+    raise ValueError(f"{out} holds a saved agent ({', '.join(held)}); pass --force to "
+                     f"replace it, or choose another --out")
+  bar, update, compiling = _progress_bar(episodes, args.quiet or args.json, task.path.stem)
   try:
-    agent, record, wall = agents.train(task, episodes=episodes, seed=seed, backend=args.backend,
-                                       progress=update)
+    with compiling:
+      agent, record, wall = agents.train(task, episodes=episodes, seed=seed,
+                                         backend=args.backend, progress=update)
   finally:
     bar.close()
-  out = pathlib.Path(args.out) if args.out else pathlib.Path("runs") / f"{task.path.stem}-seed{seed}"
   metrics = agent.metrics(record)
   metrics.update({"task": str(task.path), "seed": seed, "episodes": episodes,
                   "backend": args.backend or agent.backend, "wall_seconds": round(wall, 3)})
@@ -149,7 +213,7 @@ def _cmd_evaluate(args):
 
 
 def _cmd_run(args):
-  from hpg_mj.experiments import figures, runner
+  from hpg_mj.experiments import locks, runner
   experiment = runner.load_experiment(args.experiment_file)   # refused before any run
   from tqdm import tqdm
   all_jobs = runner.jobs(experiment, args.out, args.quick)
@@ -181,9 +245,18 @@ def _cmd_run(args):
     results, root, wall = runner.run_experiment(
         experiment, args.out, quick=args.quick, workers=args.workers, progress=progress,
         on_finished=finished, executor=args.executor, address=args.address,
-        checkpoint_every=args.checkpoint_every)
+        checkpoint_every=args.checkpoint_every, wait=not args.no_wait,
+        command=locks.command_line(), on_wait=lambda m: bar.write(m, file=sys.stderr))
   finally:
     bar.close()
+  # Two commands on one folder: one at a time draws the figures and the report.
+  with locks.hold(root, wait=not args.no_wait, what="experiment folder"):
+    return _draw_and_report(args, experiment, results, root, wall, len(done))
+
+
+def _draw_and_report(args, experiment, results, root, wall, new_runs):
+  from hpg_mj import agents
+  from hpg_mj.experiments import figures, runner
   n_runs = experiment["quick_runs"] if args.quick else experiment["runs"]
   records = {task: runner.load_records(root, task, n_runs) for task in results}
   optimal = next(iter(results.values()))[0].get("optimal_mean_return")
@@ -201,7 +274,7 @@ def _cmd_run(args):
             f"steps, {s['calls']} calls ({' '.join(s['decisions'])})")
   figures.write_report(root, experiment, results, drawn)
   print(f"{experiment['name']}: {sum(len(r) for r in results.values())} runs "
-        f"({len(done)} new, {wall:.1f} s); {', '.join(drawn)} and REPORT.md in {root}")
+        f"({new_runs} new, {wall:.1f} s); {', '.join(drawn)} and REPORT.md in {root}")
   return 0
 
 
@@ -248,14 +321,33 @@ def _add_run_options(p):
   from hpg_mj.experiments import runs
   p.add_argument("--quick", action="store_true", help="fewer runs and episodes")
   p.add_argument("--out", default="runs", help="output folder (one subfolder per experiment)")
-  p.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+  p.add_argument("--workers", type=_at_least(1), default=None,
+                 help="processes (default: all cores)")
   p.add_argument("--executor", choices=["process", "ray"], default="process",
                  help="a local process pool, or Ray (pip install 'hpg_mj[ray]')")
   p.add_argument("--address", default=None,
                  help="with --executor ray: a Ray cluster's address (default: a local Ray)")
-  p.add_argument("--checkpoint-every", type=int, default=runs.CHECKPOINT_EVERY, metavar="N",
+  p.add_argument("--checkpoint-every", type=_at_least(1), default=runs.CHECKPOINT_EVERY,
+                 metavar="N",
                  help=f"episodes between checkpoints (default {runs.CHECKPOINT_EVERY})")
   p.add_argument("--quiet", action="store_true", help="no progress bar")
+  p.add_argument("--no-wait", action="store_true",
+                 help="refuse, rather than wait, when another command holds a run of the "
+                      "experiment")
+
+
+def _at_least(low):
+  """An argparse type: an integer >= low, refused in the words of task-file ranges."""
+  def convert(text):
+    try:
+      value = int(text)
+    except ValueError:
+      raise argparse.ArgumentTypeError(f"{text!r} is not an integer; allowed: >= {low}") from None
+    if value < low:
+      raise argparse.ArgumentTypeError(f"{value} is out of range; allowed: >= {low}")
+    return value
+  convert.__name__ = f"integer >= {low}"
+  return convert
 
 
 def build_parser():
@@ -263,11 +355,13 @@ def build_parser():
       prog="hpg-mj", description="Hierarchical policy gradient benchmarks on MuJoCo.")
   sub = parser.add_subparsers(dest="command", required=True)
 
-  p = sub.add_parser("verify", help="check the MuJoCo ship against the continuous ODE")
-  p.add_argument("what", choices=["ship"])
-  p.add_argument("--controls", type=int, default=1000, help="random 0.6 s controls per start")
-  p.add_argument("--starts", type=int, default=3, help="random starting states")
-  p.add_argument("--seed", type=int, default=0)
+  p = sub.add_parser("verify", help="ship: the MuJoCo ship against the continuous ODE; "
+                                    "golden: every task's stored trajectory, replayed")
+  p.add_argument("what", choices=["ship", "golden"])
+  p.add_argument("--controls", type=_at_least(1), default=1000,
+                 help="random 0.6 s controls per start")
+  p.add_argument("--starts", type=_at_least(1), default=3, help="random starting states")
+  p.add_argument("--seed", type=_at_least(0), default=0)
   p.set_defaults(func=_cmd_verify)
 
   p = sub.add_parser("render", help="write a video of one episode")
@@ -275,12 +369,12 @@ def build_parser():
   p.add_argument("--task", default=None,
                  help="ship: steer, diagonal, straight; taxi: fuel, classic")
   p.add_argument("--policy", choices=["scripted", "random"], default="scripted")
-  p.add_argument("--seed", type=int, default=0)
+  p.add_argument("--seed", type=_at_least(0), default=0)
   p.add_argument("--out", default=None, help="output path (.mp4 or .gif)")
   p.add_argument("--gif", action="store_true", help="write an animated GIF instead of MP4")
-  p.add_argument("--width", type=int, default=640)
-  p.add_argument("--height", type=int, default=480)
-  p.add_argument("--max-steps", type=int, default=None)
+  p.add_argument("--width", type=_at_least(16), default=640)
+  p.add_argument("--height", type=_at_least(16), default=480)
+  p.add_argument("--max-steps", type=_at_least(1), default=None)
   p.add_argument("--backend", choices=["mujoco", "analytic"], default="mujoco")
   p.add_argument("--agent", default=None,
                  help="a saved agent folder: render its greedy policy on the MuJoCo world")
@@ -288,10 +382,13 @@ def build_parser():
 
   p = sub.add_parser("train", help="train the agent of a task file and save it")
   p.add_argument("task_file", help="a task file, or the name of a shipped one (ship_hybrid, ...)")
-  p.add_argument("--episodes", type=int, default=None, help="override [protocol] episodes")
-  p.add_argument("--seed", type=int, default=None, help="override [protocol] seed")
+  p.add_argument("--episodes", type=_at_least(1), default=None,
+                 help="override [protocol] episodes")
+  p.add_argument("--seed", type=_at_least(0), default=None, help="override [protocol] seed")
   p.add_argument("--backend", choices=["analytic", "mujoco"], default=None)
   p.add_argument("--out", default=None, help="agent folder (default runs/<task>-seed<S>)")
+  p.add_argument("--force", action="store_true",
+                 help="replace the agent saved in the --out folder (refused without it)")
   p.add_argument("--json", action="store_true", help="print one JSON object of metrics")
   p.add_argument("--quiet", action="store_true", help="no progress bar")
   p.set_defaults(func=_cmd_train)
@@ -309,8 +406,8 @@ def build_parser():
 
   p = sub.add_parser("evaluate", help="run a saved agent without learning")
   p.add_argument("agent_dir")
-  p.add_argument("--episodes", type=int, default=1000)
-  p.add_argument("--seed", type=int, default=None)
+  p.add_argument("--episodes", type=_at_least(1), default=1000)
+  p.add_argument("--seed", type=_at_least(0), default=None)
   p.add_argument("--backend", choices=["analytic", "mujoco"], default=None)
   p.add_argument("--policy", choices=["greedy", "sampled"], default="greedy")
   p.add_argument("--json", action="store_true")
@@ -320,7 +417,7 @@ def build_parser():
   p.add_argument("what", choices=["envs", "train", "experiments"],
                  help="environments, training loops, or the paper's protocols end to end")
   p.add_argument("--seconds", type=float, default=1.0, help="measuring time per row")
-  p.add_argument("--workers", type=int, default=None, help="experiments: processes")
+  p.add_argument("--workers", type=_at_least(1), default=None, help="experiments: processes")
   p.set_defaults(func=_cmd_bench)
 
   p = sub.add_parser("doctor", help="the renderer, versions and numba cache found here, "
@@ -341,6 +438,17 @@ def main(argv=None):
   args = parser.parse_args(argv)
   if args.command == "render" and args.task is None:
     args.task = "steer" if args.domain == "ship" else "fuel"
+  import warnings
+
+  from hpg_mj import provenance
+  shown = warnings.showwarning
+
+  def show(message, category, *rest, **kwargs):   # a saved agent of another version
+    if issubclass(category, provenance.VersionWarning):
+      print(f"hpg-mj {args.command}: warning: {message}", file=sys.stderr)
+    else:
+      shown(message, category, *rest, **kwargs)
+  warnings.showwarning = show
   try:
     return args.func(args)
   except (ValueError, FileNotFoundError, RenderingUnavailable) as err:

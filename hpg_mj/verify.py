@@ -1,4 +1,5 @@
-"""`hpg-mj verify ship`: the two ships against the continuous ODE (SPEC section 1).
+"""`hpg-mj verify ship`: the two ships against the continuous ODE (SPEC section 1);
+`hpg-mj verify golden`: the stored golden trajectories of every task, replayed.
 
 The continuous ship: d(theta_dot)/dt = (r - theta_dot)/T, d(theta)/dt = theta_dot,
 dx/dt = V sin(theta), dy/dt = V cos(theta), with r held over each control.
@@ -111,3 +112,178 @@ def verify_ship(controls=1000, starts=3, seed=0):
     worst = np.maximum(worst, (*mj_err, *eu_err))
   return ShipVerification(controls, starts, controls * core.CONTROL_INTERVAL, *worst,
                           mujoco_timestep_s=float(physics.model.opt.timestep))
+
+
+# ---- `hpg-mj verify golden`: the stored trajectories of every task ------------------
+#
+# golden/*.npz (shipped in the wheel as hpg_mj.golden) hold, per task, a fixed action
+# sequence and what the task answered when they were made: the ship on the analytic
+# path (Gymnasium, numba) and on MuJoCo (dm_control), the taxi on its dm_control
+# board. Replaying them against the installed mujoco, dm_control and numba shows
+# whether an upgrade changed the physics or the rules. Regenerate them only when a
+# rule changes on purpose: tests/golden/make_golden_ship.py, make_golden_taxi.py.
+
+GOLDEN_SEED = 123        # the ship tasks' seed
+GOLDEN_STEPS = 80        # the ship's control steps
+# MuJoCo's arithmetic may differ in the last bits across CPUs and builds; a change
+# of integrator, actuation or model moves these trajectories by far more.
+MUJOCO_TOLERANCE = 1e-6
+SHIP_GYMNASIUM_IDS = {"steer": "hpg_mj/ShipSteering-v0",
+                      "diagonal": "hpg_mj/ShipSteeringDiagonal-v0",
+                      "straight": "hpg_mj/ShipSteeringStraight-v0"}
+
+
+def golden_dir():
+  """The folder of the golden trajectories: installed, else the checkout's."""
+  import pathlib
+  here = pathlib.Path(__file__).resolve().parent
+  for folder in (here / "golden", here.parent / "golden"):
+    if folder.is_dir():
+      return folder
+  raise FileNotFoundError(f"no golden trajectories beside {here}: reinstall hpg_mj")
+
+
+def ship_golden_actions():
+  return np.random.default_rng(7).uniform(-15.0, 15.0, (GOLDEN_STEPS, 1))
+
+
+def ship_analytic_rollout(task, actions=None):
+  """(observations, rewards, ends) of the analytic ship through Gymnasium; ends:
+  0 going on, 1 truncated, 2 terminated (then reset)."""
+  import gymnasium
+
+  import hpg_mj  # noqa: F401  (registers the ids)
+  env = gymnasium.make(SHIP_GYMNASIUM_IDS[task], backend="analytic").unwrapped
+  obs, _ = env.reset(seed=GOLDEN_SEED)
+  rows, rewards, ends = [obs], [], []
+  for a in ship_golden_actions() if actions is None else actions:
+    obs, reward, terminated, truncated, _ = env.step(a)
+    rewards.append(reward)
+    ends.append(2 * terminated + truncated)
+    if terminated or truncated:
+      obs, _ = env.reset()
+    rows.append(obs)
+  return np.array(rows), np.array(rewards), np.array(ends)
+
+
+def ship_mujoco_rollout(task, actions=None):
+  """The same on the MuJoCo ship through the dm_control suite."""
+  from hpg_mj import suite
+  env = suite.load("ship", task, {"random": GOLDEN_SEED})
+  flat = lambda ts: np.concatenate([np.ravel(v) for v in ts.observation.values()])  # noqa: E731
+  ts = env.reset()
+  rows, rewards, ends = [flat(ts)], [], []
+  for a in ship_golden_actions() if actions is None else actions:
+    ts = env.step(a)
+    rewards.append(ts.reward)
+    ends.append(0 if not ts.last() else (2 if ts.discount == 0.0 else 1))
+    if ts.last():
+      ts = env.reset()
+    rows.append(flat(ts))
+  return np.array(rows), np.array(rewards), np.array(ends)
+
+
+def taxi_trajectory(task_name, actions, seed):
+  """The taxi's dm_control board under `actions` (dm_control resets on the step
+  after LAST, ignoring that step's action): observations, rewards, discounts,
+  step types."""
+  from hpg_mj.worlds import taxi
+  env = getattr(taxi, task_name)(random=seed)
+  time_steps = [env.reset()]
+  for action in actions:
+    time_steps.append(env.step(action))
+  record = {f"obs_{k}": np.stack([ts.observation[k] for ts in time_steps])
+            for k in time_steps[0].observation}
+  record["reward"] = np.array([np.nan if ts.reward is None else ts.reward for ts in time_steps])
+  record["discount"] = np.array([np.nan if ts.discount is None else ts.discount
+                                 for ts in time_steps])
+  record["step_type"] = np.array([int(ts.step_type) for ts in time_steps], dtype=np.int64)
+  return record
+
+
+def _deviation(got, want):
+  """Largest absolute difference (NaN where both are NaN counts as equal; a shape
+  or NaN mismatch as infinite)."""
+  got, want = np.asarray(got, dtype=np.float64), np.asarray(want, dtype=np.float64)
+  if got.shape != want.shape or not np.array_equal(np.isnan(got), np.isnan(want)):
+    return float("inf")
+  both = ~np.isnan(want)
+  return float(np.max(np.abs(got[both] - want[both]), initial=0.0))
+
+
+@dataclasses.dataclass
+class GoldenCheck:
+  task: str                 # "ship/steer"
+  path: str                 # "analytic (Gymnasium)", "MuJoCo (dm_control)"
+  deviation: float          # largest over observations and rewards
+  tolerance: float
+  events_match: bool        # episode ends (and discounts, step types) exactly as stored
+  problem: str = ""         # why it could not be checked at all
+
+  @property
+  def passed(self):
+    return not self.problem and self.events_match and self.deviation <= self.tolerance
+
+  def line(self):
+    what = f"{self.task:<14} {self.path:<22}"
+    if self.problem:
+      return f"{what} FAIL  {self.problem}"
+    tolerance = "exact" if self.tolerance == 0 else f"{self.tolerance:g}"
+    events = "" if self.events_match else ", episode ends differ"
+    return (f"{what} {'pass' if self.passed else 'FAIL'}  largest deviation "
+            f"{self.deviation:.3g} (tolerance {tolerance}){events}")
+
+
+def _check_ship(task, golden):
+  rows = []
+  obs, rewards, ends = ship_analytic_rollout(task, golden["actions"])
+  rows.append(GoldenCheck(f"ship/{task}", "analytic (Gymnasium)",
+                          max(_deviation(obs, golden["analytic_obs"]),
+                              _deviation(rewards, golden["analytic_rewards"])), 0.0,
+                          np.array_equal(ends, golden["analytic_ends"])))
+  obs, rewards, ends = ship_mujoco_rollout(task, golden["actions"])
+  rows.append(GoldenCheck(f"ship/{task}", "MuJoCo (dm_control)",
+                          max(_deviation(obs, golden["mujoco_obs"]),
+                              _deviation(rewards, golden["mujoco_rewards"])), MUJOCO_TOLERANCE,
+                          np.array_equal(ends, golden["mujoco_ends"])))
+  return rows
+
+
+def _check_taxi(task, golden):
+  got = taxi_trajectory(task, golden["actions"], int(golden["seed"]))
+  names = sorted(k for k in golden.files if k.startswith("obs_"))
+  if sorted(k for k in got if k.startswith("obs_")) != names:
+    return [GoldenCheck(f"taxi/{task}", "dm_control", float("inf"), 0.0, False,
+                        f"observations {sorted(got)} differ from the stored {names}")]
+  deviation = max(_deviation(got[k], golden[k]) for k in names + ["reward"])
+  events = (np.array_equal(got["step_type"], golden["step_type"])
+            and _deviation(got["discount"], golden["discount"]) == 0.0)
+  return [GoldenCheck(f"taxi/{task}", "dm_control", deviation, 0.0, events)]
+
+
+def verify_golden():
+  """Replays the golden trajectory of every task of the dm_control suite (the ship's
+  also on its analytic Gymnasium path); one GoldenCheck per task and path."""
+  from hpg_mj import suite
+  folder = golden_dir()
+  checks = []
+  for domain, task in suite.ALL_TASKS:
+    path = folder / f"{domain}_{task}.npz"
+    if not path.is_file():
+      checks.append(GoldenCheck(f"{domain}/{task}", "-", float("inf"), 0.0, False,
+                                f"no golden trajectory stored ({path.name})"))
+      continue
+    try:
+      with np.load(path, allow_pickle=False) as golden:
+        checks += (_check_ship if domain == "ship" else _check_taxi)(task, golden)
+    except Exception as err:  # noqa: BLE001  (a failed replay is a failed check, named)
+      checks.append(GoldenCheck(f"{domain}/{task}", "-", float("inf"), 0.0, False,
+                                f"replay failed: {type(err).__name__}: {err}"))
+  return checks
+
+
+def golden_versions():
+  """The versions the replay ran against, for its header line."""
+  from hpg_mj import provenance
+  v = provenance.versions()
+  return ", ".join(f"{k} {v[k]}" for k in ("mujoco", "dm_control", "numba", "numpy", "gymnasium"))

@@ -1,25 +1,29 @@
 """Golden trajectories of the ship tasks: a dependency upgrade that changes the
-physics or the rules is caught here (regenerate with tests/golden/make_golden_ship.py)."""
-import importlib.util
+physics or the rules is caught here (regenerate with tests/golden/make_golden_ship.py);
+and `hpg-mj verify golden`, which replays every task's for a user."""
 import pathlib
+import shutil
 
 import numpy as np
 import pytest
 
-GOLDEN = pathlib.Path(__file__).resolve().parent / "golden"
-_spec = importlib.util.spec_from_file_location("make_golden_ship", GOLDEN / "make_golden_ship.py")
-make_golden_ship = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(make_golden_ship)
+import hpg_mj
+from hpg_mj import cli, suite, verify
 
-# MuJoCo's arithmetic may differ in the last bits across CPUs and builds; a change
-# of integrator, actuation or model moves these trajectories by far more.
-MUJOCO_TOLERANCE = 1e-6
+GOLDEN = verify.golden_dir()
+
+
+def test_the_golden_trajectories_ship_inside_the_package():
+  assert GOLDEN == pathlib.Path(hpg_mj.__file__).resolve().parent / "golden"
+  assert sorted(p.name for p in GOLDEN.glob("*.npz")) == sorted(
+      f"{domain}_{task}.npz" for domain, task in suite.ALL_TASKS)
 
 
 @pytest.mark.parametrize("task", ["steer", "diagonal", "straight"])
 def test_analytic_ship_replays_exactly(task):
   golden = np.load(GOLDEN / f"ship_{task}.npz", allow_pickle=False)
-  obs, rewards, ends = make_golden_ship.analytic_rollout(task)
+  np.testing.assert_array_equal(golden["actions"], verify.ship_golden_actions())
+  obs, rewards, ends = verify.ship_analytic_rollout(task)
   np.testing.assert_array_equal(obs, golden["analytic_obs"])
   np.testing.assert_array_equal(rewards, golden["analytic_rewards"])
   np.testing.assert_array_equal(ends, golden["analytic_ends"])
@@ -28,7 +32,34 @@ def test_analytic_ship_replays_exactly(task):
 @pytest.mark.parametrize("task", ["steer", "diagonal", "straight"])
 def test_mujoco_ship_replays_within_tolerance(task):
   golden = np.load(GOLDEN / f"ship_{task}.npz", allow_pickle=False)
-  obs, rewards, ends = make_golden_ship.mujoco_rollout(task)
-  np.testing.assert_allclose(obs, golden["mujoco_obs"], rtol=0, atol=MUJOCO_TOLERANCE)
-  np.testing.assert_allclose(rewards, golden["mujoco_rewards"], rtol=0, atol=MUJOCO_TOLERANCE)
+  obs, rewards, ends = verify.ship_mujoco_rollout(task)
+  tol = verify.MUJOCO_TOLERANCE
+  np.testing.assert_allclose(obs, golden["mujoco_obs"], rtol=0, atol=tol)
+  np.testing.assert_allclose(rewards, golden["mujoco_rewards"], rtol=0, atol=tol)
   np.testing.assert_array_equal(ends, golden["mujoco_ends"])
+
+
+def test_verify_golden_passes_every_task_and_fails_a_changed_one(tmp_path, capsys, monkeypatch):
+  assert cli.main(["verify", "golden"]) == 0
+  out = capsys.readouterr().out.splitlines()
+  rows = [line.split() for line in out[1:-1]]
+  assert [r[0] for r in rows] == ["ship/steer"] * 2 + ["ship/diagonal"] * 2 + \
+      ["ship/straight"] * 2 + ["taxi/fuel", "taxi/classic"]
+  assert all("pass" in r for r in rows), out
+  assert "largest deviation 0 (tolerance exact)" in out[1]          # the analytic ship
+  assert "(tolerance 1e-06)" in out[2]                              # the MuJoCo ship
+  assert out[-1] == "  8 of 8 passed"
+  # A stored trajectory that the installed code no longer gives fails, with its deviation.
+  changed = tmp_path / "golden"
+  shutil.copytree(GOLDEN, changed)
+  with np.load(changed / "ship_diagonal.npz") as golden:
+    arrays = dict(golden)
+  arrays["mujoco_obs"] = arrays["mujoco_obs"] + 1e-3
+  np.savez(changed / "ship_diagonal.npz", **arrays)
+  (changed / "taxi_classic.npz").unlink()
+  monkeypatch.setattr(verify, "golden_dir", lambda: changed)
+  assert cli.main(["verify", "golden"]) == 1
+  out = capsys.readouterr().out
+  assert "ship/diagonal  MuJoCo (dm_control)    FAIL  largest deviation 0.001 (tolerance 1e-06)" in out
+  assert "taxi/classic   -                      FAIL  no golden trajectory stored" in out
+  assert "6 of 8 passed; FAILED: ship/diagonal MuJoCo (dm_control), taxi/classic -" in out

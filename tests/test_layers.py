@@ -15,8 +15,9 @@ ALLOWED = {
     "envs": {"worlds", "render", "_validation", "_assets", "_headless"},
     "render": {"worlds", "_assets", "_validation", "_headless", "_render_worker"},
     "hierarchy": {"learners", "worlds"},
-    "agents": {"hierarchy", "learners", "worlds", "envs", "suite", "render"},
-    "experiments": {"agents", "hierarchy", "learners", "worlds", "envs", "suite", "render"},
+    "agents": {"hierarchy", "learners", "worlds", "envs", "suite", "render", "provenance"},
+    "experiments": {"agents", "hierarchy", "learners", "worlds", "envs", "suite", "render",
+                    "provenance"},
 }
 
 

@@ -42,7 +42,8 @@ def test_every_subpackage_is_in_the_wheel():
   listed = set(tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
                ["packages"])
   found = {"hpg_mj." + p.parent.name for p in (REPO / "hpg_mj").glob("*/__init__.py")}
-  assert found | {"hpg_mj", "hpg_mj.assets", "hpg_mj.tasks", "hpg_mj.tasks.experiments"} == listed
+  assert found | {"hpg_mj", "hpg_mj.assets", "hpg_mj.tasks", "hpg_mj.tasks.experiments",
+                 "hpg_mj.golden"} == listed
 
 
 def test_shipped_tasks_load_by_name():

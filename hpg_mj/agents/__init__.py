@@ -193,10 +193,13 @@ def train(task, episodes=None, seed=None, backend=None, progress=None):
 # ---- saving and loading --------------------------------------------------------------
 
 def save(agent, directory, record, extra=None):
-  """Writes the agent's whole state, its record and its task file to `directory`."""
+  """Writes the agent's whole state, its record, its task file and what made it
+  (`hpg_mj.provenance`) to `directory`."""
+  from hpg_mj import provenance
+  text = agent.task.text if agent.task else None
   meta = {"task_file": str(agent.task.path) if agent.task else None,
-          "task_text": agent.task.text if agent.task else None,
-          "seed": agent.seed, "episodes": agent.episodes}
+          "task_text": text, "seed": agent.seed, "episodes": agent.episodes,
+          "provenance": provenance.collect(text, agent.seed)}
   meta.update(extra or {})
   arrays = dict(agent.state())
   arrays["record"] = record
@@ -204,8 +207,12 @@ def save(agent, directory, record, extra=None):
 
 
 def load(directory):
-  """Loads a saved agent (and its training record) from `directory`."""
+  """Loads a saved agent (and its training record) from `directory`; one made by
+  another version of hpg_mj or of its libraries is loaded with a
+  `provenance.VersionWarning` that says which."""
+  from hpg_mj import provenance
   meta, arrays = storage.load(directory)
+  provenance.warn_if_different(meta.get("provenance"), directory)
   kind = meta.get("kind")
   if kind not in names():
     raise storage.AgentFileError(f"{directory}: unknown agent kind {kind!r}; registered: "

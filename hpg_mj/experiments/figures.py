@@ -215,8 +215,32 @@ def write_report(root, experiment, results, drawn):
         line += f" The paper's best: {fig['paper_best']}"
       line += f"; ours ({how}): {', '.join(order)}" + (" (the same)." if same else " (we differ).")
     lines.append(line)
+  lines += _provenance_lines(results)
   (root / "REPORT.md").write_text("\n".join(lines) + "\n")
   return root / "REPORT.md"
+
+
+def _provenance_lines(results):
+  """REPORT.md's last section: what made each run (their metrics.json), and this report."""
+  from hpg_mj import provenance
+  lines = ["", "## Provenance", "",
+           f"This report: {provenance.markdown(provenance.collect())}.", ""]
+  made_by = {}
+  for task, runs in results.items():
+    for m in runs:
+      record = m.get("provenance") or {}
+      made_by.setdefault(provenance.markdown(record) if record else
+                         "not recorded (made before hpg_mj recorded provenance)", []).append(
+          f"{task} seed {m.get('seed')}")
+  for made, which in made_by.items():
+    lines.append(f"- Runs made by {made}: " + (
+        "all of them." if len(made_by) == 1 else ", ".join(which) + "."))
+  lines += ["", "| task | task file SHA-256 | seeds |", "|---|---|---|"]
+  for task, runs in results.items():
+    shas = sorted({str((m.get("provenance") or {}).get("task_file_sha256")) for m in runs})
+    lines.append(f"| {task} | {', '.join(shas)} | "
+                 f"{', '.join(str(m.get('seed')) for m in runs)} |")
+  return lines
 
 
 def write_combined_report(out, names):

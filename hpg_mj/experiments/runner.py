@@ -45,16 +45,20 @@ Layout of the output folder (one per experiment):
 A run whose metrics.json exists is finished and is skipped when the command is
 run again; an unfinished one resumes from its last checkpoint. Runs go to a
 process pool (or to Ray); every run draws only from its own seeded generator,
-so results do not depend on the executor or the number of workers.
+so results do not depend on the executor or the number of workers. Each run
+folder is locked while a process writes it (`hpg_mj.experiments.locks`): a
+second command on the same folder waits for the runs another holds, or refuses.
 """
 import concurrent.futures
 import os
 import pathlib
+import sys
 import time
 
 import numpy as np
 
 from hpg_mj import agents
+from hpg_mj.experiments import locks
 from hpg_mj.experiments import runs
 from hpg_mj.agents import taskfile
 
@@ -206,16 +210,16 @@ class _Poller:
 EXECUTORS = ("process", "ray")
 
 
-def _run_processes(todo, workers, checkpoint_every, poll, on_finished):
+def _run_processes(todo, workers, options, poll, on_finished):
   if workers == 1:
     for job in todo:
-      runs.run(*job, checkpoint_every=checkpoint_every)
+      runs.run(*job, **options)
       on_finished(job)
       poll()
     return
   pool = concurrent.futures.ProcessPoolExecutor(max_workers=workers)
   try:
-    futures = {pool.submit(runs.run, *job, checkpoint_every=checkpoint_every): job for job in todo}
+    futures = {pool.submit(runs.run, *job, **options): job for job in todo}
     waiting = set(futures)
     while waiting:
       finished, waiting = concurrent.futures.wait(
@@ -234,7 +238,20 @@ def _run_processes(todo, workers, checkpoint_every, poll, on_finished):
   pool.shutdown()
 
 
-def _run_ray(todo, workers, checkpoint_every, poll, on_finished, address):
+def _run_on_ray(*job, **options):
+  """`runs.run` on a Ray worker; a refused run comes back as its message, so that
+  the driver raises it as `locks.RunLocked`, not as a Ray task error."""
+  try:
+    return runs.run(*job, **options)
+  except locks.RunLocked as err:
+    return _Refused(str(err))
+
+
+class _Refused(str):
+  pass
+
+
+def _run_ray(todo, workers, options, poll, on_finished, address):
   """Runs on a Ray cluster (`address`), or a local Ray instance of `workers` CPUs.
   Every worker writes into the same output folder: on a cluster of several
   machines it must be a shared file system, and hpg_mj installed on each."""
@@ -247,13 +264,14 @@ def _run_ray(todo, workers, checkpoint_every, poll, on_finished, address):
     kwargs = {"address": address} if address else {"num_cpus": workers}
     ray.init(include_dashboard=False, log_to_driver=False, logging_level="ERROR", **kwargs)
   try:
-    remote = ray.remote(num_cpus=1)(runs.run)
-    refs = {remote.remote(*job, checkpoint_every=checkpoint_every): job for job in todo}
+    remote = ray.remote(num_cpus=1)(_run_on_ray)
+    refs = {remote.remote(*job, **options): job for job in todo}
     waiting = list(refs)
     while waiting:
       finished, waiting = ray.wait(waiting, num_returns=1, timeout=0.5)
       for ref in finished:
-        ray.get(ref)
+        if isinstance(result := ray.get(ref), _Refused):
+          raise locks.RunLocked(str(result))
         on_finished(refs[ref])
       poll()
   finally:
@@ -262,9 +280,15 @@ def _run_ray(todo, workers, checkpoint_every, poll, on_finished, address):
 
 
 def run_experiment(experiment, out, quick=False, workers=None, progress=None, on_finished=None,
-                   executor="process", address=None, checkpoint_every=runs.CHECKPOINT_EVERY):
+                   executor="process", address=None, checkpoint_every=runs.CHECKPOINT_EVERY,
+                   wait=True, command=None, on_wait=None):
   """Runs every unfinished (task, seed) of an experiment; returns
   ({task: [metrics of each seed]}, experiment folder, wall seconds).
+
+  A run that another process holds (`locks`) is waited for, `on_wait(message)`
+  told (default: stderr); with `wait=False` the experiment is refused, before any
+  run starts, with `locks.RunLocked` naming the run and its holder. `command`:
+  the command line the runs' lock files name (default: this process's).
 
   `progress(episodes done, total episodes, {task: current figure})` is called
   about twice a second (the figure: gate passes or return over the latest 1,000
@@ -286,15 +310,26 @@ def run_experiment(experiment, out, quick=False, workers=None, progress=None, on
         raise ValueError(f"{job[3]} holds a finished run of {done} episodes, but "
                          f"{experiment['path'].name} asks for {job[2]}; use another --out")
   todo = [job for job in all_jobs if not runs.is_finished(job[3])]
+  on_wait = on_wait or (lambda message: print(message, file=sys.stderr, flush=True))
+  for job in todo:
+    holder = locks.holder_if_locked(pathlib.Path(job[3]))
+    if holder is not None and not wait:
+      raise locks.RunLocked(f"run {job[3]} is held by {holder}; nothing was started (wait for "
+                            f"that command to finish, or run again without --no-wait to wait "
+                            f"for it)")
+    if holder is not None and executor == "ray":     # a Ray worker's stderr is not shown
+      on_wait(f"run {job[3]} is held by {holder}; waiting for it")
+  options = {"checkpoint_every": checkpoint_every, "wait": wait,
+             "command": command or locks.command_line()}
   workers = workers or os.cpu_count() or 1
   poll = _Poller(all_jobs, progress)
   on_finished = on_finished or (lambda job: None)
   start = time.perf_counter()
   if todo:
     if executor == "ray":
-      _run_ray(todo, workers, checkpoint_every, poll, on_finished, address)
+      _run_ray(todo, workers, options, poll, on_finished, address)
     else:
-      _run_processes(todo, workers, checkpoint_every, poll, on_finished)
+      _run_processes(todo, workers, options, poll, on_finished)
   results = {}
   for task in experiment["task_files"]:
     results[task.path.stem] = [runs.read_metrics(job[3])

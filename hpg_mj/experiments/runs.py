@@ -10,10 +10,14 @@ A run folder (`OUT/<experiment>/<task>/seed<k>/`) holds:
                           (`agents.save`); the newest two are kept
     events.log            what happened to the run: started, resumed from
                           episode N, a damaged checkpoint set aside
+    run.lock              held (flock) by the process writing the run
+                          (`hpg_mj.experiments.locks`)
     record.npy            the per-episode record       } written when the run
     agent/                the final agent (`hpg-mj     } finishes; metrics.json
                           evaluate`, `render --agent`)  } last, and a run with
     metrics.json          metrics over the last 1,000   } it is never run again
+                          episodes, and what made them
+                          (`hpg_mj.provenance`)
 
 A checkpoint is written to `checkpoints/.tmp-ep<N>` and renamed into place, so a
 run killed at any moment leaves either the new checkpoint whole or none of it.
@@ -33,7 +37,9 @@ import time
 import numpy as np
 
 from hpg_mj import agents
+from hpg_mj import provenance
 from hpg_mj.agents import storage
+from hpg_mj.experiments import locks
 
 CHECKPOINT_EVERY = 10000
 KEEP_CHECKPOINTS = 2
@@ -158,15 +164,29 @@ def read_progress(run_dir):
   return 0, None
 
 
-def run(task_path, seed, episodes, run_dir, checkpoint_every=CHECKPOINT_EVERY, stop_after=None):
+def run(task_path, seed, episodes, run_dir, checkpoint_every=CHECKPOINT_EVERY, stop_after=None,
+        wait=True, command=None):
   """Trains one (task, seed) run to `episodes`, resuming from its checkpoints;
-  returns its metrics. A finished run is not run again."""
+  returns its metrics. A finished run is not run again.
+
+  The run folder is locked meanwhile (`locks`): a run that another process holds
+  is waited for (its metrics returned once it has finished them), or, with
+  `wait=False`, refused with `locks.RunLocked` naming the holder. `command` is
+  the command line written into the lock for the next one to read.
+  """
   run_dir = pathlib.Path(run_dir)
   if is_finished(run_dir):
     return read_metrics(run_dir)
   if checkpoint_every < 1:
     raise ValueError(f"checkpoint_every must be a positive number of episodes, got "
                      f"{checkpoint_every}")
+  with locks.hold(run_dir, wait=wait, command=command):
+    if is_finished(run_dir):            # finished by the process we waited for
+      return read_metrics(run_dir)
+    return _run_locked(task_path, seed, episodes, run_dir, checkpoint_every, stop_after)
+
+
+def _run_locked(task_path, seed, episodes, run_dir, checkpoint_every, stop_after):
   task = agents.load_task(task_path)
   (run_dir / "checkpoints").mkdir(parents=True, exist_ok=True)
   agent, records, done, wall = _resume(task, seed, run_dir)
@@ -191,7 +211,8 @@ def run(task_path, seed, episodes, run_dir, checkpoint_every=CHECKPOINT_EVERY, s
   record = np.concatenate(records)
   metrics = agent.metrics(record)
   metrics.update({"task": task.path.stem, "seed": seed, "episodes": episodes,
-                  "wall_seconds": round(wall, 3)})
+                  "wall_seconds": round(wall, 3),
+                  "provenance": provenance.collect(task.text, seed)})
   agent_dir = run_dir / "agent"
   if agent_dir.exists():
     shutil.rmtree(agent_dir)

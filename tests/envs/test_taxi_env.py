@@ -1,6 +1,5 @@
 """The taxi environments: Gymnasium's `hpg_mj/TaxiFuel-v0` and `hpg_mj/Taxi-v0`,
 and the dm_control tasks of `hpg_mj.worlds.taxi` (SPEC section 5)."""
-import pathlib
 import warnings
 
 import dm_env
@@ -10,11 +9,12 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import hpg_mj  # noqa: F401  (registers the ids)
+from hpg_mj import verify
 from hpg_mj.envs.taxi import TaxiEnv
 from hpg_mj.worlds import taxi
 from hpg_mj.worlds import taxi_core as tc
 
-GOLDEN = pathlib.Path(__file__).resolve().parents[1] / "golden"
+GOLDEN = verify.golden_dir()      # the trajectories shipped in the package
 IDS = ("hpg_mj/TaxiFuel-v0", "hpg_mj/Taxi-v0")
 
 

@@ -1,0 +1,61 @@
+"""A clone explains itself: the specification the code cites is docs/SPEC.md, a
+file of the repository; no tracked file points outside it; every cited section and
+every deviation the README names exists there."""
+import pathlib
+import re
+import subprocess
+
+import pytest
+
+REPO = pathlib.Path(__file__).resolve().parents[1]
+SPEC = REPO / "docs" / "SPEC.md"
+
+
+def _tracked_text_files():
+  try:
+    names = subprocess.run(["git", "-C", str(REPO), "ls-files"], capture_output=True, text=True,
+                           check=True).stdout.split()
+  except (OSError, subprocess.CalledProcessError):
+    pytest.skip("not a git checkout")
+  for name in names:
+    path = REPO / name
+    if path.suffix in (".py", ".md", ".toml", ".sh", ".txt", ".xml", ".cfg") and path.is_file():
+      yield name, path.read_text()
+
+
+def _sections():
+  return {int(n) for n in re.findall(r"^## (\d+)\. ", SPEC.read_text(), flags=re.M)}
+
+
+def test_no_tracked_file_points_outside_the_repository():
+  shared, work = ".." + "/shared", "/" + "work/"     # (not literal: this file is tracked)
+  outside = [name for name, text in _tracked_text_files() if shared in text or work in text]
+  assert outside == []
+
+
+def test_every_cited_spec_section_exists():
+  sections = _sections()
+  assert sections == set(range(1, 11))
+  cited = {}
+  for name, text in _tracked_text_files():
+    for first, last in re.findall(r"SPEC\s+sections?\s+(\d+)(?:\s*-\s*(\d+))?", text):
+      for n in range(int(first), int(last or first) + 1):
+        cited.setdefault(n, []).append(name)
+  assert cited, "no citation found: the pattern is wrong"
+  missing = {n: files for n, files in cited.items() if n not in sections}
+  assert missing == {}
+
+
+def test_every_deviation_the_readme_names_is_specified():
+  spec = SPEC.read_text()
+  declared = set(re.findall(r"^\| (D\d+) \|", spec, flags=re.M))
+  assert declared == {f"D{k}" for k in range(1, 7)}
+  readme = (REPO / "README.md").read_text()
+  named = set(re.findall(r"\b(D\d)\b", readme))
+  assert named == declared
+  for link in re.findall(r"\]\((docs/SPEC\.md[^)]*)\)", readme):
+    assert (REPO / link.split("#")[0]).is_file()
+    if "#" in link:          # GitHub's anchor of the heading it names
+      anchors = {re.sub(r"[^a-z0-9 -]", "", h.lower()).replace(" ", "-")
+                 for h in re.findall(r"^## (.+)$", spec, flags=re.M)}
+      assert link.split("#")[1] in anchors
