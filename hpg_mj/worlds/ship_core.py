@@ -52,7 +52,8 @@ FAILURE = -1     # bounds left
 
 @numba.njit(cache=True, inline="always")
 def wrap_deg(angle):
-  """Wraps an angle in degrees to [-180, 180): `(angle + 180) % 360 - 180`, to the bit.
+  """Wraps an angle (one float) in degrees to [-180, 180): `(angle + 180) % 360 - 180`,
+  to the bit (`wrap_deg_array` for arrays).
 
   A heading moves at most 3 degrees a sample, so the float modulo (an fmod)
   is skipped where its result is known exactly: inside [0, 360) it is the
@@ -67,6 +68,11 @@ def wrap_deg(angle):
   if -360.0 < shifted < 0.0:
     return (shifted + 360.0) - 180.0
   return shifted % 360.0 - 180.0
+
+
+def wrap_deg_array(angles):
+  """`wrap_deg` for an array of angles (numpy; `wrap_deg` takes one float)."""
+  return (np.asarray(angles, dtype=np.float64) + 180.0) % 360.0 - 180.0
 
 
 @numba.njit(cache=True, inline="always")
