@@ -11,6 +11,11 @@ def finite_scalar_action(action, task: str, name: str = "action") -> float:
   Accepts a Python number or an array of shape (), (1,) or (1, 1)... holding one
   element. NaN and infinity are always errors; the range is checked by the caller.
   """
+  if type(action) is np.ndarray and action.shape == (1,) and action.dtype.kind == "f":
+    value = float(action[0])   # the common case, without asarray and reshape (~1 us)
+    if not math.isfinite(value):
+      raise ValueError(f"{task}: {name} must be finite, got {value!r}")
+    return value
   arr = np.asarray(action)
   if arr.dtype.kind not in "biuf":
     raise ValueError(f"{task}: {name} must be a number, got {action!r} of dtype {arr.dtype}")

@@ -73,6 +73,18 @@ def _bench_gym_env(env, actions, min_seconds, chunk=2000):
   return _timed(run, min_seconds)
 
 
+def _bench_vector_env(env, actions, min_seconds, chunk=200):
+  """Control (or primitive) steps per second of a vector env: copies x batch steps."""
+  env.reset(seed=0)
+  n = len(actions)
+
+  def run():
+    for i in range(chunk):
+      env.step(actions[i % n])
+    return chunk * env.num_envs
+  return _timed(run, min_seconds)
+
+
 def bench_envs(min_seconds=1.0):
   """Rows of (name, unit, steps per second)."""
   import gymnasium
@@ -93,6 +105,18 @@ def bench_envs(min_seconds=1.0):
     env = gymnasium.make("hpg_mj/ShipSteering-v0", backend=backend)
     rows.append((f"Gymnasium ShipSteering-v0 backend={backend} (gymnasium.make)",
                  "control steps/s", _bench_gym_env(env, ship_actions, min_seconds)))
+  # Native batches (hpg_mj.envs.vector), random actions, autoreset NextStep.
+  rng = np.random.default_rng(0)
+  env = gymnasium.make_vec("hpg_mj/ShipSteering-v0", 1024, backend="analytic")
+  rows.append(("Gymnasium ShipSteering-v0 analytic, make_vec batch of 1024", "control steps/s",
+               _bench_vector_env(env, rng.uniform(-15, 15, (97, 1024, 1)), min_seconds)))
+  env = gymnasium.make_vec("hpg_mj/ShipSteering-v0", 16, backend="mujoco")
+  rows.append(("Gymnasium ShipSteering-v0 mujoco, make_vec batch of 16 (loop)",
+               "control steps/s",
+               _bench_vector_env(env, rng.uniform(-15, 15, (97, 16, 1)), min_seconds, 20)))
+  env = gymnasium.make_vec("hpg_mj/TaxiFuel-v0", 1024)
+  rows.append(("Gymnasium TaxiFuel-v0, make_vec batch of 1024", "primitive steps/s",
+               _bench_vector_env(env, rng.integers(0, 7, (101, 1024)), min_seconds)))
   for task in ("fuel", "classic"):
     n_actions = 7 if task == "fuel" else 6
     env = suite.load("taxi", task, {"random": 0})

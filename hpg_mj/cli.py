@@ -29,26 +29,90 @@ def _cmd_verify(args):
 def _cmd_render(args):
   from hpg_mj.render import video
   if getattr(args, "agent", None) is not None:
-    from hpg_mj import agents
-    from hpg_mj.experiments import videos
-    agent, _, _ = agents.load(args.agent)
-    out = args.out or f"videos/{agent.name}.{'gif' if args.gif else 'mp4'}"
-    path, record = videos.render_agent(agent, out, seed=args.seed, width=args.width,
-                                       height=args.height)
-    summary = agent.metrics(record)
-    print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB): a greedy episode of "
-          f"{args.agent}, return {summary['mean_return']:.1f}"
-          + (f", gate passed: {bool(summary['gate_pass_rate'])}" if "gate_pass_rate" in summary
-             else ""))
-    return 0
+    return _render_agent(args)
   path, summary = video.render_task(args.domain, args.task, policy=args.policy, seed=args.seed,
                                     out=args.out, gif=args.gif, width=args.width,
                                     height=args.height, max_steps=args.max_steps,
-                                    backend=args.backend)
+                                    backend=args.backend,
+                                    frame_every=getattr(args, "stride", None))
   event = summary["info"].get("event") if isinstance(summary["info"], dict) else None
   print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB): {summary['steps']} steps, "
         f"return {summary['return']:.1f}" + (f", ended by {event}" if event else ""))
   return 0
+
+
+def _render_agent(args):
+  """`hpg-mj render --agent DIR`: a greedy episode streamed to the video file."""
+  import pathlib
+  import time
+
+  from tqdm import tqdm
+
+  from hpg_mj import agents
+  from hpg_mj.experiments import videos
+  agent, _, _ = agents.load(args.agent)
+  out = pathlib.Path(args.out or f"videos/{agent.name}.{'gif' if args.gif else 'mp4'}")
+  if args.gif and out.suffix.lower() != ".gif":
+    out = out.with_suffix(".gif")
+  bar = tqdm(total=None, unit="step", desc=f"filming {agent.name}", dynamic_ncols=True,
+             disable=args.quiet or not sys.stderr.isatty())
+
+  def progress(done, total):
+    bar.total = total
+    bar.update(done - bar.n)
+  start = time.perf_counter()
+  try:
+    path, record = videos.render_agent(agent, out, seed=args.seed, width=args.width,
+                                       height=args.height, backend=args.backend,
+                                       max_frames=args.max_frames, stride=args.stride,
+                                       progress=progress)
+  finally:
+    bar.close()
+  summary = agent.metrics(record)
+  print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB) in {time.perf_counter() - start:.1f} s:"
+        f" a greedy episode of {args.agent}, {int(record['steps'][0])} steps, return "
+        f"{summary['mean_return']:.1f}"
+        + (f", gate passed: {bool(summary['gate_pass_rate'])}" if "gate_pass_rate" in summary
+           else ""))
+  return 0
+
+
+# `hpg-mj render` options that film a task's scripted or random policy, not an agent.
+RENDER_TASK_ONLY = ("domain", "task", "policy", "max_steps")
+RENDER_AGENT_ONLY = ("max_frames",)
+
+
+def _check_render_args(parser, args):
+  """Refuses the options that do not apply (with or without --agent); fills defaults."""
+  def flag(name):
+    return "--" + name.replace("_", "-")
+  if args.agent is not None:
+    given = [flag(n) for n in RENDER_TASK_ONLY if getattr(args, n) is not None]
+    if given:
+      parser.error(f"render: {', '.join(given)} cannot be used with --agent (the agent's own "
+                   "task and greedy policy are filmed); with --agent use --seed, --out, --gif, "
+                   "--width, --height, --backend, --stride, --max-frames, --quiet")
+    args.width = args.width or videos_defaults()[0]
+    args.height = args.height or videos_defaults()[1]
+    args.max_frames = args.max_frames if args.max_frames is not None else videos_defaults()[2]
+  else:
+    given = [flag(n) for n in RENDER_AGENT_ONLY if getattr(args, n) is not None]
+    if given:
+      parser.error(f"render: {', '.join(given)} only applies with --agent")
+    args.domain = args.domain or "ship"
+    args.task = args.task or ("steer" if args.domain == "ship" else "fuel")
+    args.policy = args.policy or "scripted"
+    args.width = args.width or 640
+    args.height = args.height or 480
+  for name in ("width", "height", "stride", "max_frames"):
+    value = getattr(args, name)
+    if value is not None and value < 1:
+      parser.error(f"render: {flag(name)} must be a positive integer, got {value}")
+
+
+def videos_defaults():
+  from hpg_mj.experiments import videos
+  return videos.DEFAULT_WIDTH, videos.DEFAULT_HEIGHT, videos.DEFAULT_MAX_FRAMES
 
 
 def _cmd_doctor(args):
@@ -364,20 +428,30 @@ def build_parser():
   p.add_argument("--seed", type=_at_least(0), default=0)
   p.set_defaults(func=_cmd_verify)
 
-  p = sub.add_parser("render", help="write a video of one episode")
-  p.add_argument("--domain", choices=["ship", "taxi"], default="ship")
+  p = sub.add_parser("render", help="write a video of one episode (of a task's scripted or "
+                     "random policy, or with --agent of a saved agent)")
+  p.add_argument("--domain", choices=["ship", "taxi"], default=None, help="default ship")
   p.add_argument("--task", default=None,
                  help="ship: steer, diagonal, straight; taxi: fuel, classic")
-  p.add_argument("--policy", choices=["scripted", "random"], default="scripted")
+  p.add_argument("--policy", choices=["scripted", "random"], default=None,
+                 help="default scripted")
   p.add_argument("--seed", type=_at_least(0), default=0)
   p.add_argument("--out", default=None, help="output path (.mp4 or .gif)")
   p.add_argument("--gif", action="store_true", help="write an animated GIF instead of MP4")
-  p.add_argument("--width", type=_at_least(16), default=640)
-  p.add_argument("--height", type=_at_least(16), default=480)
+  p.add_argument("--width", type=_at_least(16), default=None,
+                 help="pixels (default 640; with --agent 320)")
+  p.add_argument("--height", type=_at_least(16), default=None,
+                 help="pixels (default 480; with --agent 240)")
   p.add_argument("--max-steps", type=_at_least(1), default=None)
   p.add_argument("--backend", choices=["mujoco", "analytic"], default="mujoco")
+  p.add_argument("--stride", type=int, default=None,
+                 help="film every N-th control step (default: ship 2; with --agent the "
+                 "smallest that fits --max-frames)")
+  p.add_argument("--max-frames", type=int, default=None,
+                 help="with --agent: the video's length bound in frames (default 200)")
+  p.add_argument("--quiet", action="store_true", help="with --agent: no progress bar")
   p.add_argument("--agent", default=None,
-                 help="a saved agent folder: render its greedy policy on the MuJoCo world")
+                 help="a saved agent folder: film one greedy episode of it")
   p.set_defaults(func=_cmd_render)
 
   p = sub.add_parser("train", help="train the agent of a task file and save it")
@@ -436,8 +510,8 @@ def main(argv=None):
   from hpg_mj._render_worker import RenderingUnavailable
   parser = build_parser()
   args = parser.parse_args(argv)
-  if args.command == "render" and args.task is None:
-    args.task = "steer" if args.domain == "ship" else "fuel"
+  if args.command == "render":
+    _check_render_args(parser, args)
   import warnings
 
   from hpg_mj import provenance

@@ -67,7 +67,7 @@ def mujoco_trajectory(state, controls, physics=None):
 
 def _errors(trajectory, reference):
   position = np.hypot(trajectory[:, 0] - reference[:, 0], trajectory[:, 1] - reference[:, 1])
-  heading = np.abs(core.wrap_deg(trajectory[:, 2] - reference[:, 2]))
+  heading = np.abs(core.wrap_deg_array(trajectory[:, 2] - reference[:, 2]))
   return float(position.max()), float(heading.max())
 
 

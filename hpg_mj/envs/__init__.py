@@ -1,7 +1,8 @@
 """Gymnasium environments; `import hpg_mj` registers them."""
 import gymnasium
 
-# id -> (entry point, default keyword arguments)
+# id -> (entry point, default keyword arguments); the native batch of each id is
+# `VECTOR_ENTRY_POINTS`' (`gymnasium.make_vec(id, num_envs=N)`, hpg_mj.envs.vector).
 ENV_IDS = {
     "hpg_mj/ShipSteering-v0": ("hpg_mj.envs.ship:ShipSteeringEnv", {"task": "steer"}),
     "hpg_mj/ShipSteeringDiagonal-v0": ("hpg_mj.envs.ship:ShipSteeringEnv", {"task": "diagonal"}),
@@ -10,11 +11,17 @@ ENV_IDS = {
     "hpg_mj/Taxi-v0": ("hpg_mj.envs.taxi:TaxiEnv", {"fuel": False}),
 }
 
+VECTOR_ENTRY_POINTS = {
+    "hpg_mj.envs.ship:ShipSteeringEnv": "hpg_mj.envs.vector:ShipSteeringVectorEnv",
+    "hpg_mj.envs.taxi:TaxiEnv": "hpg_mj.envs.vector:TaxiVectorEnv",
+}
+
 
 def register_all():
   for env_id, (entry_point, kwargs) in ENV_IDS.items():
     if env_id not in gymnasium.registry:
-      gymnasium.register(id=env_id, entry_point=entry_point, kwargs=dict(kwargs))
+      gymnasium.register(id=env_id, entry_point=entry_point, kwargs=dict(kwargs),
+                         vector_entry_point=VECTOR_ENTRY_POINTS[entry_point])
 
 
 def make(env_id, **kwargs):

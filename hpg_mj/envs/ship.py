@@ -46,13 +46,16 @@ class MujocoBackend:
 
   def set_state(self, state):
     self.physics.set_ship_state(state)
+    self._state = self.physics.ship_state()
 
   def state(self):
-    return self.physics.ship_state()
+    return self._state.copy()
 
   def control(self, r_deg):
     self.physics.set_turn_command(r_deg)
     self.physics.step(self._nstep)
+    # The state is read with the samples: only this backend moves its physics.
+    self._state = self.physics.stepped_state
     return self.physics.sampled_positions()
 
 

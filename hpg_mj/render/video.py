@@ -77,22 +77,63 @@ def record_episode(env, policy, seed=0, max_steps=None, frame_every=1, hold_last
                   "terminated": terminated, "truncated": truncated}
 
 
+class VideoWriter:
+  """Streams frames to an MP4 (H.264, through imageio's ffmpeg writer) or, for a .gif
+  path, an animated GIF; use as a context manager, `append_data(frame)` per frame.
+
+  The path is checked at once; the file is opened with the first frame (so `fps`
+  may still be set until then). A failure inside the `with` removes the partial file.
+  """
+
+  SUFFIXES = (".mp4", ".gif")
+
+  def __init__(self, path, fps=20):
+    self.path = pathlib.Path(path)
+    if self.path.suffix.lower() not in self.SUFFIXES:
+      raise ValueError(f"video path {str(self.path)!r} must end in .mp4 or .gif")
+    if not fps > 0:
+      raise ValueError(f"fps must be a positive number of frames per second, got {fps!r}")
+    self.fps = fps
+    self.frames = 0
+    self._writer = None
+
+  def _open(self):
+    self.path.parent.mkdir(parents=True, exist_ok=True)
+    if self.path.suffix.lower() == ".gif":
+      return imageio.get_writer(self.path, mode="I", duration=1000.0 / self.fps, loop=0)
+    return imageio.get_writer(self.path, fps=self.fps, codec="libx264", quality=6,
+                              macro_block_size=16, pixelformat="yuv420p")
+
+  def append_data(self, frame):
+    if self._writer is None:
+      self._writer = self._open()
+    self._writer.append_data(np.asarray(frame))
+    self.frames += 1
+
+  def close(self):
+    if self._writer is not None:
+      self._writer.close()
+      self._writer = None
+
+  def __enter__(self):
+    return self
+
+  def __exit__(self, kind, error, traceback):
+    self.close()
+    if kind is not None:
+      self.path.unlink(missing_ok=True)
+    elif self.frames == 0:
+      raise ValueError("no frames to write")
+
+
 def write_video(frames, path, fps=20):
   """Writes frames to an MP4 (H.264) or, for a .gif path, an animated GIF."""
-  path = pathlib.Path(path)
-  if not frames:
+  if not len(frames):
     raise ValueError("no frames to write")
-  path.parent.mkdir(parents=True, exist_ok=True)
-  if path.suffix.lower() == ".gif":
-    imageio.mimsave(path, [np.asarray(f) for f in frames], duration=1000.0 / fps, loop=0)
-  elif path.suffix.lower() == ".mp4":
-    with imageio.get_writer(path, fps=fps, codec="libx264", quality=6,
-                            macro_block_size=16, pixelformat="yuv420p") as writer:
-      for frame in frames:
-        writer.append_data(np.asarray(frame))
-  else:
-    raise ValueError(f"video path {str(path)!r} must end in .mp4 or .gif")
-  return path
+  with VideoWriter(path, fps=fps) as writer:
+    for frame in frames:
+      writer.append_data(frame)
+  return writer.path
 
 
 def render_task(domain, task, policy="scripted", seed=0, out=None, gif=False, width=640,

@@ -13,6 +13,7 @@ One control step is 0.6 s: the desired turning rate r (deg/s) is held for three
 import collections
 import math
 
+import numba
 import numpy as np
 
 from hpg_mj import _assets
@@ -53,6 +54,22 @@ def set_orthographic_extents(model):
       model.cam_fovy[camera] = model.numeric_data[model.numeric_adr[i]]
 
 
+@numba.njit(cache=True)
+def bow_readings(qpos, turning_rate_deg, bow, positions, state):
+  """The bow's positions (rows of `qpos`: x, y, yaw) into `positions`, and the last
+  row's ship state [x, y, theta_deg, theta_dot_deg] into `state`: the arithmetic of
+  `Physics.position` and `heading_deg` compiled, one call per control step."""
+  for k in range(qpos.shape[0]):
+    theta = qpos[k, 2]
+    positions[k, 0] = qpos[k, 0] + bow * math.sin(theta)
+    positions[k, 1] = qpos[k, 1] + bow * math.cos(theta)
+  last = qpos.shape[0] - 1
+  state[0] = positions[last, 0]
+  state[1] = positions[last, 1]
+  state[2] = core.wrap_deg(math.degrees(qpos[last, 2]))
+  state[3] = turning_rate_deg
+
+
 class Physics(mujoco.Physics):
   """The MuJoCo ship with named readings in the paper's units."""
 
@@ -68,6 +85,7 @@ class Physics(mujoco.Physics):
     # wrapped access costs microseconds each (hpg-mj bench envs).
     self._model_ptr, self._data_ptr = self.model.ptr, self.data.ptr
     self._bow = float(self.named.model.site_pos["bow", 1])
+    self._substeps = None    # MuJoCo steps per 0.2 s sample, checked on the first step
 
   def _substeps_per_sample(self):
     substeps = core.SAMPLING_INTERVAL / self._model_ptr.opt.timestep
@@ -99,7 +117,10 @@ class Physics(mujoco.Physics):
 
   def ship_state(self):
     """[x, y, theta_deg, theta_dot_deg] as a new array."""
-    return np.array([*self._position(), self.heading_deg(), self.turning_rate_deg()])
+    data = self._data_ptr
+    state = np.empty(4)
+    bow_readings(data.qpos.reshape(1, 3), data.act[0], self._bow, np.empty((1, 2)), state)
+    return state
 
   def set_ship_state(self, state):
     """Places the ship at [x, y, theta_deg, theta_dot_deg], sailing at speed V."""
@@ -132,17 +153,23 @@ class Physics(mujoco.Physics):
 
   def step(self, nstep=1):
     """Advances `nstep` MuJoCo steps, sampling the position every 0.2 s."""
-    substeps = self._substeps_per_sample()
+    substeps = self._substeps
+    if substeps is None:
+      substeps = self._substeps = self._substeps_per_sample()
     if nstep % substeps:
       raise ValueError(f"the ship steps whole 0.2 s sampling intervals ({substeps} MuJoCo "
                        f"steps each), got nstep={nstep}")
     n = nstep // substeps
-    rows = [self._position()]
     model, data = self._model_ptr, self._data_ptr
-    for _ in range(n):
+    qpos = data.qpos
+    rows = np.empty((n + 1, 3))
+    rows[0] = qpos
+    for k in range(1, n + 1):
       mj.mj_step(model, data, substeps)
-      rows.append(self._position())
-    self._samples = np.array(rows)
+      rows[k] = qpos
+    self._samples = np.empty((n + 1, 2))
+    self.stepped_state = np.empty(4)   # `ship_state()` after this step, read with it
+    bow_readings(rows, data.act[0], self._bow, self._samples, self.stepped_state)
 
   def render(self, height=240, width=320, camera_id=-1, **options):
     """dm_control's `render`, drawn in a worker process (SPEC section 9)."""
@@ -210,10 +237,11 @@ class ShipTask(base.Task):
                                         self._steps)
 
   def get_observation(self, physics):
+    state = physics.ship_state()
     obs = collections.OrderedDict()
-    obs["position"] = physics.position()
-    obs["heading_deg"] = np.array([physics.heading_deg()])
-    obs["turning_rate_deg"] = np.array([physics.turning_rate_deg()])
+    obs["position"] = state[:2]
+    obs["heading_deg"] = state[2:3]
+    obs["turning_rate_deg"] = state[3:4]
     return obs
 
   def get_reward(self, physics):

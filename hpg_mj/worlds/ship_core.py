@@ -52,8 +52,27 @@ FAILURE = -1     # bounds left
 
 @numba.njit(cache=True, inline="always")
 def wrap_deg(angle):
-  """Wraps an angle in degrees to [-180, 180)."""
-  return (angle + 180.0) % 360.0 - 180.0
+  """Wraps an angle (one float) in degrees to [-180, 180): `(angle + 180) % 360 - 180`,
+  to the bit (`wrap_deg_array` for arrays).
+
+  A heading moves at most 3 degrees a sample, so the float modulo (an fmod)
+  is skipped where its result is known exactly: inside [0, 360) it is the
+  number itself, in [360, 720) an exact subtraction (Sterbenz's lemma), in
+  (-360, 0) the same rounded addition that `%` makes.
+  """
+  shifted = angle + 180.0
+  if 0.0 <= shifted < 360.0:
+    return shifted - 180.0
+  if 360.0 <= shifted < 720.0:
+    return (shifted - 360.0) - 180.0
+  if -360.0 < shifted < 0.0:
+    return (shifted + 360.0) - 180.0
+  return shifted % 360.0 - 180.0
+
+
+def wrap_deg_array(angles):
+  """`wrap_deg` for an array of angles (numpy; `wrap_deg` takes one float)."""
+  return (np.asarray(angles, dtype=np.float64) + 180.0) % 360.0 - 180.0
 
 
 @numba.njit(cache=True, inline="always")
@@ -357,3 +376,78 @@ def global_outcome(samples, gate_reward, out_of_bounds_reward):
   elif event == FAILURE:
     reward += out_of_bounds_reward
   return event, reward
+
+
+# ---- one control step of a Gymnasium / dm_control ship task, single or batched --------
+
+TIMEOUT = -2     # a subtask's 300 control steps without success (a FAILURE, SPEC section 3)
+
+
+@numba.njit(cache=True)
+def task_outcome(samples, end_state, steps, is_steer, goal, size, max_steps, success_reward,
+                 failure_reward):
+  """(event, reward, terminated, truncated) of the task after one control step.
+
+  `samples` are the positions sampled during the step, `end_state` the state at
+  its end, `steps` the control steps taken so far, this one included. The full
+  task (`is_steer`) ends at the gate or off the field and is truncated after
+  `max_steps` (SPEC section 2); a subtask ends at its `goal`, off its field or
+  as a TIMEOUT after `max_steps`, and adds the heading shaping (SPEC section 3).
+  The event is NO_EVENT, SUCCESS, FAILURE or TIMEOUT.
+  """
+  reward = STEP_REWARD
+  if is_steer:
+    event, _ = steer_event(samples, GATE, size)
+  else:
+    event, _ = subtask_event(samples, goal, GOAL_RADIUS, size)
+    if event == NO_EVENT and steps >= max_steps:
+      event = TIMEOUT
+    reward += shaping_reward(end_state[0], end_state[1], end_state[2], goal[0], goal[1],
+                             SHAPING_WIDTH_DEG)
+  if event == SUCCESS:
+    reward += success_reward
+  elif event == FAILURE or event == TIMEOUT:
+    reward += failure_reward
+  terminated = event != NO_EVENT
+  truncated = not terminated and steps >= max_steps
+  return event, reward, terminated, truncated
+
+
+@numba.njit(cache=True)
+def task_step_batch(states, r_deg, active, samples, steps, integrate, is_steer, goal, size,
+                    max_steps, success_reward, failure_reward, outcome):
+  """One control step of every `active` ship of a batch, in one call.
+
+  With `integrate` the ships sail Equation 1 here (`euler_control`, as the
+  single analytic ship does); without it `samples` and `states` already hold
+  the step's sampled positions and end states (the MuJoCo ships). Then each
+  active ship's `steps` count grows by one and `task_outcome` fills `outcome` =
+  (event, reward, terminated, truncated), one array each; inactive ships are left
+  untouched.
+  """
+  event, reward, terminated, truncated = outcome
+  n = states.shape[0]
+  if integrate:
+    # `euler_control` for each ship, sample by sample across the batch: the ships'
+    # independent chains of sin and cos then overlap in the processor.
+    for i in range(n):
+      if active[i]:
+        samples[i, 0, 0] = states[i, 0]
+        samples[i, 0, 1] = states[i, 1]
+    for k in range(1, samples.shape[1]):
+      for i in range(n):
+        if active[i]:
+          state = states[i]
+          euler_sample(state, r_deg[i], SPEED, TIME_CONSTANT, SAMPLING_INTERVAL)
+          samples[i, k, 0] = state[0]
+          samples[i, k, 1] = state[1]
+  for i in range(n):
+    if not active[i]:
+      continue
+    steps[i] += 1
+    e, rw, te, tr = task_outcome(samples[i], states[i], steps[i], is_steer, goal, size,
+                                 max_steps, success_reward, failure_reward)
+    event[i] = e
+    reward[i] = rw
+    terminated[i] = te
+    truncated[i] = tr

@@ -36,6 +36,11 @@ class ShipRules:
     # SPEC section 2's +100 / -100 (and the subtasks' local +100 / -100).
     self.success_reward = float(gate_reward)
     self.failure_reward = float(out_of_bounds_reward)
+    # `task_outcome`'s arguments, and its event codes by name.
+    self._goal = np.zeros(2) if self.goal is None else self.goal
+    success = "gate" if kind == "steer" else "goal"
+    self.event_names = {core.NO_EVENT: None, core.SUCCESS: success,
+                        core.FAILURE: "out_of_bounds", core.TIMEOUT: "timeout"}
     if self.max_steps < 1:
       raise ValueError(f"max_steps must be a positive number of control steps, got {max_steps!r}")
 
@@ -58,21 +63,7 @@ class ShipRules:
     `samples` are the positions sampled during the step, `end_state` the state
     at its end, `steps` the control steps taken so far, this one included.
     """
-    reward = core.STEP_REWARD
-    if self.goal is None:
-      event, _ = core.steer_event(samples, core.GATE, self.size)
-      name = {core.SUCCESS: "gate", core.FAILURE: "out_of_bounds"}.get(event)
-    else:
-      event, _ = core.subtask_event(samples, self.goal, core.GOAL_RADIUS, self.size)
-      name = {core.SUCCESS: "goal", core.FAILURE: "out_of_bounds"}.get(event)
-      if event == core.NO_EVENT and steps >= self.max_steps:
-        event, name = core.FAILURE, "timeout"   # SPEC section 3: 300 steps is failure
-      reward += core.shaping_reward(end_state[0], end_state[1], end_state[2],   # all given:
-                                    self.goal[0], self.goal[1], core.SHAPING_WIDTH_DEG)  # fast
-    if event == core.SUCCESS:
-      reward += self.success_reward
-    elif event == core.FAILURE:
-      reward += self.failure_reward
-    terminated = event != core.NO_EVENT
-    truncated = not terminated and steps >= self.max_steps
-    return reward, terminated, truncated, name
+    event, reward, terminated, truncated = core.task_outcome(
+        samples, end_state, steps, self.goal is None, self._goal, self.size, self.max_steps,
+        self.success_reward, self.failure_reward)
+    return reward, terminated, truncated, self.event_names[event]

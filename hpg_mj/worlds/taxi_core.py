@@ -140,16 +140,9 @@ def taxi_step(row, col, passenger, destination, fuel, action, fuel_enabled=True,
 
 
 @numba.njit(cache=True)
-def legal_actions(row, col, passenger, destination, fuel, fuel_enabled=True,
-                  fuel_row=FUEL_STATION[0], fuel_col=FUEL_STATION[1], capacity=FUEL_CAPACITY):
-  """An int8 mask of the actions that do something on the board.
-
-  1 for a move that is not blocked by a wall or the border, a legal Pickup, a
-  legal Dropoff and, with fuel, a Fillup at F when the tank is not full; 0 for
-  the -1 no-ops and the -10 illegal actions. Like Gymnasium's `action_mask` it
-  says nothing about fuel running out: every action is still allowed.
-  """
-  mask = np.zeros(NUM_ACTIONS_FUEL if fuel_enabled else NUM_ACTIONS_CLASSIC, dtype=np.int8)
+def fill_legal_actions(mask, row, col, passenger, destination, fuel, fuel_enabled, fuel_row,
+                       fuel_col, capacity):
+  """Writes `legal_actions`' mask into `mask` (a row of a batch's masks)."""
   mask[SOUTH] = row < GRID_SIZE - 1
   mask[NORTH] = row > 0
   mask[EAST] = not WALL_EAST[row, col]
@@ -160,6 +153,21 @@ def legal_actions(row, col, passenger, destination, fuel, fuel_enabled=True,
                    and col == STATIONS[destination, 1])
   if fuel_enabled:
     mask[FILLUP] = row == fuel_row and col == fuel_col and fuel < capacity
+
+
+@numba.njit(cache=True)
+def legal_actions(row, col, passenger, destination, fuel, fuel_enabled=True,
+                  fuel_row=FUEL_STATION[0], fuel_col=FUEL_STATION[1], capacity=FUEL_CAPACITY):
+  """An int8 mask of the actions that do something on the board.
+
+  1 for a move that is not blocked by a wall or the border, a legal Pickup, a
+  legal Dropoff and, with fuel, a Fillup at F when the tank is not full; 0 for
+  the -1 no-ops and the -10 illegal actions. Like Gymnasium's `action_mask` it
+  says nothing about fuel running out: every action is still allowed.
+  """
+  mask = np.zeros(NUM_ACTIONS_FUEL if fuel_enabled else NUM_ACTIONS_CLASSIC, dtype=np.int8)
+  fill_legal_actions(mask, row, col, passenger, destination, fuel, fuel_enabled, fuel_row,
+                     fuel_col, capacity)
   return mask
 
 

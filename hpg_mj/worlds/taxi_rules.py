@@ -70,3 +70,41 @@ def outcome_of(last):
   """How an episode ended, from the last `Step` of a step-by-step run (the codes above)."""
   return (TRUNCATED if last.truncated else
           DELIVERED if last.reward == core.DELIVERY_REWARD else OUT_OF_FUEL)
+
+
+@numba.njit(cache=True)
+def step_batch(states, actions, active, steps, world, reward, terminated, truncated, masks):
+  """One primitive step of every `active` taxi of a batch, in one call (the
+  Gymnasium vector taxi): `taxi_step` on each, its step count, truncation after
+  `world[W_MAX_STEPS]` steps (SPEC section 5) and the new state's action mask.
+  Inactive taxis keep their state, counts and outputs."""
+  fuel_enabled = world[W_FUEL_ENABLED] != 0
+  for i in range(states.shape[0]):
+    if not active[i]:
+      continue
+    s = states[i]
+    row, col, passenger, destination, fuel, r, done = core.taxi_step(
+        s[ROW], s[COL], s[PASSENGER], s[DESTINATION], s[FUEL], actions[i], fuel_enabled,
+        world[W_FUEL_ROW], world[W_FUEL_COL], world[W_CAPACITY])
+    s[ROW] = row
+    s[COL] = col
+    s[PASSENGER] = passenger
+    s[DESTINATION] = destination
+    s[FUEL] = fuel
+    steps[i] += 1
+    reward[i] = r
+    terminated[i] = done
+    truncated[i] = not done and steps[i] >= world[W_MAX_STEPS]
+    core.fill_legal_actions(masks[i], row, col, passenger, destination, fuel, fuel_enabled,
+                            world[W_FUEL_ROW], world[W_FUEL_COL], world[W_CAPACITY])
+
+
+@numba.njit(cache=True)
+def fill_masks(states, indices, world, masks):
+  """The action masks of the taxis `indices` (after a reset)."""
+  fuel_enabled = world[W_FUEL_ENABLED] != 0
+  for i in indices:
+    s = states[i]
+    core.fill_legal_actions(masks[i], s[ROW], s[COL], s[PASSENGER], s[DESTINATION], s[FUEL],
+                            fuel_enabled, world[W_FUEL_ROW], world[W_FUEL_COL],
+                            world[W_CAPACITY])

@@ -214,3 +214,18 @@ def test_scripted_pilot_passes_the_gate_mostly():
         break
     passed += event == "gate"
   assert passed >= 36
+
+
+def test_wrap_deg_is_the_float_modulo_to_the_bit():
+  # wrap_deg skips the fmod where it knows the answer; it must equal the formula exactly.
+  rng = np.random.default_rng(0)
+  edges = [-900.0, -540.0, -540.0000000000001, -539.9999999999999, -180.0, -180.00000000000003,
+           -0.0, 0.0, 5e-324, 179.99999999999997, 180.0, 539.9999999999999, 540.0, 900.0,
+           1e300, -1e300, math.inf, -math.inf, math.nan]
+  angles = np.concatenate([edges, rng.uniform(-185.0, 185.0, 20000),
+                           rng.uniform(-2000.0, 2000.0, 20000)])
+  for angle in angles.tolist():
+    expected = (angle + 180.0) % 360.0 - 180.0
+    got = core.wrap_deg(angle)
+    assert (got == expected or (math.isnan(got) and math.isnan(expected))), angle
+    assert math.copysign(1.0, got) == math.copysign(1.0, expected), angle

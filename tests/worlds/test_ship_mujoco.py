@@ -53,7 +53,7 @@ def test_mujoco_and_analytic_ships_agree(physics):
   eu = verify.euler_trajectory(start, controls)
   # Both approximate the same ODE: Euler's own error bounds their distance.
   assert np.max(np.hypot(*(mj[:, :2] - eu[:, :2]).T)) < 1.0
-  assert np.max(np.abs(core.wrap_deg(mj[:, 2] - eu[:, 2]))) < 1.0
+  assert np.max(np.abs(core.wrap_deg_array(mj[:, 2] - eu[:, 2]))) < 1.0
   np.testing.assert_allclose(mj[:, 3], verify.exact_trajectory(start, controls)[:, 3], atol=1e-9)
 
 
