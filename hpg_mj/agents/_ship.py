@@ -7,6 +7,7 @@ import numba
 import numpy as np
 
 from hpg_mj.agents import base
+from hpg_mj.agents import taskfile
 from hpg_mj.agents.taskfile import param
 from hpg_mj.worlds import ship_core as core
 from hpg_mj.learners import rng
@@ -15,7 +16,7 @@ METRIC_WINDOW = 1000   # online metrics are over the last 1,000 episodes
 
 
 @dataclasses.dataclass(frozen=True)
-class ShipEnvironment:
+class ShipEnvironment(taskfile.Section):
   """[environment] of a ship task file (SPEC section 2)."""
   world: str = param("ship", "the world", choices=("ship",))
   backend: str = param("analytic", "train on Equation 1 (analytic) or the MuJoCo ship",

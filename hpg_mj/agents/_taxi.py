@@ -7,6 +7,7 @@ import numba
 import numpy as np
 
 from hpg_mj.agents import base
+from hpg_mj.agents import taskfile
 from hpg_mj.agents.taskfile import param
 from hpg_mj.learners import rng
 from hpg_mj.worlds import taxi_core
@@ -36,7 +37,7 @@ def sample_start(rng_state, world, state):
 
 
 @dataclasses.dataclass(frozen=True)
-class TaxiEnvironment:
+class TaxiEnvironment(taskfile.Section):
   """[environment] of a taxi task file (SPEC section 5)."""
   world: str = param("taxi", "the world", choices=("taxi",))
   backend: str = param("analytic", "the compiled loop (analytic) or the dm_control board "

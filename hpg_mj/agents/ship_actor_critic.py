@@ -12,6 +12,7 @@ import numba
 import numpy as np
 
 from hpg_mj.agents import _ship
+from hpg_mj.agents import taskfile
 from hpg_mj.agents.taskfile import param
 from hpg_mj.agents.ship_flat_pg import N_RECORD, PASSED, RETURN, STEPS, actor_coder
 from hpg_mj.hierarchy import flat as flat_graph
@@ -107,7 +108,7 @@ def train_actor_critic(n_episodes, learn, sample, rng_state, actor_w, actor_tili
 
 
 @dataclasses.dataclass(frozen=True)
-class Actor:
+class Actor(taskfile.Section):
   """[actor]: flat PGRL's policy, stepped along Q(s, a) psi."""
   learner: str = param("policy_gradient", "the actor", choices=("policy_gradient",))
   alpha: float = param(1e-4, "actor step size", low=0, low_open=True)
@@ -117,7 +118,7 @@ class Actor:
 
 
 @dataclasses.dataclass(frozen=True)
-class Critic:
+class Critic(taskfile.Section):
   """[critic]: linear over tiles of (state, r), learned by TD(lambda)."""
   learner: str = param("td_lambda", "the critic", choices=("td_lambda",))
   alpha: float = param(0.01, "critic step size", low=0, low_open=True)

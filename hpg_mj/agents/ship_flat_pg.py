@@ -15,6 +15,7 @@ import numba
 import numpy as np
 
 from hpg_mj.agents import _ship
+from hpg_mj.agents import taskfile
 from hpg_mj.agents.taskfile import param
 from hpg_mj.hierarchy import flat as flat_graph
 from hpg_mj.learners import agents as learners
@@ -84,7 +85,7 @@ def train_flat_pg(n_episodes, learn, sample, rng_state, policy, tiling, s, recor
 
 
 @dataclasses.dataclass(frozen=True)
-class Policy:
+class Policy(taskfile.Section):
   """[policy]: Eq. 3 over the full task."""
   learner: str = param("policy_gradient", "Eq. 3", choices=("policy_gradient",))
   alpha: float = param(0.01, "Eq. 3 step size", low=0, low_open=True)

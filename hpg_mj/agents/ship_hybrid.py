@@ -14,6 +14,7 @@ import numba
 import numpy as np
 
 from hpg_mj.agents import _ship
+from hpg_mj.agents import taskfile
 from hpg_mj.agents.taskfile import param
 from hpg_mj.hierarchy import ship as ship_graph
 from hpg_mj.hierarchy import ship_rules as rules
@@ -181,7 +182,7 @@ def train(n_episodes, learn, sample, rng_state, root, schedule, diagonal, diagon
 
 
 @dataclasses.dataclass(frozen=True)
-class Root:
+class Root(taskfile.Section):
   """[root]: Watkins's Q(lambda) over the SMDP of calls (gamma = 1), replacing traces."""
   learner: str = param("q_lambda", "the root's learner", choices=("q_lambda",))
   alpha: float = param(0.1, "Q(lambda) step size", low=0, low_open=True)
@@ -196,7 +197,7 @@ class Root:
 
 
 @dataclasses.dataclass(frozen=True)
-class LowLevel:
+class LowLevel(taskfile.Section):
   """[low_level]: the shared diagonal and straight subtasks, learned by Eq. 3."""
   learner: str = param("policy_gradient", "Eq. 3", choices=("policy_gradient",))
   alpha: float = param(0.01, "Eq. 3 step size", low=0, low_open=True)

@@ -9,6 +9,7 @@ unknown key, a wrong type, a missing value or one out of range is refused with
 the file, the key and what is allowed, before anything runs.
 """
 import dataclasses
+import math
 import pathlib
 import tomllib
 
@@ -20,17 +21,6 @@ import tomllib
 
 class TaskFileError(ValueError):
   """A task file that cannot be used; the message names the file and the key."""
-
-
-@dataclasses.dataclass
-class TaskFile:
-  path: pathlib.Path
-  kind: str
-  sections: dict
-  text: str
-
-  def section(self, name):
-    return self.sections[name]
 
 
 def _check(path, where, key, value, kind):
@@ -156,7 +146,8 @@ def _range(meta):
 
 
 def check_range(where, section, field, value):
-  """Refuses a value outside its field's bounds, naming the key and what is allowed."""
+  """Refuses a value outside its field's bounds, naming the key and what is allowed
+  (`where`: the task file, or the section's class when it is made in Python)."""
   meta = field.metadata
   low, high = meta.get("low"), meta.get("high")
   values = value if isinstance(value, (tuple, list)) else (value,)
@@ -166,6 +157,18 @@ def check_range(where, section, field, value):
     if bad:
       raise TaskFileError(f"{where}: [{section}] {field.name} = {value!r} is out of range; "
                           f"allowed: {_range(meta)}")
+    if isinstance(v, float) and not math.isfinite(v):
+      raise TaskFileError(f"{where}: [{section}] {field.name} = {value!r} is not finite")
+
+
+class Section:
+  """Base of a task file's section dataclass: a value out of its field's range is
+  refused however the section is made (from a file, or in Python)."""
+
+  def __post_init__(self):
+    name = getattr(type(self), "section_name", type(self).__name__)
+    for field in dataclasses.fields(self):
+      check_range(type(self).__qualname__, name, field, getattr(self, field.name))
 
 
 def build_section(where, section, section_class, table):
@@ -174,6 +177,27 @@ def build_section(where, section, section_class, table):
   for field in dataclasses.fields(section_class):
     check_range(where, section, field, values[field.name])
   return section_class(**values)
+
+
+def updated(config, **sections):
+  """A copy of a configuration with some keys changed, section by section:
+  `updated(config, root={"alpha": 0.5}, environment={"max_steps": 400})`. The
+  changed sections are checked as a task file's are."""
+  fields = {f.name for f in dataclasses.fields(config)}
+  unknown = set(sections) - fields
+  if unknown:
+    raise TaskFileError(f"{type(config).__qualname__}: unknown section(s) {sorted(unknown)}; "
+                        f"allowed: {sorted(fields)}")
+  changes = {}
+  for name, values in sections.items():
+    section = getattr(config, name)
+    keys = {f.name for f in dataclasses.fields(section)}
+    wrong = set(values) - keys
+    if wrong:
+      raise TaskFileError(f"{type(config).__qualname__}: [{name}] unknown key(s) "
+                          f"{sorted(wrong)}; allowed: {sorted(keys)}")
+    changes[name] = dataclasses.replace(section, **values)
+  return dataclasses.replace(config, **changes)
 
 
 def describe_config(config_class):
@@ -194,14 +218,14 @@ def describe_config(config_class):
 # ---- task files ---------------------------------------------------------------
 
 @dataclasses.dataclass(frozen=True)
-class Task:
+class Task(Section):
   """[task]: which agent (`kind`, a registered name) and what the file is for."""
   kind: str = param("", "the agent, by its registered name")
   description: str = param("", "one line on what this task file trains")
 
 
 @dataclasses.dataclass(frozen=True)
-class Protocol:
+class Protocol(Section):
   """[protocol]: how long a run trains, its default seed, and the seeds its
   hyper-parameters were tuned on (never reported)."""
   episodes: int = param(1000, "training episodes of one run", low=1)

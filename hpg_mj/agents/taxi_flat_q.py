@@ -9,6 +9,7 @@ import numba
 import numpy as np
 
 from hpg_mj.agents import _taxi
+from hpg_mj.agents import taskfile
 from hpg_mj.agents.taskfile import param
 from hpg_mj.hierarchy import flat as flat_graph
 from hpg_mj.hierarchy import taxi_rules as rules
@@ -95,7 +96,7 @@ class FlatQTable:
 
 
 @dataclasses.dataclass(frozen=True)
-class Policy:
+class Policy(taskfile.Section):
   """[policy]: Q-learning over the full state."""
   learner: str = param("q_learning", "one-step Watkins Q-learning", choices=("q_learning",))
   alpha: float = param(1.0, "step size", low=0, high=1, low_open=True)

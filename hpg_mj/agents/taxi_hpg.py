@@ -16,8 +16,8 @@ than when it ends (line 12): the same thing, except that the final child's
 reward - a delivery's +20 - is applied with the trace still holding the
 choices that led to it, as Eq. 3 does (z is reset at s*, and R(s*, .) = 0).
 
-Two deliberate departures from the paper, each an option of `HPGConfig` (and
-of tasks/taxi_fuel_hpg.toml) explained there: the step sizes warm up instead
+Two deliberate departures from the paper, each an option of the task file
+(tasks/taxi_fuel_hpg.toml) explained at `Config`: the step sizes warm up instead
 of never increasing, and each subtask subtracts a learned baseline b_i(s) from
 its reward-to-go (REINFORCE's baseline), which adds to the rule above
 
@@ -57,6 +57,7 @@ import numba
 import numpy as np
 
 from hpg_mj.agents import _taxi
+from hpg_mj.agents import taskfile
 from hpg_mj.agents.taskfile import param
 from hpg_mj.hierarchy import taxi as taxi_hierarchy
 from hpg_mj.hierarchy import taxi_rules as rules
@@ -73,111 +74,34 @@ N_RECORD = 4
 
 
 # Rows of the step-size schedule array handed to the compiled loop (one column
-# per subtask id, see `HPGConfig.schedule`).
+# per subtask id, see `schedule`).
 S_ALPHA, S_START_FRACTION, S_DELAY, S_RAMP = range(4)
 
 
-@dataclasses.dataclass(frozen=True)
-class HPGConfig:
-  """HPG's hyper-parameters for the taxi, by level: Root; Get, Put and Refuel
-  ("carry"); Navigate(t).
+LEVELS = ("root", "carry", "navigate")
 
-  Step sizes warm up: subtask i learns with alpha_i * f_i(e) in its e-th learning
-  episode, f_i = start_i for the first delay_i episodes, then rising linearly to
-  1 over ramp_i episodes. The paper's assumptions A4-A5 ask for non-increasing
-  step sizes; a constant alpha large enough to learn in 100,000 episodes makes
-  Eq. 3 (REINFORCE, no baseline) commit early to wrong children for good: the
-  first calls are long random walks that mostly end with the tank dry, so every
-  choice in them gets the same large negative reward-to-go, pure noise that
-  drives the softmax to a corner, and a subtask whose calls from a state always
-  run dry never again sees a reward that tells its children apart. Small steps
-  while calls are long and doomed, full steps once they are short, avoid it.
-  Root also waits (delay) with a uniform policy while its children learn, or it
-  learns to avoid a child (Refuel, say) that is merely still bad.
 
-  Each subtask may also subtract a baseline b_i(s) from its reward-to-go, a
-  second declared departure (REINFORCE's baseline, Williams 1992; the paper's
-  Eq. 3 has none): a choice a made in state s then moves theta_i along
-  psi(s, a) times (the rewards of the rest of the call - b_i(s)) instead of the
-  rewards alone. In Eq. 3's online form that is one extra step at the choice,
-  theta_i <- theta_i - alpha_i b_i(s) psi(s, a) (`subtract_baseline`), next to the
-  unchanged z and theta updates. b_i is a table over subtask i's abstract states,
-  learned by TD(0) on the subtask's own rewards with step size baseline_i
-  (`learn_baseline`; 0 keeps b_i = 0, Eq. 3 exactly). Any b(s) that does not
-  depend on the choice made in s leaves the gradient estimate unbiased
-  (E[psi(s, a)] = 0 under the policy); it only removes variance. Why it is
-  needed: without it every call's reward-to-go is of one sign (Navigate's only
-  ever negative, Root's mostly the +20 delivery), so each choice is pushed the
-  same way whatever its worth, and only the small differences between those
-  large pushes carry the gradient. Root, whose decisions (refuel now, later or
-  never) differ by a few steps out of a return of about 6, learned them too
-  slowly: about 93% of the optimal mean return after 100,000 episodes (online,
-  last 1,000 episodes, seeds 0-4) with alpha 0.1 / 0.03 / 0.03 and no
-  baseline, while the larger step sizes below run away without one (51%).
-  With the baseline and them: 98.8% (97.2% over seeds 5-24). The baseline's
-  step size is 1 at most: b(s) moves part of the way to its TD target. The
-  baselines learn from the first episode, Root's too while Root waits.
-  """
-  alpha_root: float = 0.3            # Eq. 3 step size of Root, after warm-up
-  alpha_carry: float = 0.1           # of Get, Put and Refuel
-  alpha_navigate: float = 0.1        # of Navigate(t) (one table for the five targets)
-  start_root: float = 0.0            # f at the first episode (fraction of alpha)
-  start_carry: float = 0.1
-  start_navigate: float = 0.1
-  delay_root: int = 15_000           # episodes at the start fraction
-  delay_carry: int = 0
-  delay_navigate: int = 0
-  ramp_root: int = 20_000            # episodes of the linear rise to alpha
-  ramp_carry: int = 25_000
-  ramp_navigate: int = 25_000
-  gamma_root: float = 1.0            # trace discount (Eq. 3's variant; 1: Eq. 3 exactly)
-  gamma_carry: float = 1.0
-  gamma_navigate: float = 1.0
-  baseline_root: float = 0.3         # TD(0) step size of the baseline b_i (0: none, Eq. 3 exactly)
-  baseline_carry: float = 0.3
-  baseline_navigate: float = 0.3
-  initial: float = 0.0               # every parameter's start value (0: uniform policies)
+def _by_subtask(config, key):
+  """A per-level key of the task file ([root], [carry], [navigate]) as float64[5] by
+  subtask id (ROOT, GET, PUT, REFUEL, NAVIGATE)."""
+  root, carry, navigate = (float(getattr(getattr(config, level), key)) for level in LEVELS)
+  return np.array([root, carry, carry, carry, navigate])
 
-  def __post_init__(self):
-    for level in ("root", "carry", "navigate"):
-      alpha = getattr(self, "alpha_" + level)
-      if not (np.isfinite(alpha) and alpha >= 0.0):
-        raise ValueError(f"HPGConfig: alpha_{level} must be a finite number >= 0, got {alpha!r}")
-      start = getattr(self, "start_" + level)
-      if not 0.0 <= start <= 1.0:
-        raise ValueError(f"HPGConfig: start_{level} must be in [0, 1], got {start!r}")
-      delay = getattr(self, "delay_" + level)
-      if not isinstance(delay, (int, np.integer)) or delay < 0:
-        raise ValueError(f"HPGConfig: delay_{level} must be an integer >= 0, got {delay!r}")
-      ramp = getattr(self, "ramp_" + level)
-      if not isinstance(ramp, (int, np.integer)) or ramp < 1:
-        raise ValueError(f"HPGConfig: ramp_{level} must be an integer >= 1, got {ramp!r}")
-      gamma = getattr(self, "gamma_" + level)
-      if not 0.0 < gamma <= 1.0:
-        raise ValueError(f"HPGConfig: gamma_{level} must be in (0, 1], got {gamma!r}")
-      baseline = getattr(self, "baseline_" + level)
-      if not 0.0 <= baseline <= 1.0:
-        raise ValueError(f"HPGConfig: baseline_{level} must be in [0, 1], got {baseline!r}")
-    if not np.isfinite(self.initial):
-      raise ValueError(f"HPGConfig: initial must be finite, got {self.initial!r}")
 
-  def _by_subtask(self, name):
-    """A per-level field as float64[5] by subtask id (ROOT, GET, PUT, REFUEL, NAVIGATE)."""
-    root, carry, navigate = (float(getattr(self, f"{name}_{level}"))
-                             for level in ("root", "carry", "navigate"))
-    return np.array([root, carry, carry, carry, navigate])
+def schedule(config) -> np.ndarray:
+  """float64[4, 5]: rows S_ALPHA, S_START_FRACTION, S_DELAY, S_RAMP by subtask id."""
+  return np.stack([_by_subtask(config, "alpha"), _by_subtask(config, "start_fraction"),
+                   _by_subtask(config, "delay"), _by_subtask(config, "ramp")])
 
-  def schedule(self) -> np.ndarray:
-    """float64[4, 5]: rows S_ALPHA, S_START_FRACTION, S_DELAY, S_RAMP by subtask id."""
-    return np.stack([self._by_subtask("alpha"), self._by_subtask("start"),
-                     self._by_subtask("delay"), self._by_subtask("ramp")])
 
-  def gammas(self) -> np.ndarray:
-    return self._by_subtask("gamma")
+def gammas(config) -> np.ndarray:
+  """float64[5]: the trace discounts ([level] trace_gamma) by subtask id."""
+  return _by_subtask(config, "trace_gamma")
 
-  def betas(self) -> np.ndarray:
-    """float64[5]: the baselines' TD(0) step sizes by subtask id."""
-    return self._by_subtask("baseline")
+
+def betas(config) -> np.ndarray:
+  """float64[5]: the baselines' TD(0) step sizes ([level] baseline) by subtask id."""
+  return _by_subtask(config, "baseline")
 
 
 def new_trace(n_states: int, n_children: int, initial: float = 0.0):
@@ -231,7 +155,7 @@ def learn_from(trace, learn, alpha, reward, gamma):
 
 @numba.njit(cache=True, inline="always")
 def subtract_baseline(theta, values, abstract, n_children, mask, learn, alpha, index, psi):
-  """Eq. 3 with a baseline (`HPGConfig`): theta <- theta - alpha b(s) psi(s, a) for
+  """Eq. 3 with a baseline (`Config`): theta <- theta - alpha b(s) psi(s, a) for
   the choice a just made in abstract state s, whose score `softmax_act` left in
   `index`, `psi` (one entry per child allowed by `mask`). Nothing when b(s) = 0."""
   if learn:
@@ -352,7 +276,7 @@ def run_episode(traces, state, episode, world, learning, learn, greedy, rng_stat
 
 @numba.njit(cache=True, inline="always")
 def step_sizes(schedule, episode_index, alphas):
-  """Writes alpha_i * f_i(e) for learning episode e (see `HPGConfig`) into `alphas`."""
+  """Writes alpha_i * f_i(e) for learning episode e (see `Config`) into `alphas`."""
   for i in range(alphas.shape[0]):
     fraction = schedule[S_START_FRACTION, i]
     delay = schedule[S_DELAY, i]
@@ -371,7 +295,7 @@ def train(n_episodes, learn, greedy, rng_state, world, traces, values, settings,
 
   `traces`: the five `eligibility.Trace`s by subtask id (`new_traces`); `values`
   the baselines (`new_values`); `settings` = (schedule, gammas, betas):
-  `HPGConfig.schedule()`, which gives the step sizes of learning episode
+  `schedule(config)`, which gives the step sizes of learning episode
   `first_episode + e`, the trace discounts and the baselines' step sizes, float64[5]
   each by subtask id. `record` (n_episodes, N_RECORD) receives one row per
   episode. `starts` int64[k, 5]: with k = 0 every episode starts at random (SPEC
@@ -414,20 +338,25 @@ class HPGTables:
   its generator, and a `run` for training and evaluation that wraps the
   compiled `train`."""
 
-  def __init__(self, seed: int = 0, config: HPGConfig = HPGConfig(),
-               task: core.TaxiRules = None):
+  def __init__(self, seed: int = 0, config=None, task: core.TaxiRules = None,
+               initial: float = 0.0):
     """Args:
       seed: the integer seed of the `learners.rng` generator.
-      config: the hyper-parameters (`HPGConfig`).
+      config: the agent's `Config` (its [root], [carry], [navigate] sections).
       task: the taxi task (`taxi_core.TaxiRules`; SPEC taxi-fuel if None).
+      initial: every parameter's start value (0: uniform policies).
     """
-    if not isinstance(config, HPGConfig):
-      raise ValueError(f"HPGTables: config must be an HPGConfig, got {type(config).__name__}")
+    config = Config() if config is None else config
+    if not isinstance(config, Config):
+      raise ValueError(f"HPGTables: config must be a taxi_hpg.Config, got "
+                       f"{type(config).__name__}")
+    if not np.isfinite(initial):
+      raise ValueError(f"HPGTables: initial must be finite, got {initial!r}")
     self.task = task if task is not None else core.TaxiRules()
     self.world = rules.world_config(self.task)
     self.config = config
     self.rng_state = rng.make_state(seed)
-    self.traces = new_traces(self.task.fuel_enabled, self.task.capacity, config.initial)
+    self.traces = new_traces(self.task.fuel_enabled, self.task.capacity, initial)
     self.values = new_values(self.task.fuel_enabled, self.task.capacity)   # the baselines
     self.episodes = 0          # learning episodes so far (they drive the step-size warm-up)
     self.primitive_steps = 0   # primitive steps of learning so far
@@ -453,7 +382,7 @@ class HPGTables:
     record = np.zeros((int(n_episodes), N_RECORD))
     steps = train(int(n_episodes), bool(learn), bool(greedy), self.rng_state, self.world,
                   self.traces, self.values,
-                  (self.config.schedule(), self.config.gammas(), self.config.betas()),
+                  (schedule(self.config), gammas(self.config), betas(self.config)),
                   self.episodes, record, start,
                   (np.zeros(12, dtype=np.int64), np.zeros(13),
                    np.zeros(rules.MAX_CHILDREN, dtype=np.bool_)))
@@ -506,11 +435,11 @@ class TaxiHierarchy:
     self.world = hpg.world
     sizes = rules.n_abstract_states(hpg.task.fuel_enabled, hpg.task.capacity)
     self.learners = []
-    betas = hpg.config.betas()
+    beta, gamma = betas(hpg.config), gammas(hpg.config)
     for i, trace in enumerate(hpg.traces):
-      learner = _BaselinedSoftmax(sizes[i], rules.N_CHILDREN[i], hpg.values[i], betas[i])
+      learner = _BaselinedSoftmax(sizes[i], rules.N_CHILDREN[i], hpg.values[i], beta[i])
       learner.trace = trace                               # the compiled loop's arrays
-      learner.gamma = float(hpg.config.gammas()[i])
+      learner.gamma = float(gamma[i])
       self.learners.append(learner)
     self._alphas = np.zeros(rules.N_SUBTASKS)
     self._state = np.zeros(5, dtype=np.int64)
@@ -530,7 +459,6 @@ class TaxiHierarchy:
     return taxi_hierarchy.taxi_graph(w, self.learners, self._s, views.__getitem__)
 
 
-LEVELS = ("root", "carry", "navigate")
 
 
 def _level(alpha, start_fraction, delay, ramp, doc):
@@ -545,7 +473,7 @@ def _level(alpha, start_fraction, delay, ramp, doc):
                                    high=1, low_open=True)),
       ("baseline", float, param(0.3, "TD(0) step size of the baseline b(s) (0: none, Eq. 3)",
                                 low=0, high=1)),
-  ], frozen=True)
+  ], frozen=True, bases=(taskfile.Section,))
   cls.__doc__ = doc
   return cls
 
@@ -557,6 +485,46 @@ Navigate = _level(0.1, 0.1, 0, 25_000, "[navigate]: Navigate(t), one table over 
 
 @dataclasses.dataclass(frozen=True)
 class Config:
+  """HPG's hyper-parameters for the taxi, by level: [root]; [carry] (Get, Put and
+  Refuel); [navigate] (Navigate(t)); each with the keys alpha, start_fraction,
+  delay, ramp, trace_gamma and baseline (alpha_i, start_i, ... below).
+
+  Step sizes warm up: subtask i learns with alpha_i * f_i(e) in its e-th learning
+  episode, f_i = start_i for the first delay_i episodes, then rising linearly to
+  1 over ramp_i episodes. The paper's assumptions A4-A5 ask for non-increasing
+  step sizes; a constant alpha large enough to learn in 100,000 episodes makes
+  Eq. 3 (REINFORCE, no baseline) commit early to wrong children for good: the
+  first calls are long random walks that mostly end with the tank dry, so every
+  choice in them gets the same large negative reward-to-go, pure noise that
+  drives the softmax to a corner, and a subtask whose calls from a state always
+  run dry never again sees a reward that tells its children apart. Small steps
+  while calls are long and doomed, full steps once they are short, avoid it.
+  Root also waits (delay) with a uniform policy while its children learn, or it
+  learns to avoid a child (Refuel, say) that is merely still bad.
+
+  Each subtask may also subtract a baseline b_i(s) from its reward-to-go, a
+  second declared departure (REINFORCE's baseline, Williams 1992; the paper's
+  Eq. 3 has none): a choice a made in state s then moves theta_i along
+  psi(s, a) times (the rewards of the rest of the call - b_i(s)) instead of the
+  rewards alone. In Eq. 3's online form that is one extra step at the choice,
+  theta_i <- theta_i - alpha_i b_i(s) psi(s, a) (`subtract_baseline`), next to the
+  unchanged z and theta updates. b_i is a table over subtask i's abstract states,
+  learned by TD(0) on the subtask's own rewards with step size baseline_i
+  (`learn_baseline`; 0 keeps b_i = 0, Eq. 3 exactly). Any b(s) that does not
+  depend on the choice made in s leaves the gradient estimate unbiased
+  (E[psi(s, a)] = 0 under the policy); it only removes variance. Why it is
+  needed: without it every call's reward-to-go is of one sign (Navigate's only
+  ever negative, Root's mostly the +20 delivery), so each choice is pushed the
+  same way whatever its worth, and only the small differences between those
+  large pushes carry the gradient. Root, whose decisions (refuel now, later or
+  never) differ by a few steps out of a return of about 6, learned them too
+  slowly: about 93% of the optimal mean return after 100,000 episodes (online,
+  last 1,000 episodes, seeds 0-4) with alpha 0.1 / 0.03 / 0.03 and no
+  baseline, while the larger step sizes below run away without one (51%).
+  With the baseline and them: 98.8% (97.2% over seeds 5-24). The baseline's
+  step size is 1 at most: b(s) moves part of the way to its TD target. The
+  baselines learn from the first episode, Root's too while Root waits.
+  """
   environment: _taxi.TaxiEnvironment = dataclasses.field(default_factory=_taxi.TaxiEnvironment)
   root: Root = dataclasses.field(default_factory=Root)
   carry: Carry = dataclasses.field(default_factory=Carry)
@@ -572,16 +540,9 @@ class TaxiHPG(_taxi.TaxiAgent):
 
   def __init__(self, config=None, seed=0, task=None):
     super().__init__(config, seed, task)
-    kwargs = {}
-    for level in LEVELS:
-      sec = getattr(self.config, level)
-      kwargs.update({f"alpha_{level}": sec.alpha, f"start_{level}": sec.start_fraction,
-                     f"delay_{level}": sec.delay, f"ramp_{level}": sec.ramp,
-                     f"gamma_{level}": sec.trace_gamma, f"baseline_{level}": sec.baseline})
-    self._adopt(HPGTables(seed=seed, config=HPGConfig(**kwargs),
-                                      task=self.rules))
+    self._adopt(HPGTables(seed=seed, config=self.config, task=self.rules))
     self.hierarchy = TaxiHierarchy(self.engine)
-    self._schedule = self.engine.config.schedule()
+    self._schedule = schedule(self.config)
     self._alphas = np.zeros(len(self.hierarchy.learners))
 
   def state(self):

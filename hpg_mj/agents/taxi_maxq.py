@@ -20,10 +20,10 @@ All-states updating (Dietterich's enhancement of MAXQ-Q): a child run from s
 visits s = s_1, ..., s_k before it returns in s'; started in any s_j it would
 have ended in the same s', so C(i, s_j, a) gets the same target for every j.
 It multiplies the experience of the upper subtasks by the length of their
-children's runs (`MAXQConfig.all_states`).
+children's runs ([primitive] all_states_updating).
 
 Exploration is epsilon-greedy in every subtask, each level's epsilon decaying
-linearly to 0, bottom-up (see `MAXQConfig`); greedy choices break ties at
+linearly to 0, bottom-up (see `Config`); greedy choices break ties at
 random; Root's completions start optimistic.
 
 State abstraction (MAXQ's, chosen so that every abstraction is safe: a
@@ -77,6 +77,7 @@ import numba
 import numpy as np
 
 from hpg_mj.agents import _taxi
+from hpg_mj.agents import taskfile
 from hpg_mj.agents.taskfile import param
 from hpg_mj.hierarchy import taxi
 from hpg_mj.hierarchy import taxi_rules as rules
@@ -94,65 +95,24 @@ N_PRIMITIVES = core.NUM_ACTIONS_FUEL      # V(a, s) columns (the classic taxi le
 LEVEL = (2, 1, 1, 1, 0)                   # by subtask id
 N_LEVELS = 3
 
-# Rows of the per-subtask settings array (`MAXQConfig.settings`).
+# Rows of the per-subtask settings array (`settings`).
 P_ALPHA, P_PSEUDO_REWARD, P_EPSILON_START, P_EPSILON_END, P_EPSILON_EPISODES = range(5)
 
 
-@dataclasses.dataclass(frozen=True)
-class MAXQConfig:
-  """MAXQ-Q's hyper-parameters, by level: Root; Get, Put and Refuel ("carry");
-  Navigate(t); and the primitives' V(a, s)."""
-  alpha_root: float = 1.0            # completion step sizes: the taxi is deterministic,
-  alpha_carry: float = 1.0           #   and once the children are greedy so is every target
-  alpha_navigate: float = 1.0
-  alpha_primitive: float = 1.0       # V(a, s)
-  # Epsilon-greedy, decaying linearly from epsilon_* to 0 over epsilon_episodes_*,
-  # bottom-up: a parent learns C from its children's actual runs, so a child's
-  # exploration writes wrong completions into its parent (an exploring Navigate
-  # that runs the tank dry on the way teaches Put that the way is fatal). Each
-  # level keeps exploring after the one below has turned greedy, to repair them.
-  # Root starts fully random: it decides a few times an episode, so exploring
-  # there is cheap, and it has 6,500 rows to visit (tasks/taxi_fuel_maxq.toml).
-  epsilon_root: float = 1.0
-  epsilon_carry: float = 0.1
-  epsilon_navigate: float = 0.1
-  epsilon_episodes_root: int = 14_000
-  epsilon_episodes_carry: int = 6_000
-  epsilon_episodes_navigate: int = 1_000
-  pseudo_reward_carry: float = 0.0   # C~'s reward when Get, Put or Refuel terminates
-  pseudo_reward_navigate: float = 0.0  # ... when Navigate(t) reaches t
-  initial_root: float = 20.0         # C~ and C before learning: Root's optimism explores
-  initial_carry: float = 0.0
-  initial_navigate: float = 0.0
-  all_states: bool = True            # all-states updating (module docstring)
 
-  def __post_init__(self):
-    for level in ("root", "carry", "navigate", "primitive"):
-      alpha = getattr(self, "alpha_" + level)
-      if not 0.0 < alpha <= 1.0:
-        raise ValueError(f"MAXQConfig: alpha_{level} must be in (0, 1], got {alpha!r}")
-    for level in ("root", "carry", "navigate"):
-      epsilon = getattr(self, "epsilon_" + level)
-      if not 0.0 <= epsilon <= 1.0:
-        raise ValueError(f"MAXQConfig: epsilon_{level} must be in [0, 1], got {epsilon!r}")
-      episodes = getattr(self, "epsilon_episodes_" + level)
-      if not isinstance(episodes, (int, np.integer)) or episodes < 0:
-        raise ValueError(f"MAXQConfig: epsilon_episodes_{level} must be an integer >= 0, "
-                         f"got {episodes!r}")
-    for name in ("pseudo_reward_carry", "pseudo_reward_navigate", "initial_root",
-                 "initial_carry", "initial_navigate"):
-      if not np.isfinite(getattr(self, name)):
-        raise ValueError(f"MAXQConfig: {name} must be finite, got {getattr(self, name)!r}")
 
-  def settings(self) -> np.ndarray:
-    """float64[5, 5]: rows P_* by subtask id (Root, Get, Put, Refuel, Navigate)."""
-    def by_subtask(name, root_value=None):
-      root = getattr(self, f"{name}_root") if root_value is None else root_value
-      carry, navigate = getattr(self, f"{name}_carry"), getattr(self, f"{name}_navigate")
-      return [root, carry, carry, carry, navigate]
-    return np.array([by_subtask("alpha"), by_subtask("pseudo_reward", 0.0),
-                     by_subtask("epsilon"), [0.0] * 5, by_subtask("epsilon_episodes")],
-                    dtype=np.float64)
+LEVELS = ("root", "carry", "navigate")
+
+
+def settings(config) -> np.ndarray:
+  """float64[5, 5]: rows P_* by subtask id (Root, Get, Put, Refuel, Navigate), from the
+  task file's [root], [carry] and [navigate] (Root has no pseudo-reward)."""
+  def by_subtask(key):
+    root, carry, navigate = (float(getattr(getattr(config, level), key, 0.0))
+                             for level in LEVELS)
+    return [root, carry, carry, carry, navigate]
+  return np.array([by_subtask("alpha"), by_subtask("pseudo_reward"), by_subtask("epsilon"),
+                   [0.0] * 5, by_subtask("epsilon_episodes")], dtype=np.float64)
 
 
 def table_sizes(fuel_enabled: bool = True, capacity: int = core.FUEL_CAPACITY):
@@ -592,18 +552,19 @@ class MAXQTables:
   """MAXQ-Q on one taxi task: its tables, its generator, and `run`, which wraps
   the compiled `train`."""
 
-  def __init__(self, seed: int = 0, config: MAXQConfig = MAXQConfig(),
-               task: core.TaxiRules = None):
-    if not isinstance(config, MAXQConfig):
-      raise ValueError(f"MAXQTables: config must be a MAXQConfig, got {type(config).__name__}")
+  def __init__(self, seed: int = 0, config=None, task: core.TaxiRules = None):
+    config = Config() if config is None else config
+    if not isinstance(config, Config):
+      raise ValueError(f"MAXQTables: config must be a taxi_maxq.Config, got "
+                       f"{type(config).__name__}")
     self.task = task if task is not None else core.TaxiRules()
     self.world = rules.world_config(self.task)
     self.config = config
-    self.settings = config.settings()
+    self.settings = settings(config)
     self.tables = Tables(*new_tables(self.task.fuel_enabled, self.task.capacity))
     self.values, self.c_tilde, self.c, self.offsets = self.tables
     for i, level in enumerate(("root", "carry", "carry", "carry", "navigate")):
-      initial = getattr(config, "initial_" + level)
+      initial = getattr(config, level).initial
       completion_table(self.c_tilde, self.offsets, i)[:] = initial
       completion_table(self.c, self.offsets, i)[:] = initial
     self.rng_state = rng.make_state(seed)
@@ -620,7 +581,7 @@ class MAXQTables:
     record = np.zeros((int(n_episodes), N_RECORD))
     steps = train(int(n_episodes), self.episodes, bool(learn), sample, self.rng_state,
                   self.world, self.tables, self.settings,
-                  float(self.config.alpha_primitive), bool(self.config.all_states), record,
+                  float(self.config.primitive.alpha), bool(self.config.primitive.all_states_updating), record,
                   np.zeros(8, dtype=np.int64), np.zeros((self.task.max_steps, 5), dtype=np.int64),
                   np.zeros(rules.N_SUBTASKS), new_scratch())
     if learn:
@@ -751,9 +712,6 @@ def exact_values(task: core.TaxiRules = None):
   return c, known, np.stack(rows)[:, :n]
 
 
-LEVELS = ("root", "carry", "navigate")
-
-
 def _level(epsilon, epsilon_episodes, initial, pseudo_reward, doc):
   fields = [
       ("learner", str, param("maxq_q", "MAXQ-Q", choices=("maxq_q",))),
@@ -765,7 +723,7 @@ def _level(epsilon, epsilon_episodes, initial, pseudo_reward, doc):
   ]
   if pseudo_reward:
     fields.append(("pseudo_reward", float, param(0.0, "C~'s reward when the subtask ends")))
-  cls = dataclasses.make_dataclass("Level", fields, frozen=True)
+  cls = dataclasses.make_dataclass("Level", fields, frozen=True, bases=(taskfile.Section,))
   cls.__doc__ = doc
   return cls
 
@@ -776,7 +734,7 @@ Navigate = _level(0.1, 1_000, 0.0, True, "[navigate]: Navigate(t), over (t, row,
 
 
 @dataclasses.dataclass(frozen=True)
-class Primitive:
+class Primitive(taskfile.Section):
   """[primitive]: V(a, s) over (classic state, tank empty)."""
   alpha: float = param(1.0, "V(a, s) step size", low=0, high=1, low_open=True)
   all_states_updating: bool = param(True, "a child's target updates every state its run "
@@ -785,6 +743,20 @@ class Primitive:
 
 @dataclasses.dataclass(frozen=True)
 class Config:
+  """MAXQ-Q's hyper-parameters, by level: [root]; [carry] (Get, Put and Refuel);
+  [navigate] (Navigate(t)); and [primitive], the primitives' V(a, s).
+
+  Exploration is epsilon-greedy, decaying linearly from each level's epsilon to 0
+  over its epsilon_episodes, bottom-up: a parent learns C from its children's actual
+  runs, so a child's exploration writes wrong completions into its parent (an
+  exploring Navigate that runs the tank dry on the way teaches Put that the way is
+  fatal). Each level keeps exploring after the one below has turned greedy, to
+  repair them. Root starts fully random: it decides a few times an episode, so
+  exploring there is cheap, and it has 6,500 rows to visit. Step sizes of 1: the
+  taxi is deterministic, and once the children are greedy so is every target.
+  Root's optimistic initial completions (20: no return exceeds +20) make it try
+  every child.
+  """
   environment: _taxi.TaxiEnvironment = dataclasses.field(default_factory=_taxi.TaxiEnvironment)
   root: Root = dataclasses.field(default_factory=Root)
   carry: Carry = dataclasses.field(default_factory=Carry)
@@ -853,8 +825,8 @@ class TaxiMAXQHierarchy:
     self.tables = agent.tables
     self.values = agent.values
     self.settings = agent.settings
-    self.alpha_primitive = float(agent.config.alpha_primitive)
-    self.all_states = bool(agent.config.all_states)
+    self.alpha_primitive = float(agent.config.primitive.alpha)
+    self.all_states = bool(agent.config.primitive.all_states_updating)
     self.epsilons = np.zeros(rules.N_SUBTASKS)
     self.scratch = new_scratch()
     self.path = np.zeros((agent.task.max_steps, 5), dtype=np.int64)
@@ -882,18 +854,7 @@ class TaxiMAXQ(_taxi.TaxiAgent):
 
   def __init__(self, config=None, seed=0, task=None):
     super().__init__(config, seed, task)
-    kwargs = {}
-    for level in LEVELS:
-      sec = getattr(self.config, level)
-      kwargs.update({f"alpha_{level}": sec.alpha, f"epsilon_{level}": sec.epsilon,
-                     f"epsilon_episodes_{level}": sec.epsilon_episodes,
-                     f"initial_{level}": sec.initial})
-      if level != "root":
-        kwargs[f"pseudo_reward_{level}"] = sec.pseudo_reward
-    prim = self.config.primitive
-    config = MAXQConfig(alpha_primitive=prim.alpha, all_states=prim.all_states_updating,
-                           **kwargs)
-    self._adopt(MAXQTables(seed=seed, config=config, task=self.rules))
+    self._adopt(MAXQTables(seed=seed, config=self.config, task=self.rules))
     self.hierarchy = TaxiMAXQHierarchy(self.engine)
 
   def state(self):

@@ -10,6 +10,7 @@ from taxi_grid import moves_from
 
 from hpg_mj.agents import _taxi
 from hpg_mj.agents import taxi_hpg as tcp
+from hpg_mj.agents.taskfile import updated
 from hpg_mj.hierarchy import taxi_rules as tr
 from hpg_mj.learners import rng
 from hpg_mj.worlds import taxi_core as tc
@@ -264,17 +265,18 @@ def test_classic_task_never_refuels():
 
 
 def test_step_size_warm_up():
-  config = tcp.HPGConfig()
+  config = tcp.Config()
+  schedule = tcp.schedule(config)
   alphas = np.zeros(5)
-  tcp.step_sizes(config.schedule(), 0, alphas)
+  tcp.step_sizes(schedule, 0, alphas)
   assert alphas[tr.ROOT] == 0.0
   # The ramp starts at once for Navigate (no delay): 0.1 + 0.9 / 25,000 of alpha.
-  assert alphas[tr.NAVIGATE] == pytest.approx((0.1 + 0.9 / 25_000) * config.alpha_navigate)
-  tcp.step_sizes(config.schedule(), config.delay_root - 1, alphas)
+  assert alphas[tr.NAVIGATE] == pytest.approx((0.1 + 0.9 / 25_000) * config.navigate.alpha)
+  tcp.step_sizes(schedule, config.root.delay - 1, alphas)
   assert alphas[tr.ROOT] == 0.0
-  tcp.step_sizes(config.schedule(), config.delay_root + config.ramp_root, alphas)
-  np.testing.assert_allclose(alphas, [config.alpha_root] + [config.alpha_carry] * 3
-                             + [config.alpha_navigate])
+  tcp.step_sizes(schedule, config.root.delay + config.root.ramp, alphas)
+  np.testing.assert_allclose(alphas, [config.root.alpha] + [config.carry.alpha] * 3
+                             + [config.navigate.alpha])
 
 
 def test_baseline_steps_by_hand():
@@ -301,7 +303,8 @@ def test_baseline_steps_by_hand():
 
 
 def test_baseline_is_an_option():
-  off = tcp.HPGConfig(baseline_root=0.0, baseline_carry=0.0, baseline_navigate=0.0)
+  off = updated(tcp.Config(), root={"baseline": 0.0}, carry={"baseline": 0.0},
+                navigate={"baseline": 0.0})
   plain, based = tcp.HPGTables(2, off), tcp.HPGTables(2)
   plain.run(3000)
   based.run(3000)
@@ -320,14 +323,17 @@ def test_baseline_is_an_option():
 
 
 def test_bad_arguments():
-  with pytest.raises(ValueError, match="alpha_root"):
-    tcp.HPGConfig(alpha_root=-0.1)
-  with pytest.raises(ValueError, match="baseline_carry"):
-    tcp.HPGConfig(baseline_carry=1.5)
-  with pytest.raises(ValueError, match="gamma_navigate"):
-    tcp.HPGConfig(gamma_navigate=0.0)
-  with pytest.raises(ValueError, match="ramp_carry"):
-    tcp.HPGConfig(ramp_carry=0)
+  config = tcp.Config()
+  with pytest.raises(ValueError, match=r"alpha = -0.1 is out of range; allowed: >= 0"):
+    updated(config, root={"alpha": -0.1})
+  with pytest.raises(ValueError, match=r"baseline = 1.5 is out of range; allowed: >= 0 and <= 1"):
+    updated(config, carry={"baseline": 1.5})
+  with pytest.raises(ValueError, match=r"trace_gamma = 0.0 is out of range; allowed: > 0"):
+    updated(config, navigate={"trace_gamma": 0.0})
+  with pytest.raises(ValueError, match=r"ramp = 0 is out of range; allowed: >= 1"):
+    updated(config, carry={"ramp": 0})
+  with pytest.raises(ValueError, match=r"\[carry\] unknown key\(s\) \['ramp_carry'\]"):
+    updated(config, carry={"ramp_carry": 0})
   agent = tcp.HPGTables(0)
   with pytest.raises(ValueError, match="greedy"):
     agent.run(1, learn=True, greedy=True)

@@ -7,13 +7,14 @@ import pytest
 import hpg_mj  # noqa: F401
 from hpg_mj import suite
 from hpg_mj.agents import taxi_maxq as mq
+from hpg_mj.agents.taskfile import updated
 from hpg_mj.hierarchy import taxi_rules as rules
 from hpg_mj.worlds import taxi_core, taxi_values
 
 CLASSIC = taxi_core.TaxiRules(fuel_enabled=False)
 # Short schedules: every level explores, then all are greedy by episode 20,000.
-SHORT = mq.MAXQConfig(epsilon_episodes_root=20_000, epsilon_episodes_carry=10_000,
-                      epsilon_episodes_navigate=3_000)
+SHORT = updated(mq.Config(), root={"epsilon_episodes": 20_000},
+                carry={"epsilon_episodes": 10_000}, navigate={"epsilon_episodes": 3_000})
 
 
 def _update(agent, subtask, target, child, before, after, ended=False):
@@ -29,8 +30,8 @@ def _entry(agent, subtask, target, state, child):
 
 
 def test_completion_updates_match_hand_worked_steps():
-  config = mq.MAXQConfig(alpha_navigate=0.5, alpha_carry=0.25, pseudo_reward_navigate=-3.0,
-                         initial_root=0.0)
+  config = updated(mq.Config(), navigate={"alpha": 0.5, "pseudo_reward": -3.0},
+                   carry={"alpha": 0.25}, root={"initial": 0.0})
   agent = mq.MAXQTables(config=config)
   # Navigate(G = (0, 4)) moves East from (0, 3) onto G: it terminated there, so C~
   # gets the pseudo-reward and C gets 0: C~ = 0.5 * -3, C = 0.5 * 0.
@@ -60,7 +61,7 @@ def test_completion_updates_match_hand_worked_steps():
 
 
 def test_all_states_updating_updates_every_state_of_the_childs_run():
-  agent = mq.MAXQTables(config=mq.MAXQConfig(initial_root=0.0))
+  agent = mq.MAXQTables(config=updated(mq.Config(), root={"initial": 0.0}))
   # Get's Navigate(R) ran (2, 0) -> (1, 0) -> (0, 0): both states where it was
   # running get the target of the state it returned in.
   path = np.array([[2, 0, 0, 3, 9], [1, 0, 0, 3, 8], [0, 0, 0, 3, 7]], dtype=np.int64)
@@ -152,23 +153,13 @@ def test_a_greedy_policy_delivers_every_passenger():
 
 
 # Every level explores during all 300 episodes, so that every table is compared.
-EAGER = mq.MAXQConfig(epsilon_root=0.2, epsilon_episodes_root=300, epsilon_episodes_carry=200,
-                      epsilon_episodes_navigate=100)
+EAGER = updated(mq.Config(), root={"epsilon": 0.2, "epsilon_episodes": 300},
+                carry={"epsilon_episodes": 200}, navigate={"epsilon_episodes": 100})
 
 
 def _eager_agent(seed, fuel=True):
-  """The MAXQ-Q agent with EAGER's schedules, from its task-file configuration."""
-  import dataclasses
-  from hpg_mj.agents import taxi_maxq
-  c = taxi_maxq.Config()
-  config = dataclasses.replace(
-      c, environment=dataclasses.replace(c.environment, fuel=fuel),
-      root=dataclasses.replace(c.root, epsilon=0.2, epsilon_episodes=300),
-      carry=dataclasses.replace(c.carry, epsilon_episodes=200),
-      navigate=dataclasses.replace(c.navigate, epsilon_episodes=100))
-  agent = taxi_maxq.TaxiMAXQ(config, seed=seed)
-  assert agent.engine.config == EAGER
-  return agent
+  """The MAXQ-Q agent with EAGER's schedules."""
+  return mq.TaxiMAXQ(updated(EAGER, environment={"fuel": fuel}), seed=seed)
 
 
 def _assert_same_agents(a, b):
@@ -187,7 +178,7 @@ def test_stepwise_and_compiled_maxq_agree_bit_for_bit(fuel, env_id):
   _assert_same_agents(a, b)
   # Every subtask learned (Refuel only with fuel).
   for i in range(rules.N_SUBTASKS):
-    table = a.engine.completions(i) - (EAGER.initial_root if i == rules.ROOT else 0.0)
+    table = a.engine.completions(i) - (EAGER.root.initial if i == rules.ROOT else 0.0)
     assert np.any(table != 0) == (fuel or i != rules.REFUEL)
   # Greedy evaluation too.
   ga = a.run_stepwise(env, 20, learn=False)
@@ -202,10 +193,10 @@ def test_maxq_through_dm_control_matches_the_compiled_loop():
   _assert_same_agents(a, b)
 
 
-@pytest.mark.parametrize("field,value", [("alpha_root", 0.0), ("alpha_carry", 1.5),
-                                         ("epsilon_navigate", -0.1),
-                                         ("epsilon_episodes_root", 2.5),
-                                         ("initial_root", float("nan"))])
-def test_bad_settings_are_refused(field, value):
-  with pytest.raises(ValueError, match=field):
-    mq.MAXQConfig(**{field: value})
+@pytest.mark.parametrize("section,key,value,message", [
+    ("root", "alpha", 0.0, "allowed: > 0 and <= 1"), ("carry", "alpha", 1.5, "<= 1"),
+    ("navigate", "epsilon", -0.1, "allowed: >= 0 and <= 1"),
+    ("root", "epsilon_episodes", -1, "allowed: >= 0"), ("root", "initial", float("nan"), "finite")])
+def test_bad_settings_are_refused(section, key, value, message):
+  with pytest.raises(ValueError, match=f"{key} = .*{message}"):
+    updated(mq.Config(), **{section: {key: value}})
