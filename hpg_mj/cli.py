@@ -432,7 +432,7 @@ def build_parser():
                      "random policy, or with --agent of a saved agent)")
   p.add_argument("--domain", choices=["ship", "taxi"], default=None, help="default ship")
   p.add_argument("--task", default=None,
-                 help="ship: steer, diagonal, straight; taxi: fuel, classic")
+                 help="ship: steer, diagonal, straight, patrol; taxi: fuel, classic")
   p.add_argument("--policy", choices=["scripted", "random"], default=None,
                  help="default scripted")
   p.add_argument("--seed", type=_at_least(0), default=0)
