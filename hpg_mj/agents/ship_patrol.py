@@ -72,8 +72,8 @@ def _count_run(row, sub, l_event, g_event):
 
 
 @numba.njit(cache=True)
-def patrol(n_rows, record_steps, learn, sample, rng_state, ship, q, gain, schedule, diagonal,
-           diagonal_values, straight, straight_values, tiling, s, gain_step, record):
+def patrol(n_rows, record_steps, learn, sample, rng_state, ship, q, gain, schedule, low_level,
+           tiling, s, gain_step, record):
   """Sails the continuing task for `n_rows` rows of at least `record_steps` control
   steps each (a call is never cut: the row in which it starts holds it), from
   and into `ship` (the process's state, kept between calls).
@@ -83,9 +83,11 @@ def patrol(n_rows, record_steps, learn, sample, rng_state, ship, q, gain, schedu
   transitions], `gain_step` Schwartz's step size; SPEC section 8) and the
   subtasks by Eq. 3 with the hybrid's baseline (`hybrid.run_low_level`). Without
   `learn`, `q` may be any root's table, the episodic hybrid's too: each runs its
-  greedy policy on this task.
+  greedy policy on this task. `low_level` = (diagonal trace, its baseline values,
+  straight trace, its baseline values).
   """
   eps_state, outcomes, counts = schedule
+  diagonal, diagonal_values, straight, straight_values = low_level
   samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
   n_tilings = tiling.offsets.shape[0]
   scratch = (np.empty(n_tilings, dtype=np.int64), np.empty(n_tilings),
@@ -268,7 +270,7 @@ class ShipPatrol(_ship.ShipAgent):
     cfg = self.config
     patrol(int(hours), self.record_steps, learn, sample, rng_state, ship,
            self.q if q is None else q, self.gain, (self.schedule, self.outcomes, self.counts),
-           *self._tables(low), self.tile_arrays, settings(cfg), float(cfg.root.gain_step), rows)
+           self._tables(low), self.tile_arrays, settings(cfg), float(cfg.root.gain_step), rows)
     return rows
 
   def compiled(self, episodes, learn, sample):
