@@ -157,6 +157,8 @@ def bench_train(min_seconds=2.0):
     unit = "control steps/s" if task.section("environment")["world"] == "ship" else \
         "primitive steps/s"
     chunk = 100 if "flat_pg" in name or "actor_critic" in name else 1000
+    if agent.record_steps:                   # a continuing agent: rows of an hour each
+      chunk = 20
     agent.train(5, "analytic")                          # compile, warm up
     steps, start = 0, time.perf_counter()
     while time.perf_counter() - start < min_seconds:

@@ -250,6 +250,7 @@ def _cmd_train(args):
   finally:
     bar.close()
   metrics = agent.metrics(record)
+  metrics.update(agent.final_metrics(record))    # e.g. a continuing agent's comparisons
   metrics.update({"task": str(task.path), "seed": seed, "episodes": episodes,
                   "backend": args.backend or agent.backend, "wall_seconds": round(wall, 3)})
   agents.save(agent, out, record, {"metrics": metrics})
@@ -347,13 +348,17 @@ FIGURE_EXPERIMENTS = {"fig6": "fig6", "fig7": "fig7_11", "fig8": "fig7_11", "fig
 
 
 def _cmd_reproduce(args):
-  """The paper's figures from the shipped experiment files."""
+  """The paper's figures from the shipped experiment files; `beyond`: SPEC
+  section 8's continuing task (hpg_mj.experiments.beyond)."""
+  if args.figure == "beyond":
+    return _reproduce_beyond(args)
   if args.figure == "all":
     names = list(dict.fromkeys(FIGURE_EXPERIMENTS.values()))
   elif args.figure in FIGURE_EXPERIMENTS:
     names = [FIGURE_EXPERIMENTS[args.figure]]
   else:
-    raise ValueError(f"unknown figure {args.figure!r}; valid: all, {', '.join(FIGURE_EXPERIMENTS)}")
+    raise ValueError(f"unknown figure {args.figure!r}; valid: all, "
+                     f"{', '.join(FIGURE_EXPERIMENTS)}, beyond")
   rc = 0
   for name in names:
     rc |= _cmd_run(argparse.Namespace(**{**vars(args), "experiment_file": name}))
@@ -362,6 +367,28 @@ def _cmd_reproduce(args):
   print(f"reproduce: every figure beside the paper in "
         f"{figures.write_combined_report(args.out, folders)}")
   return rc
+
+
+def _reproduce_beyond(args):
+  """The continuing ship task's figures and REPORT.md, then OUT/REPORT.md with a
+  'Beyond the paper' section (beside any reproduced figures already there)."""
+  import pathlib
+
+  from hpg_mj.experiments import beyond, figures
+
+  def progress(seed, final):
+    if not args.quiet:
+      print(f"beyond: seed {seed}: greedy {final['greedy_gates_per_hour']:.1f} gate passes per "
+            f"hour, episodic hybrid {final.get('episodic_gates_per_hour', float('nan')):.1f}, "
+            f"scripted {final['scripted_gates_per_hour']:.1f} ({final['wall_seconds']} s)",
+            flush=True)
+  report = beyond.run(args.out, quick=args.quick, progress=progress)
+  suffix = "_quick" if args.quick else ""
+  names = [n + suffix for n in dict.fromkeys(FIGURE_EXPERIMENTS.values())
+           if (pathlib.Path(args.out) / (n + suffix) / "REPORT.md").is_file()]
+  combined = figures.write_combined_report(args.out, names + [report.parent.name])
+  print(f"reproduce beyond: {report} and {combined}")
+  return 0
 
 
 def _cmd_demo(args):
@@ -432,7 +459,7 @@ def build_parser():
                      "random policy, or with --agent of a saved agent)")
   p.add_argument("--domain", choices=["ship", "taxi"], default=None, help="default ship")
   p.add_argument("--task", default=None,
-                 help="ship: steer, diagonal, straight; taxi: fuel, classic")
+                 help="ship: steer, diagonal, straight, patrol; taxi: fuel, classic")
   p.add_argument("--policy", choices=["scripted", "random"], default=None,
                  help="default scripted")
   p.add_argument("--seed", type=_at_least(0), default=0)
@@ -457,7 +484,8 @@ def build_parser():
   p = sub.add_parser("train", help="train the agent of a task file and save it")
   p.add_argument("task_file", help="a task file, or the name of a shipped one (ship_hybrid, ...)")
   p.add_argument("--episodes", type=_at_least(1), default=None,
-                 help="override [protocol] episodes")
+                 help="override [protocol] episodes (a continuing agent's: record rows, "
+                 "hours for ship_patrol)")
   p.add_argument("--seed", type=_at_least(0), default=None, help="override [protocol] seed")
   p.add_argument("--backend", choices=["analytic", "mujoco"], default=None)
   p.add_argument("--out", default=None, help="agent folder (default runs/<task>-seed<S>)")
@@ -474,7 +502,7 @@ def build_parser():
 
   p = sub.add_parser("reproduce", help="the paper's figures from the shipped experiments")
   p.add_argument("figure", nargs="?", default="all",
-                 help="all, fig6, fig7, ..., fig12")
+                 help="all, fig6, fig7, ..., fig12, or beyond (SPEC section 8)")
   _add_run_options(p)
   p.set_defaults(func=_cmd_reproduce)
 

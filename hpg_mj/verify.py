@@ -130,7 +130,8 @@ GOLDEN_STEPS = 80        # the ship's control steps
 MUJOCO_TOLERANCE = 1e-6
 SHIP_GYMNASIUM_IDS = {"steer": "hpg_mj/ShipSteering-v0",
                       "diagonal": "hpg_mj/ShipSteeringDiagonal-v0",
-                      "straight": "hpg_mj/ShipSteeringStraight-v0"}
+                      "straight": "hpg_mj/ShipSteeringStraight-v0",
+                      "patrol": "hpg_mj/ShipPatrol-v0"}
 
 
 def golden_dir():

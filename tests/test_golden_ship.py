@@ -19,7 +19,7 @@ def test_the_golden_trajectories_ship_inside_the_package():
       f"{domain}_{task}.npz" for domain, task in suite.ALL_TASKS)
 
 
-@pytest.mark.parametrize("task", ["steer", "diagonal", "straight"])
+@pytest.mark.parametrize("task", ["steer", "diagonal", "straight", "patrol"])
 def test_analytic_ship_replays_exactly(task):
   golden = np.load(GOLDEN / f"ship_{task}.npz", allow_pickle=False)
   np.testing.assert_array_equal(golden["actions"], verify.ship_golden_actions())
@@ -29,7 +29,7 @@ def test_analytic_ship_replays_exactly(task):
   np.testing.assert_array_equal(ends, golden["analytic_ends"])
 
 
-@pytest.mark.parametrize("task", ["steer", "diagonal", "straight"])
+@pytest.mark.parametrize("task", ["steer", "diagonal", "straight", "patrol"])
 def test_mujoco_ship_replays_within_tolerance(task):
   golden = np.load(GOLDEN / f"ship_{task}.npz", allow_pickle=False)
   obs, rewards, ends = verify.ship_mujoco_rollout(task)
@@ -44,11 +44,11 @@ def test_verify_golden_passes_every_task_and_fails_a_changed_one(tmp_path, capsy
   out = capsys.readouterr().out.splitlines()
   rows = [line.split() for line in out[1:-1]]
   assert [r[0] for r in rows] == ["ship/steer"] * 2 + ["ship/diagonal"] * 2 + \
-      ["ship/straight"] * 2 + ["taxi/fuel", "taxi/classic"]
+      ["ship/straight"] * 2 + ["ship/patrol"] * 2 + ["taxi/fuel", "taxi/classic"]
   assert all("pass" in r for r in rows), out
   assert "largest deviation 0 (tolerance exact)" in out[1]          # the analytic ship
   assert "(tolerance 1e-06)" in out[2]                              # the MuJoCo ship
-  assert out[-1] == "  8 of 8 passed"
+  assert out[-1] == "  10 of 10 passed"
   # A stored trajectory that the installed code no longer gives fails, with its deviation.
   changed = tmp_path / "golden"
   shutil.copytree(GOLDEN, changed)
@@ -62,4 +62,4 @@ def test_verify_golden_passes_every_task_and_fails_a_changed_one(tmp_path, capsy
   out = capsys.readouterr().out
   assert "ship/diagonal  MuJoCo (dm_control)    FAIL  largest deviation 0.001 (tolerance 1e-06)" in out
   assert "taxi/classic   -                      FAIL  no golden trajectory stored" in out
-  assert "6 of 8 passed; FAILED: ship/diagonal MuJoCo (dm_control), taxi/classic -" in out
+  assert "8 of 10 passed; FAILED: ship/diagonal MuJoCo (dm_control), taxi/classic -" in out

@@ -31,7 +31,7 @@ def _rollout(env, seed, n=N_STEPS):
 
 def test_all_tasks_listed():
   assert set(suite.ALL_TASKS) == {("ship", "steer"), ("ship", "diagonal"), ("ship", "straight"),
-                                  ("taxi", "fuel"), ("taxi", "classic")}
+                                  ("ship", "patrol"), ("taxi", "fuel"), ("taxi", "classic")}
 
 
 @pytest.mark.parametrize("domain,task", suite.ALL_TASKS)
@@ -102,7 +102,7 @@ def test_initial_states_are_random(domain, task):
 def test_unknown_domain_and_task_list_the_valid_ones():
   with pytest.raises(ValueError, match=r"unknown domain 'boat'.*'ship', 'taxi'"):
     suite.load("boat", "steer")
-  with pytest.raises(ValueError, match=r"unknown task 'sail'.*'diagonal', 'steer', 'straight'"):
+  with pytest.raises(ValueError, match=r"unknown task 'sail'.*'diagonal', 'patrol', 'steer', 'straight'"):
     suite.load("ship", "sail")
 
 
@@ -116,3 +116,24 @@ def test_time_step_types():
   ts = env.step(np.array([0.0]))       # crosses y = 400 between the posts
   assert ts.step_type == dm_env.StepType.LAST and ts.reward == 99.0 and ts.discount == 0.0
   assert env.task.last_event == "gate"
+
+
+def test_patrol_sails_on_after_the_gate_and_restarts_after_leaving():
+  # SPEC section 8: each pass +100 (either way), no LAST step until the clock runs out.
+  env = suite.load("ship", "patrol", {"random": 0, "initial_state": [400.0, 395.0, 0.0, 0.0],
+                                      "max_steps": 8})
+  env.reset()
+  rewards = [env.step(np.array([0.0])).reward for _ in range(3)]
+  assert rewards == [-1.0, -1.0, 99.0] and env.task.last_event == "gate"
+  ts = env.step(np.array([0.0]))
+  assert ts.step_type == dm_env.StepType.MID and ts.observation["position"][1] > 400.0
+  # Off the field: the penalty, then a fresh start inside it; the process goes on.
+  env.task.initial_state = [500.0, 999.0, 0.0, 0.0]
+  env.reset()
+  ts = env.step(np.array([0.0]))
+  assert ts.reward == -101.0 and env.task.last_event == "out_of_bounds"
+  assert ts.step_type == dm_env.StepType.MID
+  assert np.all((0.0 <= ts.observation["position"]) & (ts.observation["position"] <= 1000.0))
+  for _ in range(6):
+    ts = env.step(np.array([0.0]))
+  assert ts.step_type == dm_env.StepType.LAST and ts.discount == 1.0   # truncated at 8

@@ -10,6 +10,11 @@ An agent is one class with:
   record_fields   the names of its per-episode record's fields (float64 each)
   figure          the metric its progress reports, by name (a key of `metrics`)
   tags            e.g. ("baseline",): what it is, for listings
+  record_steps    None for an episodic agent (one record row per episode); for a
+                  continuing one (SPEC section 8) the control steps of one record
+                  row, an "episode" of its record: then its task file's
+                  [protocol] may give `control_steps` or `hours` instead of
+                  `episodes` (hpg_mj.agents.taskfile)
 
 and it implements
 
@@ -20,6 +25,9 @@ and it implements
   metrics(record)              what a record says (a dict of numbers)
   compiled(n, learn, sample)   optional: the fused loop over the analytic world,
                                returning (n, len(record_fields)) float rows
+  final_metrics(record)        optional: numbers measured once training is over
+                               (greedy evaluations, comparisons); `hpg-mj train`
+                               prints them beside `metrics(record)`
   graph(), start_state(),      the step-by-step path: the task graph its learners
   begin_episode(learn),        form, a start drawn from its generator, what
   end_episode(row, ...)        happens around each episode (fills the row)
@@ -47,6 +55,7 @@ class Agent:
   record_fields = ()
   figure = None
   tags = ()
+  record_steps = None                # control steps per record row of a continuing agent
 
   def __init__(self, config=None, seed=0, task=None):
     if self.Config is not None and config is None:
@@ -70,6 +79,10 @@ class Agent:
     raise NotImplementedError
 
   compiled = None                    # or a method: (episodes, learn, sample) -> float rows
+
+  def final_metrics(self, record):
+    """Numbers measured after training on `record` (none by default)."""
+    return {}
 
   def graph(self):
     raise NotImplementedError

@@ -233,6 +233,41 @@ class Protocol(Section):
 
 
 PROTOCOL_OPTIONAL = {"tuning_seeds": "int_list_any"}
+# A continuing agent (its class sets `record_steps`, the control steps of one record
+# row) may give its training length in control steps or hours of sailing instead
+# of episodes (SPEC section 8); exactly one of the three. It becomes `episodes`, the
+# number of record rows, so everything downstream counts rows as before.
+PROTOCOL_LENGTHS = {"episodes": "int", "control_steps": "int", "hours": "float"}
+CONTROL_STEPS_PER_HOUR = 6000       # 0.6 s control steps (SPEC section 8)
+
+
+def _protocol_length(path, table, agent_class):
+  """Replaces `control_steps` or `hours` in a [protocol] table by `episodes`;
+  returns the control steps asked for (None when given in episodes)."""
+  given = [k for k in PROTOCOL_LENGTHS if k in table]
+  record_steps = getattr(agent_class, "record_steps", None)
+  if record_steps is None:
+    extra = [k for k in given if k != "episodes"]
+    if extra:
+      raise TaskFileError(f"{path}: [protocol] {extra[0]} is for continuing agents; "
+                          f"{agent_class.name!r} is episodic: give [protocol] episodes")
+    return None
+  if len(given) != 1:
+    raise TaskFileError(f"{path}: [protocol] needs exactly one of {list(PROTOCOL_LENGTHS)} "
+                        f"for the continuing agent {agent_class.name!r}, got "
+                        f"{given or 'none'}")
+  key = given[0]
+  if key == "episodes":
+    return None
+  value = _check(path, "[protocol]", key, table.pop(key), PROTOCOL_LENGTHS[key])
+  steps = value * CONTROL_STEPS_PER_HOUR if key == "hours" else value
+  rows = steps / record_steps
+  if not steps > 0 or rows != int(rows):
+    raise TaskFileError(f"{path}: [protocol] {key} = {value!r} must be a positive whole "
+                        f"number of record rows of {record_steps} control steps "
+                        f"({record_steps / CONTROL_STEPS_PER_HOUR:g} h) each")
+  table["episodes"] = int(rows)
+  return int(steps)
 
 
 @dataclasses.dataclass
@@ -246,6 +281,7 @@ class TaskFile:
   protocol: Protocol
   tuning_seeds: tuple
   text: str
+  control_steps: int = None     # a continuing agent's training length, as given
 
   def section(self, name):
     """A section's values as a dict (`protocol` included, with its tuning seeds)."""
@@ -297,6 +333,7 @@ def loads(text, path, registry):
   tuning = check_table(path, "[protocol]", {k: proto_table.pop(k) for k in PROTOCOL_OPTIONAL
                                             if k in proto_table},
                        {}, PROTOCOL_OPTIONAL).get("tuning_seeds", [])
+  control_steps = _protocol_length(path, proto_table, agent_class)
   protocol = build_section(path, "protocol", Protocol, proto_table)
   sections = {}
   for sec in dataclasses.fields(agent_class.Config):
@@ -306,7 +343,8 @@ def loads(text, path, registry):
     config = agent_class.Config(**sections)
   except (TypeError, ValueError) as err:
     raise TaskFileError(f"{path}: {err}") from None
-  return TaskFile(path, kind, head.description, config, protocol, tuple(tuning), text)
+  return TaskFile(path, kind, head.description, config, protocol, tuple(tuning), text,
+                  control_steps)
 
 
 def _describe(kind):

@@ -7,6 +7,7 @@ ENV_IDS = {
     "hpg_mj/ShipSteering-v0": ("hpg_mj.envs.ship:ShipSteeringEnv", {"task": "steer"}),
     "hpg_mj/ShipSteeringDiagonal-v0": ("hpg_mj.envs.ship:ShipSteeringEnv", {"task": "diagonal"}),
     "hpg_mj/ShipSteeringStraight-v0": ("hpg_mj.envs.ship:ShipSteeringEnv", {"task": "straight"}),
+    "hpg_mj/ShipPatrol-v0": ("hpg_mj.envs.ship:ShipSteeringEnv", {"task": "patrol"}),
     "hpg_mj/TaxiFuel-v0": ("hpg_mj.envs.taxi:TaxiEnv", {"fuel": True}),
     "hpg_mj/Taxi-v0": ("hpg_mj.envs.taxi:TaxiEnv", {"fuel": False}),
 }

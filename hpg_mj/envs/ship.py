@@ -76,6 +76,10 @@ class ShipSteeringEnv(gymnasium.Env):
   follows the commanded rate with a 5 s lag (the paper's Equation 1), so every
   decision acts slowly. `task="diagonal"` and `task="straight"` are the two
   low-level subtasks of the paper's hierarchy, in their own 150 m frame.
+  `task="patrol"` (`hpg_mj/ShipPatrol-v0`) is the continuing task of SPEC
+  section 8, the paper's section 6 "continuing root": the same field and gate,
+  but the ship sails on after each pass and may pass again; its measure is
+  gate passes per hour of sailing (6,000 control steps).
 
   ## Action space
   `Box(-15, 15, (1,), float64)`: the desired turning rate r in deg/s, held for
@@ -100,8 +104,8 @@ class ShipSteeringEnv(gymnasium.Env):
   (row 0 where it began), on which the gate and the bounds are checked.
 
   ## Starting state
-  - `steer`: x, y uniform on [0, 1000] m, heading uniform on [-180, 180) deg,
-    turning rate uniform on [-15, 15] deg/s.
+  - `steer`, `patrol`: x, y uniform on [0, 1000] m, heading uniform on
+    [-180, 180) deg, turning rate uniform on [-15, 15] deg/s.
   - `diagonal`: at (40, 40) with random heading and turning rate; goal
     (140, 140). `straight`: at (40, 75); goal (140, 75).
   `reset(options={"state": [x, y, theta_deg, theta_dot_deg]})` starts from an
@@ -111,10 +115,14 @@ class ShipSteeringEnv(gymnasium.Env):
   - Terminated: `steer`: the gate is passed or the field is left.
     Subtasks: within 10 m of the goal, leaving [0, 150]^2, or 300 control
     steps without success (a failure). `info["event"]` says which.
-  - Truncated: `steer` after 5,000 control steps (3,000 s).
+    `patrol` never terminates: after leaving the field (`info["event"] ==
+    "out_of_bounds"`, the penalty paid) the observation is a fresh uniform
+    start drawn from the environment's generator, and the process goes on.
+  - Truncated: `steer` after 5,000 control steps (3,000 s); `patrol` after
+    6,000 (one hour).
 
   ## Arguments
-  - `task`: "steer" (default), "diagonal" or "straight".
+  - `task`: "steer" (default), "diagonal", "straight" or "patrol".
   - `backend`: "mujoco" (default, the MJCF ship of assets/ship.xml) or
     "analytic" (Equation 1 exactly, the paper's discretisation).
   - `strict`: refuse out-of-range turning rates instead of clipping them.
@@ -126,7 +134,7 @@ class ShipSteeringEnv(gymnasium.Env):
     "overview", "chase").
 
   ## Version history
-  - v0: initial release (SPEC sections 1-3).
+  - v0: initial release (SPEC sections 1-3); `patrol` (SPEC section 8).
   """
 
   metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
@@ -150,7 +158,7 @@ class ShipSteeringEnv(gymnasium.Env):
         dtype=np.float64)
     self.action_space = spaces.Box(-core.MAX_TURN_RATE, core.MAX_TURN_RATE, (1,), np.float64)
     self._width, self._height = int(width), int(height)
-    self._camera = camera or ("top" if task == "steer" else "local")
+    self._camera = camera or ("top" if task in ("steer", "patrol") else "local")
     self._renderer = None
     self._trail = []
     self._steps = 0
@@ -182,6 +190,10 @@ class ShipSteeringEnv(gymnasium.Env):
     reward, terminated, truncated, event = self.rules.evaluate(samples, obs, self._steps)
     if self.render_mode is not None:
       self._trail.extend(samples[1:].copy())
+    if self.rules.restarts(event):     # SPEC section 8: a fresh start, the process goes on
+      self.backend.set_state(self.rules.sample_start(self.np_random))
+      obs = self.backend.state()
+      self._trail = [obs[:2].copy()]   # the wake starts again there
     return obs, float(reward), terminated, truncated, {"event": event,
                                                        "positions": samples.copy()}
 

@@ -341,6 +341,11 @@ class ShipSteeringVectorEnv(_BatchedEnv):
         self._is_steer, self._goal, self.rules.size, self.rules.max_steps,
         self.rules.success_reward, self.rules.failure_reward,
         (self._event, self._reward, self._terminated, self._truncated))
+    if self.rules.continuing:     # SPEC section 8, as `ShipSteeringEnv.step`
+      self._terminated[active] = False
+      self._truncated[active] = self._steps[active] >= self.rules.max_steps
+      for i in np.flatnonzero(active & (self._event == ship_core.FAILURE)).tolist():
+        self._ships.set_state(self._states, i, self.rules.sample_start(self._rngs[i]))
     return self._reward.copy(), self._terminated.copy(), self._truncated.copy()
 
   def _observations(self):

@@ -7,6 +7,8 @@ import numpy as np
 from hpg_mj.worlds import ship_core as core
 
 POLICIES = ("scripted", "random")
+# The continuing task's hour is 6,000 control steps; a video shows its first 10 minutes.
+PATROL_VIDEO_STEPS = 1000
 
 
 class ShipPilot:
@@ -15,12 +17,20 @@ class ShipPilot:
   def __init__(self, task):
     self.task = task
     self.phase = 0
+    self.last = None
 
   def reset(self):
     self.phase = 0
+    self.last = None
 
   def __call__(self, obs):
-    if self.task == "steer":
+    if self.task == "patrol":     # the figure-eight helmsman (SPEC section 8)
+      if self.last is not None and core.segment_crosses(*self.last[:2], *obs[:2],
+                                                        *core.GATE.ravel()):
+        self.phase = 0          # passed: swing round for the next pass
+      self.last = np.array(obs, dtype=np.float64)
+      x, y, self.phase = core.patrol_pilot_target(obs, self.phase)
+    elif self.task == "steer":
       x, y, self.phase = core.gate_pilot_target(obs, self.phase)
     else:
       x, y = core.local_goal(1 if self.task == "diagonal" else 2)
@@ -145,6 +155,7 @@ def render_task(domain, task, policy="scripted", seed=0, out=None, gif=False, wi
   ids = {("ship", "steer"): "hpg_mj/ShipSteering-v0",
          ("ship", "diagonal"): "hpg_mj/ShipSteeringDiagonal-v0",
          ("ship", "straight"): "hpg_mj/ShipSteeringStraight-v0",
+         ("ship", "patrol"): "hpg_mj/ShipPatrol-v0",
          ("taxi", "fuel"): "hpg_mj/TaxiFuel-v0",
          ("taxi", "classic"): "hpg_mj/Taxi-v0"}
   if (domain, task) not in ids:
@@ -153,6 +164,8 @@ def render_task(domain, task, policy="scripted", seed=0, out=None, gif=False, wi
   kwargs = {"render_mode": "rgb_array", "width": width, "height": height}
   if domain == "ship":
     kwargs["backend"] = backend
+  if task == "patrol" and max_steps is None:
+    max_steps = PATROL_VIDEO_STEPS
   env = gymnasium.make(ids[(domain, task)], **kwargs).unwrapped
   try:
     pilot = make_policy(env, domain, task, policy)

@@ -6,6 +6,11 @@ Tasks:
   diagonal: the low-level subtask in its 150 m local frame, from (40, 40) to
             within 10 m of (140, 140), with its internal reward (SPEC section 3).
   straight: likewise from (40, 75) to (140, 75).
+  patrol:   the continuing task (SPEC section 8): the field and gate of steer,
+            but the ship sails on after each pass (+100 each, either way);
+            leaving the field costs the penalty and restarts it at a fresh
+            uniform start. Only the clock ends it: one hour (6,000 control
+            steps), then a LAST step with discount 1 (a truncation).
 
 One control step is 0.6 s: the desired turning rate r (deg/s) is held for three
 0.2 s sampling intervals, and the rules look at each sampled position.
@@ -185,13 +190,14 @@ class ShipTask(base.Task):
 
   def __init__(self, kind, random=None, initial_state=None, strict=False, max_steps=None):
     """Args:
-      kind: "steer", "diagonal" or "straight".
+      kind: "steer", "diagonal", "straight" or "patrol".
       random: seed, np.random.RandomState or None.
       initial_state: optional fixed start [x, y, theta_deg, theta_dot_deg].
       strict: if True, a turning rate outside [-15, 15] deg/s is an error; by
         default it is clipped. NaN and infinity are always errors.
-      max_steps: control steps before the episode ends (truncated for steer,
-        failed for the subtasks); SPEC defaults 5,000 and 300.
+      max_steps: control steps before the episode ends (truncated for steer
+        and patrol, failed for the subtasks); SPEC defaults 5,000, 300 and,
+        for patrol, 6,000 (one hour).
     """
     self.rules = ShipRules(kind, max_steps)
     self.name = f"ship-{kind}"
@@ -235,6 +241,8 @@ class ShipTask(base.Task):
     self._steps += 1
     self._outcome = self.rules.evaluate(physics.sampled_positions(), physics.ship_state(),
                                         self._steps)
+    if self.rules.restarts(self._outcome[3]):   # SPEC section 8: the process goes on
+      physics.set_ship_state(self.rules.sample_start(self.random))
 
   def get_observation(self, physics):
     state = physics.ship_state()
@@ -291,3 +299,10 @@ def straight(random=None, initial_state=None, strict=False, max_steps=None,
              environment_kwargs=None):
   """The straight low-level subtask in its local frame (SPEC section 3)."""
   return _environment("straight", random, initial_state, strict, max_steps, environment_kwargs)
+
+
+@SUITE.add("benchmarking", "continuing")
+def patrol(random=None, initial_state=None, strict=False, max_steps=None,
+           environment_kwargs=None):
+  """The continuing ship task: pass the gate as often as possible (SPEC section 8)."""
+  return _environment("patrol", random, initial_state, strict, max_steps, environment_kwargs)

@@ -27,6 +27,9 @@ MAX_TURN_RATE = 15.0         # |theta_dot| and |r| bound, deg/s
 FIELD_SIZE = 1000.0
 GATE = np.array([[350.0, 400.0], [450.0, 400.0]])
 STEER_MAX_STEPS = 5000       # control steps, then truncated
+# SPEC section 8: the continuing task's measure, gate passes per hour of sailing.
+HOUR_STEPS = 6000            # control steps of 0.6 s in one hour
+PATROL_MAX_STEPS = HOUR_STEPS  # the Gymnasium / dm_control patrol truncates after one hour
 STEP_REWARD = -1.0
 GATE_REWARD = 100.0
 OUT_OF_BOUNDS_REWARD = -100.0
@@ -333,6 +336,33 @@ def gate_pilot_target(state, phase):
   if phase == 0:
     ax, ay = mid_x, mid_y + side * 150.0
     if math.hypot(state[0] - ax, state[1] - ay) < 40.0:
+      phase = 1
+    else:
+      return ax, ay, 0
+  return mid_x, mid_y - side * 60.0, phase
+
+
+@numba.njit(cache=True)
+def patrol_pilot_target(state, phase, offset=25.0, reach=40.0):
+  """Waypoints of the figure-eight helmsman of the continuing task (SPEC section 8).
+
+  Phase 0: towards the approach point `reach` m off the gate's middle on the
+  ship's side, `offset` m to the east when the ship is north of the gate line and
+  to the west when south, until within 30 m of it; phase 1: through the gate's
+  middle, aiming 60 m beyond it. After a pass the caller sets phase 0 again: the
+  ship, now on the other side, swings round the next approach point (east of the
+  gate going south, west going north: a figure eight) and comes back. The
+  defaults are the tightest of a small sweep (offset 0-75 m, reach 40-120 m, one
+  hour from 3 uniform starts) that still sails an eight: ~112 passes an hour
+  (a plain hairpin, offset 0, gives ~133; reach 90 m ~56).
+  Returns (x, y, phase).
+  """
+  mid_x = 0.5 * (GATE[0, 0] + GATE[1, 0])
+  mid_y = 0.5 * (GATE[0, 1] + GATE[1, 1])
+  side = 1.0 if state[1] >= mid_y else -1.0
+  if phase == 0:
+    ax, ay = mid_x + side * offset, mid_y + side * reach
+    if math.hypot(state[0] - ax, state[1] - ay) < 30.0:
       phase = 1
     else:
       return ax, ay, 0

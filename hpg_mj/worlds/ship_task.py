@@ -10,22 +10,28 @@ class ShipRules:
   """The start, reward and ending of one ship task, shared by every backend.
 
   `kind` is "steer" (SPEC section 2), "diagonal" or "straight" (SPEC section 3,
-  the local frame). The Gymnasium environment and the dm_control tasks both
-  call these, so the rules live in one place.
+  the local frame), or "patrol", the continuing task of SPEC section 8: the
+  gate and field of "steer", but nothing terminates it: each pass of the gate
+  gives its reward and the ship sails on, and leaving the field gives the
+  penalty and restarts the ship at a fresh uniform start (`restarts`: the
+  environment then calls `sample_start`); it is truncated after `max_steps`
+  (one hour of sailing by default). The Gymnasium environment and the
+  dm_control tasks both call these, so the rules live in one place.
   """
 
-  KINDS = ("steer", "diagonal", "straight")
+  KINDS = ("steer", "diagonal", "straight", "patrol")
 
   def __init__(self, kind, max_steps=None, gate_reward=core.GATE_REWARD,
                out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD):
     if kind not in self.KINDS:
       raise ValueError(f"unknown ship task {kind!r}; valid tasks: {list(self.KINDS)}")
     self.kind = kind
-    if kind == "steer":
+    self.continuing = kind == "patrol"
+    if kind in ("steer", "patrol"):
       self.size = core.FIELD_SIZE
       self.start = None
       self.goal = None
-      default_steps = core.STEER_MAX_STEPS
+      default_steps = core.PATROL_MAX_STEPS if self.continuing else core.STEER_MAX_STEPS
     else:
       self.size = core.LOCAL_SIZE
       diagonal = kind == "diagonal"
@@ -38,11 +44,16 @@ class ShipRules:
     self.failure_reward = float(out_of_bounds_reward)
     # `task_outcome`'s arguments, and its event codes by name.
     self._goal = np.zeros(2) if self.goal is None else self.goal
-    success = "gate" if kind == "steer" else "goal"
+    success = "gate" if self.goal is None else "goal"
     self.event_names = {core.NO_EVENT: None, core.SUCCESS: success,
                         core.FAILURE: "out_of_bounds", core.TIMEOUT: "timeout"}
     if self.max_steps < 1:
       raise ValueError(f"max_steps must be a positive number of control steps, got {max_steps!r}")
+
+  def restarts(self, event_name):
+    """Whether the ship is put at a fresh start after a step that ended by
+    `event_name` (the continuing task, after leaving the field)."""
+    return self.continuing and event_name == "out_of_bounds"
 
   def sample_start(self, random):
     """A random start; `random` is a np.random.RandomState or Generator."""
@@ -66,4 +77,6 @@ class ShipRules:
     event, reward, terminated, truncated = core.task_outcome(
         samples, end_state, steps, self.goal is None, self._goal, self.size, self.max_steps,
         self.success_reward, self.failure_reward)
+    if self.continuing:        # SPEC section 8: nothing ends the process but the clock
+      terminated, truncated = False, steps >= self.max_steps
     return reward, terminated, truncated, self.event_names[event]

@@ -8,7 +8,7 @@ import hpg_mj
 from hpg_mj import envs
 
 SHIP_IDS = ["hpg_mj/ShipSteering-v0", "hpg_mj/ShipSteeringDiagonal-v0",
-            "hpg_mj/ShipSteeringStraight-v0"]
+            "hpg_mj/ShipSteeringStraight-v0", "hpg_mj/ShipPatrol-v0"]
 
 
 def test_import_registers_every_id():
@@ -145,3 +145,63 @@ def test_render_rgb_array(backend):
   assert first.std() > 5.0                       # not blank
   assert np.abs(first.astype(int) - second).sum() > 0   # the ship moved, the wake grew
   env.close()
+
+
+@pytest.mark.parametrize("backend", ["mujoco", "analytic"])
+def test_patrol_passes_the_gate_again_and_again(backend):
+  # SPEC section 8: +100 for each pass, in either direction; the ship sails on.
+  env = gymnasium.make("hpg_mj/ShipPatrol-v0", backend=backend)
+  env.reset(options={"state": [400.0, 397.0, 0.0, 0.0]})
+  env.step(np.array([0.0]))
+  obs, reward, terminated, truncated, info = env.step(np.array([0.0]))
+  assert (reward, terminated, truncated, info["event"]) == (99.0, False, False, "gate")
+  assert obs[1] > 400.0                    # sailed on through, not reset
+  env.reset(options={"state": [400.0, 403.0, 180.0, 0.0]})   # southwards this time
+  events = [env.step(np.array([0.0]))[4]["event"] for _ in range(2)]
+  assert events == [None, "gate"]
+
+
+def test_patrol_restarts_after_leaving_and_truncates_after_an_hour():
+  env = gymnasium.make("hpg_mj/ShipPatrol-v0", backend="analytic")
+  assert env.unwrapped.rules.max_steps == 6000          # one hour of 0.6 s steps
+  env = gymnasium.make("hpg_mj/ShipPatrol-v0", backend="analytic", max_steps=4,
+                       out_of_bounds_reward=-300.0)
+  env.reset(seed=5, options={"state": [1.0, 500.0, -90.0, 0.0]})
+  obs, reward, terminated, truncated, info = env.step(np.array([0.0]))
+  assert (reward, terminated, truncated, info["event"]) == (-301.0, False, False, "out_of_bounds")
+  assert info["positions"][-1, 0] < 0.0              # where it left
+  assert 0.0 <= obs[0] <= 1000.0 and 0.0 <= obs[1] <= 1000.0   # a fresh start
+  assert not np.allclose(obs[:2], info["positions"][-1], atol=5.0)
+  results = [env.step(np.array([0.0]))[2:4] for _ in range(3)]
+  assert results == [(False, False), (False, False), (False, True)]
+
+
+def test_patrol_restarts_are_seeded():
+  def run(seed):
+    env = gymnasium.make("hpg_mj/ShipPatrol-v0", backend="analytic")
+    env.reset(seed=seed, options={"state": [1.0, 500.0, -90.0, 0.0]})
+    return env.step(np.array([0.0]))[0]
+  np.testing.assert_array_equal(run(3), run(3))
+  assert not np.array_equal(run(3), run(4))
+
+
+@pytest.mark.parametrize("state,match", [([1200.0, 5.0, 0.0, 0.0], r"off the field.*\[0.0, 1000.0\]"),
+                                         ([5.0, 5.0, 0.0, 16.0], r"\[-15.0, 15.0\]"),
+                                         ([5.0, 5.0, np.nan, 0.0], "finite")])
+def test_patrol_refuses_impossible_starts(state, match):
+  env = gymnasium.make("hpg_mj/ShipPatrol-v0", backend="analytic")
+  with pytest.raises(ValueError, match=match):
+    env.reset(options={"state": state})
+
+
+def test_patrol_refuses_bad_actions_and_arguments():
+  env = gymnasium.make("hpg_mj/ShipPatrol-v0", backend="analytic", strict=True)
+  env.reset(seed=0)
+  with pytest.raises(ValueError, match=r"ShipSteering\(patrol, backend=analytic\).*finite"):
+    env.step(np.array([np.nan]))
+  with pytest.raises(ValueError, match=r"20.0 is outside the allowed range \[-15.0, 15.0\]"):
+    env.step(np.array([20.0]))
+  with pytest.raises(ValueError, match="max_steps must be a positive number of control steps"):
+    gymnasium.make("hpg_mj/ShipPatrol-v0", backend="analytic", max_steps=0)
+  with pytest.raises(ValueError, match=r"unknown ship task 'patrl'.*'patrol'"):
+    gymnasium.make("hpg_mj/ShipSteering-v0", task="patrl")

@@ -10,7 +10,7 @@ import hpg_mj  # noqa: F401  (registers the ids)
 from hpg_mj.envs import vector
 
 SHIP_IDS = ["hpg_mj/ShipSteering-v0", "hpg_mj/ShipSteeringDiagonal-v0",
-            "hpg_mj/ShipSteeringStraight-v0"]
+            "hpg_mj/ShipSteeringStraight-v0", "hpg_mj/ShipPatrol-v0"]
 TAXI_IDS = ["hpg_mj/TaxiFuel-v0", "hpg_mj/Taxi-v0"]
 MODES = [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP]
 
@@ -72,7 +72,10 @@ def test_analytic_ship_batch_follows_single_envs(env_id, mode):
   # max_steps=40: episodes end by every rule (gate/goal, bounds, time) within the run.
   native, reference = _pair(env_id, 6, mode, backend="analytic", max_steps=40)
   assert isinstance(native.unwrapped, vector.ShipSteeringVectorEnv)
-  assert _run_both(native, reference, env_id, 150, 6, seed=11) >= 20
+  # The continuing patrol ends only by its clock (3 ends a copy); its restarts after
+  # leaving the field draw from each copy's generator, as the single env's do.
+  assert _run_both(native, reference, env_id, 150, 6, seed=11) >= (18 if "Patrol" in env_id
+                                                                    else 20)
 
 
 @pytest.mark.parametrize("mode", MODES, ids=lambda m: m.value)

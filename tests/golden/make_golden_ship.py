@@ -1,6 +1,6 @@
 """Regenerates golden/ship_*.npz (run by hand after a deliberate change of the
 physics or rules, from the checkout: `.venv/bin/python tests/golden/make_golden_ship.py`
-with hpg_mj installed).
+with hpg_mj installed; name tasks, e.g. `patrol`, to write only theirs).
 
 Each file holds a short trajectory of one ship task under a fixed seed and a
 fixed action sequence: on the analytic ship through Gymnasium, and on the
@@ -16,8 +16,8 @@ from hpg_mj import verify
 HERE = pathlib.Path(__file__).resolve().parents[2] / "golden"
 
 
-def main():
-  for task in ("steer", "diagonal", "straight"):
+def main(tasks=("steer", "diagonal", "straight", "patrol")):
+  for task in tasks:
     actions = verify.ship_golden_actions()
     a_obs, a_rew, a_end = verify.ship_analytic_rollout(task, actions)
     m_obs, m_rew, m_end = verify.ship_mujoco_rollout(task, actions)
@@ -28,4 +28,5 @@ def main():
 
 
 if __name__ == "__main__":
-  main()
+  import sys
+  main(tuple(sys.argv[1:])) if sys.argv[1:] else main()

@@ -1,0 +1,347 @@
+"""The continuing ship task with an average-reward root (SPEC section 8; the
+paper's section 6: "the hierarchy with a continuing root whose performance is
+the average reward", whose results it did not include).
+
+The hierarchy is the hybrid's (Figure 3, SPEC section 3): a root over the 20 x
+20 grid of 50 m cells choosing one of eight directions, and the shared diagonal
+and straight subtasks learned by Eq. 3, from scratch in the same run. Only the
+root differs: the process never ends (each gate pass +100 and the ship sails
+on; leaving the field pays the penalty and restarts the ship at a uniform
+start), so the root learns relative values and the gain rho, the reward per
+control step, by average-reward SMDP Q-learning (`learners.average_reward`:
+R-learning after Schwartz 1993 in the SMDP form of Ghavamzadeh & Mahadevan
+2001, 2002). A low-level call returns to the root at its own success or
+failure, at a gate pass, or when the ship leaves the field.
+
+The agent is continuing: its record has one row per hour of sailing (6,000
+control steps; `record_steps`), and its task file's protocol says how long to
+train in `control_steps` or `hours`. After training, `final_metrics` measures
+greedily, on the same hours from the same starts, this agent, the episodic
+hybrid (tasks/ship_hybrid.toml's agent, trained on its own protocol with this
+run's seed) and the scripted figure-eight helmsman (`ship_core.patrol_pilot_target`).
+
+Only the compiled path over the analytic ship is provided; the MuJoCo patrol
+is the Gymnasium / dm_control environment (`make_env`) for one's own agents.
+"""
+import dataclasses
+
+import numba
+import numpy as np
+
+from hpg_mj.agents import _ship
+from hpg_mj.agents import ship_hybrid as hybrid
+from hpg_mj.agents.taskfile import param
+from hpg_mj.hierarchy import ship_rules as rules
+from hpg_mj.learners import average_reward
+from hpg_mj.learners import eligibility as el
+from hpg_mj.learners import qlambda
+from hpg_mj.learners import rng
+from hpg_mj.learners import schedules
+from hpg_mj.worlds import ship_core as core
+
+# Record columns, one row per hour (`ShipPatrol.record_fields`).
+(STEPS, GATES, DEPARTURES, CALLS, DIAG_RUNS, DIAG_SUCCESS, STRAIGHT_RUNS, STRAIGHT_SUCCESS,
+ RETURN, GAIN) = range(10)
+N_RECORD = 10
+NEVER = 1 << 60              # no episode clock: only the subtasks' 300 steps end a call
+EVALUATION_SEED = 2 ** 20    # the generator of the greedy evaluations' starts
+
+
+def settings(config):
+  """The hybrid's `Settings` for its `run_low_level`, with no episode clock."""
+  root, low, env = config.root, config.low_level, config.environment
+  return hybrid.Settings(float(root.alpha), 0.0, float(root.epsilon_threshold),
+                         int(root.epsilon_every), float(root.epsilon_divisor), float(low.alpha),
+                         float(low.trace_gamma), float(low.baseline), int(low.max_steps),
+                         NEVER, float(env.gate_reward), float(env.out_of_bounds_reward))
+
+
+@numba.njit(cache=True)
+def _count_run(row, sub, l_event, g_event):
+  """A call that ended by its subtask's own success or failure is a run (as the
+  hybrid counts them); one cut by a gate pass or a departure is not."""
+  if g_event != core.NO_EVENT or l_event == core.NO_EVENT:
+    return False
+  if sub == rules.DIAGONAL:
+    row[DIAG_RUNS] += 1
+    row[DIAG_SUCCESS] += l_event == core.SUCCESS
+  else:
+    row[STRAIGHT_RUNS] += 1
+    row[STRAIGHT_SUCCESS] += l_event == core.SUCCESS
+  return True
+
+
+@numba.njit(cache=True)
+def patrol(n_rows, record_steps, learn, sample, rng_state, ship, q, gain, schedule, low_level,
+           tiling, s, gain_step, record):
+  """Sails the continuing task for `n_rows` rows of at least `record_steps` control
+  steps each (a call is never cut: the row in which it starts holds it), from
+  and into `ship` (the process's state, kept between calls).
+
+  The root chooses epsilon-greedily from `q` (epsilon 0 unless `sample`); with
+  `learn` it learns by average-reward SMDP Q-learning (`gain` = [rho, greedy
+  transitions], `gain_step` Schwartz's step size; SPEC section 8) and the
+  subtasks by Eq. 3 with the hybrid's baseline (`hybrid.run_low_level`). Without
+  `learn`, `q` may be any root's table, the episodic hybrid's too: each runs its
+  greedy policy on this task. `low_level` = (diagonal trace, its baseline values,
+  straight trace, its baseline values).
+  """
+  eps_state, outcomes, counts = schedule
+  diagonal, diagonal_values, straight, straight_values = low_level
+  samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
+  n_tilings = tiling.offsets.shape[0]
+  scratch = (np.empty(n_tilings, dtype=np.int64), np.empty(n_tilings),
+             np.empty(n_tilings, dtype=np.int64), samples, np.empty_like(samples), np.empty(4),
+             np.empty(2))
+  n = rules.N_DIRECTIONS
+  for i in range(n_rows):
+    row = record[i]
+    row[:] = 0.0
+    while row[STEPS] < record_steps:
+      epsilon = eps_state[0] if sample else 0.0
+      cell = rules.root_cell(ship[0], ship[1])
+      a = qlambda.epsilon_greedy(q, cell, n, epsilon, rng_state)
+      was_greedy = average_reward.is_greedy(q, cell, a, n)
+      sub = rules.subtask_of(a)
+      low, low_values = ((diagonal, diagonal_values) if sub == rules.DIAGONAL else
+                         (straight, straight_values))
+      g_event, l_event, reward, k = hybrid.run_low_level(ship, a, low, low_values, tiling, s,
+                                                         learn, sample, rng_state, 0, scratch)
+      row[CALLS] += 1
+      row[STEPS] += k
+      row[RETURN] += reward
+      if _count_run(row, sub, l_event, g_event) and learn:
+        schedules.record_run(outcomes, counts, sub, l_event == core.SUCCESS)
+      if g_event == core.SUCCESS:
+        row[GATES] += 1
+      elif g_event == core.FAILURE:          # SPEC section 8: a fresh start, sail on
+        row[DEPARTURES] += 1
+        _ship.sample_start(rng_state, ship)
+      if learn:
+        average_reward.update(q, n, gain, cell, a, reward, float(k),
+                              rules.root_cell(ship[0], ship[1]), s.root_alpha, gain_step,
+                              was_greedy)
+        # The held schedule, counted in root decisions (there are no episodes).
+        schedules.end_episode(eps_state, outcomes, counts, s.root_epsilon_threshold,
+                              s.root_epsilon_every, s.root_epsilon_divisor)
+    row[GAIN] = gain[average_reward.RHO]
+
+
+@numba.njit(cache=True)
+def scripted(n_rows, record_steps, rng_state, ship, gate_reward, out_of_bounds_reward, record):
+  """The figure-eight helmsman (`ship_core.patrol_pilot_target`) on the continuing
+  task: the reference figure, rows as `patrol`'s."""
+  samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
+  phase = 0
+  for i in range(n_rows):
+    row = record[i]
+    row[:] = 0.0
+    while row[STEPS] < record_steps:
+      tx, ty, phase = core.patrol_pilot_target(ship, phase)
+      core.euler_control(ship, core.pilot_turn_rate(ship, tx, ty), samples, core.SPEED,
+                         core.TIME_CONSTANT, core.SAMPLING_INTERVAL)
+      event, reward = core.global_outcome(samples, gate_reward, out_of_bounds_reward)
+      row[STEPS] += 1
+      row[RETURN] += reward
+      if event == core.SUCCESS:
+        row[GATES] += 1
+        phase = 0
+      elif event == core.FAILURE:
+        row[DEPARTURES] += 1
+        _ship.sample_start(rng_state, ship)
+        phase = 0
+
+
+@dataclasses.dataclass(frozen=True)
+class Environment:
+  """[environment] of the continuing ship task (SPEC section 8)."""
+  world: str = param("ship", "the world", choices=("ship",))
+  backend: str = param("analytic", "train on Equation 1 (the compiled path)",
+                       choices=("analytic",))
+  gate_reward: float = param(core.GATE_REWARD, "reward for each pass of the gate")
+  out_of_bounds_reward: float = param(core.OUT_OF_BOUNDS_REWARD,
+                                      "reward for leaving the field (then a fresh start)")
+
+
+@dataclasses.dataclass(frozen=True)
+class Root:
+  """[root]: average-reward SMDP Q-learning over the calls (SPEC section 8)."""
+  learner: str = param("r_learning", "R-learning in SMDP form (learners.average_reward)",
+                       choices=("r_learning",))
+  alpha: float = param(0.1, "step size of the relative values Q", low=0, low_open=True)
+  gain_step: float = param(0.0001, "step size of the gain rho (Schwartz's update)", low=0,
+                           high=1, low_open=True)
+  epsilon: float = param(0.3, "exploration, held until both subtasks pass epsilon_threshold",
+                         low=0, high=1)
+  epsilon_threshold: float = param(0.8, "success rate over epsilon_window runs that starts "
+                                   "the decay", low=0, high=1)
+  epsilon_window: int = param(1000, "runs per subtask the threshold looks at", low=1)
+  epsilon_every: int = param(400, "root decisions between divisions of epsilon", low=1)
+  epsilon_divisor: float = param(1.01, "epsilon is divided by this", low=1)
+
+
+@dataclasses.dataclass(frozen=True)
+class Comparison:
+  """[comparison]: what `final_metrics` measures beside the learned agent."""
+  episodic_task: str = param("ship_hybrid", "the episodic agent's task file (run greedily "
+                             "on this task); \"\" for none")
+  episodic_episodes: int = param(0, "its training episodes (0: its file's protocol)", low=0)
+  evaluation_hours: int = param(100, "hours of greedy sailing per measured policy", low=1)
+
+
+@dataclasses.dataclass(frozen=True)
+class Config:
+  environment: Environment = dataclasses.field(default_factory=Environment)
+  root: Root = dataclasses.field(default_factory=Root)
+  low_level: hybrid.LowLevel = dataclasses.field(default_factory=hybrid.LowLevel)
+  comparison: Comparison = dataclasses.field(default_factory=Comparison)
+
+
+class ShipPatrol(_ship.ShipAgent):
+  """The hybrid's hierarchy with an average-reward root, on the continuing task."""
+
+  name = "ship_patrol"
+  Config = Config
+  record_fields = ("steps", "gates", "departures", "calls", "diagonal_runs",
+                   "diagonal_successes", "straight_runs", "straight_successes", "return",
+                   "gain")
+  figure = "gates_per_hour"
+  record_steps = core.HOUR_STEPS       # a continuing agent: one record row per hour
+
+  def __init__(self, config=None, seed=0, task=None):
+    super().__init__(config, seed, task)
+    # The hybrid's tiles, subtasks and epsilon schedule; the root is replaced.
+    self._parts = hybrid.ShipHybrid(hybrid.Config(low_level=self.config.low_level,
+                                                  root=hybrid.Root(
+                                                      epsilon=self.config.root.epsilon,
+                                                      epsilon_window=self.config.root.epsilon_window)),
+                                    seed=seed)
+    self.tile_arrays = self._parts.tile_arrays
+    self.low = self._parts.low
+    self.schedule, self.outcomes = self._parts.schedule, self._parts.outcomes
+    self.counts = self._parts.counts
+    self.q = np.zeros(rules.ROOT_GRID ** 2 * rules.N_DIRECTIONS)
+    self.gain = average_reward.new_gain()
+    self.ship = np.zeros(4)
+    self.started = np.zeros(1)         # 1 once the process has its first start
+
+  def state(self):
+    out = {"rng_state": self.rng_state, "root_q": self.q, "root_gain": self.gain,
+           "ship_state": self.ship, "ship_started": self.started,
+           "epsilon_schedule": self.schedule, "subtask_outcomes": self.outcomes,
+           "subtask_counts": self.counts}
+    for name, learner in (("diagonal", self.low[0]), ("straight", self.low[1])):
+      for key, value in learner.trace._asdict().items():
+        out[f"{name}_{key}"] = value
+      out[f"{name}_baseline"] = learner.values
+    return out
+
+  def make_env(self, api="gymnasium", backend="analytic", **kwargs):
+    env = self.config.environment
+    settings_ = {"gate_reward": env.gate_reward, "out_of_bounds_reward": env.out_of_bounds_reward}
+    if api == "gymnasium":
+      import gymnasium
+
+      import hpg_mj  # noqa: F401  (registers the ids)
+      return gymnasium.make("hpg_mj/ShipPatrol-v0", backend=backend, **settings_, **kwargs)
+    if api == "dm_control":
+      from hpg_mj import suite
+      return suite.load("ship", "patrol", {"random": 0, **kwargs})
+    raise ValueError(f"unknown environment api {api!r}; allowed: ['gymnasium', 'dm_control']")
+
+  def stepwise_env(self, backend):
+    raise ValueError(f"ship_patrol runs on its compiled path only, not on backend "
+                     f"{backend!r}; allowed backends: ['analytic']")
+
+  def graph(self):
+    raise ValueError("ship_patrol has no step-by-step task graph; allowed backends: "
+                     "['analytic']")
+
+  # ---- the compiled path ---------------------------------------------------------
+
+  def _tables(self, low):
+    return (self.low[rules.DIAGONAL].trace, self.low[rules.DIAGONAL].values,
+            self.low[rules.STRAIGHT].trace, self.low[rules.STRAIGHT].values) if low is None \
+        else low
+
+  def sail(self, hours, learn, sample, ship, rng_state, q=None, low=None):
+    """`hours` rows of the continuing task from `ship` (in place)."""
+    rows = np.zeros((int(hours), N_RECORD))
+    cfg = self.config
+    patrol(int(hours), self.record_steps, learn, sample, rng_state, ship,
+           self.q if q is None else q, self.gain, (self.schedule, self.outcomes, self.counts),
+           self._tables(low), self.tile_arrays, settings(cfg), float(cfg.root.gain_step), rows)
+    return rows
+
+  def compiled(self, episodes, learn, sample):
+    """Learning continues the agent's own process; without learning, `episodes`
+    hours are sailed from a fresh start drawn from the agent's generator."""
+    if learn:
+      if not self.started[0]:
+        _ship.sample_start(self.rng_state, self.ship)
+        self.started[0] = 1.0
+      return self.sail(episodes, True, sample, self.ship, self.rng_state)
+    ship = np.empty(4)
+    _ship.sample_start(self.rng_state, ship)
+    return self.sail(episodes, False, sample, ship, self.rng_state)
+
+  # ---- metrics -------------------------------------------------------------------
+
+  def metrics(self, record):
+    steps = float(record["steps"].sum())
+    hours = steps / core.HOUR_STEPS
+    runs = {k: record[f"{k}_runs"].sum() for k in ("diagonal", "straight")}
+    return {
+        "episodes_measured": int(len(record)),     # record rows: hours of sailing
+        "hours": hours,
+        "control_steps": int(steps),
+        "gates_per_hour": float(record["gates"].sum() / hours) if steps else None,
+        "departures_per_hour": float(record["departures"].sum() / hours) if steps else None,
+        "reward_per_step": float(record["return"].sum() / steps) if steps else None,
+        "gain": float(record["gain"][-1]) if len(record) else None,
+        "calls_per_hour": float(record["calls"].sum() / hours) if steps else None,
+        **{f"{k}_success_rate": float(record[f"{k}_successes"].sum() / runs[k]) if runs[k]
+           else None for k in runs},
+    }
+
+  def evaluation(self, hours, kind="agent", other=None):
+    """Gates per hour of `hours` greedy hours from the evaluation generator's start
+    (the same for every policy): this agent's ("agent"), an episodic hybrid's
+    (`other`, "episodic") or the scripted helmsman's ("scripted")."""
+    rng_state = rng.make_state(EVALUATION_SEED)
+    ship = np.empty(4)
+    _ship.sample_start(rng_state, ship)
+    if kind == "scripted":
+      rows = np.zeros((int(hours), N_RECORD))
+      env = self.config.environment
+      scripted(int(hours), self.record_steps, rng_state, ship, env.gate_reward,
+               env.out_of_bounds_reward, rows)
+    elif kind == "episodic":
+      low = (other.low[rules.DIAGONAL].trace, other.low[rules.DIAGONAL].values,
+             other.low[rules.STRAIGHT].trace, other.low[rules.STRAIGHT].values)
+      rows = self.sail(hours, False, False, ship, rng_state, q=other.root.parameters(), low=low)
+    else:
+      rows = self.sail(hours, False, False, ship, rng_state)
+    return self.as_record(rows)
+
+  def final_metrics(self, record):
+    """Greedy gates per hour of this agent, the episodic hybrid and the scripted
+    helmsman, over the same `evaluation_hours` from the same start (SPEC section 8)."""
+    from hpg_mj import agents
+    comparison = self.config.comparison
+    hours = comparison.evaluation_hours
+    out = {"greedy_gates_per_hour": self.metrics(self.evaluation(hours))["gates_per_hour"],
+           "scripted_gates_per_hour": self.metrics(self.evaluation(hours, "scripted"))[
+               "gates_per_hour"],
+           "evaluation_hours": hours}
+    if comparison.episodic_task:
+      task = agents.load_task(comparison.episodic_task)
+      episodes = comparison.episodic_episodes or task.protocol.episodes
+      episodic, episodic_record, _ = agents.train(task, episodes=episodes, seed=self.seed)
+      out["episodic_gates_per_hour"] = self.metrics(self.evaluation(hours, "episodic",
+                                                                    episodic))["gates_per_hour"]
+      out["episodic_task"] = str(task.path.name)
+      out["episodic_episodes"] = int(episodes)
+      out["episodic_control_steps"] = int(episodic_record["steps"].sum())
+      out["episodic_gate_pass_rate"] = episodic.metrics(episodic_record)["gate_pass_rate"]
+    return out

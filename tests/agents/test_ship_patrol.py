@@ -1,0 +1,117 @@
+"""The continuing ship task's agent (SPEC section 8): its task file's protocol in
+hours or control steps, the compiled loop against the Gymnasium environment, the
+comparison `hpg-mj train --json` prints, and the refusals."""
+import json
+
+import gymnasium
+import numpy as np
+import pytest
+
+from hpg_mj import agents, cli
+from hpg_mj.agents import ship_patrol
+from hpg_mj.agents.taskfile import TaskFileError
+from hpg_mj.render import video
+from hpg_mj.worlds import ship_core as core
+
+TASK = agents.shipped_tasks()["ship_patrol_average_reward"]
+
+
+def small_task(tmp_path, protocol="hours = 2", episodic_episodes=30, name="patrol.toml"):
+  text = TASK.read_text()
+  text = text.replace("hours = 2500", protocol)
+  text = text.replace("episodic_episodes = 0 ", f"episodic_episodes = {episodic_episodes} ")
+  text = text.replace("evaluation_hours = 100", "evaluation_hours = 1")
+  path = tmp_path / name
+  path.write_text(text)
+  return path
+
+
+def test_the_shipped_protocol_is_in_hours():
+  task = agents.load_task("ship_patrol_average_reward")
+  assert task.protocol.episodes == 2500                 # record rows of one hour each
+  assert task.control_steps == 2500 * core.HOUR_STEPS
+  assert agents.lookup("ship_patrol").record_steps == 6000
+
+
+@pytest.mark.parametrize("protocol,match", [
+    ("hours = 2\nepisodes = 2", r"exactly one of \['episodes', 'control_steps', 'hours'\]"),
+    ("control_steps = 9000", r"control_steps = 9000 must be a positive whole number of "
+                             r"record rows of 6000 control steps"),
+    ("hours = -1", "must be a positive whole number"),
+    ("hours = \"two\"", "hours must be a number"),
+    ("control_steps = 1.5", "control_steps must be an integer"),
+    ("", r"exactly one of .* got none"),
+])
+def test_bad_protocols_are_refused(tmp_path, protocol, match):
+  path = small_task(tmp_path, protocol)
+  with pytest.raises(TaskFileError, match=match):
+    agents.load_task(path)
+
+
+def test_an_episodic_agent_refuses_a_length_in_hours(tmp_path):
+  text = agents.shipped_tasks()["ship_hybrid"].read_text().replace("episodes = 50000",
+                                                                   "hours = 10")
+  (tmp_path / "h.toml").write_text(text)
+  with pytest.raises(TaskFileError, match="hours is for continuing agents; 'ship_hybrid' is "
+                                          "episodic: give \\[protocol\\] episodes"):
+    agents.load_task(tmp_path / "h.toml")
+
+
+def test_control_steps_give_the_same_rows_as_hours(tmp_path):
+  a = agents.load_task(small_task(tmp_path, "control_steps = 12000", name="a.toml"))
+  b = agents.load_task(small_task(tmp_path, "hours = 2", name="b.toml"))
+  assert a.protocol.episodes == b.protocol.episodes == 2
+  assert a.control_steps == b.control_steps == 12000
+
+
+def test_the_process_goes_on_between_training_calls(tmp_path):
+  agent = agents.build(agents.load_task(small_task(tmp_path)), seed=3)
+  first = agent.train(1)
+  assert first["steps"][0] >= 6000 and first["steps"][0] < 6000 + 300   # a call is not cut
+  where = agent.ship.copy()
+  again = agents.build(agents.load_task(small_task(tmp_path)), seed=3)
+  again.train(1)
+  np.testing.assert_array_equal(again.ship, where)     # seeded
+  second = agent.train(1)
+  assert not np.array_equal(agent.ship, where) and second["calls"][0] > 0
+  assert agent.metrics(np.concatenate([first, second]))["hours"] == pytest.approx(
+      (first["steps"][0] + second["steps"][0]) / 6000)
+
+
+def test_mujoco_is_refused_naming_the_allowed_backend(tmp_path):
+  agent = agents.build(agents.load_task(small_task(tmp_path)), seed=0)
+  with pytest.raises(ValueError, match=r"allowed backends: \['analytic'\]"):
+    agent.train(1, "mujoco")
+
+
+def test_the_compiled_helmsman_sails_as_the_gymnasium_patrol_does():
+  # One rule for both paths: the scripted figure-eight helmsman through
+  # hpg_mj/ShipPatrol-v0 (analytic) and in the compiled loop, from the same start.
+  start = np.array([620.0, 150.0, -30.0, 4.0])
+  env = gymnasium.make("hpg_mj/ShipPatrol-v0", backend="analytic", max_steps=3000).unwrapped
+  obs, _ = env.reset(options={"state": start})
+  pilot = video.ShipPilot("patrol")
+  gates = 0
+  for _ in range(3000):
+    obs, _, _, _, info = env.step(pilot(obs))
+    gates += info["event"] == "gate"
+  rows = np.zeros((1, ship_patrol.N_RECORD))
+  ship = start.copy()
+  ship_patrol.scripted(1, 3000, np.zeros(4, dtype=np.uint64), ship, 100.0, -100.0, rows)
+  assert rows[0, ship_patrol.GATES] == gates and gates >= 50        # half an hour
+  np.testing.assert_allclose(ship, obs, atol=1e-9)
+
+
+def test_train_needs_no_episodes_and_prints_the_comparison(tmp_path, capsys):
+  path = small_task(tmp_path)
+  assert cli.main(["train", str(path), "--seed", "5", "--json", "--quiet",
+                   "--out", str(tmp_path / "agent")]) == 0
+  metrics = json.loads(capsys.readouterr().out)
+  assert metrics["episodes"] == 2 and metrics["hours"] >= 2.0
+  for key in ("gates_per_hour", "greedy_gates_per_hour", "episodic_gates_per_hour",
+              "scripted_gates_per_hour"):
+    assert isinstance(metrics[key], float) and metrics[key] >= 0.0, key
+  assert metrics["scripted_gates_per_hour"] > 100.0
+  assert metrics["episodic_episodes"] == 30 and metrics["evaluation_hours"] == 1
+  agent, record, _ = agents.load(tmp_path / "agent")
+  assert len(record) == 2 and agent.started[0] == 1.0
