@@ -49,7 +49,7 @@ def test_every_cited_spec_section_exists():
 def test_every_deviation_the_readme_names_is_specified():
   spec = SPEC.read_text()
   declared = set(re.findall(r"^\| (D\d+) \|", spec, flags=re.M))
-  assert declared == {f"D{k}" for k in range(1, 7)}
+  assert declared == {f"D{k}" for k in range(1, len(declared) + 1)} and len(declared) >= 7
   readme = (REPO / "README.md").read_text()
   named = set(re.findall(r"\b(D\d)\b", readme))
   assert named == declared
