@@ -11,6 +11,9 @@ An experiment file (tasks/experiments/*.toml):
     episodes = 50000
     quick_runs = 2
     quick_episodes = 5000
+    first_seed = 100           # optional (default 0): runs are seeds first_seed,
+                               # first_seed + 1, ...; none may be a task's tuning seed
+    tuning = false             # optional: true allows tuning seeds (not for publication)
 
     [[figure]]                 # one table per figure; see tasks/experiments/*.toml
     name = "fig7"
@@ -28,7 +31,7 @@ An experiment file (tasks/experiments/*.toml):
     name = "fig12"
     kind = "trajectories"      # a trained hybrid's greedy episodes on the MuJoCo ship
     task = "ship_hybrid"
-    seed = 0                   # whose final agent
+    seed = 100                 # whose final agent (one of the experiment's seeds)
     starts = [[700.0, 700.0, 100.0, 3.65]]
     video = true
     title = "..."
@@ -65,6 +68,9 @@ from hpg_mj.agents import taskfile
 POSITIVE = ("int_min", 1)
 EXPERIMENT_SCHEMA = {"name": "str", "description": "str", "tasks": "str_list", "runs": POSITIVE,
                      "episodes": POSITIVE, "quick_runs": POSITIVE, "quick_episodes": POSITIVE}
+# first_seed: the runs' first seed; tuning = true: an experiment on tuning seeds
+# (for tuning or tests), whose reports say they are not for publication.
+EXPERIMENT_OPTIONAL = {"first_seed": ("int_min", 0), "tuning": "bool"}
 
 # [[figure]] tables (taskfile's types): every figure needs the common keys and
 # those of its kind; the optional ones may be left out.
@@ -117,10 +123,12 @@ def _check_figures(path, section, tasks, figures_):
       if tasks[names.index(fig["task"])].kind != "ship_hybrid":
         raise taskfile.TaskFileError(f"{path}: {where} draws a ship_hybrid's trajectories; "
                                      f"{fig['task']!r} is not one")
-      runs_ = min(section["runs"], section["quick_runs"])
-      if fig["seed"] >= runs_:
+      first = section.get("first_seed", 0)
+      last = first + min(section["runs"], section["quick_runs"]) - 1
+      if not first <= fig["seed"] <= last:
         raise taskfile.TaskFileError(f"{path}: {where} seed = {fig['seed']}, but the "
-                                     f"experiment has seeds 0..{runs_ - 1}")
+                                     f"experiment's runs (full and quick) have seeds "
+                                     f"{first}..{last}")
   return checked
 
 
@@ -142,8 +150,22 @@ def load_experiment(path):
   if "experiment" not in data or set(data) - {"experiment", "figure"}:
     raise taskfile.TaskFileError(f"{path}: needs one [experiment] section and [[figure]] "
                                  f"tables, got {sorted(data)}")
-  section = taskfile.check_table(path, "[experiment]", data["experiment"], EXPERIMENT_SCHEMA)
+  section = taskfile.check_table(path, "[experiment]", data["experiment"], EXPERIMENT_SCHEMA,
+                                 EXPERIMENT_OPTIONAL)
+  section.setdefault("first_seed", 0)
+  section.setdefault("tuning", False)
   tasks = [agents.load_task(t) for t in section["tasks"]]   # refused here, before any run
+  # SPEC section 7: published numbers never come from the seeds a task was tuned on.
+  first = section["first_seed"]
+  used = set(range(first, first + max(section["runs"], section["quick_runs"])))
+  for t in tasks:
+    tuned = sorted(used & set(t.tuning_seeds))
+    if tuned and not section["tuning"]:
+      raise taskfile.TaskFileError(
+          f"{path}: [experiment] runs seeds {first}..{max(used)}, but {t.path.name} was tuned "
+          f"on seeds {tuned} ([protocol] tuning_seeds); set first_seed past them (e.g. "
+          f"{max(t.tuning_seeds) + 1}) so that no reported run uses a tuning seed, or "
+          f"declare tuning = true (its reports are then marked not for publication)")
   worlds = sorted({t.section("environment")["world"] for t in tasks})
   if len(worlds) > 1:
     raise taskfile.TaskFileError(f"{path}: [experiment] tasks compare one world, ship or "
@@ -172,15 +194,21 @@ def folder(experiment, out, quick=False):
   return pathlib.Path(out) / (experiment["name"] + ("_quick" if quick else ""))
 
 
+def seeds(experiment, quick=False):
+  """The seeds of the experiment's runs: first_seed onwards, one per run."""
+  n_runs = experiment["quick_runs"] if quick else experiment["runs"]
+  first = experiment.get("first_seed", 0)
+  return list(range(first, first + n_runs))
+
+
 def jobs(experiment, out, quick=False):
   """The (task file, seed, episodes, run folder) of every run of the experiment."""
-  n_runs = experiment["quick_runs"] if quick else experiment["runs"]
   episodes = experiment["quick_episodes"] if quick else experiment["episodes"]
   root = folder(experiment, out, quick)
   # Seed by seed, so that the first runs the workers pick up are of different tasks
   # and compile (numba, cached for the later runs) different code at the same time.
   return [(str(task.path), seed, episodes, str(root / task.path.stem / f"seed{seed}"))
-          for seed in range(n_runs) for task in experiment["task_files"]]
+          for seed in seeds(experiment, quick) for task in experiment["task_files"]]
 
 
 class _Poller:
@@ -337,6 +365,9 @@ def run_experiment(experiment, out, quick=False, workers=None, progress=None, on
   return results, root, time.perf_counter() - start
 
 
-def load_records(root, task_name, runs):
-  return [np.load(pathlib.Path(root) / task_name / f"seed{seed}" / "record.npy",
-                  allow_pickle=False) for seed in range(runs)]
+def load_records(root, task_name, runs, name="record"):
+  """The stored records (`name`: "record", or "greedy" for the greedy episodes) of
+  a task's runs: `runs` is a list of seeds, or a count (seeds 0..runs-1)."""
+  runs = range(runs) if isinstance(runs, int) else runs
+  return [np.load(pathlib.Path(root) / task_name / f"seed{seed}" / f"{name}.npy",
+                  allow_pickle=False) for seed in runs]
