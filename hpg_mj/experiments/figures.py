@@ -138,8 +138,8 @@ def draw_curve(root, fig, tasks, records_by_task, optimal=None, protocol=None):
   if "paper_value" in fig:
     plt.axhline(fig["paper_value"], color="k", linestyle="--", linewidth=1,
                 label="paper (about)")
-  plt.title(fig["title"] + ("\n" + protocol_line(protocol) + "; " + BAND if protocol else ""),
-            fontsize=9)
+  plt.title(fig["title"] + ("\n" + protocol_line(protocol) + "\n" + BAND if protocol else ""),
+            fontsize=8)
   plt.xlabel("episodes" if fig["x"] == "episodes" else
              ("primitive steps" if world == "taxi" else "control steps"))
   plt.ylabel(fig["ylabel"])
@@ -220,8 +220,8 @@ def _ordering(fig, summary, labels, n_runs):
     paper = [t for t in fig["paper_order"] if t in cis]
     pairs = list(zip(paper, paper[1:]))
   else:
-    paper = [fig["paper_best"]]
-    pairs = [(fig["paper_best"], t) for t in order if t != fig["paper_best"]]
+    covered = fig.get("paper_tasks", order)
+    pairs = [(fig["paper_best"], t) for t in order if t != fig["paper_best"] and t in covered]
   verdicts = []
   for a, b in pairs:
     ahead = cis[a]["mean"] < cis[b]["mean"] if lower else cis[a]["mean"] > cis[b]["mean"]
@@ -237,10 +237,14 @@ def _ordering(fig, summary, labels, n_runs):
       "; ".join(f"{labels[a]} ahead of {labels[b]}: {v}" for a, b, v in verdicts) + "."
   if held:
     text += " The paper's ordering holds."
+  elif any(v.startswith("reversed") for _, _, v in verdicts):
+    text += " The paper's ordering does **not** hold here: " + "; ".join(
+        f"{labels[b]} is ahead of {labels[a]}" for a, b, v in verdicts
+        if v.startswith("reversed")) + ", with separate 95% intervals."
   else:
-    text += " The paper's ordering is **not** established here: where the intervals " \
-            "overlap the learners are not distinguishable, and a reversal is ours, not " \
-            "the paper's."
+    text += " The paper's ordering is **not** established here: " + "; ".join(
+        f"{labels[a]} and {labels[b]} are not distinguishable" for a, b, v in verdicts
+        if v.startswith("not")) + "."
   never = {t: int(np.isnan(values[t]).sum()) for t in values}
   if fig.get("reference") == "optimal" and any(never.values()):
     text += " Runs that never reached 95%: " + ", ".join(
@@ -309,7 +313,7 @@ def write_report(root, experiment, results, drawn, protocol=None):
                      f"{'passed' if s['passed'] else 'missed'} the gate in {s['steps']} "
                      f"control steps, {s['calls']} calls ({' '.join(s['decisions'])})")
       continue
-    ours = ", ".join(f"{v['label']} {stats.format_summary(stats.summary(v['final']), 3)}"
+    ours = ", ".join(f"{v['label']} {stats.format_summary(stats.summary(v['final']))}"
                      for v in summary.values())
     line = head + f" Ours (last block of 1,000 episodes): {ours}."
     if fig["metric"] == "steps_to_gate":
@@ -324,6 +328,11 @@ def write_report(root, experiment, results, drawn, protocol=None):
                  f"({', '.join(off)}); see the README, 'Results'.")
     if "paper_order" in fig or "paper_best" in fig:
       line += _ordering(fig, summary, labels, n_runs)
+      extra = [t for t in summary if t not in fig.get("paper_order", fig.get("paper_tasks",
+                                                                              summary))]
+      if extra:
+        line += " (" + ", ".join(labels[t] for t in extra) + ": an extra curve, not in the " \
+                "paper's comparison.)"
     lines.append(line)
   lines += _provenance_lines(results)
   (root / "REPORT.md").write_text("\n".join(lines) + "\n")

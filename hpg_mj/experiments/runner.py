@@ -24,7 +24,8 @@ An experiment file (tasks/experiments/*.toml):
     ylabel = "gate passes"
     paper = "the hybrid ahead of both flat learners"   # what the paper states
     paper_order = ["ship_hybrid", "ship_flat_pg"]      # optional: the paper's ranking,
-    # or paper_best = "ship_hybrid" (its best only); better = "higher" or "lower"
+    # or paper_best = "ship_hybrid" (its best only; paper_tasks = [...] the learners
+    # the paper's statement covers, default all); better = "higher" or "lower"
     # optional: paper_value = 4.0 (drawn in), reference = "optimal" (taxi: the exact optimum)
 
     [[figure]]
@@ -78,7 +79,7 @@ FIGURE_COMMON = {"name": "str", "kind": "str", "title": "str", "paper": "str"}
 FIGURE_KINDS = {
     "curve": ({"metric": "str", "x": "str", "ylabel": "str"},
               {"paper_value": "float", "paper_order": "str_list", "paper_best": "str",
-               "better": "str", "reference": "str"}),
+               "paper_tasks": "str_list", "better": "str", "reference": "str"}),
     "trajectories": ({"task": "str", "seed": ("int_min", 0),
                       "starts": ("float_lists", 4, "[x, y, heading in degrees, turning rate "
                                                    "in deg/s]"),
@@ -110,7 +111,8 @@ def _check_figures(path, section, tasks, figures_):
     if fig["name"] in seen:
       raise taskfile.TaskFileError(f"{path}: {where} is named twice")
     seen.add(fig["name"])
-    named = fig.get("paper_order", []) + [fig[k] for k in ("task", "paper_best") if k in fig]
+    named = fig.get("paper_order", []) + fig.get("paper_tasks", []) + [
+        fig[k] for k in ("task", "paper_best") if k in fig]
     for task in named:
       if task not in names:
         raise taskfile.TaskFileError(f"{path}: {where} names task {task!r}, which is not in "

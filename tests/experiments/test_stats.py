@@ -92,9 +92,12 @@ def test_ordering_is_the_papers_only_where_intervals_separate():
   close = {"a": {"final": np.array([10.0, 12.0, 8.0, 11.0])},
            "b": {"final": np.array([9.0, 11.0, 7.0, 12.0])}}
   text = figures._ordering(fig, close, labels, 4)
-  assert "not distinguishable" in text and "**not** established" in text
+  assert "not distinguishable (95% intervals overlap)" in text
+  assert "**not** established here: A and B are not distinguishable." in text
   reversed_ = {"a": apart["b"], "b": apart["a"]}
-  assert "reversed (intervals separate)" in figures._ordering(fig, reversed_, labels, 4)
+  text = figures._ordering(fig, reversed_, labels, 4)
+  assert "A ahead of B: reversed (intervals separate)" in text
+  assert "does **not** hold here: B is ahead of A, with separate 95% intervals." in text
 
 
 def test_evaluate_json_reports_j_on_the_fixed_starts(tmp_path, capsys):
