@@ -120,7 +120,7 @@ def draw_curve(root, fig, tasks, records_by_task, optimal=None, protocol=None):
       entry["passed"] = passed[:, -1]
       columns.append(passed.mean(axis=0))
       header.append(f"{name}_fraction_passed")
-      label += f" ({100 * passed[:, -1].mean():.1f}% of episodes passed)"
+      label += f" (last block: {100 * passed[:, -1].mean():.1f}% of episodes passed)"
     line, = plt.plot(x, mean, label=label)
     plt.fill_between(x, low, high, alpha=0.2, color=line.get_color(), linewidth=0)
     if fig.get("reference") == "optimal":

@@ -17,7 +17,7 @@ An experiment file (tasks/experiments/*.toml):
 
     [[figure]]                 # one table per figure; see tasks/experiments/*.toml
     name = "fig7"
-    kind = "curve"             # a metric per 1,000 episodes, mean over runs, min-max band
+    kind = "curve"             # a metric per 1,000 episodes, mean over runs, 95% bootstrap band
     metric = "gate_passes"     # figures.METRICS
     x = "episodes"             # or "steps" (primitive or control steps)
     title = "Gate passes per 1,000 episodes"
