@@ -131,9 +131,9 @@ def _cmd_bench(args):
   return 0
 
 
-# (what, shipped experiments, --quick, the issue's limit in seconds)
+# (what, shipped experiments, --quick, the limit in seconds: issue 10, 20 runs per learner)
 EXPERIMENT_BENCHES = (("Figure 6, full protocol", ("fig6",), False, 60),
-                      ("Figures 7-11, full protocol", ("fig7_11",), False, 300),
+                      ("Figures 7-11, full protocol", ("fig7_11",), False, 360),
                       ("reproduce all --quick", ("fig6", "fig7_11", "fig12"), True, 120))
 
 
@@ -264,16 +264,57 @@ def _cmd_evaluate(args):
 
   from hpg_mj import agents
   agent, _, meta = agents.load(args.agent_dir)
-  if args.seed is not None:
-    agent.set_seed(args.seed)
   backend = args.backend or agent.backend
   start = time.perf_counter()
-  record = agent.evaluate(args.episodes, backend, policy=args.policy)
+  if args.seed is None:      # SPEC section 7: the fixed seeded start set of every report
+    record = agent.evaluate_fixed(args.episodes, backend, policy=args.policy)
+    starts = f"fixed set (start i from seed {agents.base.GREEDY_SEED} + i)"
+  else:
+    agent.set_seed(args.seed)
+    record = agent.evaluate(args.episodes, backend, policy=args.policy)
+    starts = f"drawn from seed {args.seed}"
   metrics = agent.metrics(record)
   metrics.update({"agent_dir": str(args.agent_dir), "episodes": args.episodes,
-                  "backend": backend, "policy": args.policy,
+                  "backend": backend, "policy": args.policy, "starts": starts,
                   "wall_seconds": round(time.perf_counter() - start, 3)})
   _print_metrics(metrics, args.json)
+  return 0
+
+
+def _cmd_tune(args):
+  """`hpg-mj tune TASK ...`: every task's [tuning] grid with one budget (SPEC section 7)."""
+  import json
+
+  from hpg_mj import agents
+  from hpg_mj.experiments import tuning
+  tasks = [agents.load_task(t) for t in args.task_files]      # refused before any run
+  seeds = None
+  if args.seeds is not None:
+    try:
+      seeds = [int(v) for v in args.seeds.split(",")]
+    except ValueError:
+      raise ValueError(f"--seeds {args.seeds!r}: a comma-separated list of integers, e.g. "
+                       f"0,1,2") from None
+  out = []
+  for task in tasks:
+    tuning.grid(task)                                          # every task has a grid
+  for task in tasks:
+    def progress(k, changes, seed, value, seconds, name=task.path.stem):
+      if not args.quiet:
+        print(f"{name} #{k + 1} ({tuning.describe(changes)}) seed {seed}: {value:.6g} "
+              f"({seconds:.1f} s)", file=sys.stderr, flush=True)
+    result = tuning.tune(task, budget=args.budget, episodes=args.episodes, seeds=seeds,
+                         progress=progress)
+    out.append(result)
+    print(f"{task.name} ({task.path.stem}): {len(result['results'])} configurations x "
+          f"{len(result['seeds'])} seeds x {result['episodes']:,} episodes, score "
+          f"{result['score']} ({result['better']} is better)")
+    for r in result["results"]:
+      mark = "  best" if r["changes"] == result["best"] else ""
+      print(f"  {tuning.describe(r['changes'])}: mean {r['mean']:.6g}{mark}")
+  if args.json:
+    import pathlib
+    pathlib.Path(args.json).write_text(json.dumps(out, indent=2) + "\n")
   return 0
 
 
@@ -322,14 +363,16 @@ def _cmd_run(args):
 def _draw_and_report(args, experiment, results, root, wall, new_runs):
   from hpg_mj import agents
   from hpg_mj.experiments import figures, runner
-  n_runs = experiment["quick_runs"] if args.quick else experiment["runs"]
-  records = {task: runner.load_records(root, task, n_runs) for task in results}
+  seeds = runner.seeds(experiment, args.quick)
+  records = {task: runner.load_records(root, task, seeds) for task in results}
+  protocol = {"seeds": seeds, "quick": args.quick,
+              "episodes": experiment["quick_episodes"] if args.quick else experiment["episodes"]}
   optimal = next(iter(results.values()))[0].get("optimal_mean_return")
   drawn = {}
   for fig in experiment["figures"]:
     if fig["kind"] == "curve":
       drawn[fig["name"]] = figures.draw_curve(root, fig, experiment["task_files"], records,
-                                              optimal)
+                                              optimal, protocol)
       continue
     agent, _, _ = agents.load(root / fig["task"] / f"seed{fig['seed']}" / "agent")
     drawn[fig["name"]] = figures.draw_trajectories(root, fig, agent)
@@ -337,7 +380,7 @@ def _draw_and_report(args, experiment, results, root, wall, new_runs):
       print(f"{fig['name']}: from {tuple(s['start'])}: "
             f"{'passed' if s['passed'] else 'missed'} the gate in {s['steps']} control "
             f"steps, {s['calls']} calls ({' '.join(s['decisions'])})")
-  figures.write_report(root, experiment, results, drawn)
+  figures.write_report(root, experiment, results, drawn, protocol)
   print(f"{experiment['name']}: {sum(len(r) for r in results.values())} runs "
         f"({new_runs} new, {wall:.1f} s); {', '.join(drawn)} and REPORT.md in {root}")
   return 0
@@ -500,6 +543,19 @@ def build_parser():
   _add_run_options(p)
   p.set_defaults(func=_cmd_run)
 
+  p = sub.add_parser("tune", help="tune task files over their [tuning] grids, the same "
+                     "budget for each, on their tuning seeds")
+  p.add_argument("task_files", nargs="+", help="task files, or shipped names")
+  p.add_argument("--budget", type=_at_least(1), default=None,
+                 help="configurations per task (default: each file's [tuning] budget)")
+  p.add_argument("--episodes", type=_at_least(1), default=None,
+                 help="episodes per run (default: each file's [tuning] episodes)")
+  p.add_argument("--seeds", default=None,
+                 help="comma-separated tuning seeds (default: each file's tuning_seeds)")
+  p.add_argument("--json", default=None, help="write the results to this JSON file")
+  p.add_argument("--quiet", action="store_true", help="no line per run on stderr")
+  p.set_defaults(func=_cmd_tune)
+
   p = sub.add_parser("reproduce", help="the paper's figures from the shipped experiments")
   p.add_argument("figure", nargs="?", default="all",
                  help="all, fig6, fig7, ..., fig12, or beyond (SPEC section 8)")
@@ -509,7 +565,9 @@ def build_parser():
   p = sub.add_parser("evaluate", help="run a saved agent without learning")
   p.add_argument("agent_dir")
   p.add_argument("--episodes", type=_at_least(1), default=1000)
-  p.add_argument("--seed", type=_at_least(0), default=None)
+  p.add_argument("--seed", type=_at_least(0), default=None,
+                 help="draw the starts from this seed (default: the fixed seeded start set "
+                      "of the reports, SPEC section 7)")
   p.add_argument("--backend", choices=["analytic", "mujoco"], default=None)
   p.add_argument("--policy", choices=["greedy", "sampled"], default="greedy")
   p.add_argument("--json", action="store_true")

@@ -22,6 +22,7 @@ runs = 2
 episodes = 1000
 quick_runs = 1
 quick_episodes = 1000
+tuning = true     # the machinery under test, on tuning seeds
 
 [[figure]]
 name = "curve"

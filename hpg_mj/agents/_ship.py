@@ -14,6 +14,53 @@ from hpg_mj.learners import rng
 
 METRIC_WINDOW = 1000   # online metrics are over the last 1,000 episodes
 
+# SPEC section 7: J, the discounted return under MushroomRL's ShipSteering rewards,
+# so that our ships compare with MushroomRL-based results.
+J_GAMMA = 0.99
+J_STEP_REWARD = -1.0          # every control step that neither passes nor leaves
+J_GATE_REWARD = 0.0           # the step that passes the gate
+J_OUT_OF_BOUNDS_REWARD = -100.0   # the step that leaves the field
+# Published J on the 1,000 m task (Tateo and Erdenlig's hierarchical experiments,
+# MushroomRL), set beside ours in the reports.
+PUBLISHED_J = {"Ghavamzadeh-style hybrid (Tateo and Erdenlig)": -92.7,
+               "best hierarchy (Tateo and Erdenlig)": -87.3}
+
+
+def mushroom_j(record, max_steps, out_of_bounds_reward, gamma=J_GAMMA):
+  """Per episode of a ship record (fields passed, steps, return), its discounted
+  return under MushroomRL's rewards: the -1s of all steps but the last, then 0 if
+  it passed the gate, -100 if it left the field, -1 if it was truncated.
+
+  An episode that neither passed nor ran to `max_steps` left the field; one that
+  stopped at `max_steps` left it only if its return holds the task's
+  `out_of_bounds_reward` (the full task's return is -steps, plus that or the gate's
+  reward on the last step)."""
+  steps = np.asarray(record["steps"], dtype=np.float64)
+  passed = np.asarray(record["passed"]) > 0
+  ret = np.asarray(record["return"], dtype=np.float64)
+  if np.any(steps < 1):
+    raise ValueError(f"a ship episode has at least one control step; got {steps.min()}")
+  left = ~passed & ((steps < max_steps) | (
+      (out_of_bounds_reward != 0.0) & np.isclose(ret + steps, out_of_bounds_reward)))
+  last = np.where(passed, J_GATE_REWARD, np.where(left, J_OUT_OF_BOUNDS_REWARD, J_STEP_REWARD))
+  discount = gamma ** (steps - 1.0)
+  return J_STEP_REWARD * (1.0 - discount) / (1.0 - gamma) + discount * last
+
+
+def straight_line_j(starts=100_000, seed=0, gamma=J_GAMMA):
+  """The straight-line bound on J over uniform starts (SPEC section 7): a ship that
+  sails straight at the gate from any start, without turning, crosses it on the
+  control step ceil(distance / (V * 0.6 s)); the mean of that episode's J."""
+  rng_ = np.random.default_rng(seed)
+  p = rng_.uniform(0.0, core.FIELD_SIZE, (starts, 2))
+  a, b = core.GATE
+  t = np.clip((p - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0)
+  distance = np.linalg.norm(p - (a + t[:, None] * (b - a)), axis=1)
+  steps = np.maximum(np.ceil(distance / (core.SPEED * core.CONTROL_INTERVAL)), 1.0)
+  discount = gamma ** (steps - 1.0)
+  return float(np.mean(J_STEP_REWARD * (1.0 - discount) / (1.0 - gamma)
+                       + discount * J_GATE_REWARD))
+
 
 @dataclasses.dataclass(frozen=True)
 class ShipEnvironment(taskfile.Section):
@@ -71,6 +118,11 @@ class ShipAgent(base.Agent):
     row[self.record_fields.index("steps")] = steps
     row[self.record_fields.index("return")] = total
 
+  def j(self, record):
+    """Each episode's J under MushroomRL's rewards (`mushroom_j`)."""
+    env = self.config.environment
+    return mushroom_j(record, env.max_steps, env.out_of_bounds_reward)
+
   def metrics(self, record):
     w = record[-METRIC_WINDOW:]
     passed = w["passed"] > 0
@@ -79,5 +131,6 @@ class ShipAgent(base.Agent):
         "gate_pass_rate": float(passed.mean()) if len(w) else None,
         "steps_to_gate": float(w["steps"][passed].mean()) if passed.any() else None,
         "mean_return": float(w["return"].mean()) if len(w) else None,
+        "J": float(self.j(w).mean()) if len(w) else None,
         "control_steps": int(record["steps"].sum()),
     }

@@ -46,6 +46,17 @@ from hpg_mj.learners import rng
 BACKENDS = ("analytic", "mujoco")
 POLICIES = ("greedy", "sampled")
 
+# SPEC section 7's greedy measure: a fixed seeded set of starts, the same for every
+# agent of a world and every run. Start i is the first start drawn by the agent's
+# generator restarted from GREEDY_SEED + i (far from any training or tuning seed).
+GREEDY_STARTS = 1000
+GREEDY_SEED = 1_000_000
+
+
+def _check_count(name, value):
+  if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+    raise ValueError(f"{name} must be a non-negative integer, got {value!r}")
+
 
 class Agent:
   """Base class of every agent (see the module docstring)."""
@@ -134,6 +145,48 @@ class Agent:
     if policy not in POLICIES:
       raise ValueError(f"policy {policy!r} is not known; allowed: {list(POLICIES)}")
     return self.run(episodes, backend, learn=False, sample=policy == "sampled")
+
+  def evaluate_fixed(self, episodes=GREEDY_STARTS, backend=None, policy="greedy",
+                     seed=GREEDY_SEED):
+    """`evaluate` on the fixed seeded start set (SPEC section 7): episode i runs
+    with the generator restarted from `seed + i`, so it starts at
+    `fixed_starts(...)[i]` whatever the agent (and draws its ties, if any, from
+    that generator too). The agent's own generator is left as it was."""
+    if policy not in POLICIES:
+      raise ValueError(f"policy {policy!r} is not known; allowed: {list(POLICIES)}")
+    backend = backend or self.backend
+    if backend not in BACKENDS:
+      raise ValueError(f"unknown backend {backend!r}; valid backends: {list(BACKENDS)}")
+    _check_count("episodes", episodes)
+    _check_count("seed", seed)
+    saved = self.rng_state.copy()
+    env = None if backend == "analytic" and self.compiled is not None else \
+        self.stepwise_env(backend)
+    rows = []
+    try:
+      for i in range(int(episodes)):
+        self.set_seed(int(seed) + i)
+        if env is None:
+          rows.append(self.evaluate(1, backend, policy))
+        else:
+          rows.append(self.run_stepwise(env, 1, learn=False, sample=policy == "sampled"))
+    finally:
+      self.rng_state[:] = saved
+    return np.concatenate(rows) if rows else self.empty_record()
+
+  def fixed_starts(self, episodes=GREEDY_STARTS, seed=GREEDY_SEED):
+    """The starts of `evaluate_fixed` (rows), for checking that they are fixed."""
+    _check_count("episodes", episodes)
+    _check_count("seed", seed)
+    saved = self.rng_state.copy()
+    try:
+      starts = []
+      for i in range(int(episodes)):
+        self.set_seed(int(seed) + i)
+        starts.append(np.array(self.start_state(), dtype=np.float64))
+    finally:
+      self.rng_state[:] = saved
+    return np.array(starts)
 
   def run(self, episodes, backend=None, learn=True, sample=None):
     """Episodes on a backend: "analytic" (the compiled loop, or the step-by-step

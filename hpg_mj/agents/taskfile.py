@@ -269,6 +269,10 @@ def _protocol_length(path, table, agent_class):
   table["episodes"] = int(rows)
   return int(steps)
 
+# [task] label: the learner's name in figures and reports (the paper's, e.g.
+# "Hierarchical hybrid"); without it the file's name is shown.
+TASK_OPTIONAL = {"label": "str"}
+
 
 @dataclasses.dataclass
 class TaskFile:
@@ -282,6 +286,13 @@ class TaskFile:
   tuning_seeds: tuple
   text: str
   control_steps: int = None     # a continuing agent's training length, as given
+  label: str = None
+  tuning: dict = None      # [tuning], checked (`check_tuning`), or None
+
+  @property
+  def name(self):
+    """The name shown in figures and reports: [task] label, else the file's name."""
+    return self.label or self.path.stem
 
   def section(self, name):
     """A section's values as a dict (`protocol` included, with its tuning seeds)."""
@@ -318,6 +329,8 @@ def loads(text, path, registry):
     raise TaskFileError(f"{path}: [task] kind = {kind!r} is not allowed; allowed: "
                         f"{registry.names()}")
   agent_class = registry.lookup(kind)
+  data = dict(data)
+  tuning_table = data.pop("tuning", None)
   schema = {"task": section_schema(Task), **config_schema(agent_class.Config),
             "protocol": section_schema(Protocol)}
   unknown_sections = set(data) - set(schema)
@@ -328,6 +341,9 @@ def loads(text, path, registry):
     if not isinstance(data.get(section), dict):
       raise TaskFileError(f"{path}: section [{section}] is missing; it needs the keys "
                           f"{sorted(keys)}")
+  task = dict(task)
+  label = check_table(path, "[task]", {k: task.pop(k) for k in TASK_OPTIONAL if k in task},
+                      {}, TASK_OPTIONAL).get("label")
   head = build_section(path, "task", Task, task)
   proto_table = dict(data["protocol"])
   tuning = check_table(path, "[protocol]", {k: proto_table.pop(k) for k in PROTOCOL_OPTIONAL
@@ -343,8 +359,57 @@ def loads(text, path, registry):
     config = agent_class.Config(**sections)
   except (TypeError, ValueError) as err:
     raise TaskFileError(f"{path}: {err}") from None
+  tuning_section = None if tuning_table is None else check_tuning(path, tuning_table,
+                                                                  agent_class.Config)
   return TaskFile(path, kind, head.description, config, protocol, tuple(tuning), text,
-                  control_steps)
+                  control_steps, label, tuning_section)
+
+
+# [tuning]: what a task file's hyper-parameters were tuned over, by `hpg-mj tune`
+# (SPEC section 7: every learner of a figure gets the same budget, on the tuning
+# seeds). Its [tuning.grid] names each tuned key by its section, e.g.
+# `root.alpha = [0.1, 0.3]`; `result` says what the last tuning found.
+TUNING_REQUIRED = {"score": "str", "better": ("choice", ("higher", "lower")),
+                   "episodes": ("int_min", 1), "budget": ("int_min", 1)}
+TUNING_OPTIONAL = {"result": "str"}
+
+
+def check_tuning(path, table, config_class):
+  """[tuning] of a task file: its keys, and a grid of lists of allowed values of
+  the configuration's own keys."""
+  if not isinstance(table, dict):
+    raise TaskFileError(f"{path}: [tuning] must be a table, got {table!r}")
+  table = dict(table)
+  grid = table.pop("grid", None)
+  values = check_table(path, "[tuning]", table, TUNING_REQUIRED, TUNING_OPTIONAL)
+  sections = {f.name: (f.type if isinstance(f.type, type) else f.default_factory)
+              for f in dataclasses.fields(config_class)}
+  if not isinstance(grid, dict) or not grid:
+    raise TaskFileError(f"{path}: [tuning.grid] is missing; it lists the values tried per "
+                        f"key, e.g. root.alpha = [0.1, 0.3], of the sections {sorted(sections)}")
+  checked = {}
+  for section, keys in grid.items():
+    if section not in sections or not isinstance(keys, dict):
+      raise TaskFileError(f"{path}: [tuning.grid] {section!r} is not a section of this task; "
+                          f"allowed: {sorted(sections)}")
+    fields = {f.name: f for f in dataclasses.fields(sections[section])}
+    for key, options in keys.items():
+      where = f"[tuning.grid] {section}.{key}"
+      if key not in fields:
+        raise TaskFileError(f"{path}: {where} is not a key of [{section}]; allowed: "
+                            f"{sorted(fields)}")
+      if not isinstance(options, list) or not options:
+        raise TaskFileError(f"{path}: {where} must be a non-empty list of values, got "
+                            f"{options!r}")
+      kind = _field_kind(fields[key])
+      converted = []
+      for v in options:
+        v = _check(path, where, "", v, kind)
+        check_range(str(path), section, fields[key], v)
+        converted.append(v)
+      checked.setdefault(section, {})[key] = converted
+  values["grid"] = checked
+  return values
 
 
 def _describe(kind):

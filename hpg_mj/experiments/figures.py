@@ -2,9 +2,11 @@
 run records, and a REPORT.md that sets our numbers beside the paper's statements.
 
 A "curve" figure plots one metric per block of 1,000 episodes (`METRICS`) against
-episodes or against primitive/control steps: the mean over runs, with a band from
-the lowest to the highest run, the paper's stated value drawn in when the file
-gives one, and the data beside the PNG as CSV. A "trajectories" figure (Figure
+episodes or against primitive/control steps: the mean over runs, with its 95%
+bootstrap confidence band (`hpg_mj.experiments.stats`), the paper's stated value
+drawn in when the file gives one, and the data beside the PNG as CSV; its title
+says the runs x episodes, the seeds, what the band is, and a quick protocol says
+it is quick. The legend names the learners as the paper does ([task] label). A "trajectories" figure (Figure
 12) sails a run's final agent from given starts on the MuJoCo ship
 (`experiments.fig12`).
 
@@ -69,16 +71,33 @@ def check_curve(fig, tasks):
   return None
 
 
-def draw_curve(root, fig, tasks, records_by_task, optimal=None):
-  """Writes <name>.png and <name>.csv; returns {task: (final block mean, steps to
-  95% of the optimum or None, runs reaching it)}."""
+def protocol_line(protocol):
+  """'20 runs x 50,000 episodes (seeds 100-119)', and ', QUICK protocol' for --quick."""
+  if not protocol:
+    return ""
+  seeds = protocol["seeds"]
+  text = (f"{len(seeds)} runs x {protocol['episodes']:,} episodes (seeds {seeds[0]}-"
+          f"{seeds[-1]})")
+  return text + (", QUICK protocol (not the paper's)" if protocol.get("quick") else "")
+
+
+BAND = "band: 95% bootstrap CI of the mean over runs"
+
+
+def draw_curve(root, fig, tasks, records_by_task, optimal=None, protocol=None):
+  """Writes <name>.png and <name>.csv; returns {task stem: {"label", "final" (each
+  run's last block), "reached" (each run's primitive steps to 95% of the optimum,
+  NaN if never), "passed" (each run's fraction of its last block's episodes that
+  passed the gate, for steps_to_gate)}}. The curve is the mean over runs, the band
+  its 95% bootstrap confidence interval (`stats.band`)."""
   import matplotlib
   matplotlib.use("Agg")
   import matplotlib.pyplot as plt
+  from hpg_mj.experiments import stats
   from hpg_mj.worlds import taxi_values
   root = pathlib.Path(root)
   world = tasks[0].section("environment")["world"]
-  plt.figure(figsize=(6.4, 4.0))
+  plt.figure(figsize=(6.4, 4.4))
   columns, header, summary = [], [], {}
   for task in tasks:
     if not _has(task, fig["metric"]):
@@ -90,32 +109,41 @@ def draw_curve(root, fig, tasks, records_by_task, optimal=None):
       x = np.mean([np.cumsum(r["steps"])[BLOCK - 1::BLOCK][:data.shape[1]] for r in records], axis=0)
     else:
       x = (np.arange(data.shape[1]) + 1.0) * BLOCK
-    mean = np.nanmean(data, axis=0)
-    low, high = np.nanmin(data, axis=0), np.nanmax(data, axis=0)
-    plt.plot(x, mean, label=name)
-    plt.fill_between(x, low, high, alpha=0.2)
+    mean, low, high = stats.band(data)
+    label = task.name
+    entry = {"label": label, "final": data[:, -1]}
     columns += [x, mean, low, high]
-    header += [f"{name}_x", f"{name}_mean", f"{name}_min", f"{name}_max"]
-    reached = []
+    header += [f"{name}_x", f"{name}_mean", f"{name}_ci_low", f"{name}_ci_high"]
+    if fig["metric"] == "steps_to_gate":
+      # The mean is over the episodes that passed: say how many those were.
+      passed = np.array([_blocks(r["passed"]) for r in records])
+      entry["passed"] = passed[:, -1]
+      columns.append(passed.mean(axis=0))
+      header.append(f"{name}_fraction_passed")
+      label += f" (last block: {100 * passed[:, -1].mean():.1f}% of episodes passed)"
+    line, = plt.plot(x, mean, label=label)
+    plt.fill_between(x, low, high, alpha=0.2, color=line.get_color(), linewidth=0)
     if fig.get("reference") == "optimal":
       threshold = taxi_values.performance_threshold(optimal, 0.95)
+      reached = []
       for r in records:
         trailing = np.convolve(r["return"], np.ones(BLOCK) / BLOCK, mode="valid")
         hit = np.nonzero(trailing >= threshold)[0]
         reached.append(np.cumsum(r["steps"])[hit[0] + BLOCK - 1] if len(hit) else np.nan)
-    hits = [v for v in reached if not np.isnan(v)]
-    summary[name] = (float(mean[-1]), float(np.mean(hits)) if hits else None, len(hits))
+      entry["reached"] = np.array(reached, dtype=np.float64)
+    summary[name] = entry
   if fig.get("reference") == "optimal":
     plt.axhline(optimal, color="k", linestyle="--", linewidth=1, label="optimal (exact)")
     plt.ylim(max(-60.0, plt.ylim()[0]), optimal + 3)
   if "paper_value" in fig:
     plt.axhline(fig["paper_value"], color="k", linestyle="--", linewidth=1,
                 label="paper (about)")
-  plt.title(fig["title"])
+  plt.title(fig["title"] + ("\n" + protocol_line(protocol) + "\n" + BAND if protocol else ""),
+            fontsize=8)
   plt.xlabel("episodes" if fig["x"] == "episodes" else
              ("primitive steps" if world == "taxi" else "control steps"))
   plt.ylabel(fig["ylabel"])
-  plt.legend(fontsize=8)
+  plt.legend(fontsize=7)
   plt.tight_layout()
   plt.savefig(root / f"{fig['name']}.png", dpi=100)
   plt.close()
@@ -138,39 +166,140 @@ def draw_trajectories(root, fig, agent):
   return summary
 
 
-_SHIP_COLUMNS = ("gate_pass_rate", "steps_to_gate", "calls_per_episode",
-                 "diagonal_success_rate", "straight_success_rate")
+# (metrics.json key, what the report calls it, digits); "greedy." reads the greedy
+# evaluation on the fixed starts (SPEC section 7).
+_SHIP_ROWS = (("gate_pass_rate", "gate pass rate, online", 3),
+              ("steps_to_gate", "control steps to the gate, online", 1),
+              ("J", "J (MushroomRL rewards), online", 1),
+              ("greedy.gate_pass_rate", "gate pass rate, greedy", 3),
+              ("greedy.steps_to_gate", "control steps to the gate, greedy", 1),
+              ("greedy.J", "J (MushroomRL rewards), greedy", 1),
+              ("calls_per_episode", "low-level calls per episode, online", 2),
+              ("diagonal_success_rate", "diagonal subtask success, online", 3),
+              ("straight_success_rate", "straight subtask success, online", 3))
+_TAXI_ROWS = (("mean_return", "mean return, online", 3),
+              ("greedy.mean_return", "mean return, greedy", 3))
 
 
-def _mean(runs, key):
-  values = [r.get(key) for r in runs if r.get(key) is not None]
-  return float(np.mean(values)) if values else None
+def _value(run, key):
+  for part in key.split("."):
+    run = run.get(part) if isinstance(run, dict) else None
+  return np.nan if run is None else float(run)
 
 
-def write_report(root, experiment, results, drawn):
-  """REPORT.md: the final metrics, then per figure what the paper states beside
-  what we measure. `drawn`: {figure name: draw_curve's or draw_trajectories' summary}."""
+def _table(experiment, results, rows):
+  from hpg_mj.experiments import stats
+  tasks = [t for t in experiment["task_files"] if t.path.stem in results]
+  lines = ["| measure | " + " | ".join(t.name for t in tasks) + " |",
+           "|---" * (len(tasks) + 1) + "|"]
+  for key, what, digits in rows:
+    cells = [stats.summary([_value(m, key) for m in results[t.path.stem]]) for t in tasks]
+    if all(c["n"] == 0 for c in cells):
+      continue
+    lines.append(f"| {what} | " + " | ".join(stats.format_summary(c, digits) for c in cells)
+                 + " |")
+  return lines
+
+
+def _ordering(fig, summary, labels, n_runs):
+  """What the report says about a figure's ordering: ours by the mean, and the
+  paper's only where the 95% intervals of neighbours in the paper's order separate."""
+  from hpg_mj.experiments import stats
+  if fig.get("reference") == "optimal":
+    values = {t: v["reached"] for t, v in summary.items()}
+    lower, how = True, "primitive steps to 95% of the optimum, fewest first"
+  else:
+    values = {t: v["final"] for t, v in summary.items()}
+    lower = fig.get("better", "higher") == "lower"
+    how = "the last block, " + ("lowest first" if lower else "highest first")
+  cis = {t: stats.summary(v) for t, v in values.items()}
+  order = sorted(cis, key=lambda t: (np.isnan(cis[t]["mean"]),
+                                     cis[t]["mean"] if lower else -cis[t]["mean"]))
+  text = f" Ours ({how}): " + ", ".join(labels[t] for t in order) + "."
+  if "paper_order" in fig:
+    paper = [t for t in fig["paper_order"] if t in cis]
+    pairs = list(zip(paper, paper[1:]))
+  else:
+    covered = fig.get("paper_tasks", order)
+    pairs = [(fig["paper_best"], t) for t in order if t != fig["paper_best"] and t in covered]
+  verdicts = []
+  for a, b in pairs:
+    ahead = cis[a]["mean"] < cis[b]["mean"] if lower else cis[a]["mean"] > cis[b]["mean"]
+    if not stats.separated(cis[a], cis[b]):
+      verdict = "not distinguishable (95% intervals overlap)"
+    elif ahead:
+      verdict = "as the paper (intervals separate)"
+    else:
+      verdict = "reversed (intervals separate)"
+    verdicts.append((a, b, verdict))
+  held = all(v == "as the paper (intervals separate)" for _, _, v in verdicts)
+  text += " Against the paper's " + ("order" if "paper_order" in fig else "best") + ": " + \
+      "; ".join(f"{labels[a]} ahead of {labels[b]}: {v}" for a, b, v in verdicts) + "."
+  if held:
+    text += " The paper's ordering holds."
+  elif any(v.startswith("reversed") for _, _, v in verdicts):
+    text += " The paper's ordering does **not** hold here: " + "; ".join(
+        f"{labels[b]} is ahead of {labels[a]}" for a, b, v in verdicts
+        if v.startswith("reversed")) + ", with separate 95% intervals."
+  else:
+    text += " The paper's ordering is **not** established here: " + "; ".join(
+        f"{labels[a]} and {labels[b]} are not distinguishable" for a, b, v in verdicts
+        if v.startswith("not")) + "."
+  never = {t: int(np.isnan(values[t]).sum()) for t in values}
+  if fig.get("reference") == "optimal" and any(never.values()):
+    text += " Runs that never reached 95%: " + ", ".join(
+        f"{labels[t]} {k} of {n_runs}" for t, k in never.items() if k) + \
+        " (left out of those intervals)."
+  return text
+
+
+def write_report(root, experiment, results, drawn, protocol=None):
+  """REPORT.md: the final metrics with 95% bootstrap intervals and IQMs, online and
+  greedy, then per figure what the paper states beside what we measure.
+  `drawn`: {figure name: draw_curve's or draw_trajectories' summary}."""
+  from hpg_mj.agents import _ship
+  from hpg_mj.experiments import stats
   root = pathlib.Path(root)
   n_runs = len(next(iter(results.values())))
-  lines = [f"# {experiment['name']}: {experiment['description']}", "",
-           f"{n_runs} run(s) per task; numbers are means over runs of the last 1,000 "
-           "episodes (figures: of the last block of 1,000).", ""]
+  labels = {t.path.stem: t.name for t in experiment["task_files"]}
+  lines = [f"# {experiment['name']}: {experiment['description']}", ""]
+  if protocol and experiment.get("tuning"):
+    lines += [f"Protocol: {protocol_line(protocol)}. **Not for publication**: these runs may "
+              "use the tasks' tuning seeds (`tuning = true`; SPEC section 7).", ""]
+  elif protocol:
+    lines += [f"Protocol: {protocol_line(protocol)}; the tasks' tuning seeds are not among "
+              "them (SPEC section 7).", ""]
+  lines += [f"{n_runs} run(s) per task. Each cell: the mean over runs [95% bootstrap "
+            "confidence interval of the mean] and the interquartile mean (IQM). Online: the "
+            "last 1,000 training episodes (exploring); greedy: the final agent, no "
+            "exploration, no learning, on a fixed seeded set of 1,000 starts, the same "
+            "for every run.", ""]
   taxi = all("optimal_mean_return" in runs[0] for runs in results.values())
   optimal = next(iter(results.values()))[0].get("optimal_mean_return")
   if taxi:
-    lines += [f"Optimal mean return (value iteration): {optimal:.4f}.", "",
-              "| task | final mean return | % of optimal | primitive steps |", "|---|---|---|---|"]
-    for task, runs in results.items():
-      ret = _mean(runs, "mean_return")
-      lines.append(f"| {task} | {ret:.3f} | {100 * ret / optimal:.1f}% | "
-                   f"{_mean(runs, 'primitive_steps'):,.0f} |")
-  else:
-    lines += ["| task | " + " | ".join(c.replace("_", " ") for c in _SHIP_COLUMNS) + " |",
-              "|---" * (len(_SHIP_COLUMNS) + 1) + "|"]
-    for task, runs in results.items():
-      cells = [_mean(runs, c) for c in _SHIP_COLUMNS]
-      lines.append(f"| {task} | " + " | ".join("-" if v is None else f"{v:.3f}" for v in cells)
+    lines += [f"Optimal mean return (value iteration): {optimal:.4f}.", ""]
+    lines += _table(experiment, results, _TAXI_ROWS)
+    reached = next((v for v in drawn.values() if isinstance(v, dict) and any(
+        "reached" in e for e in v.values())), None)
+    if reached:
+      cells = [stats.format_summary(stats.summary(reached[t]["reached"] / 1e6), 3)
+               if t in reached else "-" for t in labels if t in results]
+      lines.append("| million primitive steps to 95% of the optimum | " + " | ".join(cells)
                    + " |")
+  else:
+    lines += _table(experiment, results, _SHIP_ROWS)
+    js = [t for t in results if not np.isnan(_value(results[t][0], "greedy.J"))]
+    if js:
+      lines += ["", "J is the discounted return (gamma = 0.99) under MushroomRL's "
+                "ShipSteering rewards (-1 per control step, 0 on the step that passes the "
+                "gate, -100 on the step that leaves), so that it compares with published "
+                "MushroomRL-based results: " + ", ".join(
+                    f"{k} J ~ {v}" for k, v in _ship.PUBLISHED_J.items())
+                + f"; the straight-line bound over uniform starts is "
+                f"{_ship.straight_line_j():.1f} (a ship sailing straight at the gate from "
+                "its start, `_ship.straight_line_j`). Ours, greedy: " + ", ".join(
+                    f"{labels[t]} {stats.format_summary(stats.summary([_value(m, 'greedy.J') for m in results[t]]), 1)}"
+                    for t in js) + "."]
   lines += ["", "## Against the paper", ""]
   for fig in experiment["figures"]:
     summary = drawn.get(fig["name"])
@@ -184,36 +313,26 @@ def write_report(root, experiment, results, drawn):
                      f"{'passed' if s['passed'] else 'missed'} the gate in {s['steps']} "
                      f"control steps, {s['calls']} calls ({' '.join(s['decisions'])})")
       continue
-    ours = ", ".join(f"{task} {v[0]:.3g}" for task, v in summary.items())
-    line = head + f" Ours (last block): {ours}."
+    ours = ", ".join(f"{v['label']} {stats.format_summary(stats.summary(v['final']))}"
+                     for v in summary.values())
+    line = head + f" Ours (last block of 1,000 episodes): {ours}."
+    if fig["metric"] == "steps_to_gate":
+      line += " These means are over the episodes that passed the gate, which were " + \
+          ", ".join(f"{v['label']} {100 * np.mean(v['passed']):.1f}%" for v in summary.values()) \
+          + " of the last block's episodes."
     if "paper_value" in fig:
-      off = [t for t, v in summary.items()
-             if abs(v[0] - fig["paper_value"]) > 0.1 * abs(fig["paper_value"])]
+      off = [v["label"] for v in summary.values()
+             if abs(np.mean(v["final"]) - fig["paper_value"]) > 0.1 * abs(fig["paper_value"])]
       if off:
         line += (f" We differ from the paper's {fig['paper_value']:g} by more than 10% "
                  f"({', '.join(off)}); see the README, 'Results'.")
-    if fig.get("reference") == "optimal":
-      line += " Primitive steps until the trailing 1,000-episode mean first reaches 95% of " \
-              "the optimum: " + ", ".join(
-                  f"{t} {'never' if v[1] is None else f'{v[1]:,.0f}'} ({v[2]} of {n_runs} runs)"
-                  for t, v in summary.items()) + "."
     if "paper_order" in fig or "paper_best" in fig:
-      if fig.get("reference") == "optimal":
-        order = sorted(summary, key=lambda t: (summary[t][1] is None, summary[t][1] or 0.0))
-        how = "by primitive steps to 95% of the optimum"
-      elif fig.get("better", "higher") == "lower":
-        order = sorted(summary, key=lambda t: summary[t][0])
-        how = "by the last block, lowest first"
-      else:
-        order = sorted(summary, key=lambda t: -summary[t][0])
-        how = "by the last block, highest first"
-      if "paper_order" in fig:
-        same = order == [t for t in fig["paper_order"] if t in summary]
-        line += f" The paper's order: {', '.join(fig['paper_order'])}"
-      else:
-        same = order[0] == fig["paper_best"]
-        line += f" The paper's best: {fig['paper_best']}"
-      line += f"; ours ({how}): {', '.join(order)}" + (" (the same)." if same else " (we differ).")
+      line += _ordering(fig, summary, labels, n_runs)
+      extra = [t for t in summary if t not in fig.get("paper_order", fig.get("paper_tasks",
+                                                                              summary))]
+      if extra:
+        line += " (" + ", ".join(labels[t] for t in extra) + ": an extra curve, not in the " \
+                "paper's comparison.)"
     lines.append(line)
   lines += _provenance_lines(results)
   (root / "REPORT.md").write_text("\n".join(lines) + "\n")

@@ -11,24 +11,28 @@ An experiment file (tasks/experiments/*.toml):
     episodes = 50000
     quick_runs = 2
     quick_episodes = 5000
+    first_seed = 100           # optional (default 0): runs are seeds first_seed,
+                               # first_seed + 1, ...; none may be a task's tuning seed
+    tuning = false             # optional: true allows tuning seeds (not for publication)
 
     [[figure]]                 # one table per figure; see tasks/experiments/*.toml
     name = "fig7"
-    kind = "curve"             # a metric per 1,000 episodes, mean over runs, min-max band
+    kind = "curve"             # a metric per 1,000 episodes, mean over runs, 95% bootstrap band
     metric = "gate_passes"     # figures.METRICS
     x = "episodes"             # or "steps" (primitive or control steps)
     title = "Gate passes per 1,000 episodes"
     ylabel = "gate passes"
     paper = "the hybrid ahead of both flat learners"   # what the paper states
     paper_order = ["ship_hybrid", "ship_flat_pg"]      # optional: the paper's ranking,
-    # or paper_best = "ship_hybrid" (its best only); better = "higher" or "lower"
+    # or paper_best = "ship_hybrid" (its best only; paper_tasks = [...] the learners
+    # the paper's statement covers, default all); better = "higher" or "lower"
     # optional: paper_value = 4.0 (drawn in), reference = "optimal" (taxi: the exact optimum)
 
     [[figure]]
     name = "fig12"
     kind = "trajectories"      # a trained hybrid's greedy episodes on the MuJoCo ship
     task = "ship_hybrid"
-    seed = 0                   # whose final agent
+    seed = 100                 # whose final agent (one of the experiment's seeds)
     starts = [[700.0, 700.0, 100.0, 3.65]]
     video = true
     title = "..."
@@ -65,6 +69,9 @@ from hpg_mj.agents import taskfile
 POSITIVE = ("int_min", 1)
 EXPERIMENT_SCHEMA = {"name": "str", "description": "str", "tasks": "str_list", "runs": POSITIVE,
                      "episodes": POSITIVE, "quick_runs": POSITIVE, "quick_episodes": POSITIVE}
+# first_seed: the runs' first seed; tuning = true: an experiment on tuning seeds
+# (for tuning or tests), whose reports say they are not for publication.
+EXPERIMENT_OPTIONAL = {"first_seed": ("int_min", 0), "tuning": "bool"}
 
 # [[figure]] tables (taskfile's types): every figure needs the common keys and
 # those of its kind; the optional ones may be left out.
@@ -72,7 +79,7 @@ FIGURE_COMMON = {"name": "str", "kind": "str", "title": "str", "paper": "str"}
 FIGURE_KINDS = {
     "curve": ({"metric": "str", "x": "str", "ylabel": "str"},
               {"paper_value": "float", "paper_order": "str_list", "paper_best": "str",
-               "better": "str", "reference": "str"}),
+               "paper_tasks": "str_list", "better": "str", "reference": "str"}),
     "trajectories": ({"task": "str", "seed": ("int_min", 0),
                       "starts": ("float_lists", 4, "[x, y, heading in degrees, turning rate "
                                                    "in deg/s]"),
@@ -104,7 +111,8 @@ def _check_figures(path, section, tasks, figures_):
     if fig["name"] in seen:
       raise taskfile.TaskFileError(f"{path}: {where} is named twice")
     seen.add(fig["name"])
-    named = fig.get("paper_order", []) + [fig[k] for k in ("task", "paper_best") if k in fig]
+    named = fig.get("paper_order", []) + fig.get("paper_tasks", []) + [
+        fig[k] for k in ("task", "paper_best") if k in fig]
     for task in named:
       if task not in names:
         raise taskfile.TaskFileError(f"{path}: {where} names task {task!r}, which is not in "
@@ -117,10 +125,12 @@ def _check_figures(path, section, tasks, figures_):
       if tasks[names.index(fig["task"])].kind != "ship_hybrid":
         raise taskfile.TaskFileError(f"{path}: {where} draws a ship_hybrid's trajectories; "
                                      f"{fig['task']!r} is not one")
-      runs_ = min(section["runs"], section["quick_runs"])
-      if fig["seed"] >= runs_:
+      first = section.get("first_seed", 0)
+      last = first + min(section["runs"], section["quick_runs"]) - 1
+      if not first <= fig["seed"] <= last:
         raise taskfile.TaskFileError(f"{path}: {where} seed = {fig['seed']}, but the "
-                                     f"experiment has seeds 0..{runs_ - 1}")
+                                     f"experiment's runs (full and quick) have seeds "
+                                     f"{first}..{last}")
   return checked
 
 
@@ -142,8 +152,22 @@ def load_experiment(path):
   if "experiment" not in data or set(data) - {"experiment", "figure"}:
     raise taskfile.TaskFileError(f"{path}: needs one [experiment] section and [[figure]] "
                                  f"tables, got {sorted(data)}")
-  section = taskfile.check_table(path, "[experiment]", data["experiment"], EXPERIMENT_SCHEMA)
+  section = taskfile.check_table(path, "[experiment]", data["experiment"], EXPERIMENT_SCHEMA,
+                                 EXPERIMENT_OPTIONAL)
+  section.setdefault("first_seed", 0)
+  section.setdefault("tuning", False)
   tasks = [agents.load_task(t) for t in section["tasks"]]   # refused here, before any run
+  # SPEC section 7: published numbers never come from the seeds a task was tuned on.
+  first = section["first_seed"]
+  used = set(range(first, first + max(section["runs"], section["quick_runs"])))
+  for t in tasks:
+    tuned = sorted(used & set(t.tuning_seeds))
+    if tuned and not section["tuning"]:
+      raise taskfile.TaskFileError(
+          f"{path}: [experiment] runs seeds {first}..{max(used)}, but {t.path.name} was tuned "
+          f"on seeds {tuned} ([protocol] tuning_seeds); set first_seed past them (e.g. "
+          f"{max(t.tuning_seeds) + 1}) so that no reported run uses a tuning seed, or "
+          f"declare tuning = true (its reports are then marked not for publication)")
   worlds = sorted({t.section("environment")["world"] for t in tasks})
   if len(worlds) > 1:
     raise taskfile.TaskFileError(f"{path}: [experiment] tasks compare one world, ship or "
@@ -172,15 +196,21 @@ def folder(experiment, out, quick=False):
   return pathlib.Path(out) / (experiment["name"] + ("_quick" if quick else ""))
 
 
+def seeds(experiment, quick=False):
+  """The seeds of the experiment's runs: first_seed onwards, one per run."""
+  n_runs = experiment["quick_runs"] if quick else experiment["runs"]
+  first = experiment.get("first_seed", 0)
+  return list(range(first, first + n_runs))
+
+
 def jobs(experiment, out, quick=False):
   """The (task file, seed, episodes, run folder) of every run of the experiment."""
-  n_runs = experiment["quick_runs"] if quick else experiment["runs"]
   episodes = experiment["quick_episodes"] if quick else experiment["episodes"]
   root = folder(experiment, out, quick)
   # Seed by seed, so that the first runs the workers pick up are of different tasks
   # and compile (numba, cached for the later runs) different code at the same time.
   return [(str(task.path), seed, episodes, str(root / task.path.stem / f"seed{seed}"))
-          for seed in range(n_runs) for task in experiment["task_files"]]
+          for seed in seeds(experiment, quick) for task in experiment["task_files"]]
 
 
 class _Poller:
@@ -337,6 +367,9 @@ def run_experiment(experiment, out, quick=False, workers=None, progress=None, on
   return results, root, time.perf_counter() - start
 
 
-def load_records(root, task_name, runs):
-  return [np.load(pathlib.Path(root) / task_name / f"seed{seed}" / "record.npy",
-                  allow_pickle=False) for seed in range(runs)]
+def load_records(root, task_name, runs, name="record"):
+  """The stored records (`name`: "record", or "greedy" for the greedy episodes) of
+  a task's runs: `runs` is a list of seeds, or a count (seeds 0..runs-1)."""
+  runs = range(runs) if isinstance(runs, int) else runs
+  return [np.load(pathlib.Path(root) / task_name / f"seed{seed}" / f"{name}.npy",
+                  allow_pickle=False) for seed in runs]

@@ -15,9 +15,13 @@ A run folder (`OUT/<experiment>/<task>/seed<k>/`) holds:
     record.npy            the per-episode record       } written when the run
     agent/                the final agent (`hpg-mj     } finishes; metrics.json
                           evaluate`, `render --agent`)  } last, and a run with
+    greedy.npy            the final agent's greedy     } (SPEC section 7)
+                          episodes from the fixed start
+                          set (`Agent.evaluate_fixed`)
     metrics.json          metrics over the last 1,000   } it is never run again
-                          episodes, and what made them
-                          (`hpg_mj.provenance`)
+                          episodes (online), "greedy":
+                          the same over greedy.npy, and
+                          what made them (`hpg_mj.provenance`)
 
 A checkpoint is written to `checkpoints/.tmp-ep<N>` and renamed into place, so a
 run killed at any moment leaves either the new checkpoint whole or none of it.
@@ -38,11 +42,13 @@ import numpy as np
 
 from hpg_mj import agents
 from hpg_mj import provenance
+from hpg_mj.agents import base
 from hpg_mj.agents import storage
 from hpg_mj.experiments import locks
 
 CHECKPOINT_EVERY = 10000
 KEEP_CHECKPOINTS = 2
+GREEDY_STARTS = base.GREEDY_STARTS     # SPEC section 7: the fixed seeded set of starts
 PROGRESS_COLUMNS = ("episodes", "wall_seconds", "episodes_per_second")
 
 
@@ -210,6 +216,10 @@ def _run_locked(task_path, seed, episodes, run_dir, checkpoint_every, stop_after
     progress.close()
   record = np.concatenate(records)
   metrics = agent.metrics(record)
+  # SPEC section 7: the final agent, greedy, without learning, on the fixed starts.
+  greedy = agent.evaluate_fixed(GREEDY_STARTS)
+  metrics["greedy"] = dict(agent.metrics(greedy), starts=GREEDY_STARTS,
+                           start_seed=base.GREEDY_SEED)
   metrics.update({"task": task.path.stem, "seed": seed, "episodes": episodes,
                   "wall_seconds": round(wall, 3),
                   "provenance": provenance.collect(task.text, seed)})
@@ -217,10 +227,11 @@ def _run_locked(task_path, seed, episodes, run_dir, checkpoint_every, stop_after
   if agent_dir.exists():
     shutil.rmtree(agent_dir)
   agents.save(agent, agent_dir, record, {"metrics": metrics})
-  tmp = run_dir / "record.npy.tmp"
-  with open(tmp, "wb") as f:
-    np.save(f, record)
-  os.replace(tmp, run_dir / "record.npy")
+  for name, array in (("record", record), ("greedy", greedy)):
+    tmp = run_dir / f"{name}.npy.tmp"
+    with open(tmp, "wb") as f:
+      np.save(f, array)
+    os.replace(tmp, run_dir / f"{name}.npy")
   tmp = run_dir / "metrics.json.tmp"
   tmp.write_text(json.dumps(metrics, indent=2) + "\n")
   os.replace(tmp, run_dir / "metrics.json")     # written last: the run is finished

@@ -28,6 +28,7 @@ runs = 2
 episodes = {episodes}
 quick_runs = 1
 quick_episodes = 1000
+tuning = true     # the machinery under test, on tuning seeds
 
 [[figure]]
 name = "curve"

@@ -26,6 +26,7 @@ runs = {runs}
 episodes = {episodes}
 quick_runs = 1
 quick_episodes = 1000
+tuning = true     # the machinery under test, on tuning seeds
 
 [[figure]]
 name = "curve"

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from hpg_mj import cli
+from hpg_mj.agents import _ship
 from hpg_mj.agents import taskfile
 from hpg_mj.experiments import runner
 
@@ -17,6 +18,7 @@ runs = 2
 episodes = 1000
 quick_runs = 1
 quick_episodes = 1000
+tuning = true     # the machinery under test, on tuning seeds
 """ + runner.shipped_experiments()["fig7_11"].read_text().split("[[figure]]", 1)[1].join(
     ["\n[[figure]]", ""]).replace('"ship_flat_pg", "ship_actor_critic"]', '"ship_flat_pg"]')
 
@@ -29,6 +31,7 @@ runs = 2
 episodes = 3000
 quick_runs = 1
 quick_episodes = 1000
+tuning = true     # the machinery under test, on tuning seeds
 """ + runner.shipped_experiments()["fig6"].read_text().split("[[figure]]", 1)[1].join(
     ["\n[[figure]]", ""])
 
@@ -76,9 +79,19 @@ def test_finished_runs_are_skipped_and_figures_written(tmp_path, capsys):
     rows = np.loadtxt(out / "tiny" / f"{fig}.csv", delimiter=",", skiprows=1, ndmin=2)
     assert rows.shape[0] == 1
   report = (out / "tiny" / "REPORT.md").read_text()
-  assert "about 220 control steps" in report and "ship_flat_pg" in report
-  assert "The paper's best: ship_hybrid; ours (by the last block, lowest first):" in report
-  assert json.loads(metrics.read_text())["episodes"] == 1000
+  assert "about 220 control steps" in report and "Flat PGRL" in report
+  assert "Against the paper's best: Hierarchical hybrid ahead of Flat PGRL: " in report
+  assert "**Not for publication**" in report                  # tuning = true
+  assert "| J (MushroomRL rewards), greedy | " in report and "straight-line bound" in report
+  finished = json.loads(metrics.read_text())
+  assert finished["episodes"] == 1000
+  # SPEC section 7: the final agent's greedy episodes on the fixed 1,000 starts.
+  greedy = np.load(metrics.parent / "greedy.npy")
+  assert len(greedy) == finished["greedy"]["episodes_measured"] == 1000
+  assert finished["greedy"]["J"] == pytest.approx(float(np.mean(
+      _ship.mushroom_j(greedy, 5000, -300.0))))
+  header = (out / "tiny" / "fig9.csv").read_text().splitlines()[0]
+  assert "ship_hybrid_ci_low" in header and "ship_hybrid_fraction_passed" in header
 
 
 @pytest.mark.parametrize("old,new,message", [
@@ -129,8 +142,12 @@ def test_mixed_experiment_is_refused(tmp_path):
 def test_reproduce_quick_figure_6(tmp_path, capsys):
   assert cli.main(["reproduce", "fig6", "--quick", "--out", str(tmp_path), "--quiet"]) == 0
   assert (tmp_path / "fig6_quick" / "fig6.png").is_file()       # never mistaken for full runs
-  assert (tmp_path / "fig6_quick" / "taxi_fuel_hpg" / "seed2" / "metrics.json").is_file()
+  # Quick runs, like full ones, are seeds past the tuning seeds 0-9 (SPEC section 7).
+  assert (tmp_path / "fig6_quick" / "taxi_fuel_hpg" / "seed102" / "metrics.json").is_file()
+  assert not (tmp_path / "fig6_quick" / "taxi_fuel_hpg" / "seed0").exists()
   report = (tmp_path / "REPORT.md").read_text()
+  assert "3 runs x 100,000 episodes (seeds 100-102), QUICK protocol" in report
+  assert "| million primitive steps to 95% of the optimum |" in report
   assert "## fig6:" in report and "Optimal mean return (value iteration): 6.1446" in report
   assert cli.main(["reproduce", "fig13", "--out", str(tmp_path)]) == 2
   assert "valid: all, fig6, fig7" in capsys.readouterr().err
@@ -160,14 +177,17 @@ def test_figure_12_marks_the_root_decisions(tmp_path, capsys):
     assert 1 <= s["calls"] == len(s["decisions"]) and 1 <= s["steps"] <= 40
     assert (folder / f"fig12_{k}.mp4").stat().st_size > 1000
   assert "from (750, 180):" in (folder / "REPORT.md").read_text()
-  agent, _, _ = agents.load(folder / "short" / "seed0" / "agent")
+  agent, _, _ = agents.load(folder / "short" / "seed100" / "agent")
   path_, decisions, _ = fig12.sail(agent, fig12.STARTS[0])
   assert decisions[0][:2] == pytest.approx(fig12.STARTS[0][:2])   # the first call starts there
 
 
 @pytest.mark.parametrize("old,new,message", [
     ("[750.0, 180.0, 80.0, 7.9]", "[750.0, 180.0]", r"starts must be a non-empty list of \[x, y"),
-    ("seed = 0", "seed = 1", r"seed = 1, but the experiment has seeds 0..0"),
+    ("\nseed = 100", "\nseed = 101", r"seed = 101, but the experiment's runs \(full and quick\) "
+                                 r"have seeds 100..100"),
+    ("first_seed = 100", "first_seed = 5", r"runs seeds 5..5, but ship_hybrid.toml was tuned "
+                                           r"on seeds \[5\]"),
     ('task = "ship_hybrid"', 'task = "ship_flat_pg"', "names task 'ship_flat_pg', which is not"),
     ("video = true", "video = 1", "video must be true or false"),
 ])
