@@ -4,12 +4,12 @@ low-level subtask, *aim*, that steers straight to a continuous target.
 
 Why: the paper's root can only chain whole 100 / 141 m legs along eight compass
 directions, and each leg begins by turning onto its direction (SPEC section 2:
-~265-270 control steps against the ~205-step straight line). Here the root picks
-among points on the far side of the gate (`aims` of them spread across its 100 m)
-and three approach points on the ship's side of the gate line (for starts from
-which the straight line to the gate runs along the line or off its posts), so one
-call from most starts sails the whole way; and since it sees the heading it can
-pick the gate point that the current heading reaches soonest.
+~265-270 control steps against the ~205-step straight line). Here the root has
+four choices: *gate*, steer to the point of the gate nearest the ship (a
+continuous target, followed as the ship moves), or one of three *approach*
+points before the gate line on the ship's side (for starts from which the
+straight line to the gate runs along its line or past its posts). One call sails
+the whole way from most starts. The root sees its cell and the heading's sector.
 
 The *aim* subtask's state is the heading error to its target (wrapped), the
 turning rate and the distance (clipped), over a CMAC; its policy is the paper's
@@ -52,8 +52,8 @@ DISTANCE_CLIP = 400.0                # the aim state's distance saturates here (
 
 Settings = collections.namedtuple("Settings", (
     "root_alpha", "root_trace_decay", "root_epsilon_threshold", "root_epsilon_every",
-    "root_epsilon_divisor", "root_cell_m", "root_grid", "root_headings", "root_aims",
-    "root_beyond_m", "root_approach_m",
+    "root_epsilon_divisor", "root_cell_m", "root_grid", "root_headings", "root_inset_m",
+    "root_approach_m",
     "alpha", "trace_gamma", "baseline", "max_steps", "width_alpha", "log_sigma_low",
     "log_sigma_high", "radius_m",
     "environment_max_steps", "environment_gate_reward", "environment_out_of_bounds_reward"))
@@ -65,8 +65,7 @@ def settings(config):
   grid = int(math.ceil(core.FIELD_SIZE / root.cell_m))
   return Settings(float(root.alpha), float(root.trace_decay), float(root.epsilon_threshold),
                   int(root.epsilon_every), float(root.epsilon_divisor), float(root.cell_m),
-                  grid, int(root.headings), int(root.aims), float(root.beyond_m),
-                  float(root.approach_m),
+                  grid, int(root.headings), float(root.inset_m), float(root.approach_m),
                   float(low.alpha), float(low.trace_gamma), float(low.baseline),
                   int(low.max_steps), float(low.width_alpha), math.log(low.sigma_low),
                   math.log(low.sigma_high), float(low.radius_m),
@@ -89,19 +88,27 @@ def root_state(state, s):
 
 @numba.njit(cache=True)
 def n_targets(s):
-  return s.root_aims + len(APPROACH_DX)
+  return 1 + len(APPROACH_DX)
 
 
 @numba.njit(cache=True)
-def target_of(action, y, s):
-  """The point the root's `action` steers to, for a call from height `y`: one of
-  `root_aims` points `root_beyond_m` past the gate line (spread evenly across the
-  gate), or an approach point `root_approach_m` before it, on the ship's side."""
-  side = 1.0 if y >= GATE_Y else -1.0
-  if action < s.root_aims:
-    x = core.GATE[0, 0] + (action + 0.5) * GATE_WIDTH / s.root_aims
-    return x, GATE_Y - side * s.root_beyond_m
-  return GATE_X + APPROACH_DX[action - s.root_aims], GATE_Y + side * s.root_approach_m
+def side_of(y):
+  """Which side of the gate line a height lies on (the line itself counts as north)."""
+  return 1.0 if y >= GATE_Y else -1.0
+
+
+@numba.njit(cache=True)
+def target_of(action, state, side, s):
+  """The point the root's `action` steers to now. Action 0, *gate*: the point of
+  the gate (its posts moved in by `root_inset_m`) nearest the ship, followed as
+  the ship moves (a continuous target). Actions 1-3, *approach*: fixed points
+  `root_approach_m` before the gate line on the side `side` of the call's start,
+  at the gate's middle x + APPROACH_DX."""
+  if action == 0:
+    low = core.GATE[0, 0] + s.root_inset_m
+    high = core.GATE[1, 0] - s.root_inset_m
+    return min(max(state[0], low), high), GATE_Y
+  return GATE_X + APPROACH_DX[action - 1], GATE_Y + side * s.root_approach_m
 
 
 @numba.njit(cache=True)
@@ -114,10 +121,11 @@ def aim_view(state, tx, ty, out):
 
 
 @numba.njit(cache=True)
-def aim_outcome(samples, state, tx, ty, steps_in_call, global_event, s):
-  """After one control step inside an aim call: (local event, G). SUCCESS within
-  `radius_m` of the target or through the gate; FAILURE off the field or after
-  `max_steps`; G = the heading shaping towards the target, +100 / -100."""
+def aim_outcome(samples, state, action, tx, ty, steps_in_call, global_event, s):
+  """After one control step inside an aim call: (local event, G). SUCCESS through
+  the gate, or (approach) within `radius_m` of the target; FAILURE off the field,
+  after `max_steps`, or (gate) across the gate line beside the gate; G = the
+  heading shaping towards the target (SPEC section 3's G), +100 / -100."""
   event = core.NO_EVENT
   if global_event == core.SUCCESS:
     event = core.SUCCESS
@@ -125,7 +133,11 @@ def aim_outcome(samples, state, tx, ty, steps_in_call, global_event, s):
     event = core.FAILURE
   else:
     for k in range(1, samples.shape[0]):
-      if math.hypot(samples[k, 0] - tx, samples[k, 1] - ty) <= s.radius_m:
+      if action == 0:
+        if (samples[k - 1, 1] - GATE_Y) * (samples[k, 1] - GATE_Y) < 0.0:
+          event = core.FAILURE                           # crossed the line, missed the gate
+          break
+      elif math.hypot(samples[k, 0] - tx, samples[k, 1] - ty) <= s.radius_m:
         event = core.SUCCESS
         break
     if event == core.NO_EVENT and steps_in_call >= s.max_steps:
@@ -139,15 +151,17 @@ def aim_outcome(samples, state, tx, ty, steps_in_call, global_event, s):
 
 
 @numba.njit(cache=True)
-def run_aim(state, tx, ty, trace, width, values, tiling, s, learn, sample, rng_state,
+def run_aim(state, action, trace, width, values, tiling, s, learn, sample, rng_state,
             steps_before, scratch):
-  """One call of the aim subtask towards (tx, ty) from `state` (in place).
+  """One call of the aim subtask for the root's `action` from `state` (in place).
   Returns (global event, local event, reward to the root, control steps)."""
   tiles, next_tiles, psi, psi_width, samples, view = scratch
   el.reset(trace)                                       # Eq. 3: z <- 0
   el.reset(width)
   reward_root = 0.0
   k = 0
+  side = side_of(state[1])
+  tx, ty = target_of(action, state, side, s)
   while True:
     aim_view(state, tx, ty, view)
     tiles_mod.active_tiles(view, tiling, tiles)
@@ -161,7 +175,8 @@ def run_aim(state, tx, ty, trace, width, values, tiling, s, learn, sample, rng_s
     global_event, reward = core.global_outcome(samples, s.environment_gate_reward,
                                                s.environment_out_of_bounds_reward)
     reward_root += reward
-    local_event, internal = aim_outcome(samples, state, tx, ty, k, global_event, s)
+    tx, ty = target_of(action, state, side, s)           # the target after the step
+    local_event, internal = aim_outcome(samples, state, action, tx, ty, k, global_event, s)
     ended = (global_event != core.NO_EVENT or local_event != core.NO_EVENT
              or steps_before + k >= s.environment_max_steps)
     if learn:
@@ -199,8 +214,7 @@ def train(n_episodes, learn, sample, rng_state, root, schedule, trace, width, va
     row = record[episode]
     row[:] = 0.0
     while True:
-      tx, ty = target_of(a, state[1], s)
-      g_event, l_event, reward, k = run_aim(state, tx, ty, trace, width, values, tiling, s,
+      g_event, l_event, reward, k = run_aim(state, a, trace, width, values, tiling, s,
                                             learn, sample, rng_state, steps, scratch)
       if steps + k < s.environment_max_steps and (g_event == core.NO_EVENT
                                                    or g_event == core.SUCCESS):
@@ -253,9 +267,8 @@ class Root:
   epsilon_divisor: float = param(1.01, "epsilon is divided by this", low=1)
   cell_m: float = param(50.0, "side of the root's square cells (m)", low=10, high=1000)
   headings: int = param(8, "sectors of the heading the root sees (1: none)", low=1, high=72)
-  aims: int = param(5, "target points past the gate, spread across it", low=1, high=50)
-  beyond_m: float = param(20.0, "how far past the gate line those points lie (m)", low=0,
-                          low_open=True, high=300)
+  inset_m: float = param(2.0, "the gate action aims at the gate with its posts moved in "
+                         "by this (m)", low=0, high=49)
   approach_m: float = param(80.0, "how far before the gate line the approach points lie (m)",
                             low=0, low_open=True, high=300)
 
@@ -356,24 +369,23 @@ class ShipBeyond(_ship.ShipAgent):
     scratch_tiles = np.empty(n, dtype=np.int64)
     view = np.empty(3)
 
-    def target(call):
-      if "target" not in call.memo:
-        call.memo["target"] = target_of(call.args["action"], float(call.origin[1]), s)
-      return call.memo["target"]
+    def target(call, obs):
+      side = call.memo.setdefault("side", side_of(float(call.origin[1])))
+      return target_of(call.args["action"], np.asarray(obs, dtype=np.float64), side, s)
 
     def low_view(call, obs):
-      tx, ty = target(call)
+      tx, ty = target(call, obs)
       aim_view(np.asarray(obs, dtype=np.float64), tx, ty, view)
       tiles_mod.active_tiles(view, self.tile_arrays, scratch_tiles)
       return scratch_tiles
 
     def internal_reward(call, step):
-      tx, ty = target(call)
+      tx, ty = target(call, step.obs)
       info = step.info
       g_event = {"gate": core.SUCCESS, "out_of_bounds": core.FAILURE}.get(info.get("event"),
                                                                           core.NO_EVENT)
       event, internal = aim_outcome(info["positions"], np.asarray(step.obs, dtype=np.float64),
-                                    tx, ty, call.steps, g_event, s)
+                                    call.args["action"], tx, ty, call.steps, g_event, s)
       call.memo["event"] = event
       call.memo["global"] = g_event
       return internal

@@ -13,13 +13,15 @@ from hpg_mj.worlds import ship_core as core
 S = sb.settings(sb.Config())
 
 
-def test_targets_past_the_gate_and_before_its_line():
-  assert sb.n_targets(S) == 8
-  assert sb.target_of(0, 700.0, S) == (360.0, 380.0)          # north of the line: past = south
-  assert sb.target_of(4, 700.0, S) == (440.0, 380.0)
-  assert sb.target_of(2, 100.0, S) == (400.0, 420.0)
-  assert sb.target_of(5, 100.0, S) == (300.0, 320.0)          # approach: the ship's side
-  assert sb.target_of(7, 400.0, S) == (500.0, 480.0)          # on the line counts as north
+def test_the_gate_target_follows_the_ship_and_approach_points_are_fixed():
+  assert sb.n_targets(S) == 4
+  at = lambda x, y: np.array([x, y, 0.0, 0.0])
+  assert sb.target_of(0, at(100.0, 900.0), 1.0, S) == (352.0, 400.0)   # posts moved in 2 m
+  assert sb.target_of(0, at(401.5, 10.0), -1.0, S) == (401.5, 400.0)
+  assert sb.target_of(0, at(999.0, 400.0), 1.0, S) == (448.0, 400.0)
+  assert sb.target_of(1, at(0.0, 0.0), -1.0, S) == (300.0, 320.0)      # the call's side
+  assert sb.target_of(3, at(0.0, 0.0), 1.0, S) == (500.0, 480.0)
+  assert sb.side_of(400.0) == 1.0 and sb.side_of(399.9) == -1.0
 
 
 def test_root_state_cells_and_heading_sectors():
@@ -53,16 +55,23 @@ def test_the_aim_state_is_an_isometry_of_the_dynamics():
 def test_aim_outcome_success_failure_and_shaping():
   samples = np.array([[0.0, 0.0], [5.0, 0.0], [10.0, 0.0], [15.0, 0.0]])
   state = np.array([15.0, 0.0, 90.0, 0.0])                   # heading straight at the target
-  event, g = sb.aim_outcome(samples, state, 29.0, 0.0, 1, core.NO_EVENT, S)
+  event, g = sb.aim_outcome(samples, state, 1, 29.0, 0.0, 1, core.NO_EVENT, S)
   assert event == core.SUCCESS and g == 100.0               # 14 m <= radius 15, G = 0
-  event, g = sb.aim_outcome(samples, state, 31.0, 0.0, 1, core.NO_EVENT, S)
+  event, g = sb.aim_outcome(samples, state, 1, 31.0, 0.0, 1, core.NO_EVENT, S)
   assert event == core.NO_EVENT and g == 0.0
-  event, g = sb.aim_outcome(samples, state, 31.0, 0.0, S.max_steps, core.NO_EVENT, S)
+  event, g = sb.aim_outcome(samples, state, 1, 31.0, 0.0, S.max_steps, core.NO_EVENT, S)
   assert event == core.FAILURE and g == -100.0
-  event, _ = sb.aim_outcome(samples, state, 500.0, 0.0, 1, core.SUCCESS, S)   # the gate
+  # The gate action ends only at the gate, off the field, or across the line beside it.
+  event, _ = sb.aim_outcome(samples, state, 0, 29.0, 0.0, 1, core.NO_EVENT, S)
+  assert event == core.NO_EVENT
+  event, _ = sb.aim_outcome(samples, state, 0, 500.0, 0.0, 1, core.SUCCESS, S)
   assert event == core.SUCCESS
+  beside = np.array([[100.0, 401.0], [100.0, 400.5], [100.0, 399.9], [100.0, 399.0]])
+  event, g = sb.aim_outcome(beside, np.array([100.0, 399.0, 180.0, 0.0]), 0, 352.0, 400.0, 1,
+                            core.NO_EVENT, S)
+  assert event == core.FAILURE
   state[2] = 0.0                                            # 90 degrees off: G = exp(-9) - 1
-  _, g = sb.aim_outcome(samples, state, 500.0, 0.0, 1, core.FAILURE, S)
+  _, g = sb.aim_outcome(samples, state, 1, 500.0, 0.0, 1, core.FAILURE, S)
   assert g == pytest.approx(math.exp(-9.0) - 1.0 - 100.0)
 
 
@@ -97,3 +106,16 @@ def test_the_learned_width_is_refused_on_the_step_by_step_path():
   with pytest.raises(ValueError, match=r"sigma_low = 2.0, sigma_high = 4.0: need"):
     sb.ShipBeyond(dataclasses.replace(
         c, low_level=dataclasses.replace(c.low_level, sigma_low=2.0, sigma_high=4.0)))
+
+
+def test_greedy_episodes_agree_on_both_paths():
+  agent = agents.build(agents.load_task("ship_hybrid_beyond"), seed=6)
+  agent.train(2000)
+  env = agent.make_env("gymnasium")
+  rs = np.random.default_rng(3)
+  for _ in range(5):
+    start = np.array([*rs.uniform(50, 950, 2), rs.uniform(-180, 180), rs.uniform(-15, 15)])
+    fused = agent.as_record(agent.compiled(1, False, False, start=start))
+    stepwise = agent.run_stepwise(env, 1, learn=False, start=start)
+    for field in ("passed", "steps", "calls", "return"):
+      assert fused[field][0] == stepwise[field][0], field
