@@ -174,7 +174,11 @@ def bench_train(min_seconds=2.0):
                  _rate(steps, time.perf_counter() - start)))
 
   agent = agents.build(agents.load_task("ship_hybrid"), seed=0)
-  env = agent.make_env("dm_control")
+  # The plain dm_control task (its -100 for leaving; the speed does not depend on
+  # it): `agent.make_env("dm_control")` passes the task file's rewards, which the
+  # suite's `steer` does not take yet.
+  from hpg_mj import suite
+  env = suite.load("ship", "steer", {"random": 0})
   agent.train_stepwise(env, 2)
   steps, start = 0, time.perf_counter()
   while time.perf_counter() - start < min_seconds:

@@ -34,6 +34,8 @@ def main():
   p.add_argument("--seeds", default="100-119", help="first-last (inclusive)")
   p.add_argument("--episodes", type=int, default=15000)
   p.add_argument("--json", help="also write the curves here")
+  p.add_argument("--plot", help="also draw the curves with their bands here (.png; a .csv "
+                 "beside it)")
   args = p.parse_args()
   first, last = (int(v) for v in args.seeds.split("-"))
   seeds = range(first, last + 1)
@@ -60,6 +62,34 @@ def main():
   if args.json:
     with open(args.json, "w") as f:
       json.dump(out, f, indent=1)
+  if args.plot:
+    plot(out, args.plot, len(seeds))
+
+
+def plot(out, path, n_seeds):
+  import pathlib
+
+  import matplotlib
+  matplotlib.use("Agg")
+  import matplotlib.pyplot as plt
+  fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
+  lines = ["subtask,policy,calls,mean,ci_low,ci_high"]
+  for ax, task in zip(axes, ship_subtask.TASKS):
+    for name in VARIANTS:
+      rows = np.array(out[f"{task}/{name}"]["online"])
+      calls = 1000 * np.arange(1, len(rows) + 1)
+      ax.plot(calls, rows[:, 0], label=name)
+      ax.fill_between(calls, rows[:, 1], rows[:, 2], alpha=0.25)
+      lines += [f"{task},{name},{c},{m:.4f},{lo:.4f},{hi:.4f}" for c, (m, lo, hi) in
+                zip(calls, rows)]
+    ax.set_title(f"ship/{task} ({n_seeds} seeds, 95% CI)")
+    ax.set_xlabel("calls")
+    ax.grid(alpha=0.3)
+  axes[0].set_ylabel("successes per 1,000 calls (online)")
+  axes[0].legend()
+  fig.tight_layout()
+  fig.savefig(path, dpi=110)
+  pathlib.Path(path).with_suffix(".csv").write_text("\n".join(lines) + "\n")
 
 
 if __name__ == "__main__":

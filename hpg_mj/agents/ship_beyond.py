@@ -55,7 +55,7 @@ Settings = collections.namedtuple("Settings", (
     "root_epsilon_divisor", "root_cell_m", "root_grid", "root_headings", "root_inset_m",
     "root_approach_m",
     "alpha", "trace_gamma", "baseline", "max_steps", "width_alpha", "log_sigma_low",
-    "log_sigma_high", "radius_m",
+    "log_sigma_high", "radius_m", "shaping",
     "environment_max_steps", "environment_gate_reward", "environment_out_of_bounds_reward"))
 RootTable = collections.namedtuple("RootTable", ("q", "index", "value", "count"))
 
@@ -68,7 +68,7 @@ def settings(config):
                   grid, int(root.headings), float(root.inset_m), float(root.approach_m),
                   float(low.alpha), float(low.trace_gamma), float(low.baseline),
                   int(low.max_steps), float(low.width_alpha), math.log(low.sigma_low),
-                  math.log(low.sigma_high), float(low.radius_m),
+                  math.log(low.sigma_high), float(low.radius_m), float(low.shaping),
                   int(env.max_steps), float(env.gate_reward), float(env.out_of_bounds_reward))
 
 
@@ -125,7 +125,7 @@ def aim_outcome(samples, state, action, tx, ty, steps_in_call, global_event, s):
   """After one control step inside an aim call: (local event, G). SUCCESS through
   the gate, or (approach) within `radius_m` of the target; FAILURE off the field,
   after `max_steps`, or (gate) across the gate line beside the gate; G = the
-  heading shaping towards the target (SPEC section 3's G), +100 / -100."""
+  heading shaping towards the target (SPEC section 3's G, times `shaping`), +100 / -100."""
   event = core.NO_EVENT
   if global_event == core.SUCCESS:
     event = core.SUCCESS
@@ -142,7 +142,7 @@ def aim_outcome(samples, state, action, tx, ty, steps_in_call, global_event, s):
         break
     if event == core.NO_EVENT and steps_in_call >= s.max_steps:
       event = core.FAILURE
-  internal = core.shaping_reward(state[0], state[1], state[2], tx, ty)
+  internal = s.shaping * core.shaping_reward(state[0], state[1], state[2], tx, ty)
   if event == core.SUCCESS:
     internal += core.GATE_REWARD
   elif event == core.FAILURE:
@@ -287,6 +287,8 @@ class LowLevel:
   sigma_low: float = param(0.25, "the learned width's lower clip", low=0, low_open=True,
                            high=1)
   sigma_high: float = param(1.0, "the learned width's upper clip", low=1, high=100)
+  shaping: float = param(1.0, "weight of the heading shaping G (1: SPEC section 3's G, "
+                         "0: none)", low=0, high=10)
   radius_m: float = param(15.0, "within this distance of its target a call has succeeded",
                           low=0, low_open=True)
   tilings: int = param(9, "CMAC tilings", low=1)
