@@ -165,8 +165,22 @@ def bench_train(min_seconds=2.0):
       steps += int(agent.train(chunk, "analytic")["steps"].sum())
     rows.append((f"{name}, compiled, learning", unit, _rate(steps, time.perf_counter() - start)))
 
+  # The stand-alone subtasks with the learned exploration width (SPEC section 8).
+  from hpg_mj.agents import ship_subtask
+  for task in ship_subtask.TASKS:
+    ship_subtask.train_subtask(task, 5, 0, width_alpha=0.003)         # compile, warm up
+    steps, start = 0, time.perf_counter()
+    while time.perf_counter() - start < min_seconds:
+      steps += int(ship_subtask.train_subtask(task, 1000, 0, width_alpha=0.003)["steps"].sum())
+    rows.append((f"ship {task} subtask, learned width, compiled, learning", "control steps/s",
+                 _rate(steps, time.perf_counter() - start)))
+
   agent = agents.build(agents.load_task("ship_hybrid"), seed=0)
-  env = agent.make_env("dm_control")
+  # The plain dm_control task (its -100 for leaving; the speed does not depend on
+  # it): `agent.make_env("dm_control")` passes the task file's rewards, which the
+  # suite's `steer` does not take yet.
+  from hpg_mj import suite
+  env = suite.load("ship", "steer", {"random": 0})
   agent.train_stepwise(env, 2)
   steps, start = 0, time.perf_counter()
   while time.perf_counter() - start < min_seconds:

@@ -12,8 +12,9 @@ A package adds agents without any edit to hpg_mj through the entry-point group
 `hpg_mj.agents` (in its pyproject.toml:
 `[project.entry-points."hpg_mj.agents"] my_agent = "my_pkg.agent:MyAgent"`).
 
-Shipped: ship_hybrid, ship_flat_pg, ship_actor_critic, ship_patrol (continuing,
-SPEC section 8), taxi_hpg, taxi_maxq, taxi_flat_q (each one module here).
+Shipped: ship_hybrid, ship_beyond (past the paper's route, SPEC section 8),
+ship_flat_pg, ship_actor_critic, ship_patrol (continuing, SPEC section 8), taxi_hpg,
+taxi_maxq, taxi_flat_q (each one module here).
 """
 import importlib
 import pathlib
@@ -41,6 +42,7 @@ ENTRY_POINT_GROUP = "hpg_mj.agents"
 
 _SHIPPED = {
     "ship_hybrid": "hpg_mj.agents.ship_hybrid:ShipHybrid",
+    "ship_beyond": "hpg_mj.agents.ship_beyond:ShipBeyond",
     "ship_flat_pg": "hpg_mj.agents.ship_flat_pg:ShipFlatPG",
     "ship_actor_critic": "hpg_mj.agents.ship_actor_critic:ShipActorCritic",
     "ship_patrol": "hpg_mj.agents.ship_patrol:ShipPatrol",

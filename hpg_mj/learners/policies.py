@@ -162,3 +162,47 @@ def learn_baseline(values, tiles, beta, signal, gamma, next_value):
   delta = signal + gamma * next_value - tile_mean(values, tiles)
   for k in range(tiles.shape[0]):
     values[tiles[k]] += beta * delta
+
+
+# A learned exploration width (SPEC section 8, the paper's future work; a new rule
+# beside `gaussian_act`, which stays the paper's sigma = 1). The width is linear in
+# log space over the same tiles: log sigma(s) = the mean of `width.theta` over the
+# active tiles, clipped to [log_sigma_low, log_sigma_high], and learned by Eq. 3 on
+# its own trace `width` with the score of log N(u; m, sigma) (Williams 1992):
+#   d/dtheta_i   log pi = (u - m) / sigma^2 * phi_i / sum(phi)
+#   d/dwidth_i   log pi = ((u - m)^2 / sigma^2 - 1) * phi_i / sum(phi)
+# (0 where the clip is active: the clipped width does not move with width_i).
+# At width weights 0 and a clip around 0, sigma = 1 and the mean's score is the
+# paper's psi exactly.
+
+@numba.njit(cache=True)
+def log_width(width, tiles, log_sigma_low, log_sigma_high):
+  """(log sigma(s), whether the clip is inactive) over the active tiles."""
+  v = gaussian_mean(width, tiles)
+  if v < log_sigma_low:
+    return log_sigma_low, False
+  if v > log_sigma_high:
+    return log_sigma_high, False
+  return v, True
+
+
+@numba.njit(cache=True)
+def gaussian_width_act(t, width, tiles, r_max, log_sigma_low, log_sigma_high, rng_state, psi,
+                       psi_width):
+  """Samples u ~ Normal(m, sigma(s)^2); adds the mean's score to the trace `t` and
+  log sigma's score to the trace `width` (see above); returns the action r.
+  `psi`, `psi_width` are scratch of the length of `tiles` (left holding the scores)."""
+  m = gaussian_mean(t, tiles)
+  ls, free = log_width(width, tiles, log_sigma_low, log_sigma_high)
+  sigma = math.exp(ls)
+  u = m + sigma * rng.normal(rng_state)
+  z = (u - m) / sigma
+  n = tiles.shape[0]
+  g = z / sigma / n
+  h = (z * z - 1.0) / n if free else 0.0
+  for k in range(n):
+    psi[k] = g
+    psi_width[k] = h
+  el.add_score(t, tiles, psi)
+  el.add_score(width, tiles, psi_width)
+  return squash(u, r_max)

@@ -1,0 +1,121 @@
+"""The route past the paper's (hpg_mj.agents.ship_beyond): the root's targets and
+state, the aim subtask's state as an isometry, its outcome, J, and the refusals."""
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from hpg_mj import agents
+from hpg_mj.agents import ship_beyond as sb
+from hpg_mj.worlds import ship_core as core
+
+S = sb.settings(sb.Config())
+
+
+def test_the_gate_target_follows_the_ship_and_approach_points_are_fixed():
+  assert sb.n_targets(S) == 4
+  at = lambda x, y: np.array([x, y, 0.0, 0.0])
+  assert sb.target_of(0, at(100.0, 900.0), 1.0, S) == (352.0, 400.0)   # posts moved in 2 m
+  assert sb.target_of(0, at(401.5, 10.0), -1.0, S) == (401.5, 400.0)
+  assert sb.target_of(0, at(999.0, 400.0), 1.0, S) == (448.0, 400.0)
+  assert sb.target_of(1, at(0.0, 0.0), -1.0, S) == (300.0, 320.0)      # the call's side
+  assert sb.target_of(3, at(0.0, 0.0), 1.0, S) == (500.0, 480.0)
+  assert sb.side_of(400.0) == 1.0 and sb.side_of(399.9) == -1.0
+
+
+def test_root_state_cells_and_heading_sectors():
+  # 50 m cells, 8 sectors centred on N, NE, ...: (x, y) = (125, 980) is cell (2, 19).
+  assert sb.root_state(np.array([125.0, 980.0, 0.0, 0.0]), S) == (2 * 20 + 19) * 8 + 0
+  assert sb.root_state(np.array([125.0, 980.0, 22.4, 0.0]), S) % 8 == 0
+  assert sb.root_state(np.array([125.0, 980.0, 22.6, 0.0]), S) % 8 == 1
+  assert sb.root_state(np.array([125.0, 980.0, -22.6, 0.0]), S) % 8 == 7
+  assert sb.root_state(np.array([1000.0, 1000.0, 179.0, 0.0]), S) == (19 * 20 + 19) * 8 + 4
+
+
+def test_the_aim_state_is_an_isometry_of_the_dynamics():
+  rs = np.random.default_rng(0)
+  view, moved_view = np.empty(3), np.empty(3)
+  for _ in range(20):
+    state = np.array([*rs.uniform(100, 900, 2), rs.uniform(-180, 180), rs.uniform(-15, 15)])
+    target = rs.uniform(100, 900, 2)
+    # Turn the world by a quarter turn about the target and shift it: same view.
+    d = state[:2] - target
+    moved = np.array([target[0] + d[1] + 7.0, target[1] - d[0] - 3.0,
+                      core.wrap_deg(state[2] + 90.0), state[3]])
+    sb.aim_view(state, target[0], target[1], view)
+    sb.aim_view(moved, target[0] + 7.0, target[1] - 3.0, moved_view)
+    np.testing.assert_allclose(view, moved_view, atol=1e-9)
+  sb.aim_view(np.array([0.0, 0.0, 45.0, 2.0]), 300.0, 300.0, view)
+  np.testing.assert_allclose(view, [0.0, 2.0, sb.DISTANCE_CLIP], atol=1e-9)
+  sb.aim_view(np.array([0.0, 0.0, 0.0, -1.0]), 100.0, 0.0, view)     # target due east
+  np.testing.assert_allclose(view, [-90.0, -1.0, 100.0], atol=1e-9)
+
+
+def test_aim_outcome_success_failure_and_shaping():
+  samples = np.array([[0.0, 0.0], [5.0, 0.0], [10.0, 0.0], [15.0, 0.0]])
+  state = np.array([15.0, 0.0, 90.0, 0.0])                   # heading straight at the target
+  event, g = sb.aim_outcome(samples, state, 1, 29.0, 0.0, 1, core.NO_EVENT, S)
+  assert event == core.SUCCESS and g == 100.0               # 14 m <= radius 15, G = 0
+  event, g = sb.aim_outcome(samples, state, 1, 31.0, 0.0, 1, core.NO_EVENT, S)
+  assert event == core.NO_EVENT and g == 0.0
+  event, g = sb.aim_outcome(samples, state, 1, 31.0, 0.0, S.max_steps, core.NO_EVENT, S)
+  assert event == core.FAILURE and g == -100.0
+  # The gate action ends only at the gate, off the field, or across the line beside it.
+  event, _ = sb.aim_outcome(samples, state, 0, 29.0, 0.0, 1, core.NO_EVENT, S)
+  assert event == core.NO_EVENT
+  event, _ = sb.aim_outcome(samples, state, 0, 500.0, 0.0, 1, core.SUCCESS, S)
+  assert event == core.SUCCESS
+  beside = np.array([[100.0, 401.0], [100.0, 400.5], [100.0, 399.9], [100.0, 399.0]])
+  event, g = sb.aim_outcome(beside, np.array([100.0, 399.0, 180.0, 0.0]), 0, 352.0, 400.0, 1,
+                            core.NO_EVENT, S)
+  assert event == core.FAILURE
+  state[2] = 0.0                                            # 90 degrees off: G = exp(-9) - 1
+  _, g = sb.aim_outcome(samples, state, 1, 500.0, 0.0, 1, core.FAILURE, S)
+  assert g == pytest.approx(math.exp(-9.0) - 1.0 - 100.0)
+
+
+def test_discounted_return_by_hand():
+  record = np.zeros(4, dtype=[("steps", float), ("passed", float), ("return", float)])
+  record["steps"] = [1, 3, 3, 5000]
+  record["passed"] = [1, 1, 0, 0]
+  record["return"] = [99.0, 97.0, -303.0, -5000.0]          # gate, gate, left, truncated
+  j = sb.discounted_return(record)
+  np.testing.assert_allclose(j[:3], [0.0, -1.99, -1.99 - 100 * 0.99 ** 2], rtol=1e-12)
+  assert j[3] == pytest.approx(-(1 - 0.99 ** 5000) / 0.01)
+
+
+def test_the_route_learns_and_both_paths_run():
+  agent = agents.build(agents.load_task("ship_hybrid_beyond"), seed=4)
+  first = agent.train(3000)
+  last = agent.train(3000)
+  assert last["passed"].mean() > first["passed"][:1000].mean() + 0.2
+  greedy = agent.evaluate(50)
+  assert greedy["passed"].mean() >= 0.8
+  stepwise = agent.run_stepwise(agent.make_env("gymnasium"), 3, learn=False)
+  assert len(stepwise) == 3 and stepwise["calls"].min() >= 1
+
+
+def test_the_learned_width_is_refused_on_the_step_by_step_path():
+  c = sb.Config()
+  agent = sb.ShipBeyond(dataclasses.replace(
+      c, low_level=dataclasses.replace(c.low_level, width_alpha=0.003)), seed=0)
+  assert len(agent.train(5)) == 5                             # the compiled path has it
+  with pytest.raises(ValueError, match="width_alpha > 0 runs on the compiled path only"):
+    agent.graph()
+  with pytest.raises(ValueError, match=r"sigma_low = 2.0, sigma_high = 4.0: need"):
+    sb.ShipBeyond(dataclasses.replace(
+        c, low_level=dataclasses.replace(c.low_level, sigma_low=2.0, sigma_high=4.0)))
+
+
+def test_greedy_episodes_agree_on_both_paths():
+  agent = agents.build(agents.load_task("ship_hybrid_beyond"), seed=6)
+  agent.train(2000)
+  env = agent.make_env("gymnasium")
+  rs = np.random.default_rng(3)
+  for _ in range(5):
+    start = np.array([*rs.uniform(50, 950, 2), rs.uniform(-180, 180), rs.uniform(-15, 15)])
+    fused = agent.as_record(agent.compiled(1, False, False, start=start))
+    stepwise = agent.run_stepwise(env, 1, learn=False, start=start)
+    for field in ("passed", "steps", "calls", "return"):
+      assert fused[field][0] == stepwise[field][0], field
