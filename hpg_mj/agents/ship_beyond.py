@@ -55,7 +55,7 @@ Settings = collections.namedtuple("Settings", (
     "root_epsilon_divisor", "root_cell_m", "root_grid", "root_headings", "root_inset_m",
     "root_approach_m",
     "alpha", "trace_gamma", "baseline", "max_steps", "width_alpha", "log_sigma_low",
-    "log_sigma_high", "radius_m", "shaping",
+    "log_sigma_high", "radius_m", "shaping", "sqrt_error",
     "environment_max_steps", "environment_gate_reward", "environment_out_of_bounds_reward"))
 RootTable = collections.namedtuple("RootTable", ("q", "index", "value", "count"))
 
@@ -69,6 +69,7 @@ def settings(config):
                   float(low.alpha), float(low.trace_gamma), float(low.baseline),
                   int(low.max_steps), float(low.width_alpha), math.log(low.sigma_low),
                   math.log(low.sigma_high), float(low.radius_m), float(low.shaping),
+                  low.error_scale == "sqrt",
                   int(env.max_steps), float(env.gate_reward), float(env.out_of_bounds_reward))
 
 
@@ -112,10 +113,13 @@ def target_of(action, state, side, s):
 
 
 @numba.njit(cache=True)
-def aim_view(state, tx, ty, out):
-  """The aim subtask's state: heading error to the target (deg, wrapped), turning
-  rate, distance (clipped at DISTANCE_CLIP)."""
-  out[0] = core.wrap_deg(state[2] - core.bearing_deg(state[0], state[1], tx, ty))
+def aim_view(state, tx, ty, out, sqrt_error=False):
+  """The aim subtask's state: heading error e to the target (deg, wrapped; with
+  `sqrt_error` as 180 sign(e) sqrt(|e| / 180), still in [-180, 180], so that the
+  tiles are finer near e = 0, where the ship holds its course), turning rate,
+  distance (clipped at DISTANCE_CLIP)."""
+  e = core.wrap_deg(state[2] - core.bearing_deg(state[0], state[1], tx, ty))
+  out[0] = math.copysign(180.0 * math.sqrt(abs(e) / 180.0), e) if sqrt_error else e
   out[1] = state[3]
   out[2] = min(math.hypot(tx - state[0], ty - state[1]), DISTANCE_CLIP)
 
@@ -163,7 +167,7 @@ def run_aim(state, action, trace, width, values, tiling, s, learn, sample, rng_s
   side = side_of(state[1])
   tx, ty = target_of(action, state, side, s)
   while True:
-    aim_view(state, tx, ty, view)
+    aim_view(state, tx, ty, view, s.sqrt_error)
     tiles_mod.active_tiles(view, tiling, tiles)
     if sample:
       r = ship_subtask.act_and_score(trace, width, values, tiles, s, learn, rng_state, psi,
@@ -181,7 +185,7 @@ def run_aim(state, action, trace, width, values, tiling, s, learn, sample, rng_s
              or steps_before + k >= s.environment_max_steps)
     if learn:
       if not ended:
-        aim_view(state, tx, ty, view)
+        aim_view(state, tx, ty, view, s.sqrt_error)
         tiles_mod.active_tiles(view, tiling, next_tiles)
       ship_subtask.learn_step(trace, width, values, tiles, next_tiles, s,
                               core.STEP_REWARD + internal, ended)
@@ -291,6 +295,8 @@ class LowLevel:
                          "0: none)", low=0, high=10)
   radius_m: float = param(15.0, "within this distance of its target a call has succeeded",
                           low=0, low_open=True)
+  error_scale: str = param("sqrt", "the heading error's scale on the tiles: sqrt (finer "
+                           "near 0) or linear", choices=("sqrt", "linear"))
   tilings: int = param(9, "CMAC tilings", low=1)
   tiles: tuple = param((36, 6, 4), "tiles per tiling over heading error (wraps), turning "
                        "rate, distance", length=3, low=1)
@@ -377,7 +383,7 @@ class ShipBeyond(_ship.ShipAgent):
 
     def low_view(call, obs):
       tx, ty = target(call, obs)
-      aim_view(np.asarray(obs, dtype=np.float64), tx, ty, view)
+      aim_view(np.asarray(obs, dtype=np.float64), tx, ty, view, s.sqrt_error)
       tiles_mod.active_tiles(view, self.tile_arrays, scratch_tiles)
       return scratch_tiles
 
