@@ -188,7 +188,8 @@ class Physics(mujoco.Physics):
 class ShipTask(base.Task):
   """A ship task on the MuJoCo ship (see `ShipRules` for the rules)."""
 
-  def __init__(self, kind, random=None, initial_state=None, strict=False, max_steps=None):
+  def __init__(self, kind, random=None, initial_state=None, strict=False, max_steps=None,
+               **rewards):
     """Args:
       kind: "steer", "diagonal", "straight" or "patrol".
       random: seed, np.random.RandomState or None.
@@ -199,7 +200,7 @@ class ShipTask(base.Task):
         and patrol, failed for the subtasks); SPEC defaults 5,000, 300 and,
         for patrol, 6,000 (one hour).
     """
-    self.rules = ShipRules(kind, max_steps)
+    self.rules = ShipRules(kind, max_steps, **rewards)
     self.name = f"ship-{kind}"
     self.strict = strict
     self.initial_state = initial_state
@@ -269,10 +270,11 @@ class ShipTask(base.Task):
     return self._outcome[3]
 
 
-def _environment(kind, random, initial_state, strict, max_steps, environment_kwargs):
+def _environment(kind, random, initial_state, strict, max_steps, environment_kwargs,
+                 **rewards):
   physics = Physics.from_xml_string(*get_model_and_assets())
   task = ShipTask(kind, random=random, initial_state=initial_state, strict=strict,
-                  max_steps=max_steps)
+                  max_steps=max_steps, **rewards)
   environment_kwargs = dict(environment_kwargs or {})
   # The task owns the episode's length (truncation vs. failure differ by task).
   environment_kwargs.setdefault("time_limit", float("inf"))
@@ -282,9 +284,12 @@ def _environment(kind, random, initial_state, strict, max_steps, environment_kwa
 
 @SUITE.add("benchmarking")
 def steer(random=None, initial_state=None, strict=False, max_steps=None,
-          environment_kwargs=None):
-  """The full ship steering task (SPEC section 2)."""
-  return _environment("steer", random, initial_state, strict, max_steps, environment_kwargs)
+          environment_kwargs=None, gate_reward=core.GATE_REWARD,
+          out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD):
+  """The full ship steering task (SPEC section 2); the gate's and the bounds' rewards
+  are those of SPEC section 2 unless given (a task file's [environment] does)."""
+  return _environment("steer", random, initial_state, strict, max_steps, environment_kwargs,
+                      gate_reward=gate_reward, out_of_bounds_reward=out_of_bounds_reward)
 
 
 @SUITE.add("benchmarking", "subtask")
@@ -303,6 +308,8 @@ def straight(random=None, initial_state=None, strict=False, max_steps=None,
 
 @SUITE.add("benchmarking", "continuing")
 def patrol(random=None, initial_state=None, strict=False, max_steps=None,
-           environment_kwargs=None):
+           environment_kwargs=None, gate_reward=core.GATE_REWARD,
+           out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD):
   """The continuing ship task: pass the gate as often as possible (SPEC section 8)."""
-  return _environment("patrol", random, initial_state, strict, max_steps, environment_kwargs)
+  return _environment("patrol", random, initial_state, strict, max_steps, environment_kwargs,
+                      gate_reward=gate_reward, out_of_bounds_reward=out_of_bounds_reward)
