@@ -22,5 +22,8 @@ if [ ! -x .venv/bin/python ]; then
 fi
 .venv/bin/python -m pip install -q --disable-pip-version-check --upgrade pip
 EXTRAS=${1:+[$1]}
+# setuptools reuses build/lib between builds, so a module deleted from the checkout
+# would otherwise still ship in the wheel.
+rm -rf build
 echo "setup: installing hpg_mj${EXTRAS} and its pinned dependencies into .venv"
 .venv/bin/python -m pip install -q --disable-pip-version-check ".${EXTRAS}"
