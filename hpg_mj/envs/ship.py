@@ -59,6 +59,19 @@ class MujocoBackend:
     return self.physics.sampled_positions()
 
 
+def spaces_of(rules):
+  """(observation space, action space) of one ship on `rules`' task: the field (or
+  local frame) with the margin one control step can overshoot it by, and r."""
+  margin = core.SPEED * core.CONTROL_INTERVAL
+  size = rules.size
+  observation = spaces.Box(
+      low=np.array([-margin, -margin, -180.0, -core.MAX_TURN_RATE]),
+      high=np.array([size + margin, size + margin, 180.0, core.MAX_TURN_RATE]),
+      dtype=np.float64)
+  action = spaces.Box(-core.MAX_TURN_RATE, core.MAX_TURN_RATE, (1,), np.float64)
+  return observation, action
+
+
 def make_backend(name):
   if name == "mujoco":
     return MujocoBackend()
@@ -150,13 +163,7 @@ class ShipSteeringEnv(gymnasium.Env):
     self.strict = bool(strict)
     self.render_mode = render_mode
     self._name = f"ShipSteering({task}, backend={backend})"
-    margin = core.SPEED * core.CONTROL_INTERVAL
-    size = self.rules.size
-    self.observation_space = spaces.Box(
-        low=np.array([-margin, -margin, -180.0, -core.MAX_TURN_RATE]),
-        high=np.array([size + margin, size + margin, 180.0, core.MAX_TURN_RATE]),
-        dtype=np.float64)
-    self.action_space = spaces.Box(-core.MAX_TURN_RATE, core.MAX_TURN_RATE, (1,), np.float64)
+    self.observation_space, self.action_space = spaces_of(self.rules)
     self._width, self._height = int(width), int(height)
     self._camera = camera or ("top" if task in ("steer", "patrol") else "local")
     self._renderer = None

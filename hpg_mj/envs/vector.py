@@ -278,14 +278,7 @@ class ShipSteeringVectorEnv(_BatchedEnv):
       raise ValueError(f"unknown ship backend {backend!r}; valid backends: "
                        f"{list(ship_env.BACKENDS)}")
     self.task, self.backend, self.strict = task, backend, bool(strict)
-    margin = ship_core.SPEED * ship_core.CONTROL_INTERVAL
-    size = self.rules.size
-    self.single_observation_space = spaces.Box(
-        low=np.array([-margin, -margin, -180.0, -ship_core.MAX_TURN_RATE]),
-        high=np.array([size + margin, size + margin, 180.0, ship_core.MAX_TURN_RATE]),
-        dtype=np.float64)
-    self.single_action_space = spaces.Box(-ship_core.MAX_TURN_RATE, ship_core.MAX_TURN_RATE,
-                                          (1,), np.float64)
+    self.single_observation_space, self.single_action_space = ship_env.spaces_of(self.rules)
     self.observation_space = batch_space(self.single_observation_space, self.num_envs)
     self.action_space = batch_space(self.single_action_space, self.num_envs)
     n = self.num_envs
