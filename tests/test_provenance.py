@@ -12,27 +12,10 @@ import pytest
 import hpg_mj
 from hpg_mj import agents, cli, provenance
 from hpg_mj.experiments import runs
+from experiment_file import experiment_text
 
-TINY = """
-[experiment]
-name = "tiny"
-description = "one task, two seeds"
-tasks = ["taxi_fuel_flat_q"]
-runs = 2
-episodes = 1000
-quick_runs = 1
-quick_episodes = 1000
-tuning = true     # the machinery under test, on tuning seeds
-
-[[figure]]
-name = "curve"
-kind = "curve"
-metric = "mean_return"
-x = "episodes"
-title = "a curve"
-ylabel = "return"
-paper = "nothing"
-"""
+TINY = experiment_text("tiny", "taxi_fuel_flat_q", 2, 1000, "one task, two seeds",
+                       "mean_return", ylabel="return")
 COMMIT = re.compile(r"^([0-9a-f]{40}(-dirty)?|unknown)$")
 
 

@@ -18,27 +18,8 @@ import hpg_mj
 from hpg_mj import agents
 from hpg_mj.agents import storage
 from hpg_mj.experiments import locks, runner, runs
+from experiment_file import experiment_text
 
-EXPERIMENT = """
-[experiment]
-name = "locked"
-description = "one task, two seeds"
-tasks = ["{task}"]
-runs = 2
-episodes = {episodes}
-quick_runs = 1
-quick_episodes = 1000
-tuning = true     # the machinery under test, on tuning seeds
-
-[[figure]]
-name = "curve"
-kind = "curve"
-metric = "{metric}"
-x = "episodes"
-title = "a curve"
-ylabel = "a metric"
-paper = "nothing"
-"""
 ENV = dict(os.environ, PYTHONPATH=str(pathlib.Path(hpg_mj.__file__).resolve().parents[1]))
 # The commands run from outside the checkout, so that they import the installed
 # hpg_mj, as this process does (`python -m` puts the working folder first).
@@ -48,7 +29,7 @@ CWD = pathlib.Path(hpg_mj.__file__).resolve().parents[1]
 def _experiment(tmp_path, task="taxi_fuel_hpg", episodes=3000):
   path = tmp_path / f"{task}.toml"
   metric = "mean_return" if task.startswith("taxi") else "gate_passes"
-  path.write_text(EXPERIMENT.format(task=task, episodes=episodes, metric=metric))
+  path.write_text(experiment_text("locked", task, 2, episodes, "one task, two seeds", metric))
   return path
 
 

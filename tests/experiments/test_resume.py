@@ -16,33 +16,14 @@ import hpg_mj
 from hpg_mj import agents
 from hpg_mj.agents import storage
 from hpg_mj.experiments import runner, runs
+from experiment_file import experiment_text
 
-EXPERIMENT = """
-[experiment]
-name = "resume"
-description = "one task, one seed"
-tasks = ["{task}"]
-runs = {runs}
-episodes = {episodes}
-quick_runs = 1
-quick_episodes = 1000
-tuning = true     # the machinery under test, on tuning seeds
-
-[[figure]]
-name = "curve"
-kind = "curve"
-metric = "{metric}"
-x = "episodes"
-title = "a curve"
-ylabel = "a metric"
-paper = "nothing"
-"""
 
 
 def _experiment(tmp_path, task="ship_hybrid", n_runs=1, episodes=6000):
   path = tmp_path / f"{task}.toml"
   metric = "mean_return" if task.startswith("taxi") else "gate_passes"
-  path.write_text(EXPERIMENT.format(task=task, runs=n_runs, episodes=episodes, metric=metric))
+  path.write_text(experiment_text("resume", task, n_runs, episodes, "one task, one seed", metric))
   return path
 
 
