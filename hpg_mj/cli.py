@@ -304,7 +304,7 @@ def _cmd_tune(args):
         print(f"{name} #{k + 1} ({tuning.describe(changes)}) seed {seed}: {value:.6g} "
               f"({seconds:.1f} s)", file=sys.stderr, flush=True)
     result = tuning.tune(task, budget=args.budget, episodes=args.episodes, seeds=seeds,
-                         progress=progress)
+                         progress=progress, workers=args.workers)
     out.append(result)
     print(f"{task.name} ({task.path.stem}): {len(result['results'])} configurations x "
           f"{len(result['seeds'])} seeds x {result['episodes']:,} episodes, score "
@@ -552,6 +552,9 @@ def build_parser():
                  help="episodes per run (default: each file's [tuning] episodes)")
   p.add_argument("--seeds", default=None,
                  help="comma-separated tuning seeds (default: each file's tuning_seeds)")
+  p.add_argument("--workers", type=_at_least(1), default=1,
+                 help="runs at a time, each in its own process (default 1; the results "
+                      "do not depend on it)")
   p.add_argument("--json", default=None, help="write the results to this JSON file")
   p.add_argument("--quiet", action="store_true", help="no line per run on stderr")
   p.set_defaults(func=_cmd_tune)

@@ -76,12 +76,26 @@ def score(agent, record, name):
   return float("nan") if value is None else float(value)
 
 
-def tune(task, budget=None, episodes=None, seeds=None, progress=None):
-  """Trains every candidate on every seed; returns {"task", "budget", "episodes",
-  "seeds", "score", "better", "results": [{"changes", "scores", "mean"}], "best"}."""
+def _one_run(path, changes, seed, episodes, score_name):
+  """Trains one candidate on one seed; returns (its score, seconds). A module-level
+  function, so that a process pool can run it."""
+  task = agents.load_task(path)
+  start = time.perf_counter()
+  agent = agents.lookup(task.kind)(configure(task, changes), seed=seed, task=task)
+  record = agent.train(episodes)
+  return score(agent, record, score_name), time.perf_counter() - start
+
+
+def tune(task, budget=None, episodes=None, seeds=None, progress=None, workers=1):
+  """Trains every candidate on every seed, `workers` runs at a time in separate
+  processes (the result does not depend on it); returns {"task", "budget",
+  "episodes", "seeds", "score", "better", "results": [{"changes", "scores",
+  "mean"}], "best"}."""
   spec = task.tuning
   if spec is None:
     grid(task)                  # raises, naming the file
+  if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+    raise ValueError(f"workers must be a positive number of processes, got {workers!r}")
   budget = spec["budget"] if budget is None else budget
   episodes = spec["episodes"] if episodes is None else episodes
   seeds = list(task.tuning_seeds) if seeds is None else list(seeds)
@@ -91,19 +105,34 @@ def tune(task, budget=None, episodes=None, seeds=None, progress=None):
   if outside:
     raise ValueError(f"seeds {outside} are not tuning seeds of {task.path.name} "
                      f"({list(task.tuning_seeds)}); tuning uses those only (SPEC section 7)")
-  cls = agents.lookup(task.kind)
+  agents.lookup(task.kind)
+  chosen = candidates(task, budget)
+  jobs = [(k, seed) for k in range(len(chosen)) for seed in seeds]
+  scores = {}
+
+  def finished(job, value, seconds):
+    scores[job] = value
+    if progress:
+      progress(job[0], chosen[job[0]], job[1], value, seconds)
+
+  arguments = [(str(task.path), chosen[k], seed, episodes, spec["score"]) for k, seed in jobs]
+  if workers == 1:
+    for job, args in zip(jobs, arguments):
+      finished(job, *_one_run(*args))
+  else:
+    import concurrent.futures
+    with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
+      futures = {pool.submit(_one_run, *args): job for job, args in zip(jobs, arguments)}
+      try:
+        for future in concurrent.futures.as_completed(futures):
+          finished(futures[future], *future.result())
+      except BaseException:
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
   results = []
-  for k, changes in enumerate(candidates(task, budget)):
-    config = configure(task, changes)
-    scores = []
-    for seed in seeds:
-      start = time.perf_counter()
-      agent = cls(config, seed=seed, task=task)
-      record = agent.train(episodes)
-      scores.append(score(agent, record, spec["score"]))
-      if progress:
-        progress(k, changes, seed, scores[-1], time.perf_counter() - start)
-    results.append({"changes": changes, "scores": scores, "mean": float(np.mean(scores))})
+  for k, changes in enumerate(chosen):
+    values = [scores[(k, seed)] for seed in seeds]
+    results.append({"changes": changes, "scores": values, "mean": float(np.mean(values))})
   lower = spec["better"] == "lower"
   order = sorted(range(len(results)), key=lambda i: (np.isnan(results[i]["mean"]),
                  results[i]["mean"] if lower else -results[i]["mean"]))

@@ -149,6 +149,10 @@ def test_tune_trains_each_candidate_on_the_tuning_seeds(tmp_path):
   assert first["scores"][1] == pytest.approx(alone.metrics(alone.train(300))["mean_return"])
   with pytest.raises(ValueError, match=r"seeds \[100\] are not tuning seeds"):
     tuning.tune(task, seeds=[100])
+  # Two processes give the same scores, in the same order, as one.
+  assert tuning.tune(task, seeds=[0, 1], workers=2)["results"] == result["results"]
+  with pytest.raises(ValueError, match="workers must be a positive number"):
+    tuning.tune(task, seeds=[0, 1], workers=0)
 
 
 @pytest.mark.parametrize("old,new,message", [
