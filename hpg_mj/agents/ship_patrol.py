@@ -359,7 +359,7 @@ class ShipPatrol(_ship.ShipAgent):
 
   def graph(self):
     """Figure 3's graph with the continuing root (SPEC section 8): the root's
-    R-learning over the 50 m cells; a low-level call also returns at a gate pass
+    R-learning over `root_state`; a low-level call also returns at a gate pass
     or a departure; the root returns (a record row ends) once the row has
     `record_steps` control steps, between calls."""
     cfg = self.config

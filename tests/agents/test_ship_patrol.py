@@ -137,11 +137,11 @@ def test_stepwise_and_compiled_paths_give_identical_results(tmp_path, learn):
   np.testing.assert_array_equal(a, b)
   assert a["steps"].min() >= 6000 and a["calls"].sum() > 50
   assert a["departures"].sum() >= 1            # the restart is drawn on both paths alike
-  if not learn:
-    assert a["gates"].sum() >= 1
+  if learn:
+    assert a["gates"].sum() >= 1                # a call cut by a gate pass, on both
   for name, value in _arrays(stepwise).items():
     np.testing.assert_array_equal(value, _arrays(compiled)[name], err_msg=name)
-  assert stepwise.episodes == compiled.episodes == (4 if not learn else 2)
+  assert stepwise.episodes == compiled.episodes == 2       # learning rows only
 
 
 def test_stepwise_rows_continue_the_process(tmp_path):
