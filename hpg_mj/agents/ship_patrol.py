@@ -68,8 +68,9 @@ def settings(config):
 @numba.njit(cache=True)
 def root_state(state, heading_sectors):
   """The root's abstract state: the 50 m cell of (x, y) (`ship_rules.root_cell`)
-  and, with `heading_sectors` n > 1, the ship's heading in n equal sectors, the
-  first centred on north: cell * n + sector. n = 1 is the hybrid's root."""
+  and, with `heading_sectors` n > 1, the ship's heading in n equal sectors
+  counted clockwise, sector 0 centred on south (-180 deg): cell * n + sector.
+  n = 1 is the hybrid's root."""
   cell = rules.root_cell(state[0], state[1])
   if heading_sectors == 1:
     return cell

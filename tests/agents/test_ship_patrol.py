@@ -162,3 +162,17 @@ def test_a_truncating_environment_is_refused(tmp_path):
   with pytest.raises(ValueError, match="rows end between calls; make the patrol environment "
                                        "with max_steps="):
     agent.run_stepwise(env, 1)
+
+
+@pytest.mark.parametrize("theta,sector", [(-180.0, 0), (179.9, 0), (-157.6, 0), (-157.5, 1),
+                                          (0.0, 4), (22.4, 4), (22.5, 5), (-22.5, 4),
+                                          (-22.6, 3), (90.0, 6)])
+def test_the_root_state_is_the_cell_and_the_heading_sector(theta, sector):
+  state = np.array([425.0, 375.0, theta, 0.0])              # cell (8, 7): 8 * 20 + 7
+  assert ship_patrol.root_state(state, 1) == 167
+  assert ship_patrol.root_state(state, 8) == 167 * 8 + sector
+
+
+def test_the_shipped_root_sees_the_heading():
+  agent = agents.build(agents.load_task("ship_patrol_average_reward"), seed=0)
+  assert agent.config.root.heading_sectors == 8 and agent.q.shape == (400 * 8 * 8,)
