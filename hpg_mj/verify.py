@@ -144,8 +144,20 @@ def golden_dir():
   raise FileNotFoundError(f"no golden trajectories beside {here}: reinstall hpg_mj")
 
 
-def ship_golden_actions():
-  return np.random.default_rng(7).uniform(-15.0, 15.0, (GOLDEN_STEPS, 1))
+# The continuing task's defining events, a gate pass and a restart after leaving the
+# field, lie hundreds of metres apart: its golden trajectory starts 10 m south of the
+# gate heading almost west, sails straight (r = 0) through the gate and on out of
+# the field, and after the restart turns as the other tasks' do.
+SHIP_GOLDEN_STARTS = {"patrol": (440.0, 390.15, -80.0, 0.0)}
+PATROL_GOLDEN_STRAIGHT = 260     # control steps at r = 0 before the random turns
+
+
+def ship_golden_actions(task=None):
+  """The fixed turning rates of a ship task's golden trajectory."""
+  turns = np.random.default_rng(7).uniform(-15.0, 15.0, (GOLDEN_STEPS, 1))
+  if task == "patrol":
+    return np.concatenate([np.zeros((PATROL_GOLDEN_STRAIGHT, 1)), turns])
+  return turns
 
 
 def ship_analytic_rollout(task, actions=None):
@@ -155,9 +167,10 @@ def ship_analytic_rollout(task, actions=None):
 
   import hpg_mj  # noqa: F401  (registers the ids)
   env = gymnasium.make(SHIP_GYMNASIUM_IDS[task], backend="analytic").unwrapped
-  obs, _ = env.reset(seed=GOLDEN_SEED)
+  start = SHIP_GOLDEN_STARTS.get(task)
+  obs, _ = env.reset(seed=GOLDEN_SEED, options=None if start is None else {"state": start})
   rows, rewards, ends = [obs], [], []
-  for a in ship_golden_actions() if actions is None else actions:
+  for a in ship_golden_actions(task) if actions is None else actions:
     obs, reward, terminated, truncated, _ = env.step(a)
     rewards.append(reward)
     ends.append(2 * terminated + truncated)
@@ -170,11 +183,12 @@ def ship_analytic_rollout(task, actions=None):
 def ship_mujoco_rollout(task, actions=None):
   """The same on the MuJoCo ship through the dm_control suite."""
   from hpg_mj import suite
-  env = suite.load("ship", task, {"random": GOLDEN_SEED})
+  env = suite.load("ship", task, {"random": GOLDEN_SEED,
+                                   "initial_state": SHIP_GOLDEN_STARTS.get(task)})
   flat = lambda ts: np.concatenate([np.ravel(v) for v in ts.observation.values()])  # noqa: E731
   ts = env.reset()
   rows, rewards, ends = [flat(ts)], [], []
-  for a in ship_golden_actions() if actions is None else actions:
+  for a in ship_golden_actions(task) if actions is None else actions:
     ts = env.step(a)
     rewards.append(ts.reward)
     ends.append(0 if not ts.last() else (2 if ts.discount == 0.0 else 1))

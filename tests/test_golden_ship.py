@@ -22,7 +22,7 @@ def test_the_golden_trajectories_ship_inside_the_package():
 @pytest.mark.parametrize("task", ["steer", "diagonal", "straight", "patrol"])
 def test_analytic_ship_replays_exactly(task):
   golden = np.load(GOLDEN / f"ship_{task}.npz", allow_pickle=False)
-  np.testing.assert_array_equal(golden["actions"], verify.ship_golden_actions())
+  np.testing.assert_array_equal(golden["actions"], verify.ship_golden_actions(task))
   obs, rewards, ends = verify.ship_analytic_rollout(task)
   np.testing.assert_array_equal(obs, golden["analytic_obs"])
   np.testing.assert_array_equal(rewards, golden["analytic_rewards"])
@@ -37,6 +37,22 @@ def test_mujoco_ship_replays_within_tolerance(task):
   np.testing.assert_allclose(obs, golden["mujoco_obs"], rtol=0, atol=tol)
   np.testing.assert_allclose(rewards, golden["mujoco_rewards"], rtol=0, atol=tol)
   np.testing.assert_array_equal(ends, golden["mujoco_ends"])
+
+
+@pytest.mark.parametrize("path", ["analytic", "mujoco"])
+def test_the_patrol_golden_holds_a_gate_pass_and_a_restart(path):
+  # The continuing task's defining events (SPEC section 8): the gate passed without
+  # an end, then the field left (-100 - 1) and the ship put at a fresh start.
+  golden = np.load(GOLDEN / "ship_patrol.npz", allow_pickle=False)
+  rewards, obs = golden[f"{path}_rewards"], golden[f"{path}_obs"]
+  assert not golden[f"{path}_ends"].any()                     # nothing ends the process
+  gate, = np.nonzero(rewards == 99.0)
+  left, = np.nonzero(rewards == -101.0)
+  assert len(gate) == 1 and len(left) == 1 and gate[0] < left[0]
+  before, after = obs[left[0]], obs[left[0] + 1]
+  assert before[0] < 2.0                                      # about to cross x = 0
+  assert np.all((after[:2] >= 0.0) & (after[:2] <= 1000.0))
+  assert np.hypot(*(after[:2] - before[:2])) > 50.0          # a jump, not a step
 
 
 def test_verify_golden_passes_every_task_and_fails_a_changed_one(tmp_path, capsys, monkeypatch):

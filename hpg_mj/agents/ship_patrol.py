@@ -2,16 +2,18 @@
 paper's section 6: "the hierarchy with a continuing root whose performance is
 the average reward", whose results it did not include).
 
-The hierarchy is the hybrid's (Figure 3, SPEC section 3): a root over the 20 x
-20 grid of 50 m cells choosing one of eight directions, and the shared diagonal
-and straight subtasks learned by Eq. 3, from scratch in the same run. Only the
-root differs: the process never ends (each gate pass +100 and the ship sails
-on; leaving the field pays the penalty and restarts the ship at a uniform
-start), so the root learns relative values and the gain rho, the reward per
-control step, by average-reward SMDP Q-learning (`learners.average_reward`:
-R-learning after Schwartz 1993 in the SMDP form of Ghavamzadeh & Mahadevan
-2001, 2002). A low-level call returns to the root at its own success or
-failure, at a gate pass, or when the ship leaves the field.
+The hierarchy is the hybrid's (Figure 3, SPEC section 3): a root choosing one of
+eight directions, and the shared diagonal and straight subtasks learned by Eq. 3,
+from scratch in the same run. The root differs: the process never ends (each
+gate pass +100 and the ship sails on; leaving the field pays the penalty and
+restarts the ship at a uniform start), so the root learns relative values and
+the gain rho, the reward per control step, by average-reward SMDP Q-learning
+(`learners.average_reward`: R-learning after Schwartz 1993 in the SMDP form of
+Ghavamzadeh & Mahadevan 2001, 2002); and its state is the 50 m cell and, with
+`heading_sectors` > 1, the ship's heading (`root_state`): passing the gate again
+is a U-turn that only pays from a cell when the ship points away from the gate.
+A low-level call returns to the root at its own success or failure, at a gate
+pass, or when the ship leaves the field.
 
 The agent is continuing: its record has one row per hour of sailing (6,000
 control steps; `record_steps`), and its task file's protocol says how long to
@@ -20,8 +22,10 @@ greedily, on the same hours from the same starts, this agent, the episodic
 hybrid (tasks/ship_hybrid.toml's agent, trained on its own protocol with this
 run's seed) and the scripted figure-eight helmsman (`ship_core.patrol_pilot_target`).
 
-Only the compiled path over the analytic ship is provided; the MuJoCo patrol
-is the Gymnasium / dm_control environment (`make_env`) for one's own agents.
+Both paths call the same compiled rules: the fused loop over the analytic ship
+(`patrol`) and the task graph run step by step (`graph`, `run_stepwise`) through
+the Gymnasium patrol on either backend, with the restarts drawn from the agent's
+generator; for a fixed seed they give the same records and arrays.
 """
 import dataclasses
 
@@ -31,12 +35,15 @@ import numpy as np
 from hpg_mj.agents import _ship
 from hpg_mj.agents import ship_hybrid as hybrid
 from hpg_mj.agents.taskfile import param
+from hpg_mj.hierarchy import executor as executor_mod
 from hpg_mj.hierarchy import ship_rules as rules
+from hpg_mj.hierarchy.graph import Child, Primitive, Step, Subtask, TaskGraph
 from hpg_mj.learners import average_reward
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import qlambda
 from hpg_mj.learners import rng
 from hpg_mj.learners import schedules
+from hpg_mj.learners import tiles as tiles_mod
 from hpg_mj.worlds import ship_core as core
 
 # Record columns, one row per hour (`ShipPatrol.record_fields`).
@@ -45,6 +52,8 @@ from hpg_mj.worlds import ship_core as core
 N_RECORD = 10
 NEVER = 1 << 60              # no episode clock: only the subtasks' 300 steps end a call
 EVALUATION_SEED = 2 ** 20    # the generator of the greedy evaluations' starts
+# The environment's events that end a low-level call (and what the row counts).
+_GLOBAL_EVENTS = {"gate": core.SUCCESS, "out_of_bounds": core.FAILURE}
 
 
 def settings(config):
@@ -54,6 +63,20 @@ def settings(config):
                          int(root.epsilon_every), float(root.epsilon_divisor), float(low.alpha),
                          float(low.trace_gamma), float(low.baseline), int(low.max_steps),
                          NEVER, float(env.gate_reward), float(env.out_of_bounds_reward))
+
+
+@numba.njit(cache=True)
+def root_state(state, heading_sectors):
+  """The root's abstract state: the 50 m cell of (x, y) (`ship_rules.root_cell`)
+  and, with `heading_sectors` n > 1, the ship's heading in n equal sectors
+  counted clockwise, sector 0 centred on south (-180 deg): cell * n + sector.
+  n = 1 is the hybrid's root."""
+  cell = rules.root_cell(state[0], state[1])
+  if heading_sectors == 1:
+    return cell
+  width = 360.0 / heading_sectors
+  sector = int((core.wrap_deg(state[2] + 0.5 * width) + 180.0) // width) % heading_sectors
+  return cell * heading_sectors + sector
 
 
 @numba.njit(cache=True)
@@ -73,7 +96,7 @@ def _count_run(row, sub, l_event, g_event):
 
 @numba.njit(cache=True)
 def patrol(n_rows, record_steps, learn, sample, rng_state, ship, q, gain, schedule, low_level,
-           tiling, s, gain_step, record):
+           tiling, s, gain_step, heading_sectors, record):
   """Sails the continuing task for `n_rows` rows of at least `record_steps` control
   steps each (a call is never cut: the row in which it starts holds it), from
   and into `ship` (the process's state, kept between calls).
@@ -99,7 +122,7 @@ def patrol(n_rows, record_steps, learn, sample, rng_state, ship, q, gain, schedu
     row[:] = 0.0
     while row[STEPS] < record_steps:
       epsilon = eps_state[0] if sample else 0.0
-      cell = rules.root_cell(ship[0], ship[1])
+      cell = root_state(ship, heading_sectors)
       a = qlambda.epsilon_greedy(q, cell, n, epsilon, rng_state)
       was_greedy = average_reward.is_greedy(q, cell, a, n)
       sub = rules.subtask_of(a)
@@ -119,7 +142,7 @@ def patrol(n_rows, record_steps, learn, sample, rng_state, ship, q, gain, schedu
         _ship.sample_start(rng_state, ship)
       if learn:
         average_reward.update(q, n, gain, cell, a, reward, float(k),
-                              rules.root_cell(ship[0], ship[1]), s.root_alpha, gain_step,
+                              root_state(ship, heading_sectors), s.root_alpha, gain_step,
                               was_greedy)
         # The held schedule, counted in root decisions (there are no episodes).
         schedules.end_episode(eps_state, outcomes, counts, s.root_epsilon_threshold,
@@ -152,6 +175,36 @@ def scripted(n_rows, record_steps, rng_state, ship, gate_reward, out_of_bounds_r
         phase = 0
 
 
+class _AgentRestarts(executor_mod.GymAdapter):
+  """The step-by-step path's adapter (the executor's `reset` / `step`) over a
+  Gymnasium patrol: after a departure the ship is put at a start drawn from the
+  agent's generator, as the compiled loop draws it, in place of the
+  environment's own; the step's `info["state_before_restart"]` keeps where it
+  left. A truncated step is refused: a row is the agent's hour, not the
+  environment's."""
+
+  def __init__(self, inner, rng_state):
+    self.inner, self.env, self.rng_state = inner, inner.env, rng_state
+
+  def reset(self, start=None):
+    return self.inner.reset(start)
+
+  def step(self, action):
+    step = self.inner.step(action)
+    if step.truncated:
+      raise ValueError("ship_patrol's step-by-step rows end between calls; make the patrol "
+                       f"environment with max_steps={NEVER} (ShipPatrol.stepwise_env does)")
+    if step.info.get("event") == "out_of_bounds":
+      if "state_before_restart" not in step.info:
+        raise ValueError("ship_patrol's step-by-step path needs the Gymnasium patrol "
+                         "(hpg_mj/ShipPatrol-v0), whose info holds state_before_restart")
+      start = np.empty(4)
+      _ship.sample_start(self.rng_state, start)
+      step = Step(self.inner.reset(start), step.reward, step.terminated, step.truncated,
+                  step.info)
+    return step
+
+
 @dataclasses.dataclass(frozen=True)
 class Environment:
   """[environment] of the continuing ship task (SPEC section 8)."""
@@ -168,6 +221,8 @@ class Root:
   """[root]: average-reward SMDP Q-learning over the calls (SPEC section 8)."""
   learner: str = param("r_learning", "R-learning in SMDP form (learners.average_reward)",
                        choices=("r_learning",))
+  heading_sectors: int = param(1, "the root's state: its 50 m cell and the heading in this "
+                               "many sectors (1: the cell alone, as the hybrid's root)", low=1)
   alpha: float = param(0.1, "step size of the relative values Q", low=0, low_open=True)
   gain_step: float = param(0.0001, "step size of the gain rho (Schwartz's update)", low=0,
                            high=1, low_open=True)
@@ -220,10 +275,14 @@ class ShipPatrol(_ship.ShipAgent):
     self.low = self._parts.low
     self.schedule, self.outcomes = self._parts.schedule, self._parts.outcomes
     self.counts = self._parts.counts
-    self.q = np.zeros(rules.ROOT_GRID ** 2 * rules.N_DIRECTIONS)
+    self.q = np.zeros(rules.ROOT_GRID ** 2 * self.config.root.heading_sectors *
+                      rules.N_DIRECTIONS)
     self.gain = average_reward.new_gain()
     self.ship = np.zeros(4)
     self.started = np.zeros(1)         # 1 once the process has its first start
+    self._sailing = None               # the state a step-by-step run sails on from
+    self._learn = True
+    self._row_steps = 0
 
   def state(self):
     out = {"rng_state": self.rng_state, "root_q": self.q, "root_gain": self.gain,
@@ -249,13 +308,132 @@ class ShipPatrol(_ship.ShipAgent):
       return suite.load("ship", "patrol", {"random": 0, **kwargs})
     raise ValueError(f"unknown environment api {api!r}; allowed: ['gymnasium', 'dm_control']")
 
+  # ---- the step-by-step path ----------------------------------------------------
+
   def stepwise_env(self, backend):
-    raise ValueError(f"ship_patrol runs on its compiled path only, not on backend "
-                     f"{backend!r}; allowed backends: ['analytic']")
+    """The Gymnasium patrol on `backend`, without its one-hour truncation: the
+    agent's rows are its own hours, ended between calls as the compiled loop's."""
+    return self.make_env("gymnasium", backend=backend, max_steps=NEVER)
+
+  def run_stepwise(self, env, episodes, learn=True, sample=None, start=None, on_call=None):
+    """`episodes` rows (hours) of the patrol task graph (`graph`) through `env`, a
+    Gymnasium patrol without truncation (`stepwise_env`). As the compiled path:
+    learning continues the agent's own process (from `start`, if given, instead);
+    without learning the rows sail on from a fresh start drawn from the agent's
+    generator; after leaving the field the ship restarts at a start drawn from
+    the agent's generator too (the environment's own draw is replaced)."""
+    adapter = _AgentRestarts(executor_mod.adapter_for(env), self.rng_state)
+    if learn:
+      if start is not None:
+        self.ship[:] = start
+        self.started[0] = 1.0
+      elif not self.started[0]:
+        _ship.sample_start(self.rng_state, self.ship)
+        self.started[0] = 1.0
+      self._sailing = self.ship
+    else:
+      self._sailing = np.array(start, dtype=np.float64) if start is not None else np.empty(4)
+      if start is None:
+        _ship.sample_start(self.rng_state, self._sailing)
+    try:
+      return super().run_stepwise(adapter, episodes, learn=learn, sample=sample,
+                                  on_call=on_call)
+    finally:
+      self._sailing = None
+
+  def start_state(self):
+    """Inside `run_stepwise`: where the process is (each row starts where the last
+    ended); outside it, a fresh start from the agent's generator."""
+    if self._sailing is None:
+      return super().start_state()
+    return self._sailing.copy()
+
+  def begin_episode(self, learn):
+    self._learn = learn
+    self._row_steps = 0
+
+  def end_episode(self, row, total, steps, last, learn):
+    row[STEPS] = steps
+    row[RETURN] = total
+    row[GAIN] = self.gain[average_reward.RHO]
+    self._sailing[:] = last.obs          # the next row sails on from here
 
   def graph(self):
-    raise ValueError("ship_patrol has no step-by-step task graph; allowed backends: "
-                     "['analytic']")
+    """Figure 3's graph with the continuing root (SPEC section 8): the root's
+    R-learning over `root_state`; a low-level call also returns at a gate pass
+    or a departure; the root returns (a record row ends) once the row has
+    `record_steps` control steps, between calls."""
+    cfg = self.config
+    n_tilings = self.tile_arrays.offsets.shape[0]
+    scratch_tiles = np.empty(n_tilings, dtype=np.int64)
+    local = np.empty(4)
+    local_samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
+    max_steps = int(cfg.low_level.max_steps)
+    sectors = cfg.root.heading_sectors
+    root_learner = average_reward.RLearning(self.q, self.gain, rules.N_DIRECTIONS,
+                                            cfg.root.alpha, cfg.root.gain_step,
+                                            lambda: self.schedule[0])
+
+    def low_view(call, obs):
+      origin = call.memo.setdefault("origin", np.array(call.origin[:2], dtype=np.float64))
+      core.global_to_local(obs, origin, call.args["direction"], local)
+      tiles_mod.active_tiles(local, self.tile_arrays, scratch_tiles)
+      return scratch_tiles
+
+    def low_internal_reward(call, step):
+      # G on the state the step ended in, before any restart (as run_low_level).
+      end = step.info.get("state_before_restart", step.obs)
+      event, internal = core.low_level_outcome(
+          step.info["positions"], end, call.memo["origin"], call.args["direction"],
+          call.steps, local_samples, local, max_steps)
+      call.memo["event"] = event
+      call.memo["global"] = step.info.get("event")
+      return internal
+
+    def low_termination(call, step):
+      return call.memo["event"] != core.NO_EVENT or call.memo["global"] in _GLOBAL_EVENTS
+
+    def low_exit(call, step, episode_over):
+      row = self.row
+      row[CALLS] += 1
+      g_event = _GLOBAL_EVENTS.get(call.memo["global"], core.NO_EVENT)
+      sub = rules.subtask_of(call.args["direction"])
+      if _count_run(row, sub, call.memo["event"], g_event) and self._learn:
+        schedules.record_run(self.outcomes, self.counts, sub, call.memo["event"] == core.SUCCESS)
+      row[GATES] += g_event == core.SUCCESS
+      row[DEPARTURES] += g_event == core.FAILURE
+
+    def low_level(name, learner):
+      return Subtask(name, children=["turn"], learner=learner, view=low_view,
+                     internal_reward=low_internal_reward,
+                     reward=lambda call, step, child_reward: core.STEP_REWARD,  # SPEC 3
+                     termination=low_termination, on_exit=low_exit)
+
+    def root_reward(call, step, child_reward):
+      root_learner.duration = call.steps - self._row_steps     # the child's tau
+      self._row_steps = call.steps
+      return child_reward
+
+    def root_termination(call, step):
+      if self._learn:       # the held schedule, counted in root decisions (no episodes)
+        s = settings(cfg)
+        schedules.end_episode(self.schedule, self.outcomes, self.counts,
+                              s.root_epsilon_threshold, s.root_epsilon_every,
+                              s.root_epsilon_divisor)
+      return call.steps >= self.record_steps
+
+    root = Subtask(
+        "root", learner=root_learner,
+        children=[Child("diagonal" if d % 2 else "straight", direction=d)
+                  for d in range(rules.N_DIRECTIONS)],
+        view=lambda call, obs: root_state(obs, sectors),
+        reward=root_reward, termination=root_termination)
+    return TaskGraph("root", [
+        root,
+        low_level("diagonal", self.low[rules.DIAGONAL]),
+        low_level("straight", self.low[rules.STRAIGHT]),
+        Primitive("turn"),
+    ])
 
   # ---- the compiled path ---------------------------------------------------------
 
@@ -264,13 +442,17 @@ class ShipPatrol(_ship.ShipAgent):
             self.low[rules.STRAIGHT].trace, self.low[rules.STRAIGHT].values) if low is None \
         else low
 
-  def sail(self, hours, learn, sample, ship, rng_state, q=None, low=None):
-    """`hours` rows of the continuing task from `ship` (in place)."""
+  def sail(self, hours, learn, sample, ship, rng_state, q=None, low=None, heading_sectors=None):
+    """`hours` rows of the continuing task from `ship` (in place); `q` (another
+    root's table over `heading_sectors`, the episodic hybrid's: 1) and `low`
+    replace this agent's."""
     rows = np.zeros((int(hours), N_RECORD))
     cfg = self.config
+    sectors = cfg.root.heading_sectors if heading_sectors is None else heading_sectors
     patrol(int(hours), self.record_steps, learn, sample, rng_state, ship,
            self.q if q is None else q, self.gain, (self.schedule, self.outcomes, self.counts),
-           self._tables(low), self.tile_arrays, settings(cfg), float(cfg.root.gain_step), rows)
+           self._tables(low), self.tile_arrays, settings(cfg),
+           float(cfg.root.gain_step), int(sectors), rows)
     return rows
 
   def compiled(self, episodes, learn, sample):
@@ -319,7 +501,8 @@ class ShipPatrol(_ship.ShipAgent):
     elif kind == "episodic":
       low = (other.low[rules.DIAGONAL].trace, other.low[rules.DIAGONAL].values,
              other.low[rules.STRAIGHT].trace, other.low[rules.STRAIGHT].values)
-      rows = self.sail(hours, False, False, ship, rng_state, q=other.root.parameters(), low=low)
+      rows = self.sail(hours, False, False, ship, rng_state, q=other.root.parameters(), low=low,
+                       heading_sectors=1)
     else:
       rows = self.sail(hours, False, False, ship, rng_state)
     return self.as_record(rows)

@@ -130,7 +130,8 @@ class ShipSteeringEnv(gymnasium.Env):
     steps without success (a failure). `info["event"]` says which.
     `patrol` never terminates: after leaving the field (`info["event"] ==
     "out_of_bounds"`, the penalty paid) the observation is a fresh uniform
-    start drawn from the environment's generator, and the process goes on.
+    start drawn from the environment's generator, and the process goes on;
+    `info["state_before_restart"]` is where the ship was when it left.
   - Truncated: `steer` after 5,000 control steps (3,000 s); `patrol` after
     6,000 (one hour).
 
@@ -197,12 +198,13 @@ class ShipSteeringEnv(gymnasium.Env):
     reward, terminated, truncated, event = self.rules.evaluate(samples, obs, self._steps)
     if self.render_mode is not None:
       self._trail.extend(samples[1:].copy())
+    info = {"event": event, "positions": samples.copy()}
     if self.rules.restarts(event):     # SPEC section 8: a fresh start, the process goes on
+      info["state_before_restart"] = obs   # where it left (a learner's last step sees it)
       self.backend.set_state(self.rules.sample_start(self.np_random))
       obs = self.backend.state()
       self._trail = [obs[:2].copy()]   # the wake starts again there
-    return obs, float(reward), terminated, truncated, {"event": event,
-                                                       "positions": samples.copy()}
+    return obs, float(reward), terminated, truncated, info
 
   def render(self):
     if self.render_mode is None:

@@ -248,7 +248,9 @@ class ShipSteeringVectorEnv(_BatchedEnv):
 
   Infos: `event` (object array of the single environment's event names, None
   for none) and `positions`, an `(N, 4, 2)` float array of the positions sampled
-  during the step (masked out for copies that did not step).
+  during the step (masked out for copies that did not step); for the patrol, on
+  a step where a copy left the field, `state_before_restart` `(N, 4)`, masked to
+  the copies that did.
 
   Arguments: `num_envs`, `task`, `backend`, `strict`, `max_steps`,
   `gate_reward`, `out_of_bounds_reward` as for `ShipSteeringEnv`, and
@@ -289,6 +291,8 @@ class ShipSteeringVectorEnv(_BatchedEnv):
     self._reward = np.zeros(n)
     self._terminated = np.zeros(n, dtype=np.bool_)
     self._truncated = np.zeros(n, dtype=np.bool_)
+    self._left = np.zeros((n, 4))                  # patrol: where a restarted copy left
+    self._restarted = np.zeros(n, dtype=np.bool_)
     self._is_steer = self.rules.goal is None
     self._goal = np.zeros(2) if self._is_steer else self.rules.goal.copy()
     self._shapes = ((n, 1), (n,))
@@ -337,7 +341,9 @@ class ShipSteeringVectorEnv(_BatchedEnv):
     if self.rules.continuing:     # SPEC section 8, as `ShipSteeringEnv.step`
       self._terminated[active] = False
       self._truncated[active] = self._steps[active] >= self.rules.max_steps
-      for i in np.flatnonzero(active & (self._event == ship_core.FAILURE)).tolist():
+      self._restarted[:] = active & (self._event == ship_core.FAILURE)
+      for i in np.flatnonzero(self._restarted).tolist():
+        self._left[i] = self._states[i]
         self._ships.set_state(self._states, i, self.rules.sample_start(self._rngs[i]))
     return self._reward.copy(), self._terminated.copy(), self._truncated.copy()
 
@@ -351,8 +357,12 @@ class ShipSteeringVectorEnv(_BatchedEnv):
     return names
 
   def _step_info(self, active):
-    return {"event": self._event_names(active), "_event": np.ones(self.num_envs, np.bool_),
+    info = {"event": self._event_names(active), "_event": np.ones(self.num_envs, np.bool_),
             "positions": self._samples.copy(), "_positions": active.copy()}
+    if self.rules.continuing and (self._restarted & active).any():   # as ShipSteeringEnv
+      info["state_before_restart"] = self._left.copy()
+      info["_state_before_restart"] = self._restarted & active
+    return info
 
   def _reset_info(self, indices):
     mask = np.zeros(self.num_envs, dtype=np.bool_)

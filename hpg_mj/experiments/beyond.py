@@ -125,7 +125,9 @@ def _report(root, task, seeds, hours, finals, quick):
       "`hpg_mj/ShipPatrol-v0`, the gate passed again and again, leaving the field costs "
       f"{task.config.environment.out_of_bounds_reward:g} and restarts the ship. The root is "
       "average-reward SMDP Q-learning (R-learning, Schwartz 1993, in the SMDP form of "
-      "Ghavamzadeh & Mahadevan 2001/2002) over the hybrid's 8 directions and 50 m cells; "
+      "Ghavamzadeh & Mahadevan 2001/2002) over the hybrid's 8 directions; its state is the "
+      "50 m cell" + (f" and the heading in {task.config.root.heading_sectors} sectors"
+                     if task.config.root.heading_sectors > 1 else "") + "; "
       "the diagonal and straight subtasks are learned by Eq. 3 from scratch in the same run.",
       "",
       f"Protocol: {hours:,} training hours ({hours * 6000:,} control steps) per run, seeds "

@@ -64,3 +64,45 @@ def relative_values(q, n_states, n_actions, reference=0):
   """h(s) = max_a Q(s, a), shifted so that h(reference) = 0."""
   h = np.asarray(q).reshape(n_states, n_actions).max(axis=1)
   return h - h[reference]
+
+
+class RLearning:
+  """The root's learner on the step-by-step path (the protocol of
+  `hpg_mj.learners.agents`): epsilon-greedy over `q`, and on each return of a
+  child the backup `update` above, in the order of the compiled loop
+  (`hpg_mj.agents.ship_patrol.patrol`).
+
+  The process never ends, so `done` and `terminal` change nothing: the end of a
+  record row (an hour) is no end of the task. The child's duration tau is not
+  part of the protocol's signal; the graph sets `duration` before `observe`.
+  `epsilon_source()` reads the schedule that owns epsilon.
+  """
+
+  def __init__(self, q, gain, n_actions, alpha, gain_step, epsilon_source):
+    self.q, self.gain = q, gain
+    self.n_actions = int(n_actions)
+    self.alpha, self.gain_step = float(alpha), float(gain_step)
+    self.epsilon_source = epsilon_source
+    self.duration = 0.0
+    self._state = self._action = -1
+    self._greedy = False
+
+  def start(self):
+    """A row starts: nothing is reset (the relative values and rho go on)."""
+
+  def act(self, features, mask, rng_state, sample):
+    s = int(features)
+    epsilon = self.epsilon_source() if sample else 0.0
+    a = qlambda.epsilon_greedy(self.q, s, self.n_actions, epsilon, rng_state)
+    self._state, self._action = s, a
+    self._greedy = is_greedy(self.q, s, a, self.n_actions)
+    return a
+
+  def observe(self, signal, next_features, done, terminal, learn):
+    if learn:
+      update(self.q, self.n_actions, self.gain, self._state, self._action, signal,
+             float(self.duration), int(next_features), self.alpha, self.gain_step,
+             self._greedy)
+
+  def parameters(self):
+    return self.q.copy()

@@ -78,10 +78,11 @@ def test_the_process_goes_on_between_training_calls(tmp_path):
       (first["steps"][0] + second["steps"][0]) / 6000)
 
 
-def test_mujoco_is_refused_naming_the_allowed_backend(tmp_path):
+def test_the_mujoco_ship_sails_the_patrol_step_by_step(tmp_path):
   agent = agents.build(agents.load_task(small_task(tmp_path)), seed=0)
-  with pytest.raises(ValueError, match=r"allowed backends: \['analytic'\]"):
-    agent.train(1, "mujoco")
+  record = agent.evaluate(1, "mujoco")          # the step-by-step path, greedy
+  assert record["steps"][0] >= 6000 and record["calls"][0] >= 20
+  assert agent.episodes == 0 and agent.started[0] == 0.0   # no learning, no process
 
 
 def test_the_compiled_helmsman_sails_as_the_gymnasium_patrol_does():
@@ -115,3 +116,63 @@ def test_train_needs_no_episodes_and_prints_the_comparison(tmp_path, capsys):
   assert metrics["episodic_episodes"] == 30 and metrics["evaluation_hours"] == 1
   agent, record, _ = agents.load(tmp_path / "agent")
   assert len(record) == 2 and agent.started[0] == 1.0
+
+
+def _arrays(agent):
+  return {**agent.state(), "ship": agent.ship}
+
+
+@pytest.mark.parametrize("learn", [True, False])
+def test_stepwise_and_compiled_paths_give_identical_results(tmp_path, learn):
+  # One algorithm on two paths: the patrol task graph through hpg_mj/ShipPatrol-v0
+  # (analytic), the agent's generator drawing the restarts, and the compiled loop.
+  task = agents.load_task(small_task(tmp_path))
+  stepwise, compiled = agents.build(task, seed=5), agents.build(task, seed=5)
+  if not learn:                 # a greedy policy worth sailing: the learned one
+    for agent in (stepwise, compiled):
+      agent.train(2)
+  env = stepwise.stepwise_env("analytic")
+  a = stepwise.run_stepwise(env, 2, learn=learn)
+  b = compiled.run(2, "analytic", learn=learn)
+  np.testing.assert_array_equal(a, b)
+  assert a["steps"].min() >= 6000 and a["calls"].sum() > 50
+  assert a["departures"].sum() >= 1            # the restart is drawn on both paths alike
+  if learn:
+    assert a["gates"].sum() >= 1                # a call cut by a gate pass, on both
+  for name, value in _arrays(stepwise).items():
+    np.testing.assert_array_equal(value, _arrays(compiled)[name], err_msg=name)
+  assert stepwise.episodes == compiled.episodes == 2       # learning rows only
+
+
+def test_stepwise_rows_continue_the_process(tmp_path):
+  task = agents.load_task(small_task(tmp_path))
+  agent = agents.build(task, seed=2)
+  env = agent.stepwise_env("analytic")
+  agent.train_stepwise(env, 1)
+  where = agent.ship.copy()
+  assert agent.started[0] == 1.0 and agent.episodes == 1
+  again = agents.build(task, seed=2)
+  again.train(1)                                # the compiled path ends at the same state
+  np.testing.assert_array_equal(again.ship, where)
+
+
+def test_a_truncating_environment_is_refused(tmp_path):
+  agent = agents.build(agents.load_task(small_task(tmp_path)), seed=0)
+  env = gymnasium.make("hpg_mj/ShipPatrol-v0", backend="analytic", max_steps=10)
+  with pytest.raises(ValueError, match="rows end between calls; make the patrol environment "
+                                       "with max_steps="):
+    agent.run_stepwise(env, 1)
+
+
+@pytest.mark.parametrize("theta,sector", [(-180.0, 0), (179.9, 0), (-157.6, 0), (-157.5, 1),
+                                          (0.0, 4), (22.4, 4), (22.5, 5), (-22.5, 4),
+                                          (-22.6, 3), (90.0, 6)])
+def test_the_root_state_is_the_cell_and_the_heading_sector(theta, sector):
+  state = np.array([425.0, 375.0, theta, 0.0])              # cell (8, 7): 8 * 20 + 7
+  assert ship_patrol.root_state(state, 1) == 167
+  assert ship_patrol.root_state(state, 8) == 167 * 8 + sector
+
+
+def test_the_shipped_root_sees_the_heading():
+  agent = agents.build(agents.load_task("ship_patrol_average_reward"), seed=0)
+  assert agent.config.root.heading_sectors == 8 and agent.q.shape == (400 * 8 * 8,)

@@ -18,7 +18,7 @@ HERE = pathlib.Path(__file__).resolve().parents[2] / "golden"
 
 def main(tasks=("steer", "diagonal", "straight", "patrol")):
   for task in tasks:
-    actions = verify.ship_golden_actions()
+    actions = verify.ship_golden_actions(task)
     a_obs, a_rew, a_end = verify.ship_analytic_rollout(task, actions)
     m_obs, m_rew, m_end = verify.ship_mujoco_rollout(task, actions)
     np.savez(HERE / f"ship_{task}.npz", actions=actions, analytic_obs=a_obs,
