@@ -14,6 +14,9 @@ Tasks:
 
 One control step is 0.6 s: the desired turning rate r (deg/s) is held for three
 0.2 s sampling intervals, and the rules look at each sampled position.
+
+Creating a `Physics` stops MuJoCo's built-in profiler for the whole process (its
+`mjData.timer` stays 0) unless the user installed a clock (`stop_profiler_clock`).
 """
 import collections
 import math
