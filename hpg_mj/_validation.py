@@ -38,6 +38,21 @@ def clip_or_refuse(value: float, low: float, high: float, *, strict: bool, task:
   return min(max(value, low), high)
 
 
+_FLOAT64 = np.dtype(np.float64)
+
+
+def bounded_scalar_action(action, low: float, high: float, *, strict: bool, task: str,
+                          name: str = "action") -> float:
+  """`finite_scalar_action` then `clip_or_refuse`, with their refusals and messages:
+  `action` as a float, clipped to [low, high] (refused outside it if `strict`)."""
+  if type(action) is np.ndarray and action.dtype is _FLOAT64 and action.shape == (1,):
+    value = action.item()
+    if low <= value <= high:   # the common case; False for NaN, so finite too
+      return value
+  return clip_or_refuse(finite_scalar_action(action, task, name), low, high, strict=strict,
+                        task=task, name=name)
+
+
 def discrete_action(action, n: int, task: str, names=None) -> int:
   """Returns `action` as an int in 0..n-1, or raises naming what is allowed."""
   arr = np.asarray(action)

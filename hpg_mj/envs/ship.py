@@ -52,11 +52,12 @@ class MujocoBackend:
     return self._state.copy()
 
   def control(self, r_deg):
-    self.physics.set_turn_command(r_deg)
-    self.physics.step(self._nstep)
+    physics = self.physics
+    physics.set_turn_command(r_deg)
+    physics.step(self._nstep)
     # The state is read with the samples: only this backend moves its physics.
-    self._state = self.physics.stepped_state
-    return self.physics.sampled_positions()
+    self._state = physics.stepped_state
+    return physics.sampled_positions()
 
 
 def spaces_of(rules):
@@ -188,10 +189,9 @@ class ShipSteeringEnv(gymnasium.Env):
     return obs, {"event": None}
 
   def step(self, action):
-    r = _validation.finite_scalar_action(action, self._name, "turning rate r (deg/s)")
-    r = _validation.clip_or_refuse(r, -core.MAX_TURN_RATE, core.MAX_TURN_RATE,
-                                   strict=self.strict, task=self._name,
-                                   name="turning rate r (deg/s)")
+    r = _validation.bounded_scalar_action(action, -core.MAX_TURN_RATE, core.MAX_TURN_RATE,
+                                          strict=self.strict, task=self._name,
+                                          name="turning rate r (deg/s)")
     samples = self.backend.control(r)
     obs = self.backend.state()
     self._steps += 1
@@ -199,7 +199,7 @@ class ShipSteeringEnv(gymnasium.Env):
     if self.render_mode is not None:
       self._trail.extend(samples[1:].copy())
     info = {"event": event, "positions": samples.copy()}
-    if self.rules.restarts(event):     # SPEC section 8: a fresh start, the process goes on
+    if event is not None and self.rules.restarts(event):   # SPEC section 8: a fresh start
       info["state_before_restart"] = obs   # where it left (a learner's last step sees it)
       self.backend.set_state(self.rules.sample_start(self.np_random))
       obs = self.backend.state()

@@ -14,6 +14,9 @@ Tasks:
 
 One control step is 0.6 s: the desired turning rate r (deg/s) is held for three
 0.2 s sampling intervals, and the rules look at each sampled position.
+
+Creating a `Physics` stops MuJoCo's built-in profiler for the whole process (its
+`mjData.timer` stays 0) unless the user installed a clock (`stop_profiler_clock`).
 """
 import collections
 import math
@@ -59,11 +62,34 @@ def set_orthographic_extents(model):
       model.cam_fovy[camera] = model.numeric_data[model.numeric_adr[i]]
 
 
+@numba.cfunc(numba.float64(), cache=True)
+def _stopped_clock():
+  """A clock that always reads 0: as MuJoCo's `mjcb_time`, every profiler timing is 0."""
+  return 0.0
+
+
+def stop_profiler_clock():
+  """Stops MuJoCo's built-in profiler (`mjData.timer` then stays at 0) unless the user
+  installed a clock of their own with `mujoco.set_mjcb_time`.
+
+  "Installing [mjcb_time] enables the built-in profiler, and keeps timing statistics in
+  mjData.timer" (MuJoCo API reference, mjcb_time). The C library's default is none; the
+  Python bindings install a steady clock with every MjData (mujoco issue #2354), and
+  `set_mjcb_time(None)` brings that clock back. Its 28 readings per mj_step cost this
+  small model a third of its step (1.85 against 1.24 us here, hpg-mj bench envs), so a
+  C clock that returns 0 (a compiled cfunc, never Python) takes its place: process-wide,
+  as the callback is. A clock set by the user is left alone.
+  """
+  if mj.get_mjcb_time() is None:    # the bindings' default clock (or none)
+    mj.set_mjcb_time(_stopped_clock.ctypes)
+
+
 @numba.njit(cache=True)
-def bow_readings(qpos, turning_rate_deg, bow, positions, state):
+def bow_readings(qpos, act, bow, positions, state):
   """The bow's positions (rows of `qpos`: x, y, yaw) into `positions`, and the last
-  row's ship state [x, y, theta_deg, theta_dot_deg] into `state`: the arithmetic of
-  `Physics.position` and `heading_deg` compiled, one call per control step."""
+  row's ship state [x, y, theta_deg, theta_dot_deg] into `state`, the turning rate
+  being the rudder filter's activation `act[0]`: the arithmetic of `Physics.position`
+  and `heading_deg` compiled, one call per control step."""
   for k in range(qpos.shape[0]):
     theta = qpos[k, 2]
     positions[k, 0] = qpos[k, 0] + bow * math.sin(theta)
@@ -72,7 +98,7 @@ def bow_readings(qpos, turning_rate_deg, bow, positions, state):
   state[0] = positions[last, 0]
   state[1] = positions[last, 1]
   state[2] = core.wrap_deg(math.degrees(qpos[last, 2]))
-  state[3] = turning_rate_deg
+  state[3] = act[0]
 
 
 class Physics(mujoco.Physics):
@@ -85,12 +111,18 @@ class Physics(mujoco.Physics):
   def _reload_from_data(self, data):
     super()._reload_from_data(data)
     set_orthographic_extents(self.model.ptr)
+    stop_profiler_clock()   # after MjData's creation, which installs the bindings' clock
     # The raw MuJoCo structures and the bow's offset, read once: the readings
     # below run several times per control step, and dm_control's named and
     # wrapped access costs microseconds each (hpg-mj bench envs).
     self._model_ptr, self._data_ptr = self.model.ptr, self.data.ptr
+    # Views of mjData's arrays, taken once for this data: the bindings build a new
+    # numpy view at each attribute access.
+    self._qpos, self._act, self._ctrl = self._data_ptr.qpos, self._data_ptr.act, self._data_ptr.ctrl
     self._bow = float(self.named.model.site_pos["bow", 1])
-    self._substeps = None    # MuJoCo steps per 0.2 s sample, checked on the first step
+    # (nstep, MuJoCo steps per 0.2 s sample, the joint positions at each sample) of
+    # the last `step`, checked when nstep first differs from the step before.
+    self._sampling = None
 
   def _substeps_per_sample(self):
     substeps = core.SAMPLING_INTERVAL / self._model_ptr.opt.timestep
@@ -124,7 +156,7 @@ class Physics(mujoco.Physics):
     """[x, y, theta_deg, theta_dot_deg] as a new array."""
     data = self._data_ptr
     state = np.empty(4)
-    bow_readings(data.qpos.reshape(1, 3), data.act[0], self._bow, np.empty((1, 2)), state)
+    bow_readings(data.qpos.reshape(1, 3), data.act, self._bow, np.empty((1, 2)), state)
     return state
 
   def set_ship_state(self, state):
@@ -141,7 +173,7 @@ class Physics(mujoco.Physics):
 
   def set_turn_command(self, r_deg):
     """Sets the desired turning rate r (deg/s) on both rudder filters."""
-    ctrl = self._data_ptr.ctrl
+    ctrl = self._ctrl
     ctrl[0] = r_deg
     ctrl[1] = r_deg
 
@@ -156,25 +188,29 @@ class Physics(mujoco.Physics):
       return self.position()[None, :]
     return self._samples
 
-  def step(self, nstep=1):
-    """Advances `nstep` MuJoCo steps, sampling the position every 0.2 s."""
-    substeps = self._substeps
-    if substeps is None:
-      substeps = self._substeps = self._substeps_per_sample()
+  def _sampling_of(self, nstep):
+    """`self._sampling` for steps of `nstep` MuJoCo steps, or ValueError."""
+    substeps = self._substeps_per_sample()
     if nstep % substeps:
       raise ValueError(f"the ship steps whole 0.2 s sampling intervals ({substeps} MuJoCo "
                        f"steps each), got nstep={nstep}")
-    n = nstep // substeps
-    model, data = self._model_ptr, self._data_ptr
-    qpos = data.qpos
-    rows = np.empty((n + 1, 3))
+    return nstep, substeps, np.empty((nstep // substeps + 1, 3))
+
+  def step(self, nstep=1):
+    """Advances `nstep` MuJoCo steps, sampling the position every 0.2 s."""
+    sampling = self._sampling
+    if sampling is None or sampling[0] != nstep:
+      sampling = self._sampling = self._sampling_of(nstep)
+    _, substeps, rows = sampling
+    model, data, qpos = self._model_ptr, self._data_ptr, self._qpos
     rows[0] = qpos
-    for k in range(1, n + 1):
+    for k in range(1, rows.shape[0]):
       mj.mj_step(model, data, substeps)
       rows[k] = qpos
-    self._samples = np.empty((n + 1, 2))
+    # New arrays each step: callers keep the last step's samples and state.
+    self._samples = np.empty((rows.shape[0], 2))
     self.stepped_state = np.empty(4)   # `ship_state()` after this step, read with it
-    bow_readings(rows, data.act[0], self._bow, self._samples, self.stepped_state)
+    bow_readings(rows, self._act, self._bow, self._samples, self.stepped_state)
 
   def render(self, height=240, width=320, camera_id=-1, **options):
     """dm_control's `render`, drawn in a worker process (SPEC section 9)."""
@@ -232,10 +268,9 @@ class ShipTask(base.Task):
                               name="turning_rate_deg")
 
   def before_step(self, action, physics):
-    r = _validation.finite_scalar_action(action, self.name, "turning rate r (deg/s)")
-    r = _validation.clip_or_refuse(r, -core.MAX_TURN_RATE, core.MAX_TURN_RATE,
-                                   strict=self.strict, task=self.name,
-                                   name="turning rate r (deg/s)")
+    r = _validation.bounded_scalar_action(action, -core.MAX_TURN_RATE, core.MAX_TURN_RATE,
+                                          strict=self.strict, task=self.name,
+                                          name="turning rate r (deg/s)")
     physics.set_turn_command(r)
 
   def after_step(self, physics):

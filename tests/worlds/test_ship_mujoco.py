@@ -69,3 +69,43 @@ def test_speed_is_constant_along_the_heading(physics):
 def test_step_must_cover_whole_sampling_intervals(physics):
   with pytest.raises(ValueError, match="whole 0.2 s sampling intervals"):
     physics.step(1)
+
+
+def _sail(physics, controls):
+  physics.set_ship_state([500.0, 500.0, 20.0, -4.0])
+  rows = []
+  for r in controls:
+    physics.set_turn_command(r)
+    physics.step(6)
+    rows.append(np.concatenate([physics.sampled_positions().ravel(), physics.stepped_state]))
+  return np.array(rows)
+
+
+def test_disabling_the_constraint_stage_changes_no_bit():
+  # assets/ship.xml disables the constraint stage: the ship has no constraint to solve,
+  # so with the stage enabled there is none either, and the trajectory is the same.
+  controls = np.random.default_rng(5).uniform(-15, 15, 200)
+  shipped = ship.Physics.from_xml_string(*ship.get_model_and_assets())
+  assert shipped.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+  enabled = ship.Physics.from_xml_string(*ship.get_model_and_assets())
+  enabled.model.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
+  expected = _sail(enabled, controls)
+  assert enabled.data.nefc == 0
+  np.testing.assert_array_equal(_sail(shipped, controls), expected)
+
+
+def test_profiler_clock_is_stopped_but_a_users_clock_is_kept():
+  physics = ship.Physics.from_xml_string(*ship.get_model_and_assets())
+  assert mujoco.get_mjcb_time() is not None          # the stopped clock (a C function)
+  physics.step(6)
+  step_timer = physics.data.timer[mujoco.mjtTimer.mjTIMER_STEP]
+  assert step_timer.number == 6 and step_timer.duration == 0.0
+  try:
+    mujoco.set_mjcb_time(lambda: 1.0)                # the user's own clock
+    clock = mujoco.get_mjcb_time()
+    ship.Physics.from_xml_string(*ship.get_model_and_assets())
+    assert mujoco.get_mjcb_time() is clock
+  finally:
+    mujoco.set_mjcb_time(None)                       # the bindings' clock, then ours again
+    ship.stop_profiler_clock()
+  assert mujoco.get_mjcb_time() is not None
