@@ -83,23 +83,35 @@ def coprime_displacement(dims, n_tilings):
 
 @numba.njit(cache=True)
 def active_tiles(x, tiling, out):
-  """Writes the index of the active tile of every tiling into `out`."""
+  """Writes the index of the active tile of every tiling into `out`.
+
+  Tile c of dimension d in tiling k is floor((x[d] - low[d]) / width[d] + offsets[k, d]).
+  The scaled input (x[d] - low[d]) / width[d] is the same for every tiling, so it is
+  computed once per dimension (one division, not one per tiling: the same numbers),
+  and `out` accumulates each tiling's index dimension by dimension.
+  """
   low, width, n_tiles, wrap, offsets = tiling
   n_tilings = offsets.shape[0]
-  dims = x.shape[0]
-  per_tiling = 1
-  for d in range(dims):
-    per_tiling *= n_tiles[d]
   for k in range(n_tilings):
-    index = 0
-    for d in range(dims):
-      c = int(np.floor((x[d] - low[d]) / width[d] + offsets[k, d]))
-      n = n_tiles[d]
+    out[k] = 0
+  per_tiling = 1
+  for d in range(x.shape[0]):
+    scaled = (x[d] - low[d]) / width[d]
+    n = n_tiles[d]
+    per_tiling *= n
+    for k in range(n_tilings):
+      c = int(np.floor(scaled + offsets[k, d]))
       if wrap[d]:
-        c = c % n
+        # c % n, without the integer division where the input lies within one turn
+        # of the range (a wrapped heading always does).
+        if c >= n:
+          c = c - n if c < 2 * n else c % n
+        elif c < 0:
+          c = c + n if c >= -n else c % n
       elif c < 0:
         c = 0
       elif c >= n:
         c = n - 1
-      index = index * n + c
-    out[k] = k * per_tiling + index
+      out[k] = out[k] * n + c
+  for k in range(n_tilings):
+    out[k] += k * per_tiling
