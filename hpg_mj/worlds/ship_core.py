@@ -175,10 +175,20 @@ def subtask_event(local_samples, goal, goal_radius, local_size):
   SUCCESS within `goal_radius` of the goal, FAILURE outside [0, local_size]^2.
   The step limit is the caller's (it counts control steps).
   """
+  return _subtask_event_at(local_samples, goal[0], goal[1], goal_radius, local_size)
+
+
+@numba.njit(cache=True)
+def _subtask_event_at(local_samples, goal_x, goal_y, goal_radius, local_size):
+  """`subtask_event` with the goal as two floats."""
   for k in range(1, local_samples.shape[0]):
     x = local_samples[k, 0]
     y = local_samples[k, 1]
-    if math.hypot(x - goal[0], y - goal[1]) <= goal_radius:
+    dx = x - goal_x
+    dy = y - goal_y
+    # hypot(dx, dy) >= max(|dx|, |dy|) (libm's hypot is faithfully rounded), so
+    # the square root is taken only near the goal: the same answers, faster.
+    if abs(dx) <= goal_radius and abs(dy) <= goal_radius and math.hypot(dx, dy) <= goal_radius:
       return SUCCESS, k
     if x < 0.0 or x > local_size or y < 0.0 or y > local_size:
       return FAILURE, k
@@ -383,8 +393,7 @@ def low_level_outcome(samples, state, origin, direction, steps_in_call, local_sa
   """
   samples_to_local(samples, origin, direction, local_samples)
   gx, gy = local_goal(direction)
-  goal = np.array([gx, gy])
-  event, _ = subtask_event(local_samples, goal, GOAL_RADIUS, LOCAL_SIZE)
+  event, _ = _subtask_event_at(local_samples, gx, gy, GOAL_RADIUS, LOCAL_SIZE)
   if event == NO_EVENT and steps_in_call >= max_steps:
     event = FAILURE
   global_to_local(state, origin, direction, local_state)
