@@ -96,9 +96,9 @@ def train(n_episodes, direction, learn, sample, rng_state, trace, width, values,
     el.reset(trace)                                       # Eq. 3: z <- 0
     el.reset(width)
     k = 0
+    core.global_to_local(state, origin, direction, local)
+    tiles_mod.active_tiles(local, tiling, tiles)
     while True:
-      core.global_to_local(state, origin, direction, local)
-      tiles_mod.active_tiles(local, tiling, tiles)
       if sample:
         r = act_and_score(trace, width, values, tiles, s, learn, rng_state, psi, psi_width)
       else:
@@ -108,15 +108,16 @@ def train(n_episodes, direction, learn, sample, rng_state, trace, width, values,
       event, internal = core.low_level_outcome(samples, state, origin, direction, k,
                                                local_samples, local, s.max_steps)
       ended = event != core.NO_EVENT
+      if not ended:     # the next state, already local (`low_level_outcome`), and its tiles
+        tiles_mod.active_tiles(local, tiling, next_tiles)
       if learn:
-        if not ended:
-          tiles_mod.active_tiles(local, tiling, next_tiles)
         learn_step(trace, width, values, tiles, next_tiles, s, core.STEP_REWARD + internal,
                    ended)
       if ended:
         success[episode] = event == core.SUCCESS
         steps[episode] = k
         break
+      tiles[:] = next_tiles
 
 
 def paper_coder(n_tilings=9, n_tiles=(5, 5, 36, 5)):
