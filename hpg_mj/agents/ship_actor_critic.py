@@ -42,7 +42,8 @@ def settings(config):
                   int(env.max_steps), float(env.gate_reward), float(env.out_of_bounds_reward))
 
 
-@numba.njit(cache=True)
+# error_model="numpy": no raising branch on division, less reference counting (learners.policies).
+@numba.njit(cache=True, error_model="numpy")
 def train_actor_critic(n_episodes, learn, sample, rng_state, actor_w, actor_tiling, critic,
                        critic_tiling, s, record, fixed_start):
   """Konda's actor-critic on the full task: the actor's weights over `actor_tiling`,

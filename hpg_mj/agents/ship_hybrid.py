@@ -54,7 +54,8 @@ def settings(config):
                   float(env.gate_reward), float(env.out_of_bounds_reward))
 
 
-@numba.njit(cache=True)
+# error_model="numpy": no raising branch on division, less reference counting (learners.policies).
+@numba.njit(cache=True, error_model="numpy")
 def run_low_level(state, direction, low, low_values, tiling, s, learn, sample, rng_state,
                   steps_before, scratch):
   """One call of a low-level subtask (trace `low`, baseline `low_values`) from
@@ -105,7 +106,8 @@ def run_low_level(state, direction, low, low_values, tiling, s, learn, sample, r
     scratch_tiles[:] = scratch_next
 
 
-@numba.njit(cache=True)
+# error_model="numpy": no raising branch on division, less reference counting (learners.policies).
+@numba.njit(cache=True, error_model="numpy")
 def train(n_episodes, learn, sample, rng_state, root, schedule, diagonal, diagonal_values,
           straight, straight_values, tiling, s, record, fixed_start):
   """Trains for `n_episodes` episodes (Algorithm 1 over Figure 3's graph); with
