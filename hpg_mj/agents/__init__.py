@@ -195,9 +195,9 @@ def train(task, episodes=None, seed=None, backend=None, progress=None):
 
 # ---- saving and loading --------------------------------------------------------------
 
-def save(agent, directory, record, extra=None):
+def save(agent, directory, record, extra=None, compress=True):
   """Writes the agent's whole state, its record, its task file and what made it
-  (`hpg_mj.provenance`) to `directory`."""
+  (`hpg_mj.provenance`) to `directory` (`compress`: see `storage.save`)."""
   from hpg_mj import provenance
   text = agent.task.text if agent.task else None
   meta = {"task_file": str(agent.task.path) if agent.task else None,
@@ -206,7 +206,7 @@ def save(agent, directory, record, extra=None):
   meta.update(extra or {})
   arrays = dict(agent.state())
   arrays["record"] = record
-  return storage.save(directory, agent.name, arrays, meta)
+  return storage.save(directory, agent.name, arrays, meta, compress)
 
 
 def load(directory):

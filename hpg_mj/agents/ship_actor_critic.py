@@ -42,7 +42,8 @@ def settings(config):
                   int(env.max_steps), float(env.gate_reward), float(env.out_of_bounds_reward))
 
 
-@numba.njit(cache=True)
+# error_model="numpy": no raising branch on division, less reference counting (learners.policies).
+@numba.njit(cache=True, error_model="numpy")
 def train_actor_critic(n_episodes, learn, sample, rng_state, actor_w, actor_tiling, critic,
                        critic_tiling, s, record, fixed_start):
   """Konda's actor-critic on the full task: the actor's weights over `actor_tiling`,
@@ -72,11 +73,11 @@ def train_actor_critic(n_episodes, learn, sample, rng_state, actor_w, actor_tili
     total = 0.0
     steps = 0
     event = core.NO_EVENT
+    r = policies.squash(u, core.MAX_TURN_RATE)
+    sa[:4] = state
+    sa[4] = r
+    tiles_mod.active_tiles(sa, critic_tiling, c_tiles)
     while True:
-      r = policies.squash(u, core.MAX_TURN_RATE)
-      sa[:4] = state
-      sa[4] = r
-      tiles_mod.active_tiles(sa, critic_tiling, c_tiles)
       q = actor_critic.critic_value(critic, c_tiles)
       core.euler_control(state, r, samples)
       steps += 1
@@ -90,8 +91,9 @@ def train_actor_critic(n_episodes, learn, sample, rng_state, actor_w, actor_tili
         tiles_mod.active_tiles(state, actor_tiling, a_next)
         m_next = policies.tile_mean(actor_w, a_next)
         u_next = policies.gaussian_draw(m_next, rng_state) if sample else m_next
+        r_next = policies.squash(u_next, core.MAX_TURN_RATE)
         sa[:4] = state
-        sa[4] = policies.squash(u_next, core.MAX_TURN_RATE)
+        sa[4] = r_next
         tiles_mod.active_tiles(sa, critic_tiling, c_next)
         target += actor_critic.critic_value(critic, c_next)
       if learn:
@@ -99,9 +101,11 @@ def train_actor_critic(n_episodes, learn, sample, rng_state, actor_w, actor_tili
                            s.critic_trace_decay, actor_w, a_tiles, s.actor_alpha, q, u, m)
       if done:
         break
-      a_tiles[:] = a_next
+      a_tiles[:] = a_next         # (s', a') is the next step's (s, a): its tiles are known
+      c_tiles[:] = c_next
       m = m_next
       u = u_next
+      r = r_next
     record[episode, PASSED] = event == core.SUCCESS
     record[episode, STEPS] = steps
     record[episode, RETURN] = total

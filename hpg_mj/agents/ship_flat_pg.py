@@ -47,7 +47,8 @@ def settings(config):
                   float(env.gate_reward), float(env.out_of_bounds_reward))
 
 
-@numba.njit(cache=True)
+# error_model="numpy": no raising branch on division, less reference counting (learners.policies).
+@numba.njit(cache=True, error_model="numpy")
 def train_flat_pg(n_episodes, learn, sample, rng_state, policy, tiling, s, record, fixed_start):
   """Flat PGRL (Eq. 3 over the full task, trace `policy` over `tiling`): z <- 0 at
   the start of an episode."""

@@ -54,7 +54,8 @@ def settings(config):
                   float(env.gate_reward), float(env.out_of_bounds_reward))
 
 
-@numba.njit(cache=True)
+# error_model="numpy": no raising branch on division, less reference counting (learners.policies).
+@numba.njit(cache=True, error_model="numpy")
 def run_low_level(state, direction, low, low_values, tiling, s, learn, sample, rng_state,
                   steps_before, scratch):
   """One call of a low-level subtask (trace `low`, baseline `low_values`) from
@@ -72,9 +73,9 @@ def run_low_level(state, direction, low, low_values, tiling, s, learn, sample, r
   k = 0
   global_event = core.NO_EVENT
   local_event = core.NO_EVENT
+  core.global_to_local(state, origin, direction, local_state)
+  tiles_mod.active_tiles(local_state, tiling, scratch_tiles)
   while True:
-    core.global_to_local(state, origin, direction, local_state)
-    tiles_mod.active_tiles(local_state, tiling, scratch_tiles)
     if sample:
       r = policies.gaussian_act(low, scratch_tiles, core.MAX_TURN_RATE, rng_state, scratch_psi)
       if learn and beta != 0.0:
@@ -92,20 +93,21 @@ def run_low_level(state, direction, low, low_values, tiling, s, learn, sample, r
                                                    s.low_level_max_steps)
     ended = (global_event != core.NO_EVENT or local_event != core.NO_EVENT
              or steps_before + k >= s.environment_max_steps)
+    if not ended:       # the next state, already local (`low_level_outcome`), and its tiles
+      tiles_mod.active_tiles(local_state, tiling, scratch_next)
     if learn:                                          # Eq. 3 with R + G
       el.learn(low, s.low_level_alpha, core.STEP_REWARD + internal, s.low_level_trace_gamma)
       if beta != 0.0:
-        next_value = 0.0
-        if not ended:
-          tiles_mod.active_tiles(local_state, tiling, scratch_next)
-          next_value = policies.tile_mean(low_values, scratch_next)
+        next_value = 0.0 if ended else policies.tile_mean(low_values, scratch_next)
         policies.learn_baseline(low_values, scratch_tiles, beta, core.STEP_REWARD + internal,
                                 s.low_level_trace_gamma, next_value)
     if ended:
       return global_event, local_event, reward_root, k
+    scratch_tiles[:] = scratch_next
 
 
-@numba.njit(cache=True)
+# error_model="numpy": no raising branch on division, less reference counting (learners.policies).
+@numba.njit(cache=True, error_model="numpy")
 def train(n_episodes, learn, sample, rng_state, root, schedule, diagonal, diagonal_values,
           straight, straight_values, tiling, s, record, fixed_start):
   """Trains for `n_episodes` episodes (Algorithm 1 over Figure 3's graph); with

@@ -41,7 +41,8 @@ def check_width(width_alpha, sigma_low, sigma_high, where="[low_level]"):
                      "0 < sigma_low <= 1 <= sigma_high < inf (sigma starts at 1)")
 
 
-@numba.njit(cache=True)
+# error_model="numpy": no raising branch on division, less reference counting (learners.policies).
+@numba.njit(cache=True, error_model="numpy")
 def act_and_score(trace, width, values, tiles, s, learn, rng_state, psi, psi_width):
   """The action of a sampled step and its scores on the traces (and, learning with a
   baseline, theta <- theta - alpha b(s) psi for each trace). One rule for every
@@ -59,7 +60,8 @@ def act_and_score(trace, width, values, tiles, s, learn, rng_state, psi, psi_wid
   return r
 
 
-@numba.njit(cache=True)
+# error_model="numpy": no raising branch on division, less reference counting (learners.policies).
+@numba.njit(cache=True, error_model="numpy")
 def learn_step(trace, width, values, tiles, next_tiles, s, signal, ended):
   """Eq. 3 with R + G on both traces, then the baseline's TD(0) step."""
   el.learn(trace, s.alpha, signal, s.trace_gamma)
@@ -70,7 +72,8 @@ def learn_step(trace, width, values, tiles, next_tiles, s, signal, ended):
     policies.learn_baseline(values, tiles, s.baseline, signal, s.trace_gamma, next_value)
 
 
-@numba.njit(cache=True)
+# error_model="numpy": no raising branch on division, less reference counting (learners.policies).
+@numba.njit(cache=True, error_model="numpy")
 def train(n_episodes, direction, learn, sample, rng_state, trace, width, values, tiling, s,
           success, steps):
   """`n_episodes` stand-alone calls of the subtask of `direction` (1: diagonal, 2:
@@ -96,9 +99,9 @@ def train(n_episodes, direction, learn, sample, rng_state, trace, width, values,
     el.reset(trace)                                       # Eq. 3: z <- 0
     el.reset(width)
     k = 0
+    core.global_to_local(state, origin, direction, local)
+    tiles_mod.active_tiles(local, tiling, tiles)
     while True:
-      core.global_to_local(state, origin, direction, local)
-      tiles_mod.active_tiles(local, tiling, tiles)
       if sample:
         r = act_and_score(trace, width, values, tiles, s, learn, rng_state, psi, psi_width)
       else:
@@ -108,15 +111,16 @@ def train(n_episodes, direction, learn, sample, rng_state, trace, width, values,
       event, internal = core.low_level_outcome(samples, state, origin, direction, k,
                                                local_samples, local, s.max_steps)
       ended = event != core.NO_EVENT
+      if not ended:     # the next state, already local (`low_level_outcome`), and its tiles
+        tiles_mod.active_tiles(local, tiling, next_tiles)
       if learn:
-        if not ended:
-          tiles_mod.active_tiles(local, tiling, next_tiles)
         learn_step(trace, width, values, tiles, next_tiles, s, core.STEP_REWARD + internal,
                    ended)
       if ended:
         success[episode] = event == core.SUCCESS
         steps[episode] = k
         break
+      tiles[:] = next_tiles
 
 
 def paper_coder(n_tilings=9, n_tiles=(5, 5, 36, 5)):

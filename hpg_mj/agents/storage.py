@@ -30,12 +30,14 @@ def _atomic_write(path, data: bytes):
   os.replace(tmp, path)
 
 
-def save(directory, kind, arrays, metadata):
-  """Writes `arrays` (name -> ndarray) and `metadata` (JSON-able dict) to `directory`."""
+def save(directory, kind, arrays, metadata, compress=True):
+  """Writes `arrays` (name -> ndarray) and `metadata` (JSON-able dict) to `directory`;
+  `compress=False` stores the arrays uncompressed (faster: for short-lived copies)."""
   directory = pathlib.Path(directory)
   directory.mkdir(parents=True, exist_ok=True)
   buffer = io.BytesIO()
-  np.savez_compressed(buffer, **{k: np.asarray(v) for k, v in arrays.items()})
+  write = np.savez_compressed if compress else np.savez
+  write(buffer, **{k: np.asarray(v) for k, v in arrays.items()})
   blob = buffer.getvalue()
   meta = dict(metadata)
   meta.update({"format": FORMAT, "version": VERSION, "kind": kind,

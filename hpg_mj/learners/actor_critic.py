@@ -4,13 +4,18 @@ by the fused loop and the step-by-step learner alike.
 The critic is linear over tiles of (state, action), learned by TD(lambda) on an
 Eq. 3-style lazy trace (`eligibility`); the actor is a Gaussian-with-sigmoid
 policy over its own tiles (plain weights), stepped along Q(s, a) psi(s, a).
+
+The per-step rules are compiled with numba's `error_model="numpy"`: a division by
+zero, which none of them can make, would give inf or nan instead of raising, and
+without that raising branch numba drops most of the reference counting (atomic
+operations) on the arrays they take. Nothing else changes: the same numbers, faster.
 """
 import numba
 
 from hpg_mj.learners import eligibility as el
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def critic_value(critic, tiles):
   """Q(s, a): the critic's parameters summed over the active tiles of (s, a)."""
   q = 0.0
@@ -19,7 +24,7 @@ def critic_value(critic, tiles):
   return q
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def learn(critic, critic_tiles, ones, alpha_critic, delta, trace_decay, actor_w, actor_tiles,
           alpha_actor, q, u, m):
   """One step of both, after the action a = (u, r) drawn around the actor's mean m:

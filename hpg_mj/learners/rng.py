@@ -62,7 +62,7 @@ def randint(s, n):
   return min(int(uniform(s) * n), n - 1)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def normal(s):
   """A standard normal draw (Box-Muller; uses two uniforms)."""
   u1 = 1.0 - uniform(s)          # in (0, 1]: log is finite

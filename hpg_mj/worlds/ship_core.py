@@ -9,6 +9,11 @@ Units are the paper's: metres, degrees, degrees per second. The heading
 towards +x: `x += dt * V * sin(theta)`, `y += dt * V * cos(theta)`.
 
 A ship state is a float64 array `[x, y, theta_deg, theta_dot_deg]`.
+
+The per-step rules are compiled with numba's `error_model="numpy"`: a division by
+zero, which none of them can make, would give inf or nan instead of raising, and
+without that raising branch numba drops most of the reference counting (atomic
+operations) on the arrays they take. Nothing else changes: the same numbers, faster.
 """
 import math
 
@@ -53,7 +58,7 @@ SUCCESS = 1      # gate passed / local goal reached
 FAILURE = -1     # bounds left
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def wrap_deg(angle):
   """Wraps an angle (one float) in degrees to [-180, 180): `(angle + 180) % 360 - 180`,
   to the bit (`wrap_deg_array` for arrays).
@@ -78,7 +83,7 @@ def wrap_deg_array(angles):
   return (np.asarray(angles, dtype=np.float64) + 180.0) % 360.0 - 180.0
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def euler_sample(state, r_deg, speed, time_constant, dt):
   """One sampling interval of Equation 1 (explicit Euler), in place."""
   theta = state[2]
@@ -90,7 +95,7 @@ def euler_sample(state, r_deg, speed, time_constant, dt):
   state[3] = theta_dot + dt * (r_deg - theta_dot) / time_constant
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def euler_control(state, r_deg, samples, speed=SPEED, time_constant=TIME_CONSTANT,
                   dt=SAMPLING_INTERVAL):
   """One control interval: `r_deg` held for `len(samples) - 1` sampling intervals.
@@ -126,7 +131,7 @@ def _cross(ax, ay, bx, by):
   return ax * by - ay * bx
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def segment_crosses(p0x, p0y, p1x, p1y, q0x, q0y, q1x, q1y):
   """Whether the sailed segment p0->p1 crosses the segment q0-q1 (the gate).
 
@@ -148,7 +153,7 @@ def segment_crosses(p0x, p0y, p1x, p1y, q0x, q0y, q1x, q1y):
   return 0.0 < t <= 1.0 and 0.0 <= u <= 1.0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def steer_event(samples, gate, field_size):
   """The full task's outcome over one control interval (SPEC section 2).
 
@@ -167,7 +172,7 @@ def steer_event(samples, gate, field_size):
   return NO_EVENT, 0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def subtask_event(local_samples, goal, goal_radius, local_size):
   """A low-level subtask's outcome over one control interval (SPEC section 3).
 
@@ -175,23 +180,33 @@ def subtask_event(local_samples, goal, goal_radius, local_size):
   SUCCESS within `goal_radius` of the goal, FAILURE outside [0, local_size]^2.
   The step limit is the caller's (it counts control steps).
   """
+  return _subtask_event_at(local_samples, goal[0], goal[1], goal_radius, local_size)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _subtask_event_at(local_samples, goal_x, goal_y, goal_radius, local_size):
+  """`subtask_event` with the goal as two floats."""
   for k in range(1, local_samples.shape[0]):
     x = local_samples[k, 0]
     y = local_samples[k, 1]
-    if math.hypot(x - goal[0], y - goal[1]) <= goal_radius:
+    dx = x - goal_x
+    dy = y - goal_y
+    # hypot(dx, dy) >= max(|dx|, |dy|) (libm's hypot is faithfully rounded), so
+    # the square root is taken only near the goal: the same answers, faster.
+    if abs(dx) <= goal_radius and abs(dy) <= goal_radius and math.hypot(dx, dy) <= goal_radius:
       return SUCCESS, k
     if x < 0.0 or x > local_size or y < 0.0 or y > local_size:
       return FAILURE, k
   return NO_EVENT, 0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def bearing_deg(x, y, goal_x, goal_y):
   """Heading (deg, clockwise from +y) that points from (x, y) at the goal."""
   return math.degrees(math.atan2(goal_x - x, goal_y - y))
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def shaping_reward(x, y, theta_deg, goal_x, goal_y, width_deg=SHAPING_WIDTH_DEG):
   """Internal reward G = exp(-(theta - theta_hat)^2 / width^2) - 1 (SPEC section 3)."""
   diff = wrap_deg(theta_deg - bearing_deg(x, y, goal_x, goal_y))
@@ -247,7 +262,7 @@ def local_goal(direction):
   return STRAIGHT_GOAL[0], STRAIGHT_GOAL[1]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def global_to_local(state, origin, direction, out):
   """Maps a global ship state into the local frame of a call that began at `origin`.
 
@@ -275,7 +290,7 @@ def local_to_global(local_state, origin, direction, out):
   out[3] = local_state[3]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def samples_to_local(samples, origin, direction, out):
   """Maps sampled global positions (k, 2) into the local frame."""
   q = quarter_turns(direction)
@@ -371,7 +386,7 @@ def patrol_pilot_target(state, phase, offset=25.0, reach=40.0):
 
 # ---- outcomes of one control step (shared by every path) ----------------------------
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def low_level_outcome(samples, state, origin, direction, steps_in_call, local_samples,
                       local_state, max_steps):
   """After one control step inside a low-level call: (local event, G).
@@ -383,8 +398,7 @@ def low_level_outcome(samples, state, origin, direction, steps_in_call, local_sa
   """
   samples_to_local(samples, origin, direction, local_samples)
   gx, gy = local_goal(direction)
-  goal = np.array([gx, gy])
-  event, _ = subtask_event(local_samples, goal, GOAL_RADIUS, LOCAL_SIZE)
+  event, _ = _subtask_event_at(local_samples, gx, gy, GOAL_RADIUS, LOCAL_SIZE)
   if event == NO_EVENT and steps_in_call >= max_steps:
     event = FAILURE
   global_to_local(state, origin, direction, local_state)
@@ -396,7 +410,7 @@ def low_level_outcome(samples, state, origin, direction, steps_in_call, local_sa
   return event, internal
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy")
 def global_outcome(samples, gate_reward, out_of_bounds_reward):
   """The full task's event and reward for one control step (SPEC section 2)."""
   event, _ = steer_event(samples, GATE, FIELD_SIZE)
