@@ -182,19 +182,24 @@ def primitive_state(state, world):
 
 
 @numba.njit(cache=True, inline="always")
+def with_fuel(row, state, world):
+  """`taxi_rules`' abstract row with the fuel level added (module docstring)."""
+  if world[rules.W_FUEL_ENABLED] != 0:
+    return row * (world[rules.W_CAPACITY] + 1) + state[rules.FUEL]
+  return row
+
+
+@numba.njit(cache=True, inline="always")
 def abstract_state(subtask, target, state, world):
   """The subtask's row in its completion tables (module docstring): `taxi_rules`'
-  abstraction with the fuel level added, and the full state for Root."""
+  abstraction with the fuel level added, and the full state for Root. (The
+  level's own functions below call `with_fuel` directly: each inlined copy of
+  this one brings every subtask's branch into the compile.)"""
   if subtask == rules.ROOT:
     return full_state(state, world)
-  levels = 1
-  fuel = 0
-  if world[rules.W_FUEL_ENABLED] != 0:
-    levels = world[rules.W_CAPACITY] + 1
-    fuel = state[rules.FUEL]
   if subtask == rules.NAVIGATE:
-    return rules.navigate_state(target, state) * levels + fuel
-  return rules.carry_state(subtask, state) * levels + fuel
+    return with_fuel(rules.navigate_state(target, state), state, world)
+  return with_fuel(rules.carry_state(subtask, state), state, world)
 
 
 @numba.njit(cache=True, inline="always")
@@ -269,18 +274,20 @@ def navigate_scores(target, state, world, tables, scratch):
   q, v, mask = scratch
   n = rules.N_CHILDREN[rules.NAVIGATE]
   lv = LEVEL[rules.NAVIGATE]
-  available(rules.NAVIGATE, state, world, mask[lv])
+  rules.navigate_children(mask[lv])
   s = primitive_state(state, world) * N_PRIMITIVES
-  base = offsets[rules.NAVIGATE] + abstract_state(rules.NAVIGATE, target, state, world) * n
+  base = offsets[rules.NAVIGATE] + with_fuel(rules.navigate_state(target, state), state, world) * n
   for a in range(n):
     v[lv, a] = values[s + a]                   # Navigate's child index is the move's action
     q[lv, a] = v[lv, a] + c_tilde[base + a]
   return base
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, _nrt=False)
 def navigate_value(target, state, world, tables, scratch):
-  """V(Navigate(t), s)."""
+  """V(Navigate(t), s). A called function, as are `carry_value` and `root_scores`:
+  they run once per choice of an upper subtask, and inlining them into each
+  other made their first compile take seconds each."""
   c = tables.c
   q, v, mask = scratch
   if rules.navigate_done(target, state, world):
@@ -299,8 +306,8 @@ def carry_scores(subtask, state, world, tables, scratch):
   q, v, mask = scratch
   n = rules.N_CHILDREN[subtask]
   lv = LEVEL[subtask]
-  available(subtask, state, world, mask[lv])
-  base = offsets[subtask] + abstract_state(subtask, 0, state, world) * n
+  rules.carry_children(subtask, state, world, mask[lv])
+  base = offsets[subtask] + with_fuel(rules.carry_state(subtask, state), state, world) * n
   for a in range(n):
     if mask[lv, a]:
       if a == rules.CARRY_PRIMITIVE:
@@ -312,7 +319,7 @@ def carry_scores(subtask, state, world, tables, scratch):
   return base
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, _nrt=False)
 def carry_value(subtask, state, world, tables, scratch):
   """V(Get / Put / Refuel, s)."""
   c = tables.c
@@ -338,8 +345,8 @@ def root_scores(state, world, tables, scratch):
   q, v, mask = scratch
   n = rules.N_CHILDREN[rules.ROOT]
   lv = LEVEL[rules.ROOT]
-  available(rules.ROOT, state, world, mask[lv])
-  base = offsets[rules.ROOT] + abstract_state(rules.ROOT, 0, state, world) * n
+  rules.root_children(state, world, mask[lv])
+  base = offsets[rules.ROOT] + full_state(state, world) * n
   for a in range(n):
     if mask[lv, a]:
       v[lv, a] = carry_value(a + 1, state, world, tables, scratch)
