@@ -103,6 +103,8 @@ P_ALPHA, P_PSEUDO_REWARD, P_EPSILON_START, P_EPSILON_END, P_EPSILON_EPISODES = r
 
 LEVELS = ("root", "carry", "navigate")
 
+NO_TARGET = np.int64(0)
+
 
 def settings(config) -> np.ndarray:
   """float64[5, 5]: rows P_* by subtask id (Root, Get, Put, Refuel, Navigate), from the
@@ -366,6 +368,24 @@ def scores(subtask, target, state, world, tables, scratch):
 
 # --- the rules the two paths share ----------------------------------------------------
 
+@numba.njit(cache=True, _nrt=False)
+def explore(subtask, state, world, mask, rng_state):
+  """A uniformly random available child (one randint). A called function: it runs
+  only when exploring, and inlining it into `choose` lengthened the first compile."""
+  n = rules.N_CHILDREN[subtask]
+  available(subtask, state, world, mask)
+  k = 0
+  for a in range(n):
+    k += mask[a]
+  pick = rng.randint(rng_state, k)
+  for a in range(n):
+    if mask[a]:
+      if pick == 0:
+        return a
+      pick -= 1
+  return -1
+
+
 @numba.njit(cache=True, inline="always")
 def choose(subtask, target, state, world, tables, epsilon, sample, rng_state, scratch):
   """Epsilon-greedy choice of a child of `subtask` in `state` (greedy if not
@@ -375,16 +395,7 @@ def choose(subtask, target, state, world, tables, epsilon, sample, rng_state, sc
   n = rules.N_CHILDREN[subtask]
   lv = LEVEL[subtask]
   if sample and rng.uniform(rng_state) < epsilon:
-    available(subtask, state, world, mask[lv])
-    k = 0
-    for a in range(n):
-      k += mask[lv, a]
-    pick = rng.randint(rng_state, k)
-    for a in range(n):
-      if mask[lv, a]:
-        if pick == 0:
-          return a
-        pick -= 1
+    return explore(subtask, state, world, mask[lv], rng_state)
   scores(subtask, target, state, world, tables, scratch)
   return greedy_random_ties(q[lv], mask[lv], n, rng_state)
 
@@ -487,7 +498,7 @@ def run_carry(subtask, state, episode, world, tables, settings, epsilons, alpha_
   values = tables.values
   total = 0.0
   while not rules.episode_over(episode) and not rules.carry_done(subtask, state, world):
-    a = choose_child(subtask, 0, state, world, tables,
+    a = choose_child(subtask, NO_TARGET, state, world, tables,
                      epsilons[subtask], sample, rng_state, scratch)
     first = episode[rules.E_STEPS]
     if a == rules.CARRY_PRIMITIVE:
@@ -501,7 +512,7 @@ def run_carry(subtask, state, episode, world, tables, settings, epsilons, alpha_
       reward = run_navigate(rules.carry_target(subtask, state), state, episode, world, tables, settings, epsilons, alpha_primitive, all_states,
                             learn, sample, rng_state, path, scratch)
     if learn:
-      learn_completion(subtask, 0, a, path, first, episode[rules.E_STEPS], state,
+      learn_completion(subtask, NO_TARGET, a, path, first, episode[rules.E_STEPS], state,
                        episode_ended(episode), world, tables, settings,
                        all_states, scratch)
     total += reward
@@ -514,13 +525,13 @@ def run_episode(state, episode, world, tables, settings, epsilons, alpha_primiti
   """One call of Root: the whole episode from `state`; returns its return."""
   total = 0.0
   while not rules.episode_over(episode):
-    a = choose_child(rules.ROOT, 0, state, world, tables,
+    a = choose_child(rules.ROOT, NO_TARGET, state, world, tables,
                      epsilons[rules.ROOT], sample, rng_state, scratch)
     first = episode[rules.E_STEPS]
     reward = run_carry(a + 1, state, episode, world, tables, settings,
                        epsilons, alpha_primitive, all_states, learn, sample, rng_state, path, scratch)
     if learn:
-      learn_completion(rules.ROOT, 0, a, path, first, episode[rules.E_STEPS], state,
+      learn_completion(rules.ROOT, NO_TARGET, a, path, first, episode[rules.E_STEPS], state,
                        episode_ended(episode), world, tables, settings,
                        all_states, scratch)
     total += reward
