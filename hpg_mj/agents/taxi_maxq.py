@@ -63,8 +63,12 @@ level (`run_navigate`, `run_carry`, `run_episode`; `navigate_value`,
 reference counting (`_nrt=False`) and allocating nothing: the scratch arrays
 come from the caller. Navigate's rules are inlined into its loop, and Get's,
 Put's and Refuel's values into Root's; the upper levels call `choose_child` and
-`learn_completion`, the same rules as called functions. Inlining more would
-make the first compile take minutes (everything is cached afterwards).
+`learn_completion`, the same rules as called functions, and `navigate_value` and
+`explore` are called too. numba inlines a function by copying and re-typing its
+body at every call site, nested copies included, so what is inlined decides the
+first compile's time (about 19 s CPU for `train`, from 37 s; cached afterwards):
+each level's scores use its own initiation and abstraction rather than the
+generic `available` and `abstract_state`, whose copies bring every subtask's branch.
 
 This module holds all of MAXQ-Q: the configuration, the fused loop, the
 step-by-step nodes (below) and the agent, a baseline of HPG (tag "baseline").
@@ -287,9 +291,9 @@ def navigate_scores(target, state, world, tables, scratch):
 
 @numba.njit(cache=True, _nrt=False)
 def navigate_value(target, state, world, tables, scratch):
-  """V(Navigate(t), s). A called function, as are `carry_value` and `root_scores`:
-  they run once per choice of an upper subtask, and inlining them into each
-  other made their first compile take seconds each."""
+  """V(Navigate(t), s). A called function: it runs only in the upper subtasks'
+  choices and updates, and its inlined copies (three in `root_scores`, one in
+  `carry_scores_call`) made their first compile take seconds each."""
   c = tables.c
   q, v, mask = scratch
   if rules.navigate_done(target, state, world):
@@ -321,7 +325,7 @@ def carry_scores(subtask, state, world, tables, scratch):
   return base
 
 
-@numba.njit(cache=True, _nrt=False)
+@numba.njit(cache=True, inline="always")
 def carry_value(subtask, state, world, tables, scratch):
   """V(Get / Put / Refuel, s)."""
   c = tables.c
