@@ -129,11 +129,12 @@ def train(n_episodes, learn, sample, rng_state, root, schedule, diagonal, diagon
              np.empty(2))
   for episode in range(n_episodes):
     if fixed_start.shape[0] == 4:
-      state[:] = fixed_start
+      for i in range(4):                 # a loop, not state[:] = ...: a slice copy compiles
+        state[i] = fixed_start[i]        # numba's shape-mismatch message (2 s cold)
     else:
       _ship.sample_start(rng_state, state)
     qlambda.clear(root.count)
-    steps = 0
+    steps = np.int64(0)                  # not the literal 0: run_low_level would compile twice
     total = 0.0
     cell = rules.root_cell(state[0], state[1])
     epsilon = eps_state[0] if sample else 0.0
@@ -162,17 +163,19 @@ def train(n_episodes, learn, sample, rng_state, root, schedule, diagonal, diagon
       terminal = g_event != core.NO_EVENT
       truncated = (not terminal) and steps >= s.environment_max_steps
       next_cell = rules.root_cell(state[0], state[1])
-      if terminal or truncated:
-        if learn:
-          qlambda.update(root.q, rules.N_DIRECTIONS, root.index, root.value, root.count, cell,
-                         a, reward, next_cell, 0, terminal, s.root_alpha, 1.0,
-                         s.root_trace_decay)
-          qlambda.clear(root.count)
-        break
-      a_next = qlambda.epsilon_greedy(root.q, next_cell, rules.N_DIRECTIONS, epsilon, rng_state)
+      over = terminal or truncated
+      # One call site of `qlambda.update` for both cases (a literal 0 or False
+      # argument would compile a second specialization); no draw when the episode is over.
+      a_next = 0
+      if not over:
+        a_next = qlambda.epsilon_greedy(root.q, next_cell, rules.N_DIRECTIONS, epsilon, rng_state)
       if learn:
         qlambda.update(root.q, rules.N_DIRECTIONS, root.index, root.value, root.count, cell, a,
-                       reward, next_cell, a_next, False, s.root_alpha, 1.0, s.root_trace_decay)
+                       reward, next_cell, a_next, terminal, s.root_alpha, 1.0, s.root_trace_decay)
+      if over:
+        if learn:
+          qlambda.clear(root.count)
+        break
       cell = next_cell
       a = a_next
     row[PASSED] = g_event == core.SUCCESS

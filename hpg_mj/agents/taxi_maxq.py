@@ -63,8 +63,12 @@ level (`run_navigate`, `run_carry`, `run_episode`; `navigate_value`,
 reference counting (`_nrt=False`) and allocating nothing: the scratch arrays
 come from the caller. Navigate's rules are inlined into its loop, and Get's,
 Put's and Refuel's values into Root's; the upper levels call `choose_child` and
-`learn_completion`, the same rules as called functions. Inlining more would
-make the first compile take minutes (everything is cached afterwards).
+`learn_completion`, the same rules as called functions, and `navigate_value` and
+`explore` are called too. numba inlines a function by copying and re-typing its
+body at every call site, nested copies included, so what is inlined decides the
+first compile's time (about 19 s CPU for `train`, from 37 s; cached afterwards):
+each level's scores use its own initiation and abstraction rather than the
+generic `available` and `abstract_state`, whose copies bring every subtask's branch.
 
 This module holds all of MAXQ-Q: the configuration, the fused loop, the
 step-by-step nodes (below) and the agent, a baseline of HPG (tag "baseline").
@@ -102,6 +106,8 @@ P_ALPHA, P_PSEUDO_REWARD, P_EPSILON_START, P_EPSILON_END, P_EPSILON_EPISODES = r
 
 
 LEVELS = ("root", "carry", "navigate")
+
+NO_TARGET = np.int64(0)
 
 
 def settings(config) -> np.ndarray:
@@ -182,19 +188,24 @@ def primitive_state(state, world):
 
 
 @numba.njit(cache=True, inline="always")
+def with_fuel(row, state, world):
+  """`taxi_rules`' abstract row with the fuel level added (module docstring)."""
+  if world[rules.W_FUEL_ENABLED] != 0:
+    return row * (world[rules.W_CAPACITY] + 1) + state[rules.FUEL]
+  return row
+
+
+@numba.njit(cache=True, inline="always")
 def abstract_state(subtask, target, state, world):
   """The subtask's row in its completion tables (module docstring): `taxi_rules`'
-  abstraction with the fuel level added, and the full state for Root."""
+  abstraction with the fuel level added, and the full state for Root. (The
+  level's own functions below call `with_fuel` directly: each inlined copy of
+  this one brings every subtask's branch into the compile.)"""
   if subtask == rules.ROOT:
     return full_state(state, world)
-  levels = 1
-  fuel = 0
-  if world[rules.W_FUEL_ENABLED] != 0:
-    levels = world[rules.W_CAPACITY] + 1
-    fuel = state[rules.FUEL]
   if subtask == rules.NAVIGATE:
-    return rules.navigate_state(target, state) * levels + fuel
-  return rules.carry_state(subtask, state) * levels + fuel
+    return with_fuel(rules.navigate_state(target, state), state, world)
+  return with_fuel(rules.carry_state(subtask, state), state, world)
 
 
 @numba.njit(cache=True, inline="always")
@@ -269,18 +280,20 @@ def navigate_scores(target, state, world, tables, scratch):
   q, v, mask = scratch
   n = rules.N_CHILDREN[rules.NAVIGATE]
   lv = LEVEL[rules.NAVIGATE]
-  available(rules.NAVIGATE, state, world, mask[lv])
+  rules.navigate_children(mask[lv])
   s = primitive_state(state, world) * N_PRIMITIVES
-  base = offsets[rules.NAVIGATE] + abstract_state(rules.NAVIGATE, target, state, world) * n
+  base = offsets[rules.NAVIGATE] + with_fuel(rules.navigate_state(target, state), state, world) * n
   for a in range(n):
     v[lv, a] = values[s + a]                   # Navigate's child index is the move's action
     q[lv, a] = v[lv, a] + c_tilde[base + a]
   return base
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, _nrt=False)
 def navigate_value(target, state, world, tables, scratch):
-  """V(Navigate(t), s)."""
+  """V(Navigate(t), s). A called function: it runs only in the upper subtasks'
+  choices and updates, and its inlined copies (three in `root_scores`, one in
+  `carry_scores_call`) made their first compile take seconds each."""
   c = tables.c
   q, v, mask = scratch
   if rules.navigate_done(target, state, world):
@@ -299,8 +312,8 @@ def carry_scores(subtask, state, world, tables, scratch):
   q, v, mask = scratch
   n = rules.N_CHILDREN[subtask]
   lv = LEVEL[subtask]
-  available(subtask, state, world, mask[lv])
-  base = offsets[subtask] + abstract_state(subtask, 0, state, world) * n
+  rules.carry_children(subtask, state, world, mask[lv])
+  base = offsets[subtask] + with_fuel(rules.carry_state(subtask, state), state, world) * n
   for a in range(n):
     if mask[lv, a]:
       if a == rules.CARRY_PRIMITIVE:
@@ -338,8 +351,8 @@ def root_scores(state, world, tables, scratch):
   q, v, mask = scratch
   n = rules.N_CHILDREN[rules.ROOT]
   lv = LEVEL[rules.ROOT]
-  available(rules.ROOT, state, world, mask[lv])
-  base = offsets[rules.ROOT] + abstract_state(rules.ROOT, 0, state, world) * n
+  rules.root_children(state, world, mask[lv])
+  base = offsets[rules.ROOT] + full_state(state, world) * n
   for a in range(n):
     if mask[lv, a]:
       v[lv, a] = carry_value(a + 1, state, world, tables, scratch)
@@ -359,6 +372,24 @@ def scores(subtask, target, state, world, tables, scratch):
 
 # --- the rules the two paths share ----------------------------------------------------
 
+@numba.njit(cache=True, _nrt=False)
+def explore(subtask, state, world, mask, rng_state):
+  """A uniformly random available child (one randint). A called function: it runs
+  only when exploring, and inlining it into `choose` lengthened the first compile."""
+  n = rules.N_CHILDREN[subtask]
+  available(subtask, state, world, mask)
+  k = 0
+  for a in range(n):
+    k += mask[a]
+  pick = rng.randint(rng_state, k)
+  for a in range(n):
+    if mask[a]:
+      if pick == 0:
+        return a
+      pick -= 1
+  return -1
+
+
 @numba.njit(cache=True, inline="always")
 def choose(subtask, target, state, world, tables, epsilon, sample, rng_state, scratch):
   """Epsilon-greedy choice of a child of `subtask` in `state` (greedy if not
@@ -368,16 +399,7 @@ def choose(subtask, target, state, world, tables, epsilon, sample, rng_state, sc
   n = rules.N_CHILDREN[subtask]
   lv = LEVEL[subtask]
   if sample and rng.uniform(rng_state) < epsilon:
-    available(subtask, state, world, mask[lv])
-    k = 0
-    for a in range(n):
-      k += mask[lv, a]
-    pick = rng.randint(rng_state, k)
-    for a in range(n):
-      if mask[lv, a]:
-        if pick == 0:
-          return a
-        pick -= 1
+    return explore(subtask, state, world, mask[lv], rng_state)
   scores(subtask, target, state, world, tables, scratch)
   return greedy_random_ties(q[lv], mask[lv], n, rng_state)
 
@@ -480,7 +502,7 @@ def run_carry(subtask, state, episode, world, tables, settings, epsilons, alpha_
   values = tables.values
   total = 0.0
   while not rules.episode_over(episode) and not rules.carry_done(subtask, state, world):
-    a = choose_child(subtask, 0, state, world, tables,
+    a = choose_child(subtask, NO_TARGET, state, world, tables,
                      epsilons[subtask], sample, rng_state, scratch)
     first = episode[rules.E_STEPS]
     if a == rules.CARRY_PRIMITIVE:
@@ -494,7 +516,7 @@ def run_carry(subtask, state, episode, world, tables, settings, epsilons, alpha_
       reward = run_navigate(rules.carry_target(subtask, state), state, episode, world, tables, settings, epsilons, alpha_primitive, all_states,
                             learn, sample, rng_state, path, scratch)
     if learn:
-      learn_completion(subtask, 0, a, path, first, episode[rules.E_STEPS], state,
+      learn_completion(subtask, NO_TARGET, a, path, first, episode[rules.E_STEPS], state,
                        episode_ended(episode), world, tables, settings,
                        all_states, scratch)
     total += reward
@@ -507,13 +529,13 @@ def run_episode(state, episode, world, tables, settings, epsilons, alpha_primiti
   """One call of Root: the whole episode from `state`; returns its return."""
   total = 0.0
   while not rules.episode_over(episode):
-    a = choose_child(rules.ROOT, 0, state, world, tables,
+    a = choose_child(rules.ROOT, NO_TARGET, state, world, tables,
                      epsilons[rules.ROOT], sample, rng_state, scratch)
     first = episode[rules.E_STEPS]
     reward = run_carry(a + 1, state, episode, world, tables, settings,
                        epsilons, alpha_primitive, all_states, learn, sample, rng_state, path, scratch)
     if learn:
-      learn_completion(rules.ROOT, 0, a, path, first, episode[rules.E_STEPS], state,
+      learn_completion(rules.ROOT, NO_TARGET, a, path, first, episode[rules.E_STEPS], state,
                        episode_ended(episode), world, tables, settings,
                        all_states, scratch)
     total += reward
