@@ -1,5 +1,5 @@
 """A route past the paper's (SPEC section 8; issue 12, item 4): a root that sees
-its 50 m cell and the ship's coarse heading, and chooses a point to steer to; one
+its cell and the ship's coarse heading, and chooses a point to steer to; one
 low-level subtask, *aim*, that steers straight to a continuous target.
 
 Why: the paper's root can only chain whole 100 / 141 m legs along eight compass
@@ -12,14 +12,18 @@ straight line to the gate runs along its line or past its posts). One call sails
 the whole way from most starts. The root sees its cell and the heading's sector.
 
 The *aim* subtask's state is the heading error to its target (wrapped), the
-turning rate and the distance (clipped), over a CMAC; its policy is the paper's
+turning rate and the distance (clipped), over a CMAC, with errors beyond
+`reflect_deg` on one side reflected onto the other (the turning rate negated, and
+the policy's r with it), so that one set of tiles learns every large turn and the
+ship turns the short way round; its policy is the paper's
 Gaussian with sigmoid, learned by Eq. 3 with R + G (G the paper's heading shaping
 towards the target, +100 within `radius` of it or through the gate, -100 off the
 field or after `max_steps`), the discounted trace and the learned baseline b(s)
 of `ship_hybrid`, and optionally the learned exploration width
 (`ship_subtask.act_and_score`). The map from the world to this state is an
-isometry of Equation 1 (a translation and a rotation), as SPEC section 3 asks of
-the paper's local frames. Only the -1s, the gate's reward and the field's penalty
+isometry of Equation 1 (a translation and a rotation, and for the reflected
+errors a reflection with r -> -r), as SPEC section 3 asks of the paper's local
+frames. Only the -1s, the gate's reward and the field's penalty
 reach the root (Watkins's Q(lambda) over the SMDP of calls, as the hybrid's).
 """
 import collections
@@ -55,7 +59,8 @@ Settings = collections.namedtuple("Settings", (
     "root_epsilon_divisor", "root_cell_m", "root_grid", "root_headings", "root_inset_m",
     "root_approach_m",
     "alpha", "trace_gamma", "baseline", "max_steps", "width_alpha", "log_sigma_low",
-    "log_sigma_high", "radius_m", "shaping", "sqrt_error",
+    "log_sigma_high", "radius_m", "shaping",
+    "sqrt_error", "reflect_at",
     "environment_max_steps", "environment_gate_reward", "environment_out_of_bounds_reward"))
 RootTable = collections.namedtuple("RootTable", ("q", "index", "value", "count"))
 
@@ -69,7 +74,7 @@ def settings(config):
                   float(low.alpha), float(low.trace_gamma), float(low.baseline),
                   int(low.max_steps), float(low.width_alpha), math.log(low.sigma_low),
                   math.log(low.sigma_high), float(low.radius_m), float(low.shaping),
-                  low.error_scale == "sqrt",
+                  low.error_scale == "sqrt", error_coordinate(low.reflect_deg, low.error_scale),
                   int(env.max_steps), float(env.gate_reward), float(env.out_of_bounds_reward))
 
 
@@ -112,16 +117,30 @@ def target_of(action, state, side, s):
   return GATE_X + APPROACH_DX[action - 1], GATE_Y + side * s.root_approach_m
 
 
+def error_coordinate(e_deg, error_scale):
+  """A heading error's coordinate on the aim tiles."""
+  return 180.0 * math.sqrt(e_deg / 180.0) if error_scale == "sqrt" else float(e_deg)
+
+
 @numba.njit(cache=True)
-def aim_view(state, tx, ty, out, sqrt_error=False):
+def aim_view(state, tx, ty, out, sqrt_error=False, reflect_at=180.0):
   """The aim subtask's state: heading error e to the target (deg, wrapped; with
   `sqrt_error` as 180 sign(e) sqrt(|e| / 180), still in [-180, 180], so that the
   tiles are finer near e = 0, where the ship holds its course), turning rate,
-  distance (clipped at DISTANCE_CLIP)."""
+  distance (clipped at DISTANCE_CLIP). Returns the side, 1 or -1: with the error's
+  coordinate below -`reflect_at`, the state is reflected about the line to the
+  target, (e, turning rate) -> (-e, -turning rate), and the side is -1. Equation 1
+  is symmetric under the reflection with r -> -r, so the policy's r times the side
+  steers both sides of a large error with one set of tiles, each learning from
+  the starts of both (the ship must turn the short way round; near e = 0, where
+  it holds its course, both sides keep their own tiles: no fold there)."""
   e = core.wrap_deg(state[2] - core.bearing_deg(state[0], state[1], tx, ty))
-  out[0] = math.copysign(180.0 * math.sqrt(abs(e) / 180.0), e) if sqrt_error else e
-  out[1] = state[3]
+  q = math.copysign(180.0 * math.sqrt(abs(e) / 180.0), e) if sqrt_error else e
+  side = -1.0 if q < -reflect_at else 1.0
+  out[0] = side * q
+  out[1] = side * state[3]
   out[2] = min(math.hypot(tx - state[0], ty - state[1]), DISTANCE_CLIP)
+  return side
 
 
 @numba.njit(cache=True)
@@ -167,13 +186,14 @@ def run_aim(state, action, trace, width, values, tiling, s, learn, sample, rng_s
   side = side_of(state[1])
   tx, ty = target_of(action, state, side, s)
   while True:
-    aim_view(state, tx, ty, view, s.sqrt_error)
+    reflected = aim_view(state, tx, ty, view, s.sqrt_error, s.reflect_at)
     tiles_mod.active_tiles(view, tiling, tiles)
     if sample:
       r = ship_subtask.act_and_score(trace, width, values, tiles, s, learn, rng_state, psi,
                                      psi_width)
     else:
       r = policies.gaussian_greedy(trace, tiles, core.MAX_TURN_RATE)
+    r *= reflected                                       # the reflection's r -> -r
     core.euler_control(state, r, samples)
     k += 1
     global_event, reward = core.global_outcome(samples, s.environment_gate_reward,
@@ -185,7 +205,7 @@ def run_aim(state, action, trace, width, values, tiling, s, learn, sample, rng_s
              or steps_before + k >= s.environment_max_steps)
     if learn:
       if not ended:
-        aim_view(state, tx, ty, view, s.sqrt_error)
+        aim_view(state, tx, ty, view, s.sqrt_error, s.reflect_at)
         tiles_mod.active_tiles(view, tiling, next_tiles)
       ship_subtask.learn_step(trace, width, values, tiles, next_tiles, s,
                               core.STEP_REWARD + internal, ended)
@@ -298,8 +318,12 @@ class LowLevel:
   error_scale: str = param("sqrt", "the heading error's scale on the tiles: sqrt (finer "
                            "near 0) or linear", choices=("sqrt", "linear"))
   tilings: int = param(9, "CMAC tilings", low=1)
-  tiles: tuple = param((36, 6, 4), "tiles per tiling over heading error (wraps), turning "
-                       "rate, distance", length=3, low=1)
+  reflect_deg: float = param(180.0, "beyond this heading error (deg) on the ship's negative "
+                             "side the aim state is reflected to the positive side (180: "
+                             "never)", low=0, high=180)
+  tiles: tuple = param((36, 6, 4), "tiles per tiling over heading error (wraps; reflected, "
+                       "over [-reflect_deg, 180], not wrapping), turning rate, distance",
+                       length=3, low=1)
   max_steps: int = param(600, "control steps, then the call has failed", low=1)
 
 
@@ -311,9 +335,26 @@ class Config:
 
 
 def aim_coder(low):
-  return tiles_mod.TileCoder((-180.0, -core.MAX_TURN_RATE, 0.0),
+  reflected = low.reflect_deg < 180.0
+  low_error = -error_coordinate(low.reflect_deg, low.error_scale)
+  return tiles_mod.TileCoder((low_error, -core.MAX_TURN_RATE, 0.0),
                              (180.0, core.MAX_TURN_RATE, DISTANCE_CLIP), tuple(low.tiles),
-                             (True, False, False), low.tilings)
+                             (not reflected, False, False), low.tilings)
+
+
+class _Reflected:
+  """The aim learner on the step-by-step path: its turning rate times the side of
+  the last view (`aim_view`'s reflection)."""
+
+  def __init__(self, learner):
+    self.learner = learner
+    self.side = 1.0
+
+  def act(self, features, mask, rng_state, sample):
+    return self.side * self.learner.act(features, mask, rng_state, sample)
+
+  def __getattr__(self, name):
+    return getattr(self.learner, name)
 
 
 class ShipBeyond(_ship.ShipAgent):
@@ -381,9 +422,14 @@ class ShipBeyond(_ship.ShipAgent):
       side = call.memo.setdefault("side", side_of(float(call.origin[1])))
       return target_of(call.args["action"], np.asarray(obs, dtype=np.float64), side, s)
 
+    aim_learner = _Reflected(self.low)
+
     def low_view(call, obs):
       tx, ty = target(call, obs)
-      aim_view(np.asarray(obs, dtype=np.float64), tx, ty, view, s.sqrt_error)
+      # The executor views the state it acts in last before acting (and the next
+      # state after), so the side set here is the one act() applies.
+      aim_learner.side = aim_view(np.asarray(obs, dtype=np.float64), tx, ty, view,
+                                  s.sqrt_error, s.reflect_at)
       tiles_mod.active_tiles(view, self.tile_arrays, scratch_tiles)
       return scratch_tiles
 
@@ -417,7 +463,7 @@ class ShipBeyond(_ship.ShipAgent):
         schedules.end_episode(self.schedule, self.outcomes, self.counts, root.epsilon_threshold,
                               root.epsilon_every, root.epsilon_divisor)
 
-    aim = Subtask("aim", children=["turn"], learner=self.low, view=low_view,
+    aim = Subtask("aim", children=["turn"], learner=aim_learner, view=low_view,
                   internal_reward=internal_reward,
                   reward=lambda call, step, child_reward: core.STEP_REWARD,
                   termination=lambda call, step: call.memo["event"] != core.NO_EVENT,
