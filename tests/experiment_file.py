@@ -1,5 +1,12 @@
 """A one-curve experiment file for the tests of the run machinery (on the tuning
-seeds, which the machinery under test may use)."""
+seeds, which the machinery under test may use), and what a finished run is, for
+comparing two runs."""
+import json
+import pathlib
+
+import numpy as np
+
+from hpg_mj.agents import storage
 
 TEMPLATE = """
 [experiment]
@@ -29,3 +36,22 @@ def experiment_text(name, task, runs, episodes, description="one task", metric=N
   metric = metric or ("mean_return" if task.startswith("taxi") else "gate_passes")
   return TEMPLATE.format(name=name, description=description, task=task, runs=runs,
                          episodes=episodes, metric=metric, ylabel=ylabel)
+
+
+def final_run(run_dir):
+  """The finished run: metrics without the wall time, record, final agent arrays."""
+  run_dir = pathlib.Path(run_dir)
+  metrics = json.loads((run_dir / "metrics.json").read_text())
+  metrics.pop("wall_seconds")
+  metrics.pop("provenance")     # what made it, not what it is (a Ray worker may run the checkout)
+  _, arrays = storage.load(run_dir / "agent")
+  return metrics, np.load(run_dir / "record.npy"), arrays
+
+
+def assert_same_run(a, b):
+  """Two `final_run`s are equal: metrics, record and every array of the agent."""
+  assert a[0] == b[0]
+  np.testing.assert_array_equal(a[1], b[1])
+  assert sorted(a[2]) == sorted(b[2])
+  for name in a[2]:
+    np.testing.assert_array_equal(a[2][name], b[2][name], err_msg=name)

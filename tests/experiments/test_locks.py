@@ -11,14 +11,12 @@ import sys
 import threading
 import time
 
-import numpy as np
 import pytest
 
 import hpg_mj
 from hpg_mj import agents
-from hpg_mj.agents import storage
 from hpg_mj.experiments import locks, runner, runs
-from experiment_file import experiment_text
+from experiment_file import assert_same_run, experiment_text, final_run
 
 ENV = dict(os.environ, PYTHONPATH=str(pathlib.Path(hpg_mj.__file__).resolve().parents[1]))
 # The commands run from outside the checkout, so that they import the installed
@@ -38,29 +36,13 @@ def _command(path, out, *extra):
           "--checkpoint-every", "1000", *extra]
 
 
-def _final(run_dir):
-  metrics = json.loads((run_dir / "metrics.json").read_text())
-  metrics.pop("wall_seconds")
-  metrics.pop("provenance")     # what made it, not what it is (a Ray worker may run the checkout)
-  _, arrays = storage.load(run_dir / "agent")
-  return metrics, np.load(run_dir / "record.npy"), arrays
-
-
-def _assert_same(a, b):
-  assert a[0] == b[0]
-  np.testing.assert_array_equal(a[1], b[1])
-  assert sorted(a[2]) == sorted(b[2])
-  for name in a[2]:
-    np.testing.assert_array_equal(a[2][name], b[2][name], err_msg=name)
-
-
 @pytest.fixture(scope="module")
 def alone(tmp_path_factory):
   """The experiment run alone, in this process."""
   tmp = tmp_path_factory.mktemp("alone")
   experiment = runner.load_experiment(_experiment(tmp))
   _, root, _ = runner.run_experiment(experiment, tmp / "out", workers=1, checkpoint_every=1000)
-  return {seed: _final(root / "taxi_fuel_hpg" / f"seed{seed}") for seed in range(2)}
+  return {seed: final_run(root / "taxi_fuel_hpg" / f"seed{seed}") for seed in range(2)}
 
 
 def _holder_process(run_dir):
@@ -88,7 +70,7 @@ def test_two_commands_at_once_give_the_run_made_alone(tmp_path, alone):
       assert "REPORT.md" in stdout
     for seed in range(2):
       run_dir = out / "locked" / "taxi_fuel_hpg" / f"seed{seed}"
-      _assert_same(_final(run_dir), alone[seed])
+      assert_same_run(final_run(run_dir), alone[seed])
       log = (run_dir / "events.log").read_text()
       assert log.count("started seed") == 1, log       # trained by one command only
       assert log.count("finished") == 1, log
@@ -113,7 +95,7 @@ def test_a_held_run_is_waited_for_then_run(tmp_path, alone):
   stdout, stderr = proc.communicate(timeout=300)
   assert proc.returncode == 0, stderr
   for seed in range(2):
-    _assert_same(_final(out / "locked" / "taxi_fuel_hpg" / f"seed{seed}"), alone[seed])
+    assert_same_run(final_run(out / "locked" / "taxi_fuel_hpg" / f"seed{seed}"), alone[seed])
 
 
 def test_no_wait_refuses_a_held_run_naming_it_and_its_holder(tmp_path):
@@ -144,7 +126,7 @@ def test_a_lock_left_by_a_killed_process_blocks_nothing(tmp_path, alone):
   proc = subprocess.run(_command(_experiment(tmp_path), out, "--no-wait"), env=ENV, cwd=CWD,
                         capture_output=True, text=True, timeout=300)
   assert proc.returncode == 0, proc.stderr
-  _assert_same(_final(run_dir), alone[0])
+  assert_same_run(final_run(run_dir), alone[0])
 
 
 def test_a_run_refuses_without_waiting_and_waits_otherwise(tmp_path):
@@ -188,4 +170,4 @@ def test_ray_waits_for_a_held_run_and_refuses_with_no_wait(tmp_path, alone):
     holder.wait()
   assert len(told) == 1 and "waiting for it" in told[0]
   for seed in range(2):
-    _assert_same(_final(out / "locked" / "taxi_fuel_hpg" / f"seed{seed}"), alone[seed])
+    assert_same_run(final_run(out / "locked" / "taxi_fuel_hpg" / f"seed{seed}"), alone[seed])

@@ -1,6 +1,5 @@
 """Runs write their metrics as they go, checkpoint atomically, survive SIGKILL and
 damaged checkpoints, and give the same numbers under any executor."""
-import json
 import os
 import pathlib
 import random
@@ -16,7 +15,7 @@ import hpg_mj
 from hpg_mj import agents
 from hpg_mj.agents import storage
 from hpg_mj.experiments import runner, runs
-from experiment_file import experiment_text
+from experiment_file import assert_same_run, experiment_text, final_run
 
 
 
@@ -25,24 +24,6 @@ def _experiment(tmp_path, task="ship_hybrid", n_runs=1, episodes=6000):
   metric = "mean_return" if task.startswith("taxi") else "gate_passes"
   path.write_text(experiment_text("resume", task, n_runs, episodes, "one task, one seed", metric))
   return path
-
-
-def _final(run_dir):
-  """The finished run: metrics without the wall time, record, final agent arrays."""
-  run_dir = pathlib.Path(run_dir)
-  metrics = json.loads((run_dir / "metrics.json").read_text())
-  metrics.pop("wall_seconds")
-  metrics.pop("provenance")     # what made it, not what it is (a Ray worker may run the checkout)
-  _, arrays = storage.load(run_dir / "agent")
-  return metrics, np.load(run_dir / "record.npy"), arrays
-
-
-def _assert_same(a, b):
-  assert a[0] == b[0]
-  np.testing.assert_array_equal(a[1], b[1])
-  assert sorted(a[2]) == sorted(b[2])
-  for name in a[2]:
-    np.testing.assert_array_equal(a[2][name], b[2][name], err_msg=name)
 
 
 def test_progress_is_written_as_the_run_goes(tmp_path):
@@ -96,7 +77,7 @@ def test_a_run_killed_with_sigkill_resumes_bit_identical(tmp_path):
   subprocess.run(command + ["--out", str(out)], env=env, check=True, capture_output=True)
   log = (run_dir / "events.log").read_text()
   assert "resumed from checkpoint ep" in log, log
-  _assert_same(_final(tmp_path / "whole" / "resume" / "ship_hybrid" / "seed0"), _final(run_dir))
+  assert_same_run(final_run(tmp_path / "whole" / "resume" / "ship_hybrid" / "seed0"), final_run(run_dir))
   print(f"killed near episode {killed_at} (target {target}, pause {pause:.3f} s)")
 
 
@@ -117,7 +98,7 @@ def test_a_damaged_checkpoint_falls_back_to_the_previous_good_one(tmp_path, caps
   log = (run_dir / "events.log").read_text()
   assert "resumed from checkpoint ep2000 (episode 2000)" in log
   assert (run_dir / "damaged-ep3000").is_dir() is False     # removed with the checkpoints
-  _assert_same(_final(tmp_path / "whole"), _final(run_dir))
+  assert_same_run(final_run(tmp_path / "whole"), final_run(run_dir))
 
 
 def test_a_checkpoint_cut_short_is_ignored(tmp_path):
@@ -130,7 +111,7 @@ def test_a_checkpoint_cut_short_is_ignored(tmp_path):
   (run_dir / "checkpoints" / ".tmp-ep2000" / storage.ARRAYS).write_bytes(b"PK\x03\x04")
   runs.run(task, 0, 3000, run_dir, checkpoint_every=1000)
   runs.run(task, 0, 3000, tmp_path / "whole", checkpoint_every=1000)
-  _assert_same(_final(tmp_path / "whole"), _final(run_dir))
+  assert_same_run(final_run(tmp_path / "whole"), final_run(run_dir))
 
 
 def test_bad_checkpoint_interval_is_refused(tmp_path):
@@ -147,8 +128,8 @@ def test_ray_gives_the_same_results_as_the_process_pool(tmp_path):
   ray_results, root_ray, _ = runner.run_experiment(experiment, tmp_path / "ray", workers=2,
                                                    executor="ray", checkpoint_every=1000)
   for seed in range(2):
-    _assert_same(_final(root_pool / "taxi_fuel_hpg" / f"seed{seed}"),
-                 _final(root_ray / "taxi_fuel_hpg" / f"seed{seed}"))
+    assert_same_run(final_run(root_pool / "taxi_fuel_hpg" / f"seed{seed}"),
+                 final_run(root_ray / "taxi_fuel_hpg" / f"seed{seed}"))
   for a, b in zip(pool["taxi_fuel_hpg"], ray_results["taxi_fuel_hpg"]):
     a.pop("wall_seconds"), b.pop("wall_seconds"), a.pop("provenance"), b.pop("provenance")
     assert a == b
