@@ -42,20 +42,27 @@ def episode_over(episode):
 
 
 @numba.njit(cache=True, inline="always")
+def step_state(state, action, world, fuel_enabled):
+  """`taxi_step` on a state array, written back in place; returns (reward, terminated)."""
+  row, col, passenger, destination, fuel, reward, terminated = core.taxi_step(
+      state[ROW], state[COL], state[PASSENGER], state[DESTINATION], state[FUEL], action,
+      fuel_enabled, world[W_FUEL_ROW], world[W_FUEL_COL], world[W_CAPACITY])
+  state[ROW] = row
+  state[COL] = col
+  state[PASSENGER] = passenger
+  state[DESTINATION] = destination
+  state[FUEL] = fuel
+  return reward, terminated
+
+
+@numba.njit(cache=True, inline="always")
 def primitive_step(state, episode, action, world):
   """Executes a primitive action (Algorithm 1, line 4) and returns its reward.
 
   Updates `state` and `episode` (steps, illegal count, outcome: DELIVERED, OUT_OF_FUEL,
   or TRUNCATED after `world[W_MAX_STEPS]` steps - not terminal, SPEC section 5).
   """
-  row, col, passenger, destination, fuel, reward, terminated = core.taxi_step(
-      state[ROW], state[COL], state[PASSENGER], state[DESTINATION], state[FUEL], action,
-      world[W_FUEL_ENABLED] != 0, world[W_FUEL_ROW], world[W_FUEL_COL], world[W_CAPACITY])
-  state[ROW] = row
-  state[COL] = col
-  state[PASSENGER] = passenger
-  state[DESTINATION] = destination
-  state[FUEL] = fuel
+  reward, terminated = step_state(state, action, world, world[W_FUEL_ENABLED] != 0)
   episode[E_STEPS] += 1
   if reward == core.ILLEGAL_REWARD:
     episode[E_ILLEGAL] += 1
@@ -83,20 +90,14 @@ def step_batch(states, actions, active, steps, world, reward, terminated, trunca
     if not active[i]:
       continue
     s = states[i]
-    row, col, passenger, destination, fuel, r, done = core.taxi_step(
-        s[ROW], s[COL], s[PASSENGER], s[DESTINATION], s[FUEL], actions[i], fuel_enabled,
-        world[W_FUEL_ROW], world[W_FUEL_COL], world[W_CAPACITY])
-    s[ROW] = row
-    s[COL] = col
-    s[PASSENGER] = passenger
-    s[DESTINATION] = destination
-    s[FUEL] = fuel
+    r, done = step_state(s, actions[i], world, fuel_enabled)
     steps[i] += 1
     reward[i] = r
     terminated[i] = done
     truncated[i] = not done and steps[i] >= world[W_MAX_STEPS]
-    core.fill_legal_actions(masks[i], row, col, passenger, destination, fuel, fuel_enabled,
-                            world[W_FUEL_ROW], world[W_FUEL_COL], world[W_CAPACITY])
+    core.fill_legal_actions(masks[i], s[ROW], s[COL], s[PASSENGER], s[DESTINATION], s[FUEL],
+                            fuel_enabled, world[W_FUEL_ROW], world[W_FUEL_COL],
+                            world[W_CAPACITY])
 
 
 @numba.njit(cache=True)
