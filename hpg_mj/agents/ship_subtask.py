@@ -41,8 +41,8 @@ def check_width(width_alpha, sigma_low, sigma_high, where="[low_level]"):
                      "0 < sigma_low <= 1 <= sigma_high < inf (sigma starts at 1)")
 
 
-# error_model="numpy": no raising branch on division, less reference counting (learners.policies).
-@numba.njit(cache=True, error_model="numpy")
+# error_model="numpy" and inlined: less reference counting (learners.policies).
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def act_and_score(trace, width, values, tiles, s, learn, rng_state, psi, psi_width):
   """The action of a sampled step and its scores on the traces (and, learning with a
   baseline, theta <- theta - alpha b(s) psi for each trace). One rule for every
@@ -60,8 +60,8 @@ def act_and_score(trace, width, values, tiles, s, learn, rng_state, psi, psi_wid
   return r
 
 
-# error_model="numpy": no raising branch on division, less reference counting (learners.policies).
-@numba.njit(cache=True, error_model="numpy")
+# error_model="numpy" and inlined: less reference counting (learners.policies).
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def learn_step(trace, width, values, tiles, next_tiles, s, signal, ended):
   """Eq. 3 with R + G on both traces, then the baseline's TD(0) step."""
   el.learn(trace, s.alpha, signal, s.trace_gamma)

@@ -14,6 +14,14 @@ The per-step rules are compiled with numba's `error_model="numpy"`: a division b
 zero, which none of them can make, would give inf or nan instead of raising, and
 without that raising branch numba drops most of the reference counting (atomic
 operations) on the arrays they take. Nothing else changes: the same numbers, faster.
+
+The small rules a fused loop calls every step (`subtract_baseline`, `learn_baseline`,
+`log_width`) are inlined: a compiled function that calls another, not inlined, one
+takes a reference to every array it was given on entry and drops it on return, since
+numba cannot prove the call does not raise; for a rule taking two traces that is some
+40 atomic operations a step. Measured (perf): 24% of the stand-alone subtask's step
+with the learned width; inlined, its steps/s rose ~1.3x, the hybrid's ~1.14x, with the
+same numbers bit for bit and no longer compile.
 """
 import math
 
@@ -150,7 +158,7 @@ def gaussian_greedy(t, tiles, r_max):
 # b(s) does not depend on the action, so the gradient stays unbiased; it removes
 # the noise of calls whose reward-to-go is large and of one sign whatever the action.
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def subtract_baseline(theta, values, tiles, alpha, psi):
   """theta <- theta - alpha b(s) psi for the choice just made in s (tiles, psi as
   left by `gaussian_act`). Nothing when b(s) = 0."""
@@ -160,7 +168,7 @@ def subtract_baseline(theta, values, tiles, alpha, psi):
       theta[tiles[k]] -= amount * psi[k]
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def learn_baseline(values, tiles, beta, signal, gamma, next_value):
   """TD(0): b(s) <- b(s) + beta (signal + gamma b(s') - b(s)); next_value = b(s'),
   0 when the call ended. Each active tile moves by beta * delta, so b(s) does too."""
@@ -180,7 +188,7 @@ def learn_baseline(values, tiles, beta, signal, gamma, next_value):
 # At width weights 0 and a clip around 0, sigma = 1 and the mean's score is the
 # paper's psi exactly.
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def log_width(width, tiles, log_sigma_low, log_sigma_high):
   """(log sigma(s), whether the clip is inactive) over the active tiles."""
   v = gaussian_mean(width, tiles)
