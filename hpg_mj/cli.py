@@ -419,12 +419,9 @@ def _reproduce_beyond(args):
 
   from hpg_mj.experiments import beyond, figures
 
-  def progress(seed, final):
+  def progress(line):
     if not args.quiet:
-      print(f"beyond: seed {seed}: greedy {final['greedy_gates_per_hour']:.1f} gate passes per "
-            f"hour, episodic hybrid {final.get('episodic_gates_per_hour', float('nan')):.1f}, "
-            f"scripted {final['scripted_gates_per_hour']:.1f} ({final['wall_seconds']} s)",
-            flush=True)
+      print(line, flush=True)
   report = beyond.run(args.out, quick=args.quick, progress=progress)
   suffix = "_quick" if args.quick else ""
   names = [n + suffix for n in dict.fromkeys(FIGURE_EXPERIMENTS.values())

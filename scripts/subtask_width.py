@@ -7,26 +7,18 @@ Prints, per subtask and policy, the online success rate per 1,000 calls (the
 paper's Figures 10 and 11) and the final greedy success rate over 1,000 fixed
 starts, each the mean over seeds with a 95% bootstrap band (scipy.stats.bootstrap,
 SPEC section 7). The width's step size and clip were chosen on seed 0 only.
+`hpg-mj reproduce beyond` runs the same measurement (hpg_mj.experiments.beyond)
+on its seeds and draws it into its report.
 """
 import argparse
 import json
+import pathlib
 
 import numpy as np
-from scipy import stats
 
 from hpg_mj.agents import ship_subtask
-
-VARIANTS = {"paper (sigma = 1)": {},
-            "learned width": {"width_alpha": 0.003, "sigma_low": 0.25, "sigma_high": 1.0}}
-
-
-def band(values):
-  values = np.asarray(values, dtype=np.float64)
-  if np.ptp(values) == 0:
-    return float(values.mean()), float(values[0]), float(values[0])
-  ci = stats.bootstrap((values,), np.mean, confidence_level=0.95, n_resamples=2000,
-                       random_state=0).confidence_interval
-  return float(values.mean()), float(ci.low), float(ci.high)
+from hpg_mj.experiments import beyond
+from hpg_mj.experiments import stats
 
 
 def main():
@@ -34,23 +26,18 @@ def main():
   p.add_argument("--seeds", default="100-119", help="first-last (inclusive)")
   p.add_argument("--episodes", type=int, default=15000)
   p.add_argument("--json", help="also write the curves here")
-  p.add_argument("--plot", help="also draw the curves with their bands here (.png; a .csv "
-                 "beside it)")
+  p.add_argument("--plot", help="also draw the curves with their bands here (.png)")
   args = p.parse_args()
   first, last = (int(v) for v in args.seeds.split("-"))
   seeds = range(first, last + 1)
-  out = {}
+  out, curves = {}, {}
   for task in ship_subtask.TASKS:
-    for name, options in VARIANTS.items():
-      curves, greedy = [], []
-      for seed in seeds:
-        run = ship_subtask.train_subtask(task, args.episodes, seed, greedy_every=args.episodes,
-                                         greedy_episodes=1000, **options)
-        curves.append(run["success"].reshape(-1, 1000).mean(axis=1))
-        greedy.append(run["greedy"][-1])
-      curves = np.array(curves)
-      rows = [band(curves[:, k]) for k in range(curves.shape[1])]
-      g = band(greedy)
+    for name, options in beyond.WIDTH_VARIANTS.items():
+      runs = [beyond.subtask_seed(task, seed, args.episodes, options) for seed in seeds]
+      mean, low, high = stats.band(np.array([r[0] for r in runs]))
+      curves[task, name] = (mean, low, high)
+      rows = np.column_stack([mean, low, high]).tolist()
+      g = stats.mean_ci([r[1] for r in runs])
       out[f"{task}/{name}"] = {"online": rows, "greedy": g}
       print(f"{task:8s} {name:18s} online per 1,000 calls (mean [95% CI]):")
       for k in range(0, len(rows), max(1, len(rows) // 5)):
@@ -63,33 +50,8 @@ def main():
     with open(args.json, "w") as f:
       json.dump(out, f, indent=1)
   if args.plot:
-    plot(out, args.plot, len(seeds))
-
-
-def plot(out, path, n_seeds):
-  import pathlib
-
-  import matplotlib
-  matplotlib.use("Agg")
-  import matplotlib.pyplot as plt
-  fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
-  lines = ["subtask,policy,calls,mean,ci_low,ci_high"]
-  for ax, task in zip(axes, ship_subtask.TASKS):
-    for name in VARIANTS:
-      rows = np.array(out[f"{task}/{name}"]["online"])
-      calls = 1000 * np.arange(1, len(rows) + 1)
-      ax.plot(calls, rows[:, 0], label=name)
-      ax.fill_between(calls, rows[:, 1], rows[:, 2], alpha=0.25)
-      lines += [f"{task},{name},{c},{m:.4f},{lo:.4f},{hi:.4f}" for c, (m, lo, hi) in
-                zip(calls, rows)]
-    ax.set_title(f"ship/{task} ({n_seeds} seeds, 95% CI)")
-    ax.set_xlabel("calls")
-    ax.grid(alpha=0.3)
-  axes[0].set_ylabel("successes per 1,000 calls (online)")
-  axes[0].legend()
-  fig.tight_layout()
-  fig.savefig(path, dpi=110)
-  pathlib.Path(path).with_suffix(".csv").write_text("\n".join(lines) + "\n")
+    path = pathlib.Path(args.plot)
+    beyond.draw_subtasks(path.parent, curves, len(seeds), path.name)
 
 
 if __name__ == "__main__":
