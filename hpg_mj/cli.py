@@ -375,7 +375,7 @@ def _draw_and_report(args, experiment, results, root, wall, new_runs):
                                               optimal, protocol)
       continue
     agent, _, _ = agents.load(root / fig["task"] / f"seed{fig['seed']}" / "agent")
-    drawn[fig["name"]] = figures.draw_trajectories(root, fig, agent)
+    drawn[fig["name"]] = figures.draw_trajectories(root, fig, agent, args.quick)
     for s in drawn[fig["name"]]:
       print(f"{fig['name']}: from {tuple(s['start'])}: "
             f"{'passed' if s['passed'] else 'missed'} the gate in {s['steps']} control "

@@ -153,15 +153,21 @@ def draw_curve(root, fig, tasks, records_by_task, optimal=None, protocol=None):
   return summary
 
 
-def draw_trajectories(root, fig, agent):
-  """A trajectories figure from a trained hybrid; returns fig12.draw's summary."""
+def draw_trajectories(root, fig, agent, quick=False):
+  """A trajectories figure from a trained hybrid; returns fig12.draw's summary. Its
+  videos are `width` x `height` (640 x 480), or with `quick` `quick_width` x
+  `quick_height` where the figure gives them (a software renderer's time grows with
+  the pixels)."""
   import json
 
   from hpg_mj.experiments import fig12
   root = pathlib.Path(root)
+  width, height = fig.get("width", 640), fig.get("height", 480)
+  if quick:
+    width, height = fig.get("quick_width", width), fig.get("quick_height", height)
   summary = fig12.draw(agent, root, starts=[tuple(s) for s in fig["starts"]],
                        video=fig["video"], name=fig["name"], title=fig["title"],
-                       width=fig.get("width", 640), height=fig.get("height", 480))
+                       width=width, height=height)
   (root / f"{fig['name']}.json").write_text(json.dumps(summary, indent=2) + "\n")
   return summary
 

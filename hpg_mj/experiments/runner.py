@@ -84,7 +84,8 @@ FIGURE_KINDS = {
                       "starts": ("float_lists", 4, "[x, y, heading in degrees, turning rate "
                                                    "in deg/s]"),
                       "video": "bool"},
-                     {"width": POSITIVE, "height": POSITIVE}),
+                     {"width": POSITIVE, "height": POSITIVE, "quick_width": POSITIVE,
+                      "quick_height": POSITIVE}),
 }
 
 

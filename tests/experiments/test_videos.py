@@ -88,3 +88,15 @@ def test_render_refuses_options_that_do_not_apply(capsys, argv, message):
   with pytest.raises(SystemExit):
     cli.main(argv)
   assert message in capsys.readouterr().err
+
+
+def test_quick_trajectory_films_use_the_quick_size(monkeypatch, tmp_path):
+  from hpg_mj.experiments import figures, fig12, runner
+  seen = []
+  monkeypatch.setattr(fig12, "draw", lambda agent, root, **kw: seen.append(
+      (kw["width"], kw["height"])) or [])
+  fig = next(f for f in runner.load_experiment("fig12")["figures"] if f["kind"] == "trajectories")
+  assert (fig["quick_width"], fig["quick_height"]) == (320, 240)
+  figures.draw_trajectories(tmp_path, fig, None, quick=True)
+  figures.draw_trajectories(tmp_path, fig, None)
+  assert seen == [(320, 240), (640, 480)]
