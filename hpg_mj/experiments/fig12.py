@@ -42,9 +42,10 @@ def sail(agent, start):
 
 
 def draw(agent, out, video=True, width=640, height=480, starts=STARTS, name="fig12",
-         title="Learned hybrid from the paper's two starts (dots: root decisions)"):
-  """Writes <name>.png and, with `video`, <name>_<k>.mp4 for each start; returns a
-  summary per start."""
+         title="Learned hybrid from the paper's two starts (dots: root decisions)",
+         frame_every=2):
+  """Writes <name>.png and, with `video`, <name>_<k>.mp4 for each start (a frame
+  every `frame_every` control steps, and the last); returns a summary per start."""
   import matplotlib
   matplotlib.use("Agg")
   import matplotlib.pyplot as plt
@@ -54,21 +55,17 @@ def draw(agent, out, video=True, width=640, height=480, starts=STARTS, name="fig
   ax.plot([0, 1000, 1000, 0, 0], [0, 0, 1000, 1000, 0], color="firebrick", linewidth=1)
   ax.plot(core.GATE[:, 0], core.GATE[:, 1], color="goldenrod", linewidth=4, label="gate")
   summary = []
-  for k, start in enumerate(starts):
-    path, decisions, record = sail(agent, start)
-    line, = ax.plot(path[:, 0], path[:, 1], linewidth=1.5,
-                    label=f"from ({start[0]:.0f}, {start[1]:.0f}, {start[2]:.0f} deg, "
-                          f"{start[3]} deg/s)")
-    marks = np.array([(x, y) for x, y, _ in decisions])
-    ax.scatter(marks[:, 0], marks[:, 1], color=line.get_color(), s=30, zorder=3)
-    for x, y, d in decisions:
-      ax.annotate(core.DIRECTIONS[d], (x, y), textcoords="offset points", xytext=(5, 5),
-                  fontsize=8)
-    summary.append({"start": list(start), "steps": int(record["steps"]),
-                    "passed": bool(record["passed"]), "calls": len(decisions),
-                    "decisions": [core.DIRECTIONS[d] for _, _, d in decisions]})
-    if video:
-      _video(path, marks, out / f"{name}_{k}.mp4", width, height)
+  scene = None
+  if video:                  # one render worker for every film (each start costs ~1.4 s)
+    from hpg_mj.render import scenes
+    scene = scenes.ShipScene(width, height)
+  try:
+    for k, start in enumerate(starts):
+      summary.append(_sail_and_draw(agent, ax, start, scene,
+                                    out / f"{name}_{k}.mp4", frame_every))
+  finally:
+    if scene is not None:
+      scene.close()
   ax.set_xlim(-20, 1020)
   ax.set_ylim(-20, 1020)
   ax.set_aspect("equal")
@@ -82,19 +79,34 @@ def draw(agent, out, video=True, width=640, height=480, starts=STARTS, name="fig
   return summary
 
 
-def _video(path, marks, file, width, height):
-  from hpg_mj.render import scenes, video
-  scene = scenes.ShipScene(width, height)
-  try:
-    frames = []
-    for i in range(0, len(path), 2):
-      seen = marks[:max(1, int(np.sum(_reached(path[:i + 1], marks))))]
-      frames.append(scene.render(path[i], path[:i + 1, :2], marks=seen))
-    frames.append(scene.render(path[-1], path[:, :2], marks=marks))
-    frames += [frames[-1]] * 10
-  finally:
-    scene.close()
-  video.write_video(frames, file, fps=20)
+def _sail_and_draw(agent, ax, start, scene, film, frame_every):
+  """Sails from `start`, draws the path and the root's decisions on `ax`, films it
+  with `scene` (None: no film); returns the start's summary."""
+  path, decisions, record = sail(agent, start)
+  line, = ax.plot(path[:, 0], path[:, 1], linewidth=1.5,
+                  label=f"from ({start[0]:.0f}, {start[1]:.0f}, {start[2]:.0f} deg, "
+                        f"{start[3]} deg/s)")
+  marks = np.array([(x, y) for x, y, _ in decisions])
+  ax.scatter(marks[:, 0], marks[:, 1], color=line.get_color(), s=30, zorder=3)
+  for x, y, d in decisions:
+    ax.annotate(core.DIRECTIONS[d], (x, y), textcoords="offset points", xytext=(5, 5),
+                fontsize=8)
+  if scene is not None:
+    _video(path, marks, film, scene, frame_every)
+  return {"start": list(start), "steps": int(record["steps"]),
+          "passed": bool(record["passed"]), "calls": len(decisions),
+          "decisions": [core.DIRECTIONS[d] for _, _, d in decisions]}
+
+
+def _video(path, marks, file, scene, frame_every):
+  from hpg_mj.render import video
+  frames = []
+  for i in range(0, len(path), frame_every):
+    seen = marks[:max(1, int(np.sum(_reached(path[:i + 1], marks))))]
+    frames.append(scene.render(path[i], path[:i + 1, :2], marks=seen))
+  frames.append(scene.render(path[-1], path[:, :2], marks=marks))
+  frames += [frames[-1]] * 10
+  video.write_video(frames, file, fps=max(1, 40 // frame_every))   # 10 control steps a second
 
 
 def _reached(path, marks):

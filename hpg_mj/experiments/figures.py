@@ -155,19 +155,19 @@ def draw_curve(root, fig, tasks, records_by_task, optimal=None, protocol=None):
 
 def draw_trajectories(root, fig, agent, quick=False):
   """A trajectories figure from a trained hybrid; returns fig12.draw's summary. Its
-  videos are `width` x `height` (640 x 480), or with `quick` `quick_width` x
-  `quick_height` where the figure gives them (a software renderer's time grows with
-  the pixels)."""
+  films are `width` x `height` (640 x 480) with a frame every `frame_every` (2)
+  control steps, or with `quick` the figure's `quick_width`, `quick_height` and
+  `quick_frame_every` where it gives them (a software renderer's time grows with the
+  frames and the pixels)."""
   import json
 
   from hpg_mj.experiments import fig12
   root = pathlib.Path(root)
-  width, height = fig.get("width", 640), fig.get("height", 480)
+  size = {k: fig.get(k, v) for k, v in (("width", 640), ("height", 480), ("frame_every", 2))}
   if quick:
-    width, height = fig.get("quick_width", width), fig.get("quick_height", height)
+    size = {k: fig.get(f"quick_{k}", v) for k, v in size.items()}
   summary = fig12.draw(agent, root, starts=[tuple(s) for s in fig["starts"]],
-                       video=fig["video"], name=fig["name"], title=fig["title"],
-                       width=width, height=height)
+                       video=fig["video"], name=fig["name"], title=fig["title"], **size)
   (root / f"{fig['name']}.json").write_text(json.dumps(summary, indent=2) + "\n")
   return summary
 

@@ -85,7 +85,8 @@ FIGURE_KINDS = {
                                                    "in deg/s]"),
                       "video": "bool"},
                      {"width": POSITIVE, "height": POSITIVE, "quick_width": POSITIVE,
-                      "quick_height": POSITIVE}),
+                      "quick_height": POSITIVE, "frame_every": POSITIVE,
+                      "quick_frame_every": POSITIVE}),
 }
 
 

@@ -94,9 +94,9 @@ def test_quick_trajectory_films_use_the_quick_size(monkeypatch, tmp_path):
   from hpg_mj.experiments import figures, fig12, runner
   seen = []
   monkeypatch.setattr(fig12, "draw", lambda agent, root, **kw: seen.append(
-      (kw["width"], kw["height"])) or [])
+      (kw["width"], kw["height"], kw["frame_every"])) or [])
   fig = next(f for f in runner.load_experiment("fig12")["figures"] if f["kind"] == "trajectories")
-  assert (fig["quick_width"], fig["quick_height"]) == (320, 240)
+  assert (fig["quick_width"], fig["quick_height"], fig["quick_frame_every"]) == (320, 240, 4)
   figures.draw_trajectories(tmp_path, fig, None, quick=True)
   figures.draw_trajectories(tmp_path, fig, None)
-  assert seen == [(320, 240), (640, 480)]
+  assert seen == [(320, 240, 4), (640, 480, 2)]
