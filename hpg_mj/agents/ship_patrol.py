@@ -66,12 +66,34 @@ def settings(config):
 
 
 @numba.njit(cache=True)
-def root_state(state, heading_sectors):
-  """The root's abstract state: the 50 m cell of (x, y) (`ship_rules.root_cell`)
-  and, with `heading_sectors` n > 1, the ship's heading in n equal sectors
-  counted clockwise, sector 0 centred on south (-180 deg): cell * n + sector.
-  n = 1 is the hybrid's root."""
+def n_root_cells(near_gate_m, near_gate_cell_m):
+  """How many places the root tells apart: the 20 x 20 grid's 50 m cells, then,
+  with `near_gate_m` > 0, the finer cells of the square of that half-width about
+  the gate's centre (`root_state`)."""
+  if near_gate_m <= 0.0:
+    return rules.ROOT_GRID ** 2
+  side = int(round(2.0 * near_gate_m / near_gate_cell_m))
+  return rules.ROOT_GRID ** 2 + side * side
+
+
+@numba.njit(cache=True)
+def root_state(state, heading_sectors, near_gate_m=0.0, near_gate_cell_m=25.0):
+  """The root's abstract state: where the ship is and, with `heading_sectors`
+  n > 1, its heading in n equal sectors counted clockwise, sector 0 centred on
+  south (-180 deg): place * n + sector. The place is the 50 m cell of (x, y)
+  (`ship_rules.root_cell`) or, inside the square of half-width `near_gate_m`
+  about the gate's centre, a cell of `near_gate_cell_m` there (numbered after
+  the 400 coarse ones): how far the ship is from a post decides whether a
+  U-turn passes the gate again. n = 1 and `near_gate_m` 0 is the hybrid's root."""
   cell = rules.root_cell(state[0], state[1])
+  if near_gate_m > 0.0:
+    x0 = 0.5 * (core.GATE[0, 0] + core.GATE[1, 0]) - near_gate_m
+    y0 = 0.5 * (core.GATE[0, 1] + core.GATE[1, 1]) - near_gate_m
+    side = int(round(2.0 * near_gate_m / near_gate_cell_m))
+    i = int(np.floor((state[0] - x0) / near_gate_cell_m))
+    j = int(np.floor((state[1] - y0) / near_gate_cell_m))
+    if 0 <= i < side and 0 <= j < side:
+      cell = rules.ROOT_GRID ** 2 + i * side + j
   if heading_sectors == 1:
     return cell
   width = 360.0 / heading_sectors
@@ -96,7 +118,7 @@ def _count_run(row, sub, l_event, g_event):
 
 @numba.njit(cache=True)
 def patrol(n_rows, record_steps, learn, sample, rng_state, ship, q, gain, schedule, low_level,
-           tiling, s, gain_step, heading_sectors, record):
+           tiling, s, gain_step, view, record):
   """Sails the continuing task for `n_rows` rows of at least `record_steps` control
   steps each (a call is never cut: the row in which it starts holds it), from
   and into `ship` (the process's state, kept between calls).
@@ -107,7 +129,8 @@ def patrol(n_rows, record_steps, learn, sample, rng_state, ship, q, gain, schedu
   subtasks by Eq. 3 with the hybrid's baseline (`hybrid.run_low_level`). Without
   `learn`, `q` may be any root's table, the episodic hybrid's too: each runs its
   greedy policy on this task. `low_level` = (diagonal trace, its baseline values,
-  straight trace, its baseline values).
+  straight trace, its baseline values); `view` = (heading_sectors, near_gate_m,
+  near_gate_cell_m) of `root_state`.
   """
   eps_state, outcomes, counts = schedule
   diagonal, diagonal_values, straight, straight_values = low_level
@@ -117,12 +140,13 @@ def patrol(n_rows, record_steps, learn, sample, rng_state, ship, q, gain, schedu
              np.empty(n_tilings, dtype=np.int64), samples, np.empty_like(samples), np.empty(4),
              np.empty(2))
   n = rules.N_DIRECTIONS
+  heading_sectors, near_m, near_cell_m = view
   for i in range(n_rows):
     row = record[i]
     row[:] = 0.0
     while row[STEPS] < record_steps:
       epsilon = eps_state[0] if sample else 0.0
-      cell = root_state(ship, heading_sectors)
+      cell = root_state(ship, heading_sectors, near_m, near_cell_m)
       a = qlambda.epsilon_greedy(q, cell, n, epsilon, rng_state)
       was_greedy = average_reward.is_greedy(q, cell, a, n)
       sub = rules.subtask_of(a)
@@ -142,7 +166,7 @@ def patrol(n_rows, record_steps, learn, sample, rng_state, ship, q, gain, schedu
         _ship.sample_start(rng_state, ship)
       if learn:
         average_reward.update(q, n, gain, cell, a, reward, float(k),
-                              root_state(ship, heading_sectors), s.root_alpha, gain_step,
+                              root_state(ship, heading_sectors, near_m, near_cell_m), s.root_alpha, gain_step,
                               was_greedy)
         # The held schedule, counted in root decisions (there are no episodes).
         schedules.end_episode(eps_state, outcomes, counts, s.root_epsilon_threshold,
@@ -223,6 +247,11 @@ class Root:
                        choices=("r_learning",))
   heading_sectors: int = param(1, "the root's state: its 50 m cell and the heading in this "
                                "many sectors (1: the cell alone, as the hybrid's root)", low=1)
+  near_gate_m: float = param(0.0, "half-width of the square about the gate's centre where the "
+                             "root's cells are finer (0: the 50 m grid everywhere)", low=0,
+                             high=400)
+  near_gate_cell_m: float = param(25.0, "the root's cell inside that square; it must divide "
+                                  "twice near_gate_m", low=1, high=50)
   alpha: float = param(0.1, "step size of the relative values Q", low=0, low_open=True)
   gain_step: float = param(0.0001, "step size of the gain rho (Schwartz's update)", low=0,
                            high=1, low_open=True)
@@ -275,8 +304,14 @@ class ShipPatrol(_ship.ShipAgent):
     self.low = self._parts.low
     self.schedule, self.outcomes = self._parts.schedule, self._parts.outcomes
     self.counts = self._parts.counts
-    self.q = np.zeros(rules.ROOT_GRID ** 2 * self.config.root.heading_sectors *
-                      rules.N_DIRECTIONS)
+    root = self.config.root
+    side = 2.0 * root.near_gate_m / root.near_gate_cell_m
+    if abs(side - round(side)) > 1e-9:
+      raise ValueError(f"[root] near_gate_cell_m = {root.near_gate_cell_m} must divide twice "
+                       f"near_gate_m = {root.near_gate_m} (2 * near_gate_m / near_gate_cell_m "
+                       f"= {side}, not a whole number)")
+    self.q = np.zeros(n_root_cells(root.near_gate_m, root.near_gate_cell_m) *
+                      root.heading_sectors * rules.N_DIRECTIONS)
     self.gain = average_reward.new_gain()
     self.ship = np.zeros(4)
     self.started = np.zeros(1)         # 1 once the process has its first start
@@ -370,6 +405,7 @@ class ShipPatrol(_ship.ShipAgent):
     local_samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
     max_steps = int(cfg.low_level.max_steps)
     sectors = cfg.root.heading_sectors
+    near_m, near_cell_m = float(cfg.root.near_gate_m), float(cfg.root.near_gate_cell_m)
     root_learner = average_reward.RLearning(self.q, self.gain, rules.N_DIRECTIONS,
                                             cfg.root.alpha, cfg.root.gain_step,
                                             lambda: self.schedule[0])
@@ -426,7 +462,7 @@ class ShipPatrol(_ship.ShipAgent):
         "root", learner=root_learner,
         children=[Child("diagonal" if d % 2 else "straight", direction=d)
                   for d in range(rules.N_DIRECTIONS)],
-        view=lambda call, obs: root_state(obs, sectors),
+        view=lambda call, obs: root_state(obs, sectors, near_m, near_cell_m),
         reward=root_reward, termination=root_termination)
     return TaskGraph("root", [
         root,
@@ -444,15 +480,17 @@ class ShipPatrol(_ship.ShipAgent):
 
   def sail(self, hours, learn, sample, ship, rng_state, q=None, low=None, heading_sectors=None):
     """`hours` rows of the continuing task from `ship` (in place); `q` (another
-    root's table over `heading_sectors`, the episodic hybrid's: 1) and `low`
-    replace this agent's."""
+    root's table over `heading_sectors` and the 50 m grid, the episodic
+    hybrid's: 1) and `low` replace this agent's."""
     rows = np.zeros((int(hours), N_RECORD))
     cfg = self.config
     sectors = cfg.root.heading_sectors if heading_sectors is None else heading_sectors
+    view = ((int(sectors), float(cfg.root.near_gate_m), float(cfg.root.near_gate_cell_m))
+            if q is None else (int(sectors), 0.0, 25.0))
     patrol(int(hours), self.record_steps, learn, sample, rng_state, ship,
            self.q if q is None else q, self.gain, (self.schedule, self.outcomes, self.counts),
            self._tables(low), self.tile_arrays, settings(cfg),
-           float(cfg.root.gain_step), int(sectors), rows)
+           float(cfg.root.gain_step), view, rows)
     return rows
 
   def compiled(self, episodes, learn, sample):

@@ -176,3 +176,54 @@ def test_the_root_state_is_the_cell_and_the_heading_sector(theta, sector):
 def test_the_shipped_root_sees_the_heading():
   agent = agents.build(agents.load_task("ship_patrol_average_reward"), seed=0)
   assert agent.config.root.heading_sectors == 8 and agent.q.shape == (400 * 8 * 8,)
+
+
+def test_finer_cells_about_the_gate_are_numbered_after_the_grid():
+  # The square of half-width 100 m about the gate's centre (400, 400), 25 m cells:
+  # x0 = y0 = 300, (425, 375) is its cell (5, 3): 400 + 5 * 8 + 3; (250, 375) is
+  # outside it, in the 50 m cell (5, 7).
+  inside, outside = np.array([425.0, 375.0, 0.0, 0.0]), np.array([250.0, 375.0, 0.0, 0.0])
+  assert ship_patrol.n_root_cells(100.0, 25.0) == 400 + 64
+  assert ship_patrol.n_root_cells(0.0, 25.0) == 400
+  assert ship_patrol.root_state(inside, 1, 100.0, 25.0) == 443
+  assert ship_patrol.root_state(inside, 8, 100.0, 25.0) == 443 * 8 + 4
+  assert ship_patrol.root_state(outside, 1, 100.0, 25.0) == 107
+  assert ship_patrol.root_state(inside, 1, 0.0, 25.0) == 167     # off: the 50 m grid
+
+
+@pytest.mark.parametrize("line,match", [
+    ("near_gate_m = -1.0", r"\[root\] near_gate_m = -1.0 is out of range; allowed: >= 0 and "
+                           r"<= 400"),
+    ("near_gate_cell_m = 0.5", r"\[root\] near_gate_cell_m = 0.5 is out of range; allowed: "
+                               r">= 1 and <= 50"),
+])
+def test_bad_near_gate_cells_are_refused(tmp_path, line, match):
+  path = small_task(tmp_path)
+  key = line.split(" =")[0]
+  text = "\n".join(line if row.startswith(key + " ") else row
+                   for row in path.read_text().splitlines())
+  path.write_text(text)
+  with pytest.raises(TaskFileError, match=match):
+    agents.load_task(path)
+
+
+def test_near_gate_cells_must_tile_the_square(tmp_path):
+  path = small_task(tmp_path)
+  path.write_text(path.read_text().replace("near_gate_m = 0.0 ", "near_gate_m = 60.0 "))
+  with pytest.raises(ValueError, match=r"near_gate_cell_m = 25.0 must divide twice "
+                                       r"near_gate_m = 60.0"):
+    agents.build(agents.load_task(path), seed=0)
+
+
+def test_near_gate_cells_give_identical_results_on_both_paths(tmp_path):
+  path = small_task(tmp_path)
+  path.write_text(path.read_text().replace("near_gate_m = 0.0 ", "near_gate_m = 100.0 "))
+  task = agents.load_task(path)
+  stepwise, compiled = agents.build(task, seed=5), agents.build(task, seed=5)
+  assert compiled.q.shape == ((400 + 64) * 8 * 8,)
+  a = stepwise.run_stepwise(stepwise.stepwise_env("analytic"), 2, learn=True)
+  b = compiled.run(2, "analytic", learn=True)
+  np.testing.assert_array_equal(a, b)
+  assert (compiled.q.reshape(-1, 8)[400 * 8:] != 0).any()      # the fine cells are visited
+  for name, value in _arrays(stepwise).items():
+    np.testing.assert_array_equal(value, _arrays(compiled)[name], err_msg=name)
