@@ -234,12 +234,19 @@ def _draw_route(root, rows):
   plt.axhline(ROUTE_BAR, color="tab:red", linestyle=":", label=f"bar ({ROUTE_BAR:g})")
   plt.axhline(STRAIGHT_LINE, color="k", linestyle="--", linewidth=1,
               label=f"straight line (~{STRAIGHT_LINE:g})")
-  plt.title(f"Route past the paper's: control steps to the gate ({len(rows)} seeds)")
-  plt.xlabel("seed")
-  plt.ylabel("control steps to the gate")
+  _finish(plt, root / "beyond_route.png",
+          f"Route past the paper's: control steps to the gate ({len(rows)} seeds)", "seed",
+          "control steps to the gate")
+
+
+def _finish(plt, path, title, xlabel, ylabel):
+  """Titles, labels and legend of a one-panel figure, saved to `path` and closed."""
+  plt.title(title)
+  plt.xlabel(xlabel)
+  plt.ylabel(ylabel)
   plt.legend(fontsize=8)
   plt.tight_layout()
-  plt.savefig(root / "beyond_route.png", dpi=100)
+  plt.savefig(path, dpi=100)
   plt.close()
 
 
@@ -292,13 +299,8 @@ def _draw(root, x, curves, finals):
     plt.axhline(episodic, color="tab:red", linestyle=":", linewidth=1.5,
                 label="episodic hybrid (trained), greedy")
   plt.axhline(30, color="grey", linewidth=0.8, label="30 passes / hour")
-  plt.title("Continuing ship task: gate passes per hour of sailing")
-  plt.xlabel("training hours (6,000 control steps each)")
-  plt.ylabel("gate passes per hour")
-  plt.legend(fontsize=8)
-  plt.tight_layout()
-  plt.savefig(root / "beyond_patrol.png", dpi=100)
-  plt.close()
+  _finish(plt, root / "beyond_patrol.png", "Continuing ship task: gate passes per hour of "
+          "sailing", "training hours (6,000 control steps each)", "gate passes per hour")
   columns = [x, greedy.mean(axis=0), greedy.min(axis=0), greedy.max(axis=0),
              online.mean(axis=0), online.min(axis=0), online.max(axis=0)]
   np.savetxt(root / "beyond_patrol.csv", np.column_stack(columns), delimiter=",",
