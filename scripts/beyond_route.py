@@ -19,6 +19,7 @@ from scipy import stats
 
 from hpg_mj import agents
 from hpg_mj.agents import ship_beyond
+from hpg_mj.experiments import beyond
 from hpg_mj.learners import qlambda
 from hpg_mj.worlds import ship_core as core
 
@@ -81,13 +82,6 @@ def helmsman_report(agent, fixed, record):
   return "  ".join(parts)
 
 
-def starts(n=1000, seed=2026):
-  """The fixed evaluation starts: uniform over the field, heading and turning rate."""
-  rs = np.random.default_rng(seed)
-  return np.column_stack([rs.uniform(0, 1000, n), rs.uniform(0, 1000, n),
-                          rs.uniform(-180, 180, n), rs.uniform(-15, 15, n)])
-
-
 def band(values):
   values = np.asarray(values, dtype=np.float64)
   ci = stats.bootstrap((values,), np.mean, confidence_level=0.95, n_resamples=2000,
@@ -105,7 +99,7 @@ def main():
   args = p.parse_args()
   first, last = (int(v) for v in args.seeds.split("-"))
   task = agents.load_task(args.task)
-  fixed = starts()
+  fixed = beyond.route_starts()   # the same fixed starts as `hpg-mj reproduce beyond`
   rows = []
   for seed in range(first, last + 1):
     agent, _, seconds = agents.train(task, episodes=args.episodes, seed=seed)
