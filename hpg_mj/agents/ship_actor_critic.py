@@ -16,6 +16,7 @@ from hpg_mj.agents import taskfile
 from hpg_mj.agents.taskfile import param
 from hpg_mj.agents.ship_flat_pg import N_RECORD, PASSED, RETURN, STEPS, actor_coder
 from hpg_mj.hierarchy import flat as flat_graph
+from hpg_mj.learners import arrays
 from hpg_mj.learners import actor_critic
 from hpg_mj.learners import agents as learners
 from hpg_mj.learners import eligibility as el
@@ -63,7 +64,7 @@ def train_actor_critic(n_episodes, learn, sample, rng_state, actor_w, actor_tili
   ones = np.ones(critic_tiling.offsets.shape[0])
   for episode in range(n_episodes):
     if fixed_start.shape[0] == 4:
-      state[:] = fixed_start
+      arrays.copy_into(state, fixed_start)
     else:
       _ship.sample_start(rng_state, state)
     el.reset(critic)                                   # e <- 0
@@ -74,7 +75,7 @@ def train_actor_critic(n_episodes, learn, sample, rng_state, actor_w, actor_tili
     steps = 0
     event = core.NO_EVENT
     r = policies.squash(u, core.MAX_TURN_RATE)
-    sa[:4] = state
+    arrays.copy_into(sa[:4], state)
     sa[4] = r
     tiles_mod.active_tiles(sa, critic_tiling, c_tiles)
     while True:
@@ -92,7 +93,7 @@ def train_actor_critic(n_episodes, learn, sample, rng_state, actor_w, actor_tili
         m_next = policies.tile_mean(actor_w, a_next)
         u_next = policies.gaussian_draw(m_next, rng_state) if sample else m_next
         r_next = policies.squash(u_next, core.MAX_TURN_RATE)
-        sa[:4] = state
+        arrays.copy_into(sa[:4], state)
         sa[4] = r_next
         tiles_mod.active_tiles(sa, critic_tiling, c_next)
         target += actor_critic.critic_value(critic, c_next)
@@ -101,8 +102,8 @@ def train_actor_critic(n_episodes, learn, sample, rng_state, actor_w, actor_tili
                            s.critic_trace_decay, actor_w, a_tiles, s.actor_alpha, q, u, m)
       if done:
         break
-      a_tiles[:] = a_next         # (s', a') is the next step's (s, a): its tiles are known
-      c_tiles[:] = c_next
+      arrays.copy_into(a_tiles, a_next)   # (s', a') is the next step's (s, a): its tiles are known
+      arrays.copy_into(c_tiles, c_next)
       m = m_next
       u = u_next
       r = r_next

@@ -38,6 +38,7 @@ from hpg_mj.agents import ship_subtask
 from hpg_mj.agents.taskfile import param
 from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
 from hpg_mj.learners import agents as learners
+from hpg_mj.learners import arrays
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import policies
 from hpg_mj.learners import qlambda
@@ -226,7 +227,7 @@ def train(n_episodes, learn, sample, rng_state, root, schedule, trace, width, va
   n_actions = n_targets(s)
   for episode in range(n_episodes):
     if fixed_start.shape[0] == 4:
-      state[:] = fixed_start
+      arrays.copy_into(state, fixed_start)
     else:
       _ship.sample_start(rng_state, state)
     qlambda.clear(root.count)

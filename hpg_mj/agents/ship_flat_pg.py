@@ -19,6 +19,7 @@ from hpg_mj.agents import taskfile
 from hpg_mj.agents.taskfile import param
 from hpg_mj.hierarchy import flat as flat_graph
 from hpg_mj.learners import agents as learners
+from hpg_mj.learners import arrays
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import policies
 from hpg_mj.learners import tiles as tiles_mod
@@ -58,7 +59,7 @@ def train_flat_pg(n_episodes, learn, sample, rng_state, policy, tiling, s, recor
   psi = np.empty(tiling.offsets.shape[0])
   for episode in range(n_episodes):
     if fixed_start.shape[0] == 4:
-      state[:] = fixed_start
+      arrays.copy_into(state, fixed_start)
     else:
       _ship.sample_start(rng_state, state)
     el.reset(policy)

@@ -16,6 +16,7 @@ import math
 import numba
 import numpy as np
 
+from hpg_mj.learners import arrays
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import policies
 from hpg_mj.learners import rng
@@ -120,7 +121,7 @@ def train(n_episodes, direction, learn, sample, rng_state, trace, width, values,
         success[episode] = event == core.SUCCESS
         steps[episode] = k
         break
-      tiles[:] = next_tiles
+      arrays.copy_into(tiles, next_tiles)
 
 
 def paper_coder(n_tilings=9, n_tiles=(5, 5, 36, 5)):

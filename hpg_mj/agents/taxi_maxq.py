@@ -56,19 +56,22 @@ Randomness (`learners.rng`): per episode the start (`agents._taxi.sample_start`)
 then per choice of any subtask, when sampling (training), one uniform (explore or not),
 and one randint when it explores or when the best children tie.
 
-Speed (about 6 million primitive steps per second learning, `hpg-mj bench
-train`): as in `taxi_hpg`, the graph's fixed depth gives one function per
-level (`run_navigate`, `run_carry`, `run_episode`; `navigate_value`,
-`carry_value`, `root_scores` for the recursive values), compiled without
-reference counting (`_nrt=False`) and allocating nothing: the scratch arrays
-come from the caller. Navigate's rules are inlined into its loop, and Get's,
-Put's and Refuel's values into Root's; the upper levels call `choose_child` and
-`learn_completion`, the same rules as called functions, and `navigate_value` and
-`explore` are called too. numba inlines a function by copying and re-typing its
-body at every call site, nested copies included, so what is inlined decides the
-first compile's time (about 19 s CPU for `train`, from 37 s; cached afterwards):
-each level's scores use its own initiation and abstraction rather than the
-generic `available` and `abstract_state`, whose copies bring every subtask's branch.
+Speed and the first compile (about 5 million primitive steps per second learning,
+`hpg-mj bench train`; about 8 s to compile `train` into an empty numba cache): as
+in `taxi_hpg`, the graph's fixed depth gives one function per level
+(`run_navigate`, `run_carry`, `run_episode`; `navigate_value`, `carry_value`,
+`root_scores` for the recursive values), compiled without reference counting
+(`_nrt=False`) and allocating nothing: the scratch arrays come from the caller.
+The rules (`choose`, `update_completion`, `scores`, ...) are called functions,
+the fused loop and the step-by-step nodes calling the same ones; only leaves
+without branches over subtasks (`greedy`, `with_fuel`, `update_primitive`, ...)
+are inlined. numba inlines a function by copying and re-typing its body at every
+call site, nested copies included: with `choose` and `update_completion`
+inlined into Navigate's loop and the values into Root's, the loop ran 1.6 times
+faster (8 million steps per second) but its first compile took 12 s rather
+than 8, and Figure 6 spends only a few seconds in MAXQ-Q. Functions that only
+compiled code calls have no Python entry point (`no_cpython_wrapper`), which
+numba would otherwise compile for each.
 
 This module holds all of MAXQ-Q: the configuration, the fused loop, the
 step-by-step nodes (below) and the agent, a baseline of HPG (tag "baseline").
@@ -195,12 +198,10 @@ def with_fuel(row, state, world):
   return row
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, _nrt=False)
 def abstract_state(subtask, target, state, world):
   """The subtask's row in its completion tables (module docstring): `taxi_rules`'
-  abstraction with the fuel level added, and the full state for Root. (The
-  level's own functions below call `with_fuel` directly: each inlined copy of
-  this one brings every subtask's branch into the compile.)"""
+  abstraction with the fuel level added, and the full state for Root."""
   if subtask == rules.ROOT:
     return full_state(state, world)
   if subtask == rules.NAVIGATE:
@@ -208,7 +209,7 @@ def abstract_state(subtask, target, state, world):
   return with_fuel(rules.carry_state(subtask, state), state, world)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, _nrt=False)
 def terminated(subtask, target, state, world):
   """Has the subtask terminated in `state` (MAXQ's termination, `taxi_rules`)?"""
   if subtask == rules.NAVIGATE:
@@ -218,7 +219,7 @@ def terminated(subtask, target, state, world):
   return rules.carry_done(subtask, state, world)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def available(subtask, state, world, mask):
   """The children available in `state` (`taxi_rules`' initiation) into mask[:n]."""
   if subtask == rules.ROOT:
@@ -272,7 +273,7 @@ def greedy_random_ties(q, mask, n, rng_state):
 # level's scratch rows: v = V(a, s) and q = V(a, s) + C~(i, s, a). They return
 # the subtask's row offset in the flat tables.
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def navigate_scores(target, state, world, tables, scratch):
   values = tables.values
   c_tilde = tables.c_tilde
@@ -289,11 +290,9 @@ def navigate_scores(target, state, world, tables, scratch):
   return base
 
 
-@numba.njit(cache=True, _nrt=False)
+@numba.njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def navigate_value(target, state, world, tables, scratch):
-  """V(Navigate(t), s). A called function: it runs only in the upper subtasks'
-  choices and updates, and its inlined copies (three in `root_scores`, one in
-  `carry_scores_call`) made their first compile take seconds each."""
+  """V(Navigate(t), s)."""
   c = tables.c
   q, v, mask = scratch
   if rules.navigate_done(target, state, world):
@@ -304,7 +303,7 @@ def navigate_value(target, state, world, tables, scratch):
   return v[lv, a] + c[base + a]
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def carry_scores(subtask, state, world, tables, scratch):
   values = tables.values
   c_tilde = tables.c_tilde
@@ -325,7 +324,7 @@ def carry_scores(subtask, state, world, tables, scratch):
   return base
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def carry_value(subtask, state, world, tables, scratch):
   """V(Get / Put / Refuel, s)."""
   c = tables.c
@@ -337,11 +336,6 @@ def carry_value(subtask, state, world, tables, scratch):
   a = greedy(q[lv], mask[lv], rules.N_CHILDREN[subtask])
   return v[lv, a] + c[base + a]
 
-
-@numba.njit(cache=True, _nrt=False)
-def carry_scores_call(subtask, state, world, tables, scratch):
-  """`carry_scores` as a called function (it is inlined into `root_scores`)."""
-  return carry_scores(subtask, state, world, tables, scratch)
 
 
 @numba.njit(cache=True, _nrt=False)
@@ -360,22 +354,21 @@ def root_scores(state, world, tables, scratch):
   return base
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def scores(subtask, target, state, world, tables, scratch):
   """The subtask's scores in its level's scratch rows; returns its row offset."""
   if subtask == rules.NAVIGATE:
     return navigate_scores(target, state, world, tables, scratch)
   if subtask == rules.ROOT:
     return root_scores(state, world, tables, scratch)
-  return carry_scores_call(subtask, state, world, tables, scratch)
+  return carry_scores(subtask, state, world, tables, scratch)
 
 
 # --- the rules the two paths share ----------------------------------------------------
 
-@numba.njit(cache=True, _nrt=False)
+@numba.njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def explore(subtask, state, world, mask, rng_state):
-  """A uniformly random available child (one randint). A called function: it runs
-  only when exploring, and inlining it into `choose` lengthened the first compile."""
+  """A uniformly random available child (one randint)."""
   n = rules.N_CHILDREN[subtask]
   available(subtask, state, world, mask)
   k = 0
@@ -390,7 +383,7 @@ def explore(subtask, state, world, mask, rng_state):
   return -1
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, _nrt=False)
 def choose(subtask, target, state, world, tables, epsilon, sample, rng_state, scratch):
   """Epsilon-greedy choice of a child of `subtask` in `state` (greedy if not
   `sample`): one uniform when sampling; a randint to explore or to break a tie."""
@@ -410,7 +403,7 @@ def update_primitive(values, index, reward, alpha):
   values[index] = (1.0 - alpha) * values[index] + alpha * reward
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(cache=True, _nrt=False)
 def update_completion(subtask, target, child, path, first, last, after, ended, world, tables,
                       settings, all_states, scratch):
   """Dietterich's update of C~(i, s, a) and C(i, s, a) after child a of subtask i,
@@ -442,18 +435,6 @@ def update_completion(subtask, target, child, path, first, last, after, ended, w
     c[i] = (1.0 - alpha) * c[i] + alpha * plain
 
 
-@numba.njit(cache=True, _nrt=False)
-def choose_child(subtask, target, state, world, tables, epsilon, sample, rng_state, scratch):
-  """`choose` as a called function (`choose` itself is inlined into Navigate's loop)."""
-  return choose(subtask, target, state, world, tables, epsilon, sample,
-                rng_state, scratch)
-
-
-@numba.njit(cache=True, _nrt=False)
-def learn_completion(subtask, target, child, path, first, last, after, ended, world, tables,
-                     settings, all_states, scratch):
-  """`update_completion` as a called function (inlined into Navigate's loop)."""
-  update_completion(subtask, target, child, path, first, last, after, ended, world, tables, settings, all_states, scratch)
 
 
 @numba.njit(cache=True, inline="always")
@@ -473,7 +454,7 @@ def epsilons_at(settings, episode_index, epsilons):
 
 # --- the fused loop: Algorithm 1's stack discipline, one function per level -----------
 
-@numba.njit(cache=True, _nrt=False)
+@numba.njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def run_navigate(target, state, episode, world, tables, settings, epsilons, alpha_primitive,
                  all_states, learn, sample, rng_state, path, scratch):
   """One call of Navigate(target); returns the rewards earned."""
@@ -495,14 +476,14 @@ def run_navigate(target, state, episode, world, tables, settings, epsilons, alph
   return total
 
 
-@numba.njit(cache=True, _nrt=False)
+@numba.njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def run_carry(subtask, state, episode, world, tables, settings, epsilons, alpha_primitive,
               all_states, learn, sample, rng_state, path, scratch):
   """One call of Get, Put or Refuel; returns the rewards earned."""
   values = tables.values
   total = 0.0
   while not rules.episode_over(episode) and not rules.carry_done(subtask, state, world):
-    a = choose_child(subtask, NO_TARGET, state, world, tables,
+    a = choose(subtask, NO_TARGET, state, world, tables,
                      epsilons[subtask], sample, rng_state, scratch)
     first = episode[rules.E_STEPS]
     if a == rules.CARRY_PRIMITIVE:
@@ -516,26 +497,26 @@ def run_carry(subtask, state, episode, world, tables, settings, epsilons, alpha_
       reward = run_navigate(rules.carry_target(subtask, state), state, episode, world, tables, settings, epsilons, alpha_primitive, all_states,
                             learn, sample, rng_state, path, scratch)
     if learn:
-      learn_completion(subtask, NO_TARGET, a, path, first, episode[rules.E_STEPS], state,
+      update_completion(subtask, NO_TARGET, a, path, first, episode[rules.E_STEPS], state,
                        episode_ended(episode), world, tables, settings,
                        all_states, scratch)
     total += reward
   return total
 
 
-@numba.njit(cache=True, _nrt=False)
+@numba.njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def run_episode(state, episode, world, tables, settings, epsilons, alpha_primitive, all_states,
                 learn, sample, rng_state, path, scratch):
   """One call of Root: the whole episode from `state`; returns its return."""
   total = 0.0
   while not rules.episode_over(episode):
-    a = choose_child(rules.ROOT, NO_TARGET, state, world, tables,
+    a = choose(rules.ROOT, NO_TARGET, state, world, tables,
                      epsilons[rules.ROOT], sample, rng_state, scratch)
     first = episode[rules.E_STEPS]
     reward = run_carry(a + 1, state, episode, world, tables, settings,
                        epsilons, alpha_primitive, all_states, learn, sample, rng_state, path, scratch)
     if learn:
-      learn_completion(rules.ROOT, NO_TARGET, a, path, first, episode[rules.E_STEPS], state,
+      update_completion(rules.ROOT, NO_TARGET, a, path, first, episode[rules.E_STEPS], state,
                        episode_ended(episode), world, tables, settings,
                        all_states, scratch)
     total += reward
@@ -789,10 +770,10 @@ class Config:
 class MAXQNode:
   """One subtask's MAXQ-Q learner, in the executor's protocol (`learners.agents`).
 
-  act: an epsilon-greedy child by V(a, s) + C~(i, s, a) (`choose_child`); a
+  act: an epsilon-greedy child by V(a, s) + C~(i, s, a) (`choose`); a
   primitive child's state goes on the episode's path (all-states updating).
   observe: a primitive child's V(a, s), then C~(i, ., a) and C(i, ., a)
-  (`learn_completion`), as the fused loop does after each child."""
+  (`update_completion`), as the fused loop does after each child."""
 
   def __init__(self, subtask, shared):
     self.subtask = subtask
@@ -808,7 +789,7 @@ class MAXQNode:
   def act(self, features, mask, rng_state, sample):
     target, state = features
     h = self.shared
-    a = choose_child(self.subtask, target, state, h.world, h.tables, h.epsilons[self.subtask],
+    a = choose(self.subtask, target, state, h.world, h.tables, h.epsilons[self.subtask],
                      sample, rng_state, h.scratch)
     self._child, self._target, self._first = a, target, int(h.cursor[0])
     self._primitive = -1
@@ -829,7 +810,7 @@ class MAXQNode:
     if learn:
       ended = next_features is None                 # a delivery or an empty tank
       after = h.path[self._first] if ended else next_features[1]
-      learn_completion(self.subtask, self._target, self._child, h.path, self._first,
+      update_completion(self.subtask, self._target, self._child, h.path, self._first,
                        int(h.cursor[0]), after, ended, h.world, h.tables, h.settings,
                        h.all_states, h.scratch)
 

@@ -20,7 +20,7 @@ SHORT = updated(mq.Config(), root={"epsilon_episodes": 20_000},
 def _update(agent, subtask, target, child, before, after, ended=False):
   """One completion update of `agent`'s tables, from `before` to `after`."""
   path = np.array([before], dtype=np.int64)
-  mq.learn_completion(subtask, target, child, path, 0, 1, np.array(after, dtype=np.int64), ended,
+  mq.update_completion(subtask, target, child, path, 0, 1, np.array(after, dtype=np.int64), ended,
                       agent.world, agent.tables, agent.settings, True, mq.new_scratch())
 
 
@@ -67,7 +67,7 @@ def test_all_states_updating_updates_every_state_of_the_childs_run():
   path = np.array([[2, 0, 0, 3, 9], [1, 0, 0, 3, 8], [0, 0, 0, 3, 7]], dtype=np.int64)
   pickup = mq.primitive_state(path[2], agent.world) * mq.N_PRIMITIVES + taxi_core.PICKUP
   agent.values[pickup] = -1.0
-  mq.learn_completion(rules.GET, 0, rules.CARRY_NAVIGATE, path, 0, 2, path[2], False,
+  mq.update_completion(rules.GET, 0, rules.CARRY_NAVIGATE, path, 0, 2, path[2], False,
                       agent.world, agent.tables, agent.settings, True, mq.new_scratch())
   for k in (0, 1):
     assert agent.c[_entry(agent, rules.GET, 0, path[k], rules.CARRY_NAVIGATE)] == -1.0
@@ -95,7 +95,7 @@ def _greedy_visits(agent):
     total = 0.0
     while not rules.episode_over(episode) and not mq.terminated(subtask, target, state,
                                                                 agent.world):
-      a = mq.choose_child(subtask, target, state, agent.world, agent.tables, 0.0, False,
+      a = mq.choose(subtask, target, state, agent.world, agent.tables, 0.0, False,
                           agent.rng_state, (q, v, mask))
       visits.append((subtask, target, state.copy(), a))
       if subtask == rules.NAVIGATE:
