@@ -176,8 +176,8 @@ def _progress_bar(total, quiet, label):
       bar.set_description(label)
     elif disable and not quiet and not told:
       told.append(name)
-      print(f"{label}: compiling the training loop ({name}); numba caches it for the next "
-            "runs", file=sys.stderr, flush=True)
+      print(f"{label}: compiling its loop (from {name}); numba caches it for the next runs",
+            file=sys.stderr, flush=True)
     else:
       bar.set_description(f"{label} (compiling {name}, cached for the next runs)")
 
