@@ -53,7 +53,9 @@ compiled without reference counting too, and `taxi_core.taxi_step` and
 called, not inlined, because numba inlines by copying and re-typing a body at every
 call site: inlined into the three levels they made the first compile take 11.6 s
 rather than 7.0 (`scripts/compile_times.py`), for a loop 1.25 times faster (8.2
-against 6.6 million primitive steps per second).
+against 6.6 million primitive steps per second). The first `run` in a process
+compiles them and the three levels one by one, leaves first, before `train`
+(`learners.jit`).
 """
 
 import dataclasses
@@ -68,6 +70,7 @@ from hpg_mj.hierarchy import taxi as taxi_hierarchy
 from hpg_mj.hierarchy import taxi_rules as rules
 from hpg_mj.learners import agents as learners
 from hpg_mj.learners import eligibility as el
+from hpg_mj.learners import jit
 from hpg_mj.learners import policies
 from hpg_mj.learners import rng
 from hpg_mj.worlds import taxi_core as core
@@ -385,16 +388,39 @@ class HPGTables:
       start = np.array([self.task.check_state(row) for row in rows], dtype=np.int64)
       start = start.reshape(-1, 5)
     record = np.zeros((int(n_episodes), N_RECORD))
+    scratch = (np.zeros(12, dtype=np.int64), np.zeros(13),
+               np.zeros(rules.MAX_CHILDREN, dtype=np.bool_))
+    if not train.signatures:
+      jit.compile_first(self._rules_bottom_up(scratch))
     steps = train(int(n_episodes), bool(learn), bool(greedy), self.rng_state, self.world,
                   self.traces, self.values,
                   (schedule(self.config), gammas(self.config), betas(self.config)),
-                  self.episodes, record, start,
-                  (np.zeros(12, dtype=np.int64), np.zeros(13),
-                   np.zeros(rules.MAX_CHILDREN, dtype=np.bool_)))
+                  self.episodes, record, start, scratch)
     if learn:
       self.episodes += int(n_episodes)
       self.primitive_steps += int(steps)
     return record
+
+  def _rules_bottom_up(self, scratch):
+    """The rules `train` calls, callees first, with arguments of the types it calls
+    them with (`learners.jit.compile_first`; see `taxi_maxq.MAXQTables`)."""
+    scratch_int, scratch_float, mask = scratch
+    state, episode, index = scratch_int[0:5], scratch_int[5:8], scratch_int[8:12]
+    probs, psi, alphas = scratch_float[0:4], scratch_float[4:8], scratch_float[8:13]
+    learning = (alphas, gammas(self.config), self.values, betas(self.config))
+    small = (mask, probs, index, psi)
+    i, f, b = np.int64(0), 0.0, False
+    trace = self.traces[rules.NAVIGATE]
+    return [
+        (choose, (trace, i, i, mask, b, b, self.rng_state, probs, index, psi)),
+        (subtract_baseline, (trace.theta, self.values[0], i, i, mask, b, f, index, psi)),
+        (run_navigate, (i, trace, state, episode, self.world, learning, b, b, self.rng_state,
+                        small)),
+        (run_carry, (i, trace, trace, state, episode, self.world, learning, b, b,
+                     self.rng_state, small)),
+        (run_episode, (self.traces, state, episode, self.world, learning, b, b,
+                       self.rng_state, small)),
+    ]
 
   def policy_tables(self):
     """Each subtask's current parameters, an (abstract states, children) table."""

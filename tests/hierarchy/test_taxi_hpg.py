@@ -6,6 +6,7 @@ import collections
 
 import numpy as np
 import pytest
+import compile_order
 from taxi_grid import moves_from
 
 from hpg_mj.agents import _taxi
@@ -361,3 +362,17 @@ def test_hpg_reaches_95_percent_of_optimal():
     last.append(returns[-1000:].mean())
   assert np.mean(last) >= tv.performance_threshold(optimal, 0.95)
   assert min(last) >= tv.performance_threshold(optimal, 0.90)
+
+
+def test_the_rules_compiled_first_are_those_train_calls(tmp_path):
+  """`train`'s rules are compiled leaves first (`learners.jit.compile_first`), for the
+  types `train` calls them with: with an empty numba cache each compiles once."""
+  compile_order.assert_each_compiles_once(tmp_path, """
+import numpy as np
+from hpg_mj.agents import taxi_hpg
+from hpg_mj.hierarchy import taxi_rules
+agent = taxi_hpg.HPGTables(seed=0)
+agent.run(20)
+listed = agent._rules_bottom_up((np.zeros(12, dtype=np.int64), np.zeros(13),
+                                 np.zeros(taxi_rules.MAX_CHILDREN, dtype=np.bool_)))
+""")

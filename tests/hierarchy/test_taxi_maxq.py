@@ -3,6 +3,7 @@ recursively optimal policy, and the task-graph path equal to the fused loop."""
 import gymnasium
 import numpy as np
 import pytest
+import compile_order
 
 import hpg_mj  # noqa: F401
 from hpg_mj import suite
@@ -202,34 +203,13 @@ def test_bad_settings_are_refused(section, key, value, message):
     updated(mq.Config(), **{section: {key: value}})
 
 
-_COUNT_COMPILES = """
-import collections, json
-from numba.core import event
-counts = collections.Counter()
-class Count(event.Listener):
-  def on_start(self, ev):
-    counts[ev.data["dispatcher"].py_func.__qualname__] += 1
-  def on_end(self, ev):
-    pass
-event.register("numba:compile", Count())
-from hpg_mj.agents import taxi_maxq as mq
-agent = mq.MAXQTables(seed=0)
-agent.run(20)
-names = [d.py_func.__qualname__ for d, _ in agent._rules_bottom_up(*agent._train_scratch())]
-print(json.dumps({"counts": counts, "listed": names}))
-"""
-
 
 def test_the_rules_compiled_first_are_those_train_calls(tmp_path):
   """`train`'s rules are compiled leaves first (`learners.jit.compile_first`), for the
   types `train` calls them with: with an empty numba cache each compiles once."""
-  import json
-  import os
-  import subprocess
-  import sys
-  env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
-  done = subprocess.run([sys.executable, "-c", _COUNT_COMPILES], env=env, capture_output=True,
-                        text=True, timeout=300, check=True)
-  result = json.loads(done.stdout.strip().splitlines()[-1])
-  counts, listed = result["counts"], result["listed"]
-  assert listed and all(counts.get(name) == 1 for name in listed), (counts, listed)
+  compile_order.assert_each_compiles_once(tmp_path, """
+from hpg_mj.agents import taxi_maxq
+agent = taxi_maxq.MAXQTables(seed=0)
+agent.run(20)
+listed = agent._rules_bottom_up(*agent._train_scratch())
+""")
