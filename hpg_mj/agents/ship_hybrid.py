@@ -21,6 +21,7 @@ from hpg_mj.hierarchy import ship_rules as rules
 from hpg_mj.learners import agents as learners
 from hpg_mj.learners import arrays
 from hpg_mj.learners import eligibility as el
+from hpg_mj.learners import jit
 from hpg_mj.learners import policies
 from hpg_mj.learners import qlambda
 from hpg_mj.learners import schedules
@@ -272,6 +273,8 @@ class ShipHybrid(_ship.ShipAgent):
   def compiled(self, episodes, learn, sample, start=None):
     rows = np.zeros((episodes, N_RECORD))
     fixed = np.empty(0) if start is None else np.array(start, dtype=np.float64)
+    if not train.signatures:
+      jit.compile_first(self._rules_bottom_up())
     train(episodes, learn, sample, self.rng_state,
           RootTable(self.root.q, self.root.index, self.root.value, self.root.count),
           (self.schedule, self.outcomes, self.counts),
@@ -279,6 +282,19 @@ class ShipHybrid(_ship.ShipAgent):
           self.low[rules.STRAIGHT].trace, self.low[rules.STRAIGHT].values, self.tile_arrays,
           settings(self.config), rows, fixed)
     return rows
+
+  def _rules_bottom_up(self):
+    """`run_low_level`, which `train` calls, with arguments of the types it calls it
+    with (`learners.jit.compile_first`; see `taxi_maxq.MAXQTables`)."""
+    n_tilings = self.tile_arrays.offsets.shape[0]
+    samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
+    scratch = (np.empty(n_tilings, dtype=np.int64), np.empty(n_tilings),
+               np.empty(n_tilings, dtype=np.int64), samples, np.empty_like(samples),
+               np.empty(4), np.empty(2))
+    low = self.low[rules.DIAGONAL]
+    return [(run_low_level, (np.empty(4), np.int64(0), low.trace, low.values,
+                             self.tile_arrays, settings(self.config), False, False,
+                             self.rng_state, np.int64(0), scratch))]
 
   # ---- the step-by-step path -----------------------------------------------------
 

@@ -4,6 +4,7 @@ import dataclasses
 import gymnasium
 import numpy as np
 import pytest
+import compile_order
 
 import hpg_mj  # noqa: F401
 from hpg_mj import suite
@@ -42,3 +43,14 @@ def test_stepwise_through_dm_control_on_the_mujoco_ship():
   # A fixed start is honoured and the gate is recognised through dm_control.
   record = agent.run_stepwise(env, 1, learn=False, start=[400.0, 380.0, 0.0, 0.0])
   assert record["passed"][0] == 1.0
+
+
+def test_run_low_level_compiled_first_has_trains_types(tmp_path):
+  """The hybrid compiles `run_low_level` before `train` (`learners.jit.compile_first`),
+  for the types `train` calls it with: with an empty numba cache it compiles once."""
+  compile_order.assert_each_compiles_once(tmp_path, """
+from hpg_mj import agents
+agent = agents.build(agents.load_task("ship_hybrid"), seed=0)
+agent.run(3)
+listed = agent._rules_bottom_up()
+""")
