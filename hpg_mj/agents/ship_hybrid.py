@@ -273,8 +273,7 @@ class ShipHybrid(_ship.ShipAgent):
   def compiled(self, episodes, learn, sample, start=None):
     rows = np.zeros((episodes, N_RECORD))
     fixed = np.empty(0) if start is None else np.array(start, dtype=np.float64)
-    if not train.signatures:
-      jit.compile_first(self._rules_bottom_up())
+    jit.compile_first(train, self._rules_bottom_up)
     train(episodes, learn, sample, self.rng_state,
           RootTable(self.root.q, self.root.index, self.root.value, self.root.count),
           (self.schedule, self.outcomes, self.counts),

@@ -390,8 +390,7 @@ class HPGTables:
     record = np.zeros((int(n_episodes), N_RECORD))
     scratch = (np.zeros(12, dtype=np.int64), np.zeros(13),
                np.zeros(rules.MAX_CHILDREN, dtype=np.bool_))
-    if not train.signatures:
-      jit.compile_first(self._rules_bottom_up(scratch))
+    jit.compile_first(train, lambda: self._rules_bottom_up(scratch))
     steps = train(int(n_episodes), bool(learn), bool(greedy), self.rng_state, self.world,
                   self.traces, self.values,
                   (schedule(self.config), gammas(self.config), betas(self.config)),

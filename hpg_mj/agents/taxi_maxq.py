@@ -340,7 +340,6 @@ def carry_value(subtask, state, world, tables, scratch):
   return v[lv, a] + c[base + a]
 
 
-
 @numba.njit(cache=True, _nrt=False)
 def root_scores(state, world, tables, scratch):
   c_tilde = tables.c_tilde
@@ -487,7 +486,7 @@ def run_carry(subtask, state, episode, world, tables, settings, epsilons, alpha_
   total = 0.0
   while not rules.episode_over(episode) and not rules.carry_done(subtask, state, world):
     a = choose(subtask, NO_TARGET, state, world, tables,
-                     epsilons[subtask], sample, rng_state, scratch)
+               epsilons[subtask], sample, rng_state, scratch)
     first = episode[rules.E_STEPS]
     if a == rules.CARRY_PRIMITIVE:
       action = rules.carry_primitive(subtask)
@@ -501,8 +500,8 @@ def run_carry(subtask, state, episode, world, tables, settings, epsilons, alpha_
                             learn, sample, rng_state, path, scratch)
     if learn:
       update_completion(subtask, NO_TARGET, a, path, first, episode[rules.E_STEPS], state,
-                       episode_ended(episode), world, tables, settings,
-                       all_states, scratch)
+                        episode_ended(episode), world, tables, settings,
+                        all_states, scratch)
     total += reward
   return total
 
@@ -514,14 +513,14 @@ def run_episode(state, episode, world, tables, settings, epsilons, alpha_primiti
   total = 0.0
   while not rules.episode_over(episode):
     a = choose(rules.ROOT, NO_TARGET, state, world, tables,
-                     epsilons[rules.ROOT], sample, rng_state, scratch)
+               epsilons[rules.ROOT], sample, rng_state, scratch)
     first = episode[rules.E_STEPS]
     reward = run_carry(a + 1, state, episode, world, tables, settings,
                        epsilons, alpha_primitive, all_states, learn, sample, rng_state, path, scratch)
     if learn:
       update_completion(rules.ROOT, NO_TARGET, a, path, first, episode[rules.E_STEPS], state,
-                       episode_ended(episode), world, tables, settings,
-                       all_states, scratch)
+                        episode_ended(episode), world, tables, settings,
+                        all_states, scratch)
     total += reward
   return total
 
@@ -586,8 +585,7 @@ class MAXQTables:
     sample = learn if sample is None else bool(sample or learn)
     record = np.zeros((int(n_episodes), N_RECORD))
     scratch_int, path, epsilons, scratch = self._train_scratch()
-    if not train.signatures:
-      jit.compile_first(self._rules_bottom_up(scratch_int, path, epsilons, scratch))
+    jit.compile_first(train, lambda: self._rules_bottom_up(scratch_int, path, epsilons, scratch))
     steps = train(int(n_episodes), self.episodes, bool(learn), sample, self.rng_state,
                   self.world, self.tables, self.settings,
                   float(self.config.primitive.alpha), bool(self.config.primitive.all_states_updating), record,
@@ -826,7 +824,7 @@ class MAXQNode:
     target, state = features
     h = self.shared
     a = choose(self.subtask, target, state, h.world, h.tables, h.epsilons[self.subtask],
-                     sample, rng_state, h.scratch)
+               sample, rng_state, h.scratch)
     self._child, self._target, self._first = a, target, int(h.cursor[0])
     self._primitive = -1
     action = a if self.subtask == rules.NAVIGATE else (
@@ -847,8 +845,8 @@ class MAXQNode:
       ended = next_features is None                 # a delivery or an empty tank
       after = h.path[self._first] if ended else next_features[1]
       update_completion(self.subtask, self._target, self._child, h.path, self._first,
-                       int(h.cursor[0]), after, ended, h.world, h.tables, h.settings,
-                       h.all_states, h.scratch)
+                        int(h.cursor[0]), after, ended, h.world, h.tables, h.settings,
+                        h.all_states, h.scratch)
 
   def parameters(self):
     """This subtask's C (a copy), (abstract states, children)."""

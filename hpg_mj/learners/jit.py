@@ -13,10 +13,13 @@ of the stack, and the loop then finds its callees compiled (MAXQ-Q's first compi
 import numba
 
 
-def compile_first(rules):
-  """Compiles (or loads from numba's cache) each `(dispatcher, example arguments)`
-  in order, for the types of the example arguments: list the callees before their
-  callers. The examples' types must be those the loop calls them with, or the
-  loop compiles them again for its own (as it would have anyway)."""
-  for dispatcher, example in rules:
+def compile_first(loop, rules):
+  """Before `loop`'s first call in this process, compiles (or loads from numba's
+  cache) each `(dispatcher, example arguments)` of `rules()` in order, for the types
+  of the example arguments: list the callees before their callers. The examples'
+  types must be those the loop calls them with, or the loop compiles them again for
+  its own (as it would have anyway)."""
+  if loop.signatures:
+    return
+  for dispatcher, example in rules():
     dispatcher.compile(tuple(numba.typeof(value) for value in example))

@@ -22,7 +22,7 @@ def _update(agent, subtask, target, child, before, after, ended=False):
   """One completion update of `agent`'s tables, from `before` to `after`."""
   path = np.array([before], dtype=np.int64)
   mq.update_completion(subtask, target, child, path, 0, 1, np.array(after, dtype=np.int64), ended,
-                      agent.world, agent.tables, agent.settings, True, mq.new_scratch())
+                       agent.world, agent.tables, agent.settings, True, mq.new_scratch())
 
 
 def _entry(agent, subtask, target, state, child):
@@ -97,7 +97,7 @@ def _greedy_visits(agent):
     while not rules.episode_over(episode) and not mq.terminated(subtask, target, state,
                                                                 agent.world):
       a = mq.choose(subtask, target, state, agent.world, agent.tables, 0.0, False,
-                          agent.rng_state, (q, v, mask))
+                    agent.rng_state, (q, v, mask))
       visits.append((subtask, target, state.copy(), a))
       if subtask == rules.NAVIGATE:
         total += rules.primitive_step(state, episode, a, agent.world)
