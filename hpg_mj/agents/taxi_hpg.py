@@ -388,8 +388,7 @@ class HPGTables:
       start = np.array([self.task.check_state(row) for row in rows], dtype=np.int64)
       start = start.reshape(-1, 5)
     record = np.zeros((int(n_episodes), N_RECORD))
-    scratch = (np.zeros(12, dtype=np.int64), np.zeros(13),
-               np.zeros(rules.MAX_CHILDREN, dtype=np.bool_))
+    scratch = self._train_scratch()
     jit.compile_first(train, lambda: self._rules_bottom_up(scratch))
     steps = train(int(n_episodes), bool(learn), bool(greedy), self.rng_state, self.world,
                   self.traces, self.values,
@@ -399,6 +398,11 @@ class HPGTables:
       self.episodes += int(n_episodes)
       self.primitive_steps += int(steps)
     return record
+
+  def _train_scratch(self):
+    """`train`'s scratch arrays: (int64[12], float64[13], bool[MAX_CHILDREN])."""
+    return (np.zeros(12, dtype=np.int64), np.zeros(13),
+            np.zeros(rules.MAX_CHILDREN, dtype=np.bool_))
 
   def _rules_bottom_up(self, scratch):
     """The rules `train` calls, callees first, with arguments of the types it calls

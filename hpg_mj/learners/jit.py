@@ -8,7 +8,7 @@ call crosses the boundary of the interpreter's 16 KB frame-stack chunks, the chu
 is mapped and unmapped again, and numba's compiler does so hundreds of thousands of
 times. Compiled one by one from the bottom up, each function compiles near the top
 of the stack, and the loop then finds its callees compiled (MAXQ-Q's first compile:
-0.6 s of system time rather than 1.6 from the command line).
+0.2 s of system time rather than 1.6 from the command line).
 """
 import numba
 

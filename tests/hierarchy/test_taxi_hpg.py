@@ -368,11 +368,8 @@ def test_the_rules_compiled_first_are_those_train_calls(tmp_path):
   """`train`'s rules are compiled leaves first (`learners.jit.compile_first`), for the
   types `train` calls them with: with an empty numba cache each compiles once."""
   compile_order.assert_each_compiles_once(tmp_path, """
-import numpy as np
 from hpg_mj.agents import taxi_hpg
-from hpg_mj.hierarchy import taxi_rules
 agent = taxi_hpg.HPGTables(seed=0)
 agent.run(20)
-listed = agent._rules_bottom_up((np.zeros(12, dtype=np.int64), np.zeros(13),
-                                 np.zeros(taxi_rules.MAX_CHILDREN, dtype=np.bool_)))
+listed = agent._rules_bottom_up(agent._train_scratch())
 """)
