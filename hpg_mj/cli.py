@@ -422,7 +422,7 @@ def _reproduce_beyond(args):
   def progress(line):
     if not args.quiet:
       print(line, flush=True)
-  report = beyond.run(args.out, quick=args.quick, progress=progress)
+  report = beyond.run(args.out, quick=args.quick, progress=progress, workers=args.workers)
   suffix = "_quick" if args.quick else ""
   names = [n + suffix for n in dict.fromkeys(FIGURE_EXPERIMENTS.values())
            if (pathlib.Path(args.out) / (n + suffix) / "REPORT.md").is_file()]

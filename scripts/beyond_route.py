@@ -27,14 +27,16 @@ ERROR_CLASSES = ((0, 45), (45, 90), (90, 135), (135, 181))   # |initial heading 
 
 
 @numba.njit
-def helmsman_episode(state, q, rng_state, s):
+def helmsman_episode(state, q, root_tiling, rng_state, s):
   """One greedy episode of the root with the scripted helmsman steering each call
   to its target; returns (passed, control steps)."""
   steps = 0
   samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
   n_actions = ship_beyond.n_targets(s)
+  view, tiles = np.empty(3), np.empty(root_tiling.offsets.shape[0], dtype=np.int64)
   while True:
-    a = qlambda.epsilon_greedy(q, ship_beyond.root_state(state, s), n_actions, 0.0, rng_state)
+    ship_beyond.root_tiles(state, root_tiling, view, tiles)
+    a = qlambda.tiled_greedy(q, tiles, n_actions, ship_beyond.offered(state, s), rng_state)
     side = ship_beyond.side_of(state[1])
     tx, ty = ship_beyond.target_of(a, state, side, s)
     k = 0
@@ -58,15 +60,17 @@ def initial_error(agent, start):
   first of the best)."""
   s = agent.s
   n = ship_beyond.n_targets(s)
-  cell = ship_beyond.root_state(start, s)
-  a = int(np.argmax(agent.root.q[cell * n:(cell + 1) * n]))
+  tiles = agent.root_coder.active(start[:3])
+  a = int(np.argmax([qlambda.tiled_value(agent.root.q, tiles, n, b)
+                     for b in range(ship_beyond.offered(start, s))]))
   tx, ty = ship_beyond.target_of(a, start, ship_beyond.side_of(start[1]), s)
   return abs(core.wrap_deg(start[2] - core.bearing_deg(start[0], start[1], tx, ty)))
 
 
 def helmsman_report(agent, fixed, record):
   saved = agent.rng_state.copy()
-  rows = [helmsman_episode(start.copy(), agent.root.q, agent.rng_state, agent.s)
+  rows = [helmsman_episode(start.copy(), agent.root.q, agent.root_tiling, agent.rng_state,
+                           agent.s)
           for start in fixed]
   agent.rng_state[:] = saved
   passed = np.array([r[0] for r in rows])

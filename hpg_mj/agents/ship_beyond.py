@@ -9,7 +9,11 @@ four choices: *gate*, steer to the point of the gate nearest the ship (a
 continuous target, followed as the ship moves), or one of three *approach*
 points before the gate line on the ship's side (for starts from which the
 straight line to the gate runs along its line or past its posts). One call sails
-the whole way from most starts. The root sees its cell and the heading's sector.
+the whole way from most starts. The root sees its cell and the heading's sector,
+through several offset tilings of them (Q(lambda) linear in the tiles,
+`qlambda.tiled_update`): why, see `tasks/ship_hybrid_beyond.toml` (a table of cells
+left the values of choices it had stopped making at what an early, clumsy aim
+subtask had earned from them).
 
 The *aim* subtask's state is the heading error to its target (wrapped), the
 turning rate and the distance (clipped), over a CMAC, with errors beyond
@@ -57,7 +61,7 @@ DISTANCE_CLIP = 400.0                # the aim state's distance saturates here (
 
 Settings = collections.namedtuple("Settings", (
     "root_alpha", "root_trace_decay", "root_epsilon_threshold", "root_epsilon_every",
-    "root_epsilon_divisor", "root_cell_m", "root_grid", "root_headings", "root_inset_m",
+    "root_epsilon_divisor", "root_inset_m", "root_approach_within_m",
     "root_approach_m",
     "alpha", "trace_gamma", "baseline", "max_steps", "width_alpha", "log_sigma_low",
     "log_sigma_high", "radius_m", "shaping",
@@ -68,10 +72,9 @@ RootTable = collections.namedtuple("RootTable", ("q", "index", "value", "count")
 
 def settings(config):
   root, low, env = config.root, config.low_level, config.environment
-  grid = int(math.ceil(core.FIELD_SIZE / root.cell_m))
   return Settings(float(root.alpha), float(root.trace_decay), float(root.epsilon_threshold),
-                  int(root.epsilon_every), float(root.epsilon_divisor), float(root.cell_m),
-                  grid, int(root.headings), float(root.inset_m), float(root.approach_m),
+                  int(root.epsilon_every), float(root.epsilon_divisor), float(root.inset_m),
+                  float(root.approach_within_m), float(root.approach_m),
                   float(low.alpha), float(low.trace_gamma), float(low.baseline),
                   int(low.max_steps), float(low.width_alpha), math.log(low.sigma_low),
                   math.log(low.sigma_high), float(low.radius_m), float(low.shaping),
@@ -79,23 +82,41 @@ def settings(config):
                   int(env.max_steps), float(env.gate_reward), float(env.out_of_bounds_reward))
 
 
+def root_coder(root):
+  """The root's tiles over (x, y, heading): `cell_m` squares and `headings` sectors
+  (the first centred on north), `tilings` of them offset along SPEC section 3's
+  displacement. One tiling is the table of cells and sectors."""
+  grid = int(math.ceil(core.FIELD_SIZE / root.cell_m))
+  half = 180.0 / root.headings
+  side = grid * root.cell_m
+  return tiles_mod.TileCoder((0.0, 0.0, -half), (side, side, 360.0 - half),
+                             (grid, grid, int(root.headings)), (False, False, True),
+                             int(root.tilings))
+
+
 # ---- the rules, one implementation for both paths ---------------------------------
 
 @numba.njit(cache=True)
-def root_state(state, s):
-  """The root's abstract state: its cell on the grid and the heading's sector
-  (sector 0 centred on north, clockwise)."""
-  g = s.root_grid
-  i = min(max(int(state[0] // s.root_cell_m), 0), g - 1)
-  j = min(max(int(state[1] // s.root_cell_m), 0), g - 1)
-  width = 360.0 / s.root_headings
-  h = int(((state[2] + 0.5 * width) % 360.0) // width) % s.root_headings
-  return (i * g + j) * s.root_headings + h
+def root_tiles(state, tiling, view, out):
+  """The root's state: the active tiles (one per tiling, into `out`) of the ship's
+  position and heading (`view`: scratch for the three)."""
+  view[0] = state[0]
+  view[1] = state[1]
+  view[2] = state[2]
+  tiles_mod.active_tiles(view, tiling, out)
 
 
 @numba.njit(cache=True)
 def n_targets(s):
   return 1 + len(APPROACH_DX)
+
+
+@numba.njit(cache=True)
+def offered(state, s):
+  """How many of the root's choices start here (their initiation sets, Sutton, Precup
+  & Singh 1999): the gate everywhere, the approach points within
+  `root_approach_within_m` of the gate line."""
+  return n_targets(s) if abs(state[1] - GATE_Y) <= s.root_approach_within_m else 1
 
 
 @numba.njit(cache=True)
@@ -215,8 +236,8 @@ def run_aim(state, action, trace, width, values, tiling, s, learn, sample, rng_s
 
 
 @numba.njit(cache=True)
-def train(n_episodes, learn, sample, rng_state, root, schedule, trace, width, values, tiling, s,
-          record, fixed_start):
+def train(n_episodes, learn, sample, rng_state, root, root_tiling, schedule, trace, width,
+          values, tiling, s, record, fixed_start):
   """`n_episodes` episodes of the full task (Algorithm 1 over this graph); with
   learn=False only the policy runs, sampled or greedy (epsilon 0, u = m)."""
   eps_state, outcomes, counts = schedule
@@ -225,6 +246,10 @@ def train(n_episodes, learn, sample, rng_state, root, schedule, trace, width, va
   scratch = (np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64), np.empty(n),
              np.empty(n), np.empty((core.SAMPLES_PER_CONTROL + 1, 2)), np.empty(3))
   n_actions = n_targets(s)
+  n_root = root_tiling.offsets.shape[0]
+  here = np.empty(n_root, dtype=np.int64)              # the root's tiles now
+  there = np.empty(n_root, dtype=np.int64)             # and after the call
+  root_view = np.empty(3)
   for episode in range(n_episodes):
     if fixed_start.shape[0] == 4:
       arrays.copy_into(state, fixed_start)
@@ -233,9 +258,10 @@ def train(n_episodes, learn, sample, rng_state, root, schedule, trace, width, va
     qlambda.clear(root.count)
     steps = 0
     total = 0.0
-    cell = root_state(state, s)
+    root_tiles(state, root_tiling, root_view, here)
     epsilon = eps_state[0] if sample else 0.0
-    a = qlambda.epsilon_greedy(root.q, cell, n_actions, epsilon, rng_state)
+    a = qlambda.tiled_epsilon_greedy(root.q, here, n_actions, offered(state, s), epsilon,
+                                     rng_state)
     row = record[episode]
     row[:] = 0.0
     while True:
@@ -254,18 +280,22 @@ def train(n_episodes, learn, sample, rng_state, root, schedule, trace, width, va
       row[CALLS] += 1
       terminal = g_event != core.NO_EVENT
       truncated = (not terminal) and steps >= s.environment_max_steps
-      next_cell = root_state(state, s)
+      root_tiles(state, root_tiling, root_view, there)
+      n_there = offered(state, s)
       if terminal or truncated:
         if learn:
-          qlambda.update(root.q, n_actions, root.index, root.value, root.count, cell, a,
-                         reward, next_cell, 0, terminal, s.root_alpha, 1.0, s.root_trace_decay)
+          qlambda.tiled_update(root.q, n_actions, root.index, root.value, root.count, here, a,
+                               reward, there, n_there, 0, terminal, s.root_alpha, 1.0,
+                               s.root_trace_decay)
           qlambda.clear(root.count)
         break
-      a_next = qlambda.epsilon_greedy(root.q, next_cell, n_actions, epsilon, rng_state)
+      a_next = qlambda.tiled_epsilon_greedy(root.q, there, n_actions, n_there, epsilon,
+                                            rng_state)
       if learn:
-        qlambda.update(root.q, n_actions, root.index, root.value, root.count, cell, a, reward,
-                       next_cell, a_next, False, s.root_alpha, 1.0, s.root_trace_decay)
-      cell = next_cell
+        qlambda.tiled_update(root.q, n_actions, root.index, root.value, root.count, here, a,
+                             reward, there, n_there, a_next, False, s.root_alpha, 1.0,
+                             s.root_trace_decay)
+      arrays.copy_into(here, there)
       a = a_next
     row[PASSED] = g_event == core.SUCCESS
     row[STEPS] = steps
@@ -279,7 +309,7 @@ def train(n_episodes, learn, sample, rng_state, root, schedule, trace, width, va
 
 @dataclasses.dataclass(frozen=True)
 class Root:
-  """[root]: Watkins's Q(lambda) over (cell, heading sector), choosing a target."""
+  """[root]: Watkins's Q(lambda) over tiles of (position, heading), choosing a target."""
   learner: str = param("q_lambda", "the root's learner", choices=("q_lambda",))
   alpha: float = param(0.1, "Q(lambda) step size", low=0, low_open=True)
   trace_decay: float = param(0.9, "Q(lambda)'s lambda", low=0, high=1)
@@ -292,10 +322,17 @@ class Root:
   epsilon_divisor: float = param(1.01, "epsilon is divided by this", low=1)
   cell_m: float = param(50.0, "side of the root's square cells (m)", low=10, high=1000)
   headings: int = param(8, "sectors of the heading the root sees (1: none)", low=1, high=72)
+  tilings: int = param(1, "tilings of the cells and sectors, each offset by k/tilings of a "
+                       "tile (1: the table; more: Q generalises between neighbours and "
+                       "resolves finer)", low=1, high=64)
   inset_m: float = param(2.0, "the gate action aims at the gate with its posts moved in "
                          "by this (m)", low=0, high=49)
   approach_m: float = param(80.0, "how far before the gate line the approach points lie (m)",
                             low=0, low_open=True, high=300)
+  approach_within_m: float = param(1000.0, "the approach points are offered only within "
+                                   "this distance of the gate line (1000: everywhere); "
+                                   "beyond it the root's one choice is the gate", low=0,
+                                   high=1000)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -374,9 +411,11 @@ class ShipBeyond(_ship.ShipAgent):
     self.tile_arrays = self.coder.arrays()
     self.schedule, self.outcomes, self.counts = schedules.new_schedule(root.epsilon,
                                                                    root.epsilon_window)
-    n_states = self.s.root_grid ** 2 * self.s.root_headings
-    self.root = learners.QLambda(n_states, n_targets(self.s), root.alpha, root.trace_decay,
-                                 epsilon_source=lambda: self.schedule[0])
+    self.root_coder = root_coder(root)
+    self.root_tiling = self.root_coder.arrays()
+    self.root = learners.TiledQLambda(self.root_coder.size, root.tilings, n_targets(self.s),
+                                      root.alpha, root.trace_decay,
+                                      epsilon_source=lambda: self.schedule[0])
     self.low = learners.GaussianPolicyGradient(self.coder.size, low.tilings, core.MAX_TURN_RATE,
                                                low.alpha, low.trace_gamma, baseline=low.baseline)
     self.width = el.new_trace(self.coder.size)
@@ -403,7 +442,7 @@ class ShipBeyond(_ship.ShipAgent):
     fixed = np.empty(0) if start is None else np.array(start, dtype=np.float64)
     train(episodes, learn, sample, self.rng_state,
           RootTable(self.root.q, self.root.index, self.root.value, self.root.count),
-          (self.schedule, self.outcomes, self.counts), self.low.trace, self.width,
+          self.root_tiling, (self.schedule, self.outcomes, self.counts), self.low.trace, self.width,
           self.low.values, self.tile_arrays, self.s, rows, fixed)
     return rows
 
@@ -469,9 +508,16 @@ class ShipBeyond(_ship.ShipAgent):
                   reward=lambda call, step, child_reward: core.STEP_REWARD,
                   termination=lambda call, step: call.memo["event"] != core.NO_EVENT,
                   on_exit=on_exit)
+    root_scratch = (np.empty(3), np.empty(self.root_tiling.offsets.shape[0], dtype=np.int64))
+
+    def root_view(call, obs):
+      obs = np.asarray(obs, dtype=np.float64)
+      root_tiles(obs, self.root_tiling, *root_scratch)
+      return root_scratch[1], offered(obs, s)
+
     root = Subtask("root", learner=self.root,
                    children=[Child("aim", action=a) for a in range(n_targets(s))],
-                   view=lambda call, obs: root_state(np.asarray(obs, dtype=np.float64), s),
+                   view=root_view,
                    termination=lambda call, step: False)
     return TaskGraph("root", [root, aim, Primitive("turn")], on_episode_end=on_episode_end)
 

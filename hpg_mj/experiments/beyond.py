@@ -20,9 +20,12 @@ The report's other two parts (SPEC section 8):
   online success per 1,000 calls with 95% bootstrap bands and their final greedy
   success (subtask_width.png, .csv).
 `scripts/beyond_route.py` and `scripts/subtask_width.py` run the same measurements
-on any seeds, with more detail.
+on any seeds, with more detail. The seeds run on `workers` processes (default: one
+per core); each seed's numbers are the same on any number of them.
 """
+import concurrent.futures
 import json
+import os
 import pathlib
 import time
 
@@ -51,42 +54,62 @@ WIDTH_VARIANTS = {"paper (sigma = 1)": {},
                                     "sigma_high": 1.0}}
 
 
-def run(out, quick=False, progress=None, protocols=None):
+def run(out, quick=False, progress=None, protocols=None, workers=None):
   """Trains and measures the three parts; returns the report's path. `progress`
   receives a line of text per finished seed; `protocols` (for tests) replaces
-  the (patrol, route, subtask) protocols."""
+  the (patrol, route, subtask) protocols; `workers`: processes (None: one per core)."""
   patrol, route, subtask = protocols or ((QUICK, ROUTE_QUICK, SUBTASK_QUICK) if quick
                                          else (FULL, ROUTE_FULL, SUBTASK_FULL))
   say = progress or (lambda line: None)
   root = pathlib.Path(out) / ("beyond_quick" if quick else "beyond")
   root.mkdir(parents=True, exist_ok=True)
-  lines = _patrol(root, patrol, quick, say)
-  lines += _route(root, route, say)
-  lines += _subtasks(root, subtask, say)
+  workers = workers or os.cpu_count() or 1
+  lines = _patrol(root, patrol, quick, say, workers)
+  lines += _route(root, route, say, workers)
+  lines += _subtasks(root, subtask, say, workers)
   (root / "REPORT.md").write_text("\n".join(lines))
   return root / "REPORT.md"
 
 
-def _patrol(root, protocol, quick, say):
+def _in_order(fn, items, workers):
+  """fn(*item) for every item, yielded in the items' order; on up to `workers`
+  processes (one: in this one)."""
+  if workers <= 1 or len(items) <= 1:
+    for item in items:
+      yield fn(*item)
+    return
+  with concurrent.futures.ProcessPoolExecutor(max_workers=min(workers, len(items))) as pool:
+    for future in [pool.submit(fn, *item) for item in items]:
+      yield future.result()
+
+
+def patrol_seed(seed, hours, block, probe_hours, episodic_episodes, eval_hours):
+  """One seed of the continuing task: (online and greedy gates per hour after every
+  block, the final comparison's numbers)."""
+  from hpg_mj import agents
+  start = time.perf_counter()
+  agent = agents.build(agents.load_task(TASK), seed=seed)
+  online, greedy = [], []
+  for _ in range(hours // block):
+    record = agent.train(block)
+    online.append(agent.metrics(record)["gates_per_hour"])
+    greedy.append(agent.metrics(agent.evaluation(probe_hours))["gates_per_hour"])
+  agent.config = _with_comparison(agent.config, episodic_episodes, eval_hours)
+  final = agent.final_metrics(record)
+  final.update({"seed": seed, "training_hours": hours, "online_gates_per_hour": online[-1],
+                "wall_seconds": round(time.perf_counter() - start, 1)})
+  return online, greedy, final
+
+
+def _patrol(root, protocol, quick, say, workers=1):
   """The continuing task's part: trains every seed, draws, returns report lines."""
   from hpg_mj import agents
   seeds, hours, block, probe_hours, episodic_episodes, eval_hours = protocol
   task = agents.load_task(TASK)
   _refuse_tuning_seeds(task, seeds)
   curves, finals = [], []
-  for seed in seeds:
-    start = time.perf_counter()
-    agent = agents.build(task, seed=seed)
-    online, greedy = [], []
-    for _ in range(hours // block):
-      record = agent.train(block)
-      online.append(agent.metrics(record)["gates_per_hour"])
-      greedy.append(agent.metrics(agent.evaluation(probe_hours))["gates_per_hour"])
-    agent.config = _with_comparison(agent.config, episodic_episodes, eval_hours)
-    final = agent.final_metrics(record)
-    final.update({"seed": seed, "training_hours": hours,
-                  "online_gates_per_hour": online[-1],
-                  "wall_seconds": round(time.perf_counter() - start, 1)})
+  items = [(seed, hours, block, probe_hours, episodic_episodes, eval_hours) for seed in seeds]
+  for seed, (online, greedy, final) in zip(seeds, _in_order(patrol_seed, items, workers)):
     curves.append((online, greedy))
     finals.append(final)
     (root / f"seed{seed}.json").write_text(json.dumps(final, indent=1))
@@ -126,7 +149,13 @@ def route_seed(task, seed, episodes=None, starts=None):
                          "wall_seconds": round(seconds, 1)}
 
 
-def _route(root, protocol, say):
+def route_numbers(seed, episodes):
+  """`route_seed`'s numbers for the shipped route task (for a worker process)."""
+  from hpg_mj import agents
+  return route_seed(agents.load_task(ROUTE_TASK), seed, episodes)[2]
+
+
+def _route(root, protocol, say, workers=1):
   from hpg_mj import agents
   from hpg_mj.experiments import stats
   seeds, episodes = protocol
@@ -134,10 +163,9 @@ def _route(root, protocol, say):
   _refuse_tuning_seeds(task, seeds)
   starts = route_starts()
   rows = []
-  for seed in seeds:
-    rows.append(route_seed(task, seed, episodes, starts)[2])
-    r = rows[-1]
-    say(f"beyond: route seed {seed}: gate {r['gate_pass_rate']:.3f}, "
+  for r in _in_order(route_numbers, [(seed, episodes) for seed in seeds], workers):
+    rows.append(r)
+    say(f"beyond: route seed {r['seed']}: gate {r['gate_pass_rate']:.3f}, "
         f"{r['steps_to_gate']:.1f} control steps, J {r['J']:.2f} ({r['wall_seconds']} s)")
   keys = ("seed", "gate_pass_rate", "steps_to_gate", "J", "calls", "wall_seconds")
   (root / "beyond_route.csv").write_text(
@@ -154,8 +182,8 @@ def _route(root, protocol, say):
          and summary["J"][0] > -87.3)
   return [
       "## A route past the paper's (tasks/ship_hybrid_beyond.toml)", "",
-      "A Q(lambda) root that sees its cell and the heading's sector and picks a point to "
-      "steer to; one low-level subtask, aim, that steers to it with the paper's "
+      "A Q(lambda) root that sees its cell and the heading's sector, through 16 offset "
+      "tilings of them, and picks a point to steer to; one low-level subtask, aim, that steers to it with the paper's "
       "Gaussian-with-sigmoid CMAC policy learned by Eq. 3 (hpg_mj/agents/ship_beyond.py). "
       f"Each seed trains for {n_episodes:,} episodes, then sails greedily from the same "
       f"{len(starts):,} fixed starts. Seeds {seeds[0]}-{seeds[-1]} ({len(seeds)} runs; "
@@ -180,7 +208,7 @@ def subtask_seed(task, seed, calls, options):
   return run["success"].reshape(-1, 1000).mean(axis=1), float(run["greedy"][-1])
 
 
-def _subtasks(root, protocol, say):
+def _subtasks(root, protocol, say, workers=1):
   from hpg_mj.agents import ship_subtask
   from hpg_mj.experiments import stats
   seeds, calls = protocol
@@ -189,7 +217,8 @@ def _subtasks(root, protocol, say):
   curves = {}
   for task in ship_subtask.TASKS:
     for name, options in WIDTH_VARIANTS.items():
-      runs = [subtask_seed(task, seed, calls, options) for seed in seeds]
+      runs = list(_in_order(subtask_seed, [(task, seed, calls, options) for seed in seeds],
+                            workers))
       online = np.array([r[0] for r in runs])
       mean, low, high = stats.band(online)
       curves[task, name] = (mean, low, high)

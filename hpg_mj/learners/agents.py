@@ -110,10 +110,10 @@ class GaussianPolicyGradient(_PolicyGradient):
 
 @dataclasses.dataclass
 class _Pending:
-  state: int
+  state: object        # an int (a table's state) or an array of tiles
   action: int
   signal: float = 0.0
-  next_state: int = -1
+  next_state: object = -1
   waiting: bool = False
 
 
@@ -140,15 +140,24 @@ class QLambda:
     qlambda.clear(self.count)
     self._pending = None
 
+  # What differs between the table and the tiles (TiledQLambda).
+  def _state(self, features):
+    return int(features)
+
+  def _choose(self, s, epsilon, rng_state):
+    return qlambda.epsilon_greedy(self.q, s, self.n_actions, epsilon, rng_state)
+
+  def _backup(self, s, a, signal, s_next, a_next, terminal):
+    qlambda.update(self.q, self.n_actions, self.index, self.value, self.count, s, a, signal,
+                   s_next, a_next, terminal, self.alpha, self.gamma, self.lam)
+
   def act(self, features, mask, rng_state, sample):
-    s = int(features)
+    s = self._state(features)
     epsilon = self.current_epsilon() if sample else 0.0
-    a = qlambda.epsilon_greedy(self.q, s, self.n_actions, epsilon, rng_state)
+    a = self._choose(s, epsilon, rng_state)
     p = self._pending
     if p is not None and p.waiting:
-      qlambda.update(self.q, self.n_actions, self.index, self.value, self.count, p.state,
-                     p.action, p.signal, p.next_state, a, False, self.alpha, self.gamma,
-                     self.lam)
+      self._backup(p.state, p.action, p.signal, p.next_state, a, False)
     self._pending = _Pending(s, a)
     return a
 
@@ -157,18 +166,48 @@ class QLambda:
     if not learn:
       return
     if done:
-      next_state = 0 if next_features is None else int(next_features)
-      qlambda.update(self.q, self.n_actions, self.index, self.value, self.count, p.state,
-                     p.action, signal, next_state, 0, terminal, self.alpha,
-                     self.gamma, self.lam)
+      # (A terminal backup does not read the next state: without one, any will do.)
+      next_state = p.state if next_features is None else self._state(next_features)
+      self._backup(p.state, p.action, signal, next_state, 0, terminal)
       qlambda.clear(self.count)
       self._pending = None
     else:
-      p.signal, p.next_state, p.waiting = signal, int(next_features), True
+      p.signal, p.next_state, p.waiting = signal, self._state(next_features), True
     # (Without learning nothing is pending, so act() makes no backup.)
 
   def parameters(self):
     return self.q.copy()
+
+
+class TiledQLambda(QLambda):
+  """Watkins's Q(lambda) over tiles (`qlambda.tiled_*`: linear in binary features).
+  Its features are a state's active tiles, one per tiling, or (tiles, n) for a state
+  that offers only its first n actions (an initiation set)."""
+
+  def __init__(self, n_weights, n_tilings, n_actions, alpha, lam, gamma=1.0, epsilon=0.1,
+               epsilon_source=None, trace_capacity=None):
+    # Capacity: every weight at most once, so a trace of any length fits.
+    super().__init__(n_weights, n_actions, alpha, lam, gamma, epsilon, epsilon_source,
+                     trace_capacity or int(n_weights) * int(n_actions))
+    self.n_tilings = int(n_tilings)
+
+  def _state(self, features):
+    tiles, n = features if isinstance(features, tuple) else (features, self.n_actions)
+    tiles = np.array(tiles, dtype=np.int64)             # a copy: views reuse their arrays
+    if tiles.shape != (self.n_tilings,):
+      raise ValueError(f"TiledQLambda: features must be {self.n_tilings} active tiles, "
+                       f"got shape {tiles.shape}")
+    if not 1 <= int(n) <= self.n_actions:
+      raise ValueError(f"TiledQLambda: a state offers 1 to {self.n_actions} actions, got {n}")
+    return tiles, int(n)
+
+  def _choose(self, s, epsilon, rng_state):
+    return qlambda.tiled_epsilon_greedy(self.q, s[0], self.n_actions, s[1], epsilon, rng_state)
+
+  def _backup(self, s, a, signal, s_next, a_next, terminal):
+    qlambda.tiled_update(self.q, self.n_actions, self.index, self.value, self.count, s[0], a,
+                         signal, s_next[0], s_next[1], a_next, terminal, self.alpha,
+                         self.gamma, self.lam)
 
 
 class ActorCritic:

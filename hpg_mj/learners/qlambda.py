@@ -9,6 +9,14 @@ Q(lambda)):
     e(s, b) = 0 for b != a, e(s, a) = 1                   (replacing traces)
     Q += alpha * delta * e
     e *= gamma_tau * lambda if a' is greedy in s', else e = 0.
+
+The `tiled_*` functions are the same learner with linear function approximation
+over binary features (Sutton & Barto 2018, sections 9.5.4 and 12.10): a state is
+the list of its active tiles, one per tiling (`tiles.active_tiles`), Q(s, a) is the
+sum of the weights q[tile * n_actions + a] over them, and each backup moves every
+weight of (s, a) by alpha / n_tilings * delta, so a visited state moves by alpha *
+delta, as a table's entry does, and its neighbours, which share some of its tiles,
+move part of the way. One tiling of non-overlapping tiles is the table.
 """
 import numba
 import numpy as np
@@ -75,7 +83,33 @@ def update(q, n_actions, tr_index, tr_value, tr_count, s, a, reward, s_next, a_n
   entry = s * n_actions + a
   delta = target - q[entry]
   # Replacing traces: this state's other actions are cleared, (s, a) set to 1.
-  base = s * n_actions
+  _set_replacing(tr_index, tr_value, tr_count, s * n_actions, n_actions, entry)
+  for k in range(tr_count[0]):
+    q[tr_index[k]] += alpha * delta * tr_value[k]
+  _carry_trace(tr_index, tr_value, tr_count, next_is_greedy, gamma_tau * lam)
+  return delta
+
+
+@numba.njit(cache=True, inline="always")
+def _carry_trace(tr_index, tr_value, tr_count, next_is_greedy, decay):
+  """After a backup: e <- decay * e if a' is greedy in s' (dropping what has decayed
+  to nothing), else e <- 0 (Watkins's cut)."""
+  if not next_is_greedy:
+    tr_count[0] = 0
+    return
+  n = 0
+  for k in range(tr_count[0]):
+    v = tr_value[k] * decay
+    if v > _DROP_BELOW:
+      tr_index[n] = tr_index[k]
+      tr_value[n] = v
+      n += 1
+  tr_count[0] = n
+
+
+@numba.njit(cache=True, inline="always")
+def _set_replacing(tr_index, tr_value, tr_count, base, n_actions, entry):
+  """Replacing traces on one state (or tile): e(entry) = 1, its other actions 0."""
   found = False
   for k in range(tr_count[0]):
     i = tr_index[k]
@@ -90,18 +124,73 @@ def update(q, n_actions, tr_index, tr_value, tr_count, s, a, reward, s_next, a_n
     tr_index[tr_count[0]] = entry
     tr_value[tr_count[0]] = 1.0
     tr_count[0] += 1
+
+
+# ---- over tiles: linear function approximation (see the module's docstring) ----------
+# `stride` is the number of actions the weights hold per tile; `n` (<= stride) how
+# many of them, the first n, a state offers (an option's initiation set: the others
+# are neither chosen nor maximised over there).
+
+@numba.njit(cache=True)
+def tiled_value(q, tiles, stride, a):
+  """Q(s, a) for the state whose active tiles are `tiles`."""
+  v = 0.0
+  for k in range(tiles.shape[0]):
+    v += q[tiles[k] * stride + a]
+  return v
+
+
+@numba.njit(cache=True)
+def tiled_max(q, tiles, stride, n):
+  best = tiled_value(q, tiles, stride, 0)
+  for b in range(1, n):
+    v = tiled_value(q, tiles, stride, b)
+    if v > best:
+      best = v
+  return best
+
+
+@numba.njit(cache=True)
+def tiled_greedy(q, tiles, stride, n, rng_state):
+  """A greedy action of the first `n`; ties are broken uniformly at random."""
+  best = tiled_max(q, tiles, stride, n)
+  ties = 0
+  for b in range(n):
+    if tiled_value(q, tiles, stride, b) == best:
+      ties += 1
+  pick = rng.randint(rng_state, ties) if ties > 1 else 0
+  for b in range(n):
+    if tiled_value(q, tiles, stride, b) == best:
+      if pick == 0:
+        return b
+      pick -= 1
+  return n - 1
+
+
+@numba.njit(cache=True)
+def tiled_epsilon_greedy(q, tiles, stride, n, epsilon, rng_state):
+  if rng.uniform(rng_state) < epsilon:
+    return rng.randint(rng_state, n)
+  return tiled_greedy(q, tiles, stride, n, rng_state)
+
+
+@numba.njit(cache=True)
+def tiled_update(q, stride, tr_index, tr_value, tr_count, tiles, a, reward, tiles_next,
+                 n_next, a_next, terminal, alpha, gamma_tau, lam):
+  """One SMDP Q(lambda) backup over tiles (`update` with Q linear in them, s' offering
+  its first `n_next` actions); returns delta. The trace holds weights: each tile of s
+  has e(tile, a) = 1 and its other actions 0 (replacing traces per feature)."""
+  target = reward
+  if not terminal:
+    target += gamma_tau * tiled_max(q, tiles_next, stride, n_next)
+  next_is_greedy = (not terminal) and tiled_value(q, tiles_next, stride, a_next) == \
+      tiled_max(q, tiles_next, stride, n_next)
+  delta = target - tiled_value(q, tiles, stride, a)
+  for k in range(tiles.shape[0]):
+    base = tiles[k] * stride
+    _set_replacing(tr_index, tr_value, tr_count, base, stride, base + a)
+  step = alpha / tiles.shape[0] * delta
   for k in range(tr_count[0]):
-    q[tr_index[k]] += alpha * delta * tr_value[k]
-  if not next_is_greedy:
-    tr_count[0] = 0
-    return delta
-  decay = gamma_tau * lam
-  n = 0
-  for k in range(tr_count[0]):
-    v = tr_value[k] * decay
-    if v > _DROP_BELOW:
-      tr_index[n] = tr_index[k]
-      tr_value[n] = v
-      n += 1
-  tr_count[0] = n
+    q[tr_index[k]] += step * tr_value[k]
+  _carry_trace(tr_index, tr_value, tr_count, next_is_greedy, gamma_tau * lam)
   return delta

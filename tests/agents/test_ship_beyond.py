@@ -24,13 +24,28 @@ def test_the_gate_target_follows_the_ship_and_approach_points_are_fixed():
   assert sb.side_of(400.0) == 1.0 and sb.side_of(399.9) == -1.0
 
 
-def test_root_state_cells_and_heading_sectors():
-  # 50 m cells, 8 sectors centred on N, NE, ...: (x, y) = (125, 980) is cell (2, 19).
-  assert sb.root_state(np.array([125.0, 980.0, 0.0, 0.0]), S) == (2 * 20 + 19) * 8 + 0
-  assert sb.root_state(np.array([125.0, 980.0, 22.4, 0.0]), S) % 8 == 0
-  assert sb.root_state(np.array([125.0, 980.0, 22.6, 0.0]), S) % 8 == 1
-  assert sb.root_state(np.array([125.0, 980.0, -22.6, 0.0]), S) % 8 == 7
-  assert sb.root_state(np.array([1000.0, 1000.0, 179.0, 0.0]), S) == (19 * 20 + 19) * 8 + 4
+def test_root_tiles_cells_and_heading_sectors():
+  # One tiling is the table: 50 m cells, 8 sectors centred on N, NE, ...: (x, y) =
+  # (125, 980) is cell (2, 19).
+  coder = sb.root_coder(sb.Root())
+  tiling = coder.arrays()
+  assert coder.size == 20 * 20 * 8
+  view, out = np.empty(3), np.empty(1, dtype=np.int64)
+
+  def tile(x, y, heading):
+    sb.root_tiles(np.array([x, y, heading, 0.0]), tiling, view, out)
+    return int(out[0])
+  assert tile(125.0, 980.0, 0.0) == (2 * 20 + 19) * 8 + 0
+  assert tile(125.0, 980.0, 22.4) % 8 == 0
+  assert tile(125.0, 980.0, 22.6) % 8 == 1
+  assert tile(125.0, 980.0, -22.6) % 8 == 7
+  assert tile(125.0, 980.0, -180.0) % 8 == 4
+  assert tile(1000.0, 1000.0, 179.0) == (19 * 20 + 19) * 8 + 4
+  # The shipped root: 16 tilings of 100 m cells and 90 degree sectors, one tile each;
+  # a neighbour 10 m away shares most of them.
+  coder = sb.root_coder(agents.build(agents.load_task("ship_hybrid_beyond"), seed=0).config.root)
+  here, there = coder.active([420.0, 610.0, 30.0]), coder.active([430.0, 610.0, 30.0])
+  assert len(set(here)) == 16 and 8 <= np.sum(here == there) < 16
 
 
 def test_the_aim_state_is_an_isometry_of_the_dynamics():
@@ -126,11 +141,11 @@ def test_discounted_return_by_hand():
 
 
 def test_the_route_learns_and_both_paths_run():
-  # Seed 7: with the reflected aim state, early learning is slower on some seeds (after
-  # 6,000 episodes, online gate passes 0.61-0.97 over seeds 0-9; the task file), and
-  # where few early episodes pass, those that do are the short ones (seed 6).
-  agent = agents.build(agents.load_task("ship_hybrid_beyond"), seed=7)
+  # Seed 6: early learning is slow on some seeds (online gate passes in episodes
+  # 5,000-6,000 over seeds 4-7: 0.67-0.93; by 12,000: 0.92-0.95).
+  agent = agents.build(agents.load_task("ship_hybrid_beyond"), seed=6)
   first = agent.train(3000)
+  agent.train(3000)
   last = agent.train(3000)
   passed = lambda r: r["steps"][r["passed"] > 0]
   assert last["passed"].mean() > 0.9 > first["passed"][:300].mean()

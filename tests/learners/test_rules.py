@@ -160,7 +160,8 @@ def test_cmac_displacement_is_coprime_with_the_number_of_tilings():
 
 @pytest.mark.parametrize("task_name,coder_names", [
     ("ship_hybrid", ["coder"]), ("ship_flat_pg", ["coder"]),
-    ("ship_actor_critic", ["actor_coder", "critic_coder"])])
+    ("ship_actor_critic", ["actor_coder", "critic_coder"]),
+    ("ship_hybrid_beyond", ["root_coder", "coder"])])
 def test_shipped_cmacs_offset_every_pair_of_tilings_in_every_dimension(task_name, coder_names):
   """SPEC section 3: tiling k is shifted by k/n of a tile along a vector coprime with n."""
   from hpg_mj import agents as registry
@@ -256,3 +257,87 @@ def test_q_learner_object_matches_the_rule_functions():
   qlambda.update(q, 2, index, value, count, 1, a1, 10.0, 0, 0, True, 0.5, 1.0, 0.9)
   np.testing.assert_array_equal(learner.q, q)
   assert learner.count[0] == 0
+
+
+def test_tiled_q_lambda_with_one_tiling_is_the_table():
+  # The same random SMDP transitions through both: the same deltas, values, traces.
+  rs = np.random.default_rng(5)
+  q_table, q_tiles = np.zeros(12), np.zeros(12)
+  table, tiled = qlambda.new_trace(64), qlambda.new_trace(64)
+  for _ in range(300):
+    s, s_next = rs.integers(4, size=2)
+    a, a_next = rs.integers(3, size=2)
+    reward, terminal = rs.normal(), rs.random() < 0.2
+    d1 = qlambda.update(q_table, 3, *table, s, a, reward, s_next, a_next, terminal, 0.3, 1.0,
+                        0.8)
+    d2 = qlambda.tiled_update(q_tiles, 3, *tiled, np.array([s]), a, reward,
+                              np.array([s_next]), 3, a_next, terminal, 0.3, 1.0, 0.8)
+    assert d1 == d2
+    np.testing.assert_array_equal(q_table, q_tiles)
+    assert table[2][0] == tiled[2][0]
+    if terminal:
+      qlambda.clear(table[2])
+      qlambda.clear(tiled[2])
+
+
+def test_tiled_q_lambda_hand_worked():
+  # 2 tilings x 3 tiles, 2 actions: state A has tiles (0, 3), its neighbour B (0, 4).
+  q = np.zeros(12)
+  index, value, count = qlambda.new_trace(32)
+  A, B, C = np.array([0, 3]), np.array([0, 4]), np.array([2, 5])
+  # (A, a1) -R=-4-> terminal: delta = -4; each of A's two weights moves by 0.5 * -4 / 2,
+  # so Q(A, a1) moves by alpha * delta = -2, and B, sharing tile 0, by half of it.
+  d = qlambda.tiled_update(q, 2, index, value, count, A, 1, -4.0, C, 2, 0, True, 0.5, 1.0,
+                           0.9)
+  assert d == -4.0
+  assert qlambda.tiled_value(q, A, 2, 1) == -2.0
+  assert qlambda.tiled_value(q, B, 2, 1) == -1.0 and qlambda.tiled_value(q, B, 2, 0) == 0.0
+  assert count[0] == 0
+  # In B, a0 (0) is greedy over a1 (-1).
+  rs = rng.make_state(0)
+  assert qlambda.tiled_greedy(q, B, 2, 2, rs) == 0
+  assert qlambda.tiled_greedy(q, A, 2, 2, rs) == 0 and qlambda.tiled_max(q, A, 2, 2) == 0.0
+  # Where only the first action is offered, it is the greedy one and the max.
+  assert qlambda.tiled_greedy(q, np.array([1, 5]), 2, 1, rs) == 0
+  assert qlambda.tiled_epsilon_greedy(q, A, 2, 1, 1.0, rs) == 0
+  # (B, a0) -R=-1-> A, a' = a0 greedy in A (0 > -2): delta = -1 + 0 - 0; traces on
+  # B's tiles (0, 4) for a0, decayed by lambda.
+  d = qlambda.tiled_update(q, 2, index, value, count, B, 0, -1.0, A, 2, 0, False, 0.5, 1.0,
+                           0.9)
+  assert d == -1.0
+  np.testing.assert_allclose(q[[0, 8]], [-0.25, -0.25])          # tiles 0 and 4, action 0
+  traced = dict(zip(index[:count[0]], value[:count[0]]))
+  assert traced == {0: pytest.approx(0.9), 8: pytest.approx(0.9)}
+  # (A, a0): A shares tile 0 with B: its trace is replaced (1), not accumulated.
+  qlambda.tiled_update(q, 2, index, value, count, A, 0, 0.0, C, 2, 1, True, 0.5, 1.0, 0.9)
+  assert count[0] == 0
+  # The target maximises over the actions s' offers: with B's first alone, Q(B, a0).
+  q[[1, 9]] += 5.0                                  # B's tiles 0 and 4, a1: Q(B, a1) = 9
+  assert qlambda.tiled_value(q, B, 2, 1) > qlambda.tiled_value(q, B, 2, 0)
+  expected = qlambda.tiled_value(q, B, 2, 0) - qlambda.tiled_value(q, A, 2, 0)
+  d = qlambda.tiled_update(q, 2, index, value, count, A, 0, 0.0, B, 1, 0, False, 0.5, 1.0,
+                           0.9)
+  assert d == pytest.approx(expected) and count[0] == 2        # a0 is greedy among those
+
+
+def test_tiled_q_learner_object_matches_the_rule_functions():
+  learner = agents.TiledQLambda(6, 2, 2, alpha=0.5, lam=0.9, epsilon=0.0)
+  state = rng.make_state(0)
+  A, B = np.array([0, 3]), np.array([1, 4])
+  learner.start()
+  a0 = learner.act(A, None, state, True)
+  A[:] = -1                                   # the learner keeps its own copy
+  learner.observe(-1.0, (B, 1), False, False, True)
+  a1 = learner.act((B, 1), None, state, True)
+  assert a1 == 0                              # B offers only its first action
+  learner.observe(10.0, None, True, True, True)
+  q = np.zeros(12)
+  index, value, count = qlambda.new_trace(16)
+  qlambda.tiled_update(q, 2, index, value, count, np.array([0, 3]), a0, -1.0, B, 1, a1, False,
+                       0.5, 1.0, 0.9)
+  qlambda.tiled_update(q, 2, index, value, count, B, a1, 10.0, B, 1, 0, True, 0.5, 1.0, 0.9)
+  np.testing.assert_array_equal(learner.q, q)
+  with pytest.raises(ValueError, match="features must be 2 active tiles, got shape"):
+    learner.act(np.array([1, 2, 3]), None, state, True)
+  with pytest.raises(ValueError, match="a state offers 1 to 2 actions, got 3"):
+    learner.act((B, 3), None, state, True)
