@@ -11,9 +11,9 @@ points before the gate line on the ship's side (for starts from which the
 straight line to the gate runs along its line or past its posts). One call sails
 the whole way from most starts. The root sees its cell and the heading's sector,
 through several offset tilings of them (Q(lambda) linear in the tiles,
-`qlambda.tiled_update`): why, see `tasks/ship_hybrid_beyond.toml` (a table of cells
-left the values of choices it had stopped making at what an early, clumsy aim
-subtask had earned from them).
+`qlambda.tiled_update`): why, see `tasks/ship_hybrid_beyond.toml` (with a table of
+cells, the value of a choice the root had stopped making stayed where a few early
+returns had put it, far below what it would now earn).
 
 The *aim* subtask's state is the heading error to its target (wrapped), the
 turning rate and the distance (clipped), over a CMAC, with errors beyond
