@@ -9,7 +9,11 @@ rewards), calls per episode. The task file was tuned on its tuning seeds 0-9 onl
 With --helmsman also where the learned steering loses steps: the scripted
 helmsman (worlds.ship_core.pilot_turn_rate) sailing the same greedy root's
 targets from the same starts, and learned minus helmsman over the starts both
-pass, by the first call's initial heading error.
+pass, by the first call's initial heading error. With --rollouts N, how well the
+root's values describe its choices: from N random starts in each (cell, heading
+sector) state, every first choice is sailed (the learned steering sampled, then
+the greedy root), and the root's mean Q per state is set against those returns
+(this showed a table of cells keeping stale values, tasks/ship_hybrid_beyond.toml).
 """
 import argparse
 
@@ -55,6 +59,65 @@ def helmsman_episode(state, q, root_tiling, rng_state, s):
       return g_event == core.SUCCESS, steps
 
 
+@numba.njit
+def forced_return(state, first, q, root_tiling, rng_state, s, trace, width, values, tiling,
+                  scratch):
+  """The root's return of one episode whose first call is `first` (then the greedy
+  root), the aim subtask's steering sampled, without learning."""
+  steps, total, a = 0, 0.0, first
+  view, tiles = np.empty(3), np.empty(root_tiling.offsets.shape[0], dtype=np.int64)
+  n_actions = ship_beyond.n_targets(s)
+  while True:
+    g_event, _, reward, k = ship_beyond.run_aim(state, a, trace, width, values, tiling, s,
+                                                False, True, rng_state, steps, scratch)
+    steps += k
+    total += reward
+    if g_event != core.NO_EVENT or steps >= s.environment_max_steps:
+      return total
+    ship_beyond.root_tiles(state, root_tiling, view, tiles)
+    a = qlambda.tiled_greedy(q, tiles, n_actions, ship_beyond.offered(state, s), rng_state)
+
+
+def rollout_report(agent, per):
+  """The root's choices and values against Monte Carlo returns, state by state."""
+  s, root = agent.s, agent.config.root
+  n = agent.tile_arrays.offsets.shape[0]
+  scratch = (np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64), np.empty(n),
+             np.empty(n), np.empty((core.SAMPLES_PER_CONTROL + 1, 2)), np.empty(3))
+  rs = np.random.default_rng(1)
+  saved = agent.rng_state.copy()
+  n_actions = ship_beyond.n_targets(s)
+  grid = int(np.ceil(core.FIELD_SIZE / root.cell_m))
+  q_mean, mc = [], []
+  for i in range(grid):
+    for j in range(grid):
+      for h in range(root.headings):
+        qs, rets = np.zeros(n_actions), np.zeros(n_actions)
+        for _ in range(per):
+          start = np.array([(i + rs.random()) * root.cell_m, (j + rs.random()) * root.cell_m,
+                            core.wrap_deg((h - 0.5 + rs.random()) * 360.0 / root.headings),
+                            rs.uniform(-15.0, 15.0)])
+          tiles = agent.root_coder.active(start[:3])
+          for a in range(n_actions):
+            qs[a] += qlambda.tiled_value(agent.root.q, tiles, n_actions, a) / per
+            rets[a] += forced_return(start.copy(), a, agent.root.q, agent.root_tiling,
+                                     agent.rng_state, s, agent.low.trace, agent.width,
+                                     agent.low.values, agent.tile_arrays, scratch) / per
+        q_mean.append(qs)
+        mc.append(rets)
+  agent.rng_state[:] = saved
+  q_mean, mc = np.array(q_mean), np.array(mc)
+  chosen, best = q_mean.argmax(axis=1), mc.argmax(axis=1)
+  rows = np.arange(len(mc))
+  approach = chosen > 0
+  stale = (q_mean[approach, 0] - mc[approach, 0]).mean() if approach.any() else float("nan")
+  return (f"rollouts ({per} starts per state): the root chooses an approach point in "
+          f"{approach.mean():.0%} of states, the rollouts in {(best > 0).mean():.0%}; its "
+          f"choice loses {(mc[rows, best] - mc[rows, chosen]).mean():.1f} on average; where "
+          f"it chooses an approach point, Q(gate) - rollout {stale:+.1f}, Q(choice) - "
+          f"rollout {(q_mean[rows, chosen] - mc[rows, chosen])[approach].mean():+.1f}")
+
+
 def initial_error(agent, start):
   """|heading error| (deg) from a start to its first greedy call's target (ties: the
   first of the best)."""
@@ -82,12 +145,15 @@ def helmsman_report(agent, fixed, record):
            f"minus helmsman {lost[both].mean():+.1f}"]
   for low, high in ERROR_CLASSES:
     m = both & (error >= low) & (error < high)
-    parts.append(f"{low}-{min(high, 180)} deg {lost[m].mean():+.1f} (n {m.sum()})")
+    parts.append(f"{low}-{min(high, 180)} deg "
+                 + (f"{lost[m].mean():+.1f} (n {m.sum()})" if m.any() else "(n 0)"))
   return "  ".join(parts)
 
 
 def band(values):
   values = np.asarray(values, dtype=np.float64)
+  if len(values) < 2:
+    return f"{values.mean():.3f} (one seed: no interval)"
   ci = stats.bootstrap((values,), np.mean, confidence_level=0.95, n_resamples=2000,
                        random_state=0).confidence_interval
   return f"{values.mean():.3f} [{ci.low:.3f}, {ci.high:.3f}]"
@@ -100,6 +166,8 @@ def main():
   p.add_argument("--task", default="ship_hybrid_beyond")
   p.add_argument("--helmsman", action="store_true",
                  help="also the scripted helmsman on the same root's targets")
+  p.add_argument("--rollouts", type=int, default=0, metavar="N",
+                 help="also the root's values against N rollouts per state")
   args = p.parse_args()
   first, last = (int(v) for v in args.seeds.split("-"))
   task = agents.load_task(args.task)
@@ -116,6 +184,8 @@ def main():
           f"calls {rows[-1][3]:.2f}  ({seconds:.0f} s)", flush=True)
     if args.helmsman:
       print("  " + helmsman_report(agent, fixed, record), flush=True)
+    if args.rollouts:
+      print("  " + rollout_report(agent, args.rollouts), flush=True)
   rows = np.array(rows)
   for k, name in enumerate(("gate passes", "steps to gate", "J", "calls")):
     print(f"{name:14s} {band(rows[:, k])}")

@@ -182,3 +182,25 @@ def test_greedy_episodes_agree_on_both_paths():
     stepwise = agent.run_stepwise(env, 1, learn=False, start=start)
     for field in ("passed", "steps", "calls", "return"):
       assert fused[field][0] == stepwise[field][0], field
+
+
+def test_the_route_script_diagnostics_run():
+  # scripts/beyond_route.py's --helmsman and --rollouts on a briefly trained agent:
+  # they use the agent's rules directly, so they break when those change.
+  import importlib.util
+  import pathlib
+  import re
+  path = pathlib.Path(__file__).resolve().parents[2] / "scripts" / "beyond_route.py"
+  spec = importlib.util.spec_from_file_location("beyond_route", path)
+  script = importlib.util.module_from_spec(spec)
+  spec.loader.exec_module(script)
+  agent = agents.build(agents.load_task("ship_hybrid_beyond"), seed=6)
+  agent.train(300)
+  fixed = script.beyond.route_starts(n=5)
+  record = agent.as_record(np.concatenate([agent.compiled(1, False, False, start=s)
+                                           for s in fixed]))
+  assert script.helmsman_report(agent, fixed, record).startswith("helmsman gate ")
+  line = script.rollout_report(agent, 1)
+  shares = [float(v) for v in re.findall(r"(\d+)%", line)]
+  assert len(shares) == 2 and all(0 <= v <= 100 for v in shares), line
+  assert "nan" not in line.split("loses")[1].split(";")[0], line
