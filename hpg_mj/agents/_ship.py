@@ -3,14 +3,13 @@ starts of the full task (drawn from the agent's generator, the same way on every
 path), and the gate metrics."""
 import dataclasses
 
-import numba
 import numpy as np
 
 from hpg_mj.agents import base
 from hpg_mj.agents import taskfile
 from hpg_mj.agents.taskfile import param
+from hpg_mj.hierarchy import ship_rules as rules
 from hpg_mj.worlds import ship_core as core
-from hpg_mj.learners import rng
 
 METRIC_WINDOW = 1000   # online metrics are over the last 1,000 episodes
 
@@ -73,13 +72,7 @@ class ShipEnvironment(taskfile.Section):
   max_steps: int = param(core.STEER_MAX_STEPS, "control steps, then truncated", low=1)
 
 
-@numba.njit(cache=True)
-def sample_start(rng_state, out):
-  """A start of the full task (SPEC section 2), drawn in the order x, y, theta, theta_dot."""
-  out[0] = rng.uniform_range(rng_state, 0.0, core.FIELD_SIZE)
-  out[1] = rng.uniform_range(rng_state, 0.0, core.FIELD_SIZE)
-  out[2] = core.wrap_deg(rng.uniform_range(rng_state, -180.0, 180.0))
-  out[3] = rng.uniform_range(rng_state, -core.MAX_TURN_RATE, core.MAX_TURN_RATE)
+sample_start = rules.sample_start   # the full task's start (SPEC section 2)
 
 
 class ShipAgent(base.Agent):

@@ -3,9 +3,10 @@ SPEC sections 2-3): a Q(lambda) root over eight directions on a 20 x 20 grid of
 50 m cells, and two shared low-level subtasks (diagonal, straight) that steer
 with a Gaussian-with-sigmoid CMAC policy learned by Eq. 3.
 
-Both paths work on the same arrays and call the same compiled rules: the fused
-loop over the analytic ship (`train`, Algorithm 1 unrolled for Figure 3's graph) and the task graph
-of Figure 3 run step by step through any ship environment (`graph`).
+The agent is its Config, Figure 3's graph of blocks (`graph`) and its metrics:
+`hierarchy.machine` runs the graph on both paths, fused with the analytic ship and
+step by step through any ship environment, with the same compiled functions.
+`run_low_level` is the patrol's (`ship_patrol`) until it moves onto the machine.
 """
 import collections
 import dataclasses
@@ -16,17 +17,16 @@ import numpy as np
 from hpg_mj.agents import _ship
 from hpg_mj.agents import taskfile
 from hpg_mj.agents.taskfile import param
-from hpg_mj.hierarchy import ship as ship_graph
+from hpg_mj.hierarchy import blocks
+from hpg_mj.hierarchy import machine as machine_mod
 from hpg_mj.hierarchy import ship_rules as rules
+from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
 from hpg_mj.learners import agents as learners
 from hpg_mj.learners import arrays
 from hpg_mj.learners import eligibility as el
-from hpg_mj.learners import jit
 from hpg_mj.learners import policies
-from hpg_mj.learners import qlambda
 from hpg_mj.learners import schedules
 from hpg_mj.learners import tiles
-from hpg_mj.learners import tiles as tiles_mod
 from hpg_mj.worlds import ship_core as core
 
 
@@ -43,8 +43,6 @@ Settings = collections.namedtuple("Settings", (
     "root_epsilon_divisor", "low_level_alpha", "low_level_trace_gamma", "low_level_baseline",
     "low_level_max_steps",
     "environment_max_steps", "environment_gate_reward", "environment_out_of_bounds_reward"))
-# The root's Q(lambda) table and trace; the epsilon schedule's arrays.
-RootTable = collections.namedtuple("RootTable", ("q", "index", "value", "count"))
 
 
 def settings(config):
@@ -77,7 +75,7 @@ def run_low_level(state, direction, low, low_values, tiling, s, learn, sample, r
   global_event = core.NO_EVENT
   local_event = core.NO_EVENT
   core.global_to_local(state, origin, direction, local_state)
-  tiles_mod.active_tiles(local_state, tiling, scratch_tiles)
+  tiles.active_tiles(local_state, tiling, scratch_tiles)
   while True:
     if sample:
       r = policies.gaussian_act(low, scratch_tiles, core.MAX_TURN_RATE, rng_state, scratch_psi)
@@ -97,7 +95,7 @@ def run_low_level(state, direction, low, low_values, tiling, s, learn, sample, r
     ended = (global_event != core.NO_EVENT or local_event != core.NO_EVENT
              or steps_before + k >= s.environment_max_steps)
     if not ended:       # the next state, already local (`low_level_outcome`), and its tiles
-      tiles_mod.active_tiles(local_state, tiling, scratch_next)
+      tiles.active_tiles(local_state, tiling, scratch_next)
     if learn:                                          # Eq. 3 with R + G
       el.learn(low, s.low_level_alpha, core.STEP_REWARD + internal, s.low_level_trace_gamma)
       if beta != 0.0:
@@ -107,85 +105,6 @@ def run_low_level(state, direction, low, low_values, tiling, s, learn, sample, r
     if ended:
       return global_event, local_event, reward_root, k
     arrays.copy_into(scratch_tiles, scratch_next)
-
-
-# error_model="numpy": no raising branch on division, less reference counting (learners.policies).
-@numba.njit(cache=True, error_model="numpy")
-def train(n_episodes, learn, sample, rng_state, root, schedule, diagonal, diagonal_values,
-          straight, straight_values, tiling, s, record, fixed_start):
-  """Trains for `n_episodes` episodes (Algorithm 1 over Figure 3's graph); with
-  learn=False it only runs the policy, sampling it (sample=True) or greedily
-  (sample=False: epsilon 0, u = m).
-
-  `root` is the root's `RootTable`, `schedule` the epsilon schedule's arrays
-  (`schedules.new_schedule`), `diagonal` and `straight` the subtasks' Eq. 3
-  traces over `tiling` (and their baselines' values), `s` the `Settings`. `record` (n_episodes, N_RECORD)
-  receives one row per episode. With `fixed_start` of length 4, every episode
-  starts there instead of at random.
-  """
-  eps_state, outcomes, counts = schedule
-  state = np.empty(4)
-  samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
-  n_tilings = tiling.offsets.shape[0]
-  scratch = (np.empty(n_tilings, dtype=np.int64), np.empty(n_tilings),
-             np.empty(n_tilings, dtype=np.int64), samples, np.empty_like(samples), np.empty(4),
-             np.empty(2))
-  for episode in range(n_episodes):
-    if fixed_start.shape[0] == 4:
-      arrays.copy_into(state, fixed_start)
-    else:
-      _ship.sample_start(rng_state, state)
-    qlambda.clear(root.count)
-    steps = np.int64(0)                  # not the literal 0: run_low_level would compile twice
-    total = 0.0
-    cell = rules.root_cell(state[0], state[1])
-    epsilon = eps_state[0] if sample else 0.0
-    a = qlambda.epsilon_greedy(root.q, cell, rules.N_DIRECTIONS, epsilon, rng_state)
-    row = record[episode]
-    row[:] = 0.0
-    while True:
-      sub = rules.subtask_of(a)
-      low, low_values = ((diagonal, diagonal_values) if sub == rules.DIAGONAL else
-                         (straight, straight_values))
-      g_event, l_event, reward, k = run_low_level(state, a, low, low_values, tiling, s, learn,
-                                                  sample, rng_state, steps, scratch)
-      if g_event == core.NO_EVENT and steps + k < s.environment_max_steps:
-        success = l_event == core.SUCCESS
-        if sub == rules.DIAGONAL:
-          row[DIAG_RUNS] += 1
-          row[DIAG_SUCCESS] += success
-        else:
-          row[STRAIGHT_RUNS] += 1
-          row[STRAIGHT_SUCCESS] += success
-        if learn:
-          schedules.record_run(outcomes, counts, sub, success)
-      steps += k
-      total += reward
-      row[CALLS] += 1
-      terminal = g_event != core.NO_EVENT
-      truncated = (not terminal) and steps >= s.environment_max_steps
-      next_cell = rules.root_cell(state[0], state[1])
-      over = terminal or truncated
-      # One call site of `qlambda.update` for both cases (a literal 0 or False
-      # argument would compile a second specialization); no draw when the episode is over.
-      a_next = 0
-      if not over:
-        a_next = qlambda.epsilon_greedy(root.q, next_cell, rules.N_DIRECTIONS, epsilon, rng_state)
-      if learn:
-        qlambda.update(root.q, rules.N_DIRECTIONS, root.index, root.value, root.count, cell, a,
-                       reward, next_cell, a_next, terminal, s.root_alpha, 1.0, s.root_trace_decay)
-      if over:
-        if learn:
-          qlambda.clear(root.count)
-        break
-      cell = next_cell
-      a = a_next
-    row[PASSED] = g_event == core.SUCCESS
-    row[STEPS] = steps
-    row[RETURN] = total
-    if learn:
-      schedules.end_episode(eps_state, outcomes, counts, s.root_epsilon_threshold,
-                            s.root_epsilon_every, s.root_epsilon_divisor)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -226,8 +145,28 @@ class Config:
   low_level: LowLevel = dataclasses.field(default_factory=LowLevel)
 
 
+def low_level_parts(config):
+  """The hybrid's tiles, its two subtasks' Eq. 3 learners and its epsilon schedule as
+  separate arrays, for the patrol's own loop (`ship_patrol`, which runs
+  `run_low_level` until it moves onto `hierarchy.machine`)."""
+  root, low = config.root, config.low_level
+  coder = _coder(low)
+  schedule = schedules.new_schedule(root.epsilon, root.epsilon_window)
+  learners_ = [learners.GaussianPolicyGradient(coder.size, low.tilings, core.MAX_TURN_RATE,
+                                               low.alpha, low.trace_gamma, baseline=low.baseline)
+               for _ in (rules.DIAGONAL, rules.STRAIGHT)]
+  return coder.arrays(), learners_, schedule
+
+
+def _coder(low):
+  """The CMAC of the local frame (SPEC section 3) with [low_level]'s tiles."""
+  return tiles.TileCoder((0.0, 0.0, -180.0, -core.MAX_TURN_RATE),
+                         (core.LOCAL_SIZE, core.LOCAL_SIZE, 180.0, core.MAX_TURN_RATE),
+                         tuple(low.tiles), (False, False, True, False), low.tilings)
+
+
 class ShipHybrid(_ship.ShipAgent):
-  """The learners of the ship hierarchy and both ways of training them."""
+  """Figure 3's graph of blocks, run by `hierarchy.machine` on both paths."""
 
   name = "ship_hybrid"
   Config = Config
@@ -237,91 +176,112 @@ class ShipHybrid(_ship.ShipAgent):
   def __init__(self, config=None, seed=0, task=None):
     super().__init__(config, seed, task)
     root, low = self.config.root, self.config.low_level
-    self.coder = tiles.TileCoder((0.0, 0.0, -180.0, -core.MAX_TURN_RATE),
-                                 (core.LOCAL_SIZE, core.LOCAL_SIZE, 180.0, core.MAX_TURN_RATE),
-                                 tuple(low.tiles), (False, False, True, False), low.tilings)
-    self.tile_arrays = self.coder.arrays()
-    self.schedule, self.outcomes, self.counts = schedules.new_schedule(root.epsilon,
-                                                                   root.epsilon_window)
-    self.root = learners.QLambda(rules.ROOT_GRID ** 2, rules.N_DIRECTIONS, root.alpha,
-                                 root.trace_decay, epsilon_source=lambda: self.schedule[0])
-    self.low = [learners.GaussianPolicyGradient(self.coder.size, low.tilings, core.MAX_TURN_RATE,
-                                                low.alpha, low.trace_gamma,
-                                                baseline=low.baseline)
+    self.coder = _coder(low)
+    self.root = blocks.QTable(rules.ROOT_GRID ** 2, alpha=root.alpha,
+                              trace_decay=root.trace_decay, epsilon=root.epsilon,
+                              epsilon_schedule=True)
+    self.low = [blocks.GaussianCMAC(self.coder, low.alpha, low.trace_gamma, low.baseline,
+                                    core.MAX_TURN_RATE)
                 for _ in (rules.DIAGONAL, rules.STRAIGHT)]
-    self._learn = True
+    self._machine = None
+
+  def graph(self):
+    """Figure 3 (SPEC section 3): the root over 50 m cells calls, for each of eight
+    directions, the diagonal or the straight subtask in its local frame."""
+    root, low = self.config.root, self.config.low_level
+
+    def subtask(name, learner):
+      return Subtask(name, children=["turn"], learner=learner,
+                     view=blocks.LocalTiles(self.coder),
+                     termination=blocks.LocalGoal(low.max_steps),
+                     internal_reward=blocks.Shaping(), reward=blocks.STEP)  # only the -1s
+
+    return TaskGraph("root", [
+        Subtask("root", learner=self.root, view=blocks.GridCell(rules.ROOT_CELL_M, rules.ROOT_GRID),
+                termination=blocks.Never(),
+                children=[Child("diagonal" if d % 2 else "straight", direction=d)
+                          for d in range(rules.N_DIRECTIONS)]),
+        subtask("diagonal", self.low[rules.DIAGONAL]),
+        subtask("straight", self.low[rules.STRAIGHT]),
+        Primitive("turn"),          # the turning rate r, drawn by the low level
+    ], schedule=blocks.HeldEpsilon(root.epsilon, ("diagonal", "straight"),
+                                   root.epsilon_threshold, root.epsilon_window,
+                                   root.epsilon_every, root.epsilon_divisor))
+
+  @property
+  def machine(self):
+    """The compiled machine over `graph()` (built when first needed, so that a
+    subclass's graph is the one it runs)."""
+    if self._machine is None:
+      self._machine = machine_mod.Machine(self.graph())
+    return self._machine
 
   def state(self):
-    out = {"rng_state": self.rng_state, "root_q": self.root.q,
-           "root_trace_index": self.root.index, "root_trace_value": self.root.value,
-           "root_trace_count": self.root.count, "epsilon_schedule": self.schedule,
-           "subtask_outcomes": self.outcomes, "subtask_counts": self.counts}
+    m = self.machine
+    out = {"rng_state": self.rng_state}
+    q, index, value, count = m.q_arrays(self.root)
+    out.update({"root_q": q, "root_trace_index": index, "root_trace_value": value,
+                "root_trace_count": count})
+    eps, outcomes, counts = m.epsilon_schedule
+    out.update({"epsilon_schedule": eps, "subtask_outcomes": outcomes,
+                "subtask_counts": counts})
     for name, learner in (("diagonal", self.low[0]), ("straight", self.low[1])):
-      for key, value in learner.trace._asdict().items():
+      if id(learner) not in m._slot_of:
+        continue
+      trace, values = m.gaussian_arrays(learner)
+      for key, value in trace._asdict().items():
         out[f"{name}_{key}"] = value
-      out[f"{name}_baseline"] = learner.values
+      out[f"{name}_baseline"] = values
     return out
 
   def parameters(self):
     """Root Q-values and both low-level weight vectors (pending updates applied)."""
-    return {"root_q": self.root.parameters(),
-            "diagonal_w": self.low[rules.DIAGONAL].parameters(),
-            "straight_w": self.low[rules.STRAIGHT].parameters()}
+    m = self.machine
+    return {"root_q": m.q_arrays(self.root)[0].copy(),
+            "diagonal_w": el.parameters(m.gaussian_arrays(self.low[rules.DIAGONAL])[0]),
+            "straight_w": el.parameters(m.gaussian_arrays(self.low[rules.STRAIGHT])[0])}
 
-  # ---- the compiled path ---------------------------------------------------------
+  def baselines(self):
+    """The two subtasks' baseline values b over their tiles."""
+    return [self.machine.gaussian_arrays(low)[1] for low in self.low]
+
+  def low_arrays(self):
+    """(diagonal trace, its baseline, straight trace, its baseline): the live arrays."""
+    m = self.machine
+    return (*m.gaussian_arrays(self.low[rules.DIAGONAL]),
+            *m.gaussian_arrays(self.low[rules.STRAIGHT]))
+
+  # ---- both paths: the machine ----------------------------------------------------
 
   def compiled(self, episodes, learn, sample, start=None):
-    rows = np.zeros((episodes, N_RECORD))
-    fixed = np.empty(0) if start is None else np.array(start, dtype=np.float64)
-    jit.compile_first(train, self._rules_bottom_up)
-    train(episodes, learn, sample, self.rng_state,
-          RootTable(self.root.q, self.root.index, self.root.value, self.root.count),
-          (self.schedule, self.outcomes, self.counts),
-          self.low[rules.DIAGONAL].trace, self.low[rules.DIAGONAL].values,
-          self.low[rules.STRAIGHT].trace, self.low[rules.STRAIGHT].values, self.tile_arrays,
-          settings(self.config), rows, fixed)
-    return rows
+    env = self.config.environment
+    rows = self.machine.run(episodes, learn, sample, self.rng_state,
+                            (env.gate_reward, env.out_of_bounds_reward, env.max_steps), start)
+    return self._record_rows(rows)
 
-  def _rules_bottom_up(self):
-    """`run_low_level`, which `train` calls, with arguments of the types it calls it
-    with (`learners.jit.compile_first`; see `taxi_maxq.MAXQTables`)."""
-    n_tilings = self.tile_arrays.offsets.shape[0]
-    samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
-    scratch = (np.empty(n_tilings, dtype=np.int64), np.empty(n_tilings),
-               np.empty(n_tilings, dtype=np.int64), samples, np.empty_like(samples),
-               np.empty(4), np.empty(2))
-    low = self.low[rules.DIAGONAL]
-    return [(run_low_level, (np.empty(4), np.int64(0), low.trace, low.values,
-                             self.tile_arrays, settings(self.config), False, False,
-                             self.rng_state, np.int64(0), scratch))]
-
-  # ---- the step-by-step path -----------------------------------------------------
-
-  def graph(self):
-    return ship_graph.ship_graph(self.root, self.low, self.tile_arrays,
-                                 self.config.low_level.max_steps, on_run=self._on_run,
-                                 on_episode_end=self._on_episode_end)
-
-  def _on_run(self, subtask, success, episode_over):
-    """A low-level call returned: count it in the record (and, learning, in the
-    schedule's window); a call cut by the end of the episode is no run."""
-    self.row[self.record_fields.index("calls")] += 1
-    if episode_over:
-      return
-    name = "diagonal" if subtask == rules.DIAGONAL else "straight"
-    self.row[self.record_fields.index(f"{name}_runs")] += 1
-    self.row[self.record_fields.index(f"{name}_successes")] += success
-    if self._learn:
-      schedules.record_run(self.outcomes, self.counts, subtask, success)
-
-  def _on_episode_end(self, last_step, learn):
+  def run_stepwise(self, env, episodes, learn=True, sample=None, start=None, on_call=None):
+    rows = machine_mod.run_stepwise(self.machine, env, episodes, learn, sample, self.rng_state,
+                                    lambda: self.start_state() if start is None else start,
+                                    passed=lambda info: info.get("event") == "gate")
     if learn:
-      root = self.config.root
-      schedules.end_episode(self.schedule, self.outcomes, self.counts, root.epsilon_threshold,
-                        root.epsilon_every, root.epsilon_divisor)
+      self.episodes += int(episodes)
+    return self.as_record(self._record_rows(rows))
 
-  def begin_episode(self, learn):
-    self._learn = learn
+  def _record_rows(self, rows):
+    """The machine's rows (passed, steps, return, per node calls, runs, successes) as
+    this agent's record: a subtask's run is a call it ended itself."""
+    m = self.machine
+    out = np.zeros((rows.shape[0], len(self.record_fields)))
+    out[:, PASSED], out[:, STEPS], out[:, RETURN] = rows[:, 0], rows[:, 1], rows[:, 2]
+    for name in m.names[:-1]:
+      if name in ("diagonal", "straight"):
+        col = 3 + 3 * m.index[name]
+        out[:, CALLS] += rows[:, col + machine_mod.CALLS]
+        runs, successes = ((DIAG_RUNS, DIAG_SUCCESS) if name == "diagonal" else
+                           (STRAIGHT_RUNS, STRAIGHT_SUCCESS))
+        out[:, runs] = rows[:, col + machine_mod.RUNS]
+        out[:, successes] = rows[:, col + machine_mod.SUCCESSES]
+    return out
 
   # ---- metrics ------------------------------------------------------------------
 

@@ -295,15 +295,9 @@ class ShipPatrol(_ship.ShipAgent):
   def __init__(self, config=None, seed=0, task=None):
     super().__init__(config, seed, task)
     # The hybrid's tiles, subtasks and epsilon schedule; the root is replaced.
-    self._parts = hybrid.ShipHybrid(hybrid.Config(low_level=self.config.low_level,
-                                                  root=hybrid.Root(
-                                                      epsilon=self.config.root.epsilon,
-                                                      epsilon_window=self.config.root.epsilon_window)),
-                                    seed=seed)
-    self.tile_arrays = self._parts.tile_arrays
-    self.low = self._parts.low
-    self.schedule, self.outcomes = self._parts.schedule, self._parts.outcomes
-    self.counts = self._parts.counts
+    self.tile_arrays, self.low, (self.schedule, self.outcomes, self.counts) = \
+        hybrid.low_level_parts(hybrid.Config(low_level=self.config.low_level, root=hybrid.Root(
+            epsilon=self.config.root.epsilon, epsilon_window=self.config.root.epsilon_window)))
     root = self.config.root
     side = 2.0 * root.near_gate_m / root.near_gate_cell_m
     if abs(side - round(side)) > 1e-9:
@@ -537,10 +531,8 @@ class ShipPatrol(_ship.ShipAgent):
       scripted(int(hours), self.record_steps, rng_state, ship, env.gate_reward,
                env.out_of_bounds_reward, rows)
     elif kind == "episodic":
-      low = (other.low[rules.DIAGONAL].trace, other.low[rules.DIAGONAL].values,
-             other.low[rules.STRAIGHT].trace, other.low[rules.STRAIGHT].values)
-      rows = self.sail(hours, False, False, ship, rng_state, q=other.root.parameters(), low=low,
-                       heading_sectors=1)
+      rows = self.sail(hours, False, False, ship, rng_state, q=other.parameters()["root_q"],
+                       low=other.low_arrays(), heading_sectors=1)
     else:
       rows = self.sail(hours, False, False, ship, rng_state)
     return self.as_record(rows)

@@ -103,8 +103,9 @@ class TaskGraph:
   """A validated hierarchy: every child exists, there is no cycle, every
   subtask has a termination, a view and a learner."""
 
-  def __init__(self, root: str, nodes: Sequence, on_episode_end=None):
+  def __init__(self, root: str, nodes: Sequence, on_episode_end=None, schedule=None):
     self.root = root
+    self.schedule = schedule         # a graph-wide exploration schedule (blocks.HeldEpsilon)
     self.nodes = {}
     for node in nodes:
       if not isinstance(node, (Subtask, Primitive)):

@@ -7,6 +7,7 @@ subtasks' and the full task's outcomes are the world's (`worlds.ship_core`).
 """
 import numba
 
+from hpg_mj.learners import rng
 from hpg_mj.worlds import ship_core as core
 
 ROOT_CELL_M = 50.0            # the root's 20 x 20 grid of 50 m cells
@@ -23,6 +24,15 @@ def root_cell(x, y):
   i = min(max(int(x // ROOT_CELL_M), 0), ROOT_GRID - 1)
   j = min(max(int(y // ROOT_CELL_M), 0), ROOT_GRID - 1)
   return i * ROOT_GRID + j
+
+
+@numba.njit(cache=True)
+def sample_start(rng_state, out):
+  """A start of the full task (SPEC section 2), drawn in the order x, y, theta, theta_dot."""
+  out[0] = rng.uniform_range(rng_state, 0.0, core.FIELD_SIZE)
+  out[1] = rng.uniform_range(rng_state, 0.0, core.FIELD_SIZE)
+  out[2] = core.wrap_deg(rng.uniform_range(rng_state, -180.0, 180.0))
+  out[3] = rng.uniform_range(rng_state, -core.MAX_TURN_RATE, core.MAX_TURN_RATE)
 
 
 @numba.njit(cache=True)

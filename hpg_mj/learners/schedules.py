@@ -12,12 +12,12 @@ import numpy as np
 
 
 # The held schedule's state: float64[4] = [epsilon, triggered,
-# episodes since triggered, unused]; outcomes: int8[2, window] ring buffers,
-# counts: int64[2, 2] = [runs recorded, next slot] per subtask.
+# episodes since triggered, unused]; outcomes: int8[watched, window] ring buffers,
+# counts: int64[watched, 2] = [runs recorded, next slot] per watched subtask.
 
-def new_schedule(epsilon=0.1, window=1000):
-  return (np.array([epsilon, 0.0, 0.0, 0.0]), np.zeros((2, window), dtype=np.int8),
-          np.zeros((2, 2), dtype=np.int64))
+def new_schedule(epsilon=0.1, window=1000, watched=2):
+  return (np.array([epsilon, 0.0, 0.0, 0.0]), np.zeros((watched, window), dtype=np.int8),
+          np.zeros((watched, 2), dtype=np.int64))
 
 
 @numba.njit(cache=True)
@@ -36,7 +36,7 @@ def end_episode(schedule, outcomes, counts, threshold, every, divisor):
   window = outcomes.shape[1]
   if schedule[1] == 0.0:
     ready = True
-    for k in range(2):
+    for k in range(outcomes.shape[0]):
       if counts[k, 0] < window:
         ready = False
       else:

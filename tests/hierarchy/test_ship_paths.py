@@ -4,7 +4,6 @@ import dataclasses
 import gymnasium
 import numpy as np
 import pytest
-import compile_order
 
 import hpg_mj  # noqa: F401
 from hpg_mj import suite
@@ -29,9 +28,9 @@ def test_stepwise_and_compiled_give_identical_parameters(baseline):
     assert np.any(pa[name] != 0.0)
   np.testing.assert_array_equal(stepwise.rng_state, compiled.rng_state)
   assert stepwise.episodes == compiled.episodes == 200
-  for a_low, b_low in zip(stepwise.low, compiled.low):
-    np.testing.assert_array_equal(a_low.values, b_low.values)
-    assert np.any(a_low.values != 0.0) == (baseline != 0.0)
+  for a_values, b_values in zip(stepwise.baselines(), compiled.baselines()):
+    np.testing.assert_array_equal(a_values, b_values)
+    assert np.any(a_values != 0.0) == (baseline != 0.0)
 
 
 def test_stepwise_through_dm_control_on_the_mujoco_ship():
@@ -43,14 +42,3 @@ def test_stepwise_through_dm_control_on_the_mujoco_ship():
   # A fixed start is honoured and the gate is recognised through dm_control.
   record = agent.run_stepwise(env, 1, learn=False, start=[400.0, 380.0, 0.0, 0.0])
   assert record["passed"][0] == 1.0
-
-
-def test_run_low_level_compiled_first_has_trains_types(tmp_path):
-  """The hybrid compiles `run_low_level` before `train` (`learners.jit.compile_first`),
-  for the types `train` calls it with: with an empty numba cache it compiles once."""
-  compile_order.assert_each_compiles_once(tmp_path, """
-from hpg_mj import agents
-agent = agents.build(agents.load_task("ship_hybrid"), seed=0)
-agent.run(3)
-listed = agent._rules_bottom_up()
-""")

@@ -1,0 +1,111 @@
+"""The building blocks of a compiled task graph (`hpg_mj.hierarchy.machine`).
+
+A `Subtask` of `hpg_mj.hierarchy.graph` whose learner, view, termination and
+internal reward are blocks from this module is data: the machine turns the
+graph into arrays and runs it with one compiled implementation of Algorithm 1,
+fused with a compiled world or step by step under any environment.
+
+Learners (a closed set of kinds; one instance may serve several nodes, which then
+share its parameters):
+
+  QTable(n_states, alpha, trace_decay, epsilon, ...)
+      Watkins's Q(lambda) over an SMDP with replacing traces (SPEC section 3),
+      epsilon-greedy; `epsilon_schedule=True` reads epsilon from the graph's
+      `HeldEpsilon` instead of its own constant.
+  GaussianCMAC(coder, alpha, trace_gamma, baseline, r_max)
+      Eq. 3 with a Gaussian-with-sigmoid policy over a CMAC (SPEC section 3),
+      optionally with a baseline b(s) over the same tiles; its node's only child
+      is a continuous primitive (the value it draws is the action).
+
+Views (what a node's learner sees of the world's state):
+
+  GridCell(cell_m, grid)       the (x, y) cell of a grid over the field
+  LocalTiles(coder)            the ship's state in the call's local 150 m frame
+                               (origin: where it was called; rotation: the
+                               `direction` argument of its `Child`), as CMAC tiles
+
+Terminations and internal rewards:
+
+  Never()                      the node ends only with the episode (a root)
+  LocalGoal(max_steps)         the ship's local subtask (SPEC section 3): its goal
+                               within 10 m, its frame left, or max_steps control
+                               steps; with `internal_reward=Shaping()` its G is the
+                               heading shaping and the local +100 / -100
+
+Rewards a node's learner sees: `reward=SUMMED` (the rewards of the child's run
+summed: the root's R) or `reward=STEP` (-1 a primitive step: the low level's R,
+SPEC section 3).
+
+The graph-wide epsilon schedule: `HeldEpsilon(epsilon, watch, threshold, window,
+every, divisor)` (`learners.schedules`): held until every watched node succeeds in
+`threshold` of its last `window` runs, then divided by `divisor` every `every`
+episodes.
+"""
+import dataclasses
+
+from hpg_mj.learners import tiles as tiles_mod
+
+SUMMED = "summed"
+STEP = "step"
+
+
+@dataclasses.dataclass(eq=False)
+class QTable:
+  """Watkins's Q(lambda) on a table of `n_states` states x the node's children."""
+  n_states: int
+  alpha: float = 0.1
+  trace_decay: float = 0.9
+  epsilon: float = 0.1
+  gamma: float = 1.0
+  epsilon_schedule: bool = False
+  trace_capacity: int = 4096
+
+
+@dataclasses.dataclass(eq=False)
+class GaussianCMAC:
+  """Eq. 3 with a Gaussian-with-sigmoid policy over `coder`'s tiles."""
+  coder: tiles_mod.TileCoder
+  alpha: float = 0.01
+  trace_gamma: float = 1.0
+  baseline: float = 0.0
+  r_max: float = 15.0
+
+
+@dataclasses.dataclass(frozen=True)
+class GridCell:
+  """The cell i * grid + j of (x, y) on a grid of `cell_m` cells, clamped to it."""
+  cell_m: float = 50.0
+  grid: int = 20
+
+
+@dataclasses.dataclass(eq=False)
+class LocalTiles:
+  """The ship's state in the call's local frame, coded by `coder`."""
+  coder: tiles_mod.TileCoder
+
+
+@dataclasses.dataclass(frozen=True)
+class Never:
+  """Ends only with the episode."""
+
+
+@dataclasses.dataclass(frozen=True)
+class LocalGoal:
+  """The ship's local subtask's end: success, frame left, or `max_steps` steps."""
+  max_steps: int = 300
+
+
+@dataclasses.dataclass(frozen=True)
+class Shaping:
+  """G: the heading shaping and the local +100 / -100 (SPEC section 3)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class HeldEpsilon:
+  """The root's epsilon schedule (SPEC section 3), watching the named nodes' runs."""
+  epsilon: float = 0.1
+  watch: tuple = ()
+  threshold: float = 0.8
+  window: int = 1000
+  every: int = 50
+  divisor: float = 1.01

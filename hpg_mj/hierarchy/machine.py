@@ -1,0 +1,631 @@
+"""One compiled Algorithm 1 for any task graph built from blocks (`hierarchy.blocks`).
+
+A task graph whose subtasks' learners, views, terminations and internal rewards
+are blocks is data: `Machine(graph)` turns it into arrays (the node table, each
+learner kind's parameters stacked in one bank, the call stack) and the compiled
+functions below run it. The same functions serve both paths:
+
+* fused with a compiled world (`Machine.run`, the analytic ship): the world's
+  step and the machine's `step` alternate inside one compiled loop;
+* resumable under any environment (`Machine.run_stepwise`, `Machine.begin` and
+  `Machine.advance(obs, reward, terminated, truncated, info) -> action`): the
+  environment steps in Python and the machine takes each outcome,
+
+so a graph gives the same numbers bit for bit on both, and a user's graph trains
+at the shipped agents' speed. The call stack is explicit (arrays indexed by
+depth), which is what makes the machine resumable after every primitive step.
+
+Algorithm 1 of the paper, line by line:
+
+```
+Function HPG(Task i, State s)                         -> call(d, node, arg, obs)
+  if i is primitive: execute it, return its reward    -> descend() returns the action;
+                                                         the world / environment steps
+  while i has not terminated:                         -> step(): _end_of(d) ... done
+    choose a with mu^i(s, theta^i)                    -> _choose(d): act (draws, and
+                                                         z <- z + psi for Eq. 3)
+    R = HPG(Task a, State s)                          -> rewards summed per level
+                                                         (stack REWARD) until a returns
+    observe s' and internal reward G^i(s'|s, a)       -> _end_of(d): event and G
+    z, theta updates (Eq. 3)                          -> _observe(d, R + G)
+```
+
+Every subtask also returns when the episode ends (terminated or truncated).
+A subtask's *run* is a call that ended by its own termination; a call cut short
+by the end of the episode is counted as a call but no run (`counters`).
+"""
+import collections
+
+import numba
+import numpy as np
+
+from hpg_mj.hierarchy import blocks
+from hpg_mj.hierarchy import ship_rules
+from hpg_mj.hierarchy.graph import Child, GraphError, Primitive, Subtask
+from hpg_mj.learners import arrays
+from hpg_mj.learners import eligibility as el
+from hpg_mj.learners import policies
+from hpg_mj.learners import qlambda
+from hpg_mj.learners import schedules
+from hpg_mj.learners import tiles as tiles_mod
+from hpg_mj.worlds import ship_core as core
+
+# ---- the graph as arrays --------------------------------------------------------
+
+# Node kinds, learner kinds, views, ends, internal rewards, rewards seen.
+PRIMITIVE, SUBTASK = 0, 1
+NO_LEARNER, Q_TABLE, GAUSSIAN_CMAC = 0, 1, 2
+NO_VIEW, VIEW_GRID_CELL, VIEW_LOCAL_TILES = 0, 1, 2
+END_NEVER, END_LOCAL_GOAL = 0, 1
+G_NONE, G_SHAPING = 0, 1
+SEEN_SUMMED, SEEN_STEP = 0, 1
+
+# Columns of the node table (int64[n_nodes, N_INT]).
+(KIND, LEARNER, SLOT, VIEW, VIEW_SLOT, END, INTERNAL, SEEN, MAX_STEPS, FIRST_CHILD,
+ N_CHILDREN, WATCH, EPS_SCHEDULE) = range(13)
+N_INT = 13
+# Columns of the node parameters (float64[n_nodes, N_FLOAT]).
+ALPHA, DECAY, GAMMA, BETA, R_MAX, EPSILON, CELL_M, GRID, ACTION = range(9)
+N_FLOAT = 9
+# Columns of the per-node counters of an episode (float64[n_nodes, 3]).
+CALLS, RUNS, SUCCESSES = range(3)
+
+Program = collections.namedtuple("Program", ("nodes", "params", "children"))
+# Each learner kind's parameters, one row per learner (slot).
+QBank = collections.namedtuple("QBank", ("q", "index", "value", "count"))
+GaussianBank = collections.namedtuple("GaussianBank", ("theta", "zs", "y", "touched", "marked",
+                                                       "count", "acc", "values"))
+TileBank = collections.namedtuple("TileBank", ("low", "width", "n_tiles", "wrap", "offsets",
+                                               "n_tilings"))
+# The epsilon schedule (`learners.schedules`): its arrays and [threshold, every, divisor].
+Schedule = collections.namedtuple("Schedule", ("epsilon", "outcomes", "counts", "settings"))
+# The call stack and the episode: per depth d the node, its choice, its argument, its
+# steps, the steps of its current child's run, its state (a table's) and the next;
+# the reward of the current child's run, the action value chosen; the call's origin;
+# its tiles (current, next) and score; the episode's [depth, steps], [return],
+# per-node counters; scratch of the local frame.
+(S_NODE, S_CHOICE, S_ARG, S_STEPS, S_CHILD_STEPS, S_STATE, S_NEXT_STATE) = range(7)
+F_REWARD, F_ACTION = range(2)
+Stack = collections.namedtuple("Stack", ("ints", "floats", "origin", "tiles", "psi", "episode",
+                                         "total", "counters", "local", "local_samples"))
+E_DEPTH, E_STEPS = range(2)
+Banks = collections.namedtuple("Banks", ("program", "q", "gaussian", "tiling", "schedule",
+                                         "stack"))
+
+
+# ---- the compiled machine -------------------------------------------------------
+
+@numba.njit(cache=True, inline="always")
+def _trace(g, slot):
+  """The Eq. 3 trace of Gaussian learner `slot` (views of its bank's rows)."""
+  return el.Trace(g.theta[slot], g.zs[slot], g.y[slot], g.touched[slot], g.marked[slot],
+                  g.count[slot], g.acc[slot])
+
+
+@numba.njit(cache=True, inline="always")
+def _tiling(t, slot):
+  k = t.n_tilings[slot]
+  return tiles_mod.Tiling(t.low[slot], t.width[slot], t.n_tiles[slot], t.wrap[slot],
+                          t.offsets[slot, :k])
+
+
+@numba.njit(cache=True, inline="always")
+def grid_cell(x, y, cell_m, grid):
+  """The cell i * grid + j of (x, y) on a grid of `cell_m` cells, clamped to it."""
+  i = min(max(int(x // cell_m), 0), grid - 1)
+  j = min(max(int(y // cell_m), 0), grid - 1)
+  return i * grid + j
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _view(P, Q, G, T, S, K, d, obs, which):
+  """The node at depth d views `obs`: a table's state into S_STATE (which = 0) or
+  S_NEXT_STATE (1); tiles into its tiles[d, which]."""
+  node = K.ints[d, S_NODE]
+  row = P.nodes[node]
+  kind = row[VIEW]
+  if kind == VIEW_GRID_CELL:
+    p = P.params[node]
+    K.ints[d, S_STATE + which] = grid_cell(obs[0], obs[1], p[CELL_M], np.int64(p[GRID]))
+  elif kind == VIEW_LOCAL_TILES:
+    tiling = _tiling(T, row[VIEW_SLOT])
+    local = K.local
+    core.global_to_local(obs, K.origin[d], K.ints[d, S_ARG], local)
+    tiles_mod.active_tiles(local, tiling, K.tiles[d, which, :tiling.offsets.shape[0]])
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _choose(P, Q, G, T, S, K, d, learn, sample, rng_state):
+  """Algorithm 1: choose a with mu^i(s, theta^i); sets the stack's choice and action."""
+  node = K.ints[d, S_NODE]
+  row = P.nodes[node]
+  p = P.params[node]
+  slot = row[SLOT]
+  if row[LEARNER] == Q_TABLE:
+    epsilon = 0.0
+    if sample:
+      epsilon = S.epsilon[0] if row[EPS_SCHEDULE] else p[EPSILON]
+    K.ints[d, S_CHOICE] = qlambda.epsilon_greedy(Q.q[slot], K.ints[d, S_STATE],
+                                                       row[N_CHILDREN], epsilon, rng_state)
+  elif row[LEARNER] == GAUSSIAN_CMAC:
+    k = T.n_tilings[row[VIEW_SLOT]]
+    tiles = K.tiles[d, 0, :k]
+    g = G
+    trace = _trace(g, slot)
+    if sample:
+      psi = K.psi[d, :k]
+      K.floats[d, F_ACTION] = policies.gaussian_act(trace, tiles, p[R_MAX], rng_state, psi)
+      if learn and p[BETA] != 0.0:
+        policies.subtract_baseline(g.theta[slot], g.values[slot], tiles, p[ALPHA], psi)
+    else:
+      K.floats[d, F_ACTION] = policies.gaussian_greedy(trace, tiles, p[R_MAX])
+    K.ints[d, S_CHOICE] = 0
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _call(P, Q, G, T, S, K, d, node, arg, obs, learn, sample, rng_state):
+  """Task `node` is called at depth d with `arg` from `obs`: z <- 0, its view, its
+  first choice."""
+  ints = K.ints
+  ints[d, S_NODE] = node
+  ints[d, S_ARG] = arg
+  ints[d, S_STEPS] = 0
+  ints[d, S_CHILD_STEPS] = 0
+  K.floats[d, F_REWARD] = 0.0
+  K.origin[d, 0] = obs[0]
+  K.origin[d, 1] = obs[1]
+  row = P.nodes[node]
+  if row[LEARNER] == Q_TABLE:
+    qlambda.clear(Q.count[row[SLOT]])
+  elif row[LEARNER] == GAUSSIAN_CMAC:
+    el.reset(_trace(G, row[SLOT]))                  # Eq. 3: z <- 0
+  _view(P, Q, G, T, S, K, d, obs, 0)
+  _choose(P, Q, G, T, S, K, d, learn, sample, rng_state)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _descend(P, Q, G, T, S, K, d, obs, learn, sample, rng_state):
+  """From depth d, calls the chosen children down to a primitive; returns the
+  primitive's action (a continuous one: the value its parent drew)."""
+  ints = K.ints
+  nodes = P.nodes
+  while True:
+    node = ints[d, S_NODE]
+    child = P.children[nodes[node, FIRST_CHILD] + ints[d, S_CHOICE]]
+    if nodes[child[0], KIND] == PRIMITIVE:
+      K.episode[E_DEPTH] = d
+      if P.params[child[0], ACTION] != P.params[child[0], ACTION]:
+        return K.floats[d, F_ACTION]          # continuous: NaN marks it
+      return P.params[child[0], ACTION]
+    d += 1
+    _call(P, Q, G, T, S, K, d, child[0], child[1], obs, learn, sample, rng_state)
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def begin(P, Q, G, T, S, K, obs, learn, sample, rng_state):
+  """An episode starts at `obs`: the root is called; returns the first action."""
+  c = K.counters
+  for i in range(c.shape[0]):
+    for j in range(c.shape[1]):
+      c[i, j] = 0.0
+  K.episode[E_STEPS] = 0
+  K.total[0] = 0.0
+  _call(P, Q, G, T, S, K, 0, P.nodes.shape[0] - 1, -1, obs, learn, sample, rng_state)
+  return _descend(P, Q, G, T, S, K, 0, obs, learn, sample, rng_state)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _end_of(P, K, d, obs, samples):
+  """After a child of the node at depth d returned: (its own event, G)."""
+  node = K.ints[d, S_NODE]
+  row = P.nodes[node]
+  if row[END] == END_LOCAL_GOAL:
+    event, internal = core.low_level_outcome(samples, obs, K.origin[d],
+                                             K.ints[d, S_ARG], K.ints[d, S_STEPS],
+                                             K.local_samples, K.local,
+                                             row[MAX_STEPS])
+    return event, internal if row[INTERNAL] == G_SHAPING else 0.0
+  return core.NO_EVENT, 0.0
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _observe(P, Q, G, T, S, K, d, obs, signal, done, terminal, learn, sample, rng_state):
+  """Algorithm 1: the learner of the node at depth d takes R + G of its child's run;
+  unless done, it makes its next choice."""
+  node = K.ints[d, S_NODE]
+  row = P.nodes[node]
+  p = P.params[node]
+  slot = row[SLOT]
+  ints = K.ints
+  if row[LEARNER] == Q_TABLE:
+    _view(P, Q, G, T, S, K, d, obs, 1)
+    q = Q
+    s_next = ints[d, S_NEXT_STATE]
+    a_next = 0              # no draw when the call is over
+    if not done:
+      epsilon = 0.0
+      if sample:
+        epsilon = S.epsilon[0] if row[EPS_SCHEDULE] else p[EPSILON]
+      a_next = qlambda.epsilon_greedy(q.q[slot], s_next, row[N_CHILDREN], epsilon, rng_state)
+    if learn:
+      qlambda.update(q.q[slot], row[N_CHILDREN], q.index[slot], q.value[slot], q.count[slot],
+                     ints[d, S_STATE], ints[d, S_CHOICE], signal, s_next, a_next, terminal,
+                     p[ALPHA], p[GAMMA], p[DECAY])
+      if done:
+        qlambda.clear(q.count[slot])
+    ints[d, S_STATE] = s_next
+    ints[d, S_CHOICE] = a_next
+  elif row[LEARNER] == GAUSSIAN_CMAC:
+    k = T.n_tilings[row[VIEW_SLOT]]
+    if not done:
+      _view(P, Q, G, T, S, K, d, obs, 1)
+    g = G
+    if learn:                                          # Eq. 3 with R + G
+      el.learn(_trace(g, slot), p[ALPHA], signal, p[DECAY])
+      if p[BETA] != 0.0:
+        next_value = 0.0 if done else policies.tile_mean(g.values[slot], K.tiles[d, 1, :k])
+        policies.learn_baseline(g.values[slot], K.tiles[d, 0, :k], p[BETA], signal,
+                                p[DECAY], next_value)
+    if not done:
+      arrays.copy_into(K.tiles[d, 0, :k], K.tiles[d, 1, :k])
+      _choose(P, Q, G, T, S, K, d, learn, sample, rng_state)
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def step(P, Q, G, T, S, K, obs, samples, reward, terminated, truncated, learn, sample,
+         rng_state):
+  """A primitive step ended in `obs` with `reward` (`samples`: the positions
+  sampled inside it, for the ship's local ends). Returns (episode over, the next
+  action)."""
+  ints = K.ints
+  floats = K.floats
+  depth = K.episode[E_DEPTH]
+  for level in range(depth + 1):
+    floats[level, F_REWARD] += reward
+    ints[level, S_STEPS] += 1
+    ints[level, S_CHILD_STEPS] += 1
+  K.episode[E_STEPS] += 1
+  K.total[0] += reward
+  over = terminated or truncated
+  d = depth
+  while True:
+    node = ints[d, S_NODE]
+    row = P.nodes[node]
+    event, internal = _end_of(P, K, d, obs, samples)
+    done = event != core.NO_EVENT or over
+    if row[SEEN] == SEEN_STEP:
+      seen = core.STEP_REWARD * ints[d, S_CHILD_STEPS]
+    else:
+      seen = floats[d, F_REWARD]
+    floats[d, F_REWARD] = 0.0
+    ints[d, S_CHILD_STEPS] = 0
+    _observe(P, Q, G, T, S, K, d, obs, seen + internal, done, terminated or event != core.NO_EVENT, learn,
+             sample, rng_state)
+    if not done:
+      return False, _descend(P, Q, G, T, S, K, d, obs, learn, sample, rng_state)
+    # The call returns (Algorithm 1: return to the parent).
+    c = K.counters[node]
+    if d == 0:
+      if learn:
+        sch = S
+        schedules.end_episode(sch.epsilon, sch.outcomes, sch.counts, sch.settings[0],
+                              np.int64(sch.settings[1]), sch.settings[2])
+      return True, 0.0
+    c[CALLS] += 1
+    if not over:
+      success = event == core.SUCCESS
+      c[RUNS] += 1
+      c[SUCCESSES] += success
+      if learn and row[WATCH] >= 0:
+        schedules.record_run(S.outcomes, S.counts, row[WATCH], success)
+    d -= 1
+
+
+# ---- fused with the analytic ship --------------------------------------------------
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False)
+def run_ship(P, Q, G, T, S, K, n_episodes, learn, sample, rng_state, world, record,
+             fixed_start, state, samples):
+  """`n_episodes` episodes of the full ship task (SPEC section 2) on Equation 1:
+  `world` = [gate reward, out-of-bounds reward, max steps]. Record row: [passed,
+  steps, return, then calls, runs, successes of each node]. `state` (4) and
+  `samples` are scratch. Compiled without reference counting, as everything it
+  inlines: the machine reads its banks through views, and counting references
+  to them cost 70% of its time."""
+  max_steps = np.int64(world[2])
+  n_nodes = K.counters.shape[0]
+  event = core.NO_EVENT
+  for episode in range(n_episodes):
+    if fixed_start.shape[0] == 4:
+      arrays.copy_into(state, fixed_start)
+    else:
+      ship_rules.sample_start(rng_state, state)
+    action = begin(P, Q, G, T, S, K, state, learn, sample, rng_state)
+    while True:
+      core.euler_control(state, action, samples)
+      event, reward = core.global_outcome(samples, world[0], world[1])
+      terminated = event != core.NO_EVENT
+      truncated = (not terminated) and K.episode[E_STEPS] + 1 >= max_steps
+      over, action = step(P, Q, G, T, S, K, state, samples, reward, terminated, truncated,
+                          learn, sample, rng_state)
+      if over:
+        break
+    row = record[episode]
+    row[0] = event == core.SUCCESS
+    row[1] = K.episode[E_STEPS]
+    row[2] = K.total[0]
+    for i in range(n_nodes):
+      for j in range(3):
+        row[3 + 3 * i + j] = K.counters[i, j]
+
+
+# ---- building the arrays from a graph of blocks ---------------------------------------
+
+def _stack_rows(arrays_, dtype):
+  """Rows of one length (zero-padded) from 1-D arrays; at least one row."""
+  width = max([len(a) for a in arrays_] + [1])
+  out = np.zeros((max(len(arrays_), 1), width), dtype=dtype)
+  for i, a in enumerate(arrays_):
+    out[i, :len(a)] = a
+  return out
+
+
+class Machine:
+  """A task graph of blocks as arrays, and the compiled machine over them.
+
+  `state()` gives every learner's arrays by node name (views of the banks: writing
+  into them restores a checkpoint). Nodes are numbered so that the root is last.
+  """
+
+  def __init__(self, graph):
+    self.graph = graph
+    self.schedule_block = graph.schedule or blocks.HeldEpsilon()
+    order = [n for n in graph.nodes if n != graph.root] + [graph.root]
+    self.names = order
+    index = {name: i for i, name in enumerate(order)}
+    nodes = np.zeros((len(order), N_INT), dtype=np.int64)
+    params = np.zeros((len(order), N_FLOAT))
+    params[:, ACTION] = np.nan
+    children = []
+    self.learners = {Q_TABLE: [], GAUSSIAN_CMAC: []}
+    self.codings = []
+    self._slot_of = {}
+    watch = {name: i for i, name in enumerate(self.schedule_block.watch)}
+    for name, node in graph.nodes.items():
+      i = index[name]
+      if isinstance(node, Primitive):
+        nodes[i, KIND] = PRIMITIVE
+        if node.action is not None:
+          params[i, ACTION] = float(node.action)
+        continue
+      nodes[i, KIND] = SUBTASK
+      refs = graph.children(name)
+      nodes[i, FIRST_CHILD] = len(children)
+      nodes[i, N_CHILDREN] = len(refs)
+      for ref in refs:
+        children.append((index[ref.node], int(ref.args.get("direction", -1))))
+      nodes[i, WATCH] = watch.get(name, -1)
+      self._learner(name, node, nodes[i], params[i], refs)
+      self._view(name, node, nodes[i], params[i])
+      self._end(name, node, nodes[i])
+    self.index = index
+    q = self.learners[Q_TABLE]
+    g = self.learners[GAUSSIAN_CMAC]
+    n_q = [b.n_states * self._n_actions[id(b)] for b in q]
+    qbank = QBank(_stack_rows([np.zeros(n) for n in n_q], np.float64),
+                  _stack_rows([np.zeros(b.trace_capacity) for b in q], np.int64),
+                  _stack_rows([np.zeros(b.trace_capacity) for b in q], np.float64),
+                  np.zeros((max(len(q), 1), 1), dtype=np.int64))
+    sizes = [b.coder.size for b in g]
+    gbank = GaussianBank(*(_stack_rows([np.zeros(n) for n in sizes], dt) for dt in
+                           (np.float64, np.float64, np.float64, np.int64, np.bool_)),
+                         np.zeros((max(len(g), 1), 1), dtype=np.int64),
+                         np.tile(np.array([0.0, 1.0]), (max(len(g), 1), 1)),
+                         _stack_rows([np.zeros(n) for n in sizes], np.float64))
+    self.tile_bank = self._tile_bank()
+    k = int(self.tile_bank.n_tilings.max())
+    depth = self._depth(graph.root)
+    sb = self.schedule_block
+    for name in sb.watch:
+      if name not in index or isinstance(graph.nodes[name], Primitive):
+        raise GraphError(f"the epsilon schedule watches {name!r}, which is not a subtask of "
+                         f"the graph; subtasks: {sorted(n.name for n in graph.subtasks())}")
+    eps, outcomes, counts = schedules.new_schedule(sb.epsilon, sb.window, max(len(sb.watch), 1))
+    schedule = Schedule(eps, outcomes, counts,
+                        np.array([sb.threshold, sb.every, sb.divisor], dtype=np.float64))
+    stack = Stack(np.zeros((depth, 7), dtype=np.int64), np.zeros((depth, 2)),
+                  np.zeros((depth, 2)), np.zeros((depth, 2, k), dtype=np.int64),
+                  np.zeros((depth, k)), np.zeros(2, dtype=np.int64), np.zeros(1),
+                  np.zeros((len(order), 3)), np.zeros(4),
+                  np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)))
+    program = Program(nodes, params, np.array(children, dtype=np.int64).reshape(-1, 2))
+    self.banks = Banks(program, qbank, gbank, self.tile_bank, schedule, stack)
+
+  # -- what each block puts in the node's row --
+
+  def _slot(self, kind, learner):
+    if id(learner) not in self._slot_of:
+      self._slot_of[id(learner)] = len(self.learners[kind])
+      self.learners[kind].append(learner)
+    return self._slot_of[id(learner)]
+
+  def _learner(self, name, node, row, p, refs):
+    learner = node.learner
+    self._n_actions = getattr(self, "_n_actions", {})
+    if isinstance(learner, blocks.QTable):
+      row[LEARNER] = Q_TABLE
+      row[SLOT] = self._slot(Q_TABLE, learner)
+      known = self._n_actions.setdefault(id(learner), len(refs))
+      if known != len(refs):
+        raise GraphError(f"subtask {name!r}: its QTable is shared with a node of {known} "
+                         f"children, it has {len(refs)}")
+      p[ALPHA], p[DECAY], p[GAMMA], p[EPSILON] = (learner.alpha, learner.trace_decay,
+                                                  learner.gamma, learner.epsilon)
+      row[EPS_SCHEDULE] = int(bool(learner.epsilon_schedule))
+      if not isinstance(node.view, blocks.GridCell):
+        raise GraphError(f"subtask {name!r}: a QTable needs a GridCell view, got "
+                         f"{type(node.view).__name__}")
+    elif isinstance(learner, blocks.GaussianCMAC):
+      row[LEARNER] = GAUSSIAN_CMAC
+      row[SLOT] = self._slot(GAUSSIAN_CMAC, learner)
+      p[ALPHA], p[DECAY], p[BETA], p[R_MAX] = (learner.alpha, learner.trace_gamma,
+                                               learner.baseline, learner.r_max)
+      if len(refs) != 1 or self.graph.nodes[refs[0].node].action is not None:
+        raise GraphError(f"subtask {name!r}: a GaussianCMAC's one child is a continuous "
+                         f"primitive (Primitive(name) without an action)")
+      if not isinstance(node.view, blocks.LocalTiles) or node.view.coder != learner.coder:
+        raise GraphError(f"subtask {name!r}: a GaussianCMAC needs a LocalTiles view over "
+                         "its own coder")
+    else:
+      raise GraphError(f"subtask {name!r}: learner {learner!r} is not a machine learner; "
+                       "allowed: QTable, GaussianCMAC (hpg_mj.hierarchy.blocks)")
+
+  def _view(self, name, node, row, p):
+    view = node.view
+    if isinstance(view, blocks.GridCell):
+      row[VIEW] = VIEW_GRID_CELL
+      p[CELL_M], p[GRID] = float(view.cell_m), float(view.grid)
+    elif isinstance(view, blocks.LocalTiles):
+      row[VIEW] = VIEW_LOCAL_TILES
+      row[VIEW_SLOT] = len(self.codings)
+      self.codings.append(view.coder)
+    else:
+      raise GraphError(f"subtask {name!r}: view {view!r} is not a machine view; allowed: "
+                       "GridCell, LocalTiles (hpg_mj.hierarchy.blocks)")
+
+  def _end(self, name, node, row):
+    end, internal = node.termination, node.internal_reward
+    if isinstance(end, blocks.Never):
+      row[END] = END_NEVER
+    elif isinstance(end, blocks.LocalGoal):
+      row[END] = END_LOCAL_GOAL
+      row[MAX_STEPS] = int(end.max_steps)
+    else:
+      raise GraphError(f"subtask {name!r}: termination {end!r} is not a machine "
+                       "termination; allowed: Never, LocalGoal (hpg_mj.hierarchy.blocks)")
+    if internal is None:
+      row[INTERNAL] = G_NONE
+    elif isinstance(internal, blocks.Shaping) and row[END] == END_LOCAL_GOAL:
+      row[INTERNAL] = G_SHAPING
+    else:
+      raise GraphError(f"subtask {name!r}: internal reward {internal!r} is not allowed; "
+                       "allowed: None, Shaping() with a LocalGoal termination")
+    seen = node.reward if node.reward is not None else blocks.SUMMED
+    if seen not in (blocks.SUMMED, blocks.STEP):
+      raise GraphError(f"subtask {name!r}: reward {seen!r} is not allowed; allowed: "
+                       f"{blocks.SUMMED!r}, {blocks.STEP!r}")
+    row[SEEN] = SEEN_STEP if seen == blocks.STEP else SEEN_SUMMED
+
+  def _tile_bank(self):
+    coders = self.codings or [tiles_mod.TileCoder((0.0,), (1.0,), (1,), (False,), 1)]
+    made = [c.arrays() for c in coders]
+    dims = max(len(c.low) for c in coders)
+    k = max(c.n_tilings for c in coders)
+    low = np.zeros((len(made), dims))
+    width = np.ones((len(made), dims))
+    n_tiles = np.ones((len(made), dims), dtype=np.int64)
+    wrap = np.zeros((len(made), dims), dtype=np.bool_)
+    offsets = np.zeros((len(made), k, dims))
+    for i, t in enumerate(made):
+      n = len(t.low)
+      low[i, :n], width[i, :n], n_tiles[i, :n], wrap[i, :n] = t.low, t.width, t.n_tiles, t.wrap
+      offsets[i, :t.offsets.shape[0], :n] = t.offsets
+    return TileBank(low, width, n_tiles, wrap, offsets,
+                    np.array([c.n_tilings for c in coders], dtype=np.int64))
+
+  def _depth(self, name):
+    node = self.graph.nodes[name]
+    if isinstance(node, Primitive):
+      return 0
+    return 1 + max(self._depth(ref.node) for ref in self.graph.children(name))
+
+  # -- the learners' arrays, by name --
+
+  def q_arrays(self, learner):
+    """(q, trace index, trace value, trace count) of a QTable (views of the bank)."""
+    slot = self._slot_of[id(learner)]
+    n = learner.n_states * self._n_actions[id(learner)]
+    b = self.banks.q
+    return b.q[slot, :n], b.index[slot], b.value[slot], b.count[slot]
+
+  def gaussian_arrays(self, learner):
+    """The Eq. 3 trace (`eligibility.Trace`) and baseline values of a GaussianCMAC."""
+    slot = self._slot_of[id(learner)]
+    n = learner.coder.size
+    b = self.banks.gaussian
+    trace = el.Trace(b.theta[slot, :n], b.zs[slot, :n], b.y[slot, :n], b.touched[slot, :n],
+                     b.marked[slot, :n], b.count[slot], b.acc[slot])
+    return trace, b.values[slot, :n]
+
+  @property
+  def epsilon_schedule(self):
+    s = self.banks.schedule
+    return s.epsilon, s.outcomes, s.counts
+
+  def counter_fields(self):
+    """The names of a record row's per-node columns (after passed, steps, return)."""
+    return [f"{name}_{what}" for name in self.names
+            for what in ("calls", "runs", "successes")]
+
+  # -- running it --
+
+  def run(self, episodes, learn, sample, rng_state, world, start=None):
+    """Episodes fused with the analytic ship; rows as `run_ship` writes them."""
+    rows = np.zeros((int(episodes), 3 + 3 * len(self.names)))
+    fixed = np.empty(0) if start is None else np.asarray(start, dtype=np.float64)
+    run_ship(*self.banks, int(episodes), bool(learn), bool(sample), rng_state,
+             np.asarray(world, dtype=np.float64), rows, fixed, np.empty(4),
+             np.empty((core.SAMPLES_PER_CONTROL + 1, 2)))
+    return rows
+
+  def begin(self, obs, learn, sample, rng_state):
+    """Resumable: an episode starts at `obs`; returns the first action."""
+    return begin(*self.banks, np.asarray(obs, dtype=np.float64), bool(learn), bool(sample),
+                 rng_state)
+
+  def advance(self, obs, reward, terminated, truncated, info, learn, sample, rng_state):
+    """Resumable: the environment stepped; returns (episode over, next action)."""
+    samples = info.get("positions") if info else None
+    samples = _NO_SAMPLES if samples is None else np.asarray(samples, dtype=np.float64)
+    return step(*self.banks, np.asarray(obs, dtype=np.float64), samples, float(reward),
+                bool(terminated), bool(truncated), bool(learn), bool(sample), rng_state)
+
+  def counters(self):
+    """This episode's per-node counters (calls, runs, successes), flattened."""
+    return self.banks.stack.counters.reshape(-1).copy()
+
+
+_NO_SAMPLES = np.zeros((core.SAMPLES_PER_CONTROL + 1, 2))
+
+
+def run_stepwise(machine, env, episodes, learn, sample, rng_state, start, passed):
+  """The step-by-step path: `episodes` episodes of `machine` through `env` (any
+  Gymnasium or dm_control environment), each from `start()` (None: the
+  environment's own). Without learning the policies are greedy unless `sample`.
+  `passed(info)` says whether the last step succeeded. Rows as `run_ship`'s."""
+  from hpg_mj.hierarchy import executor     # the environments' adapters
+  adapter = executor.adapter_for(env)
+  sample = learn if sample is None else (sample or learn)
+  rows = np.zeros((int(episodes), 3 + 3 * len(machine.names)))
+  for i in range(int(episodes)):
+    obs = adapter.reset(start())
+    action = machine.begin(obs, learn, sample, rng_state)
+    over = False
+    while not over:
+      step_ = adapter.step(action)
+      over, action = machine.advance(step_.obs, step_.reward, step_.terminated,
+                                     step_.truncated, step_.info, learn, sample, rng_state)
+    rows[i, 0] = passed(step_.info)
+    rows[i, 1] = machine.banks.stack.episode[E_STEPS]
+    rows[i, 2] = machine.banks.stack.total[0]
+    rows[i, 3:] = machine.counters()
+  return rows
+
+
+def graph_is_data(graph):
+  """Whether every subtask of `graph` is made of blocks (the machine can run it)."""
+  kinds = (blocks.QTable, blocks.GaussianCMAC)
+  return all(isinstance(n.learner, kinds) for n in graph.subtasks())
+
+
+__all__ = ["Machine", "Child", "Primitive", "Subtask", "graph_is_data"]
