@@ -14,7 +14,7 @@ import numpy as np
 from hpg_mj.agents import _ship
 from hpg_mj.agents import taskfile
 from hpg_mj.agents.taskfile import param
-from hpg_mj.agents.ship_flat_pg import N_RECORD, PASSED, RETURN, STEPS, actor_coder
+from hpg_mj.agents.ship_flat_pg import actor_coder
 from hpg_mj.hierarchy import flat as flat_graph
 from hpg_mj.learners import arrays
 from hpg_mj.learners import actor_critic
@@ -23,6 +23,10 @@ from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import policies
 from hpg_mj.learners import tiles as tiles_mod
 from hpg_mj.worlds import ship_core as core
+
+# Per-episode record columns (the order of `record_fields`).
+PASSED, STEPS, RETURN = 0, 1, 2
+N_RECORD = 3
 
 def critic_coder(n_tilings=9, tiles=(5, 5, 36, 5, 30)):
   return tiles_mod.TileCoder(

@@ -12,13 +12,11 @@ import collections
 import dataclasses
 
 import numba
-import numpy as np
 
 from hpg_mj.agents import _ship
 from hpg_mj.agents import taskfile
 from hpg_mj.agents.taskfile import param
 from hpg_mj.hierarchy import blocks
-from hpg_mj.hierarchy import machine as machine_mod
 from hpg_mj.hierarchy import ship_rules as rules
 from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
 from hpg_mj.learners import agents as learners
@@ -30,14 +28,8 @@ from hpg_mj.learners import tiles
 from hpg_mj.worlds import ship_core as core
 
 
-# Per-episode record columns (the order of `ShipHybrid.record_fields`).
-# A subtask's runs count the calls that ended by its own success or failure; a call
-# cut short by the end of the episode (gate, bounds, time limit) is no run.
-PASSED, STEPS, CALLS, DIAG_RUNS, DIAG_SUCCESS, STRAIGHT_RUNS, STRAIGHT_SUCCESS, RETURN = range(8)
-N_RECORD = 8
-
-# The hyper-parameters the compiled loop takes, each named [section] key as in the
-# task file (`settings` fills them from a Config).
+# The hyper-parameters `run_low_level` takes (the patrol's), each named [section] key
+# as in the task file (`settings` fills them from a Config).
 Settings = collections.namedtuple("Settings", (
     "root_alpha", "root_trace_decay", "root_epsilon_threshold", "root_epsilon_every",
     "root_epsilon_divisor", "low_level_alpha", "low_level_trace_gamma", "low_level_baseline",
@@ -165,7 +157,7 @@ def _coder(low):
                          tuple(low.tiles), (False, False, True, False), low.tilings)
 
 
-class ShipHybrid(_ship.ShipAgent):
+class ShipHybrid(_ship.ShipMachineAgent):
   """Figure 3's graph of blocks, run by `hierarchy.machine` on both paths."""
 
   name = "ship_hybrid"
@@ -183,7 +175,6 @@ class ShipHybrid(_ship.ShipAgent):
     self.low = [blocks.GaussianCMAC(self.coder, low.alpha, low.trace_gamma, low.baseline,
                                     core.MAX_TURN_RATE)
                 for _ in (rules.DIAGONAL, rules.STRAIGHT)]
-    self._machine = None
 
   def graph(self):
     """Figure 3 (SPEC section 3): the root over 50 m cells calls, for each of eight
@@ -207,14 +198,6 @@ class ShipHybrid(_ship.ShipAgent):
     ], schedule=blocks.HeldEpsilon(root.epsilon, ("diagonal", "straight"),
                                    root.epsilon_threshold, root.epsilon_window,
                                    root.epsilon_every, root.epsilon_divisor))
-
-  @property
-  def machine(self):
-    """The compiled machine over `graph()` (built when first needed, so that a
-    subclass's graph is the one it runs)."""
-    if self._machine is None:
-      self._machine = machine_mod.Machine(self.graph())
-    return self._machine
 
   def state(self):
     m = self.machine
@@ -250,38 +233,6 @@ class ShipHybrid(_ship.ShipAgent):
     m = self.machine
     return (*m.gaussian_arrays(self.low[rules.DIAGONAL]),
             *m.gaussian_arrays(self.low[rules.STRAIGHT]))
-
-  # ---- both paths: the machine ----------------------------------------------------
-
-  def compiled(self, episodes, learn, sample, start=None):
-    env = self.config.environment
-    rows = self.machine.run(episodes, learn, sample, self.rng_state,
-                            (env.gate_reward, env.out_of_bounds_reward, env.max_steps), start)
-    return self._record_rows(rows)
-
-  def run_stepwise(self, env, episodes, learn=True, sample=None, start=None, on_call=None):
-    rows = machine_mod.run_stepwise(self.machine, env, episodes, learn, sample, self.rng_state,
-                                    lambda: self.start_state() if start is None else start,
-                                    passed=lambda info: info.get("event") == "gate")
-    if learn:
-      self.episodes += int(episodes)
-    return self.as_record(self._record_rows(rows))
-
-  def _record_rows(self, rows):
-    """The machine's rows (passed, steps, return, per node calls, runs, successes) as
-    this agent's record: a subtask's run is a call it ended itself."""
-    m = self.machine
-    out = np.zeros((rows.shape[0], len(self.record_fields)))
-    out[:, PASSED], out[:, STEPS], out[:, RETURN] = rows[:, 0], rows[:, 1], rows[:, 2]
-    for name in m.names[:-1]:
-      if name in ("diagonal", "straight"):
-        col = 3 + 3 * m.index[name]
-        out[:, CALLS] += rows[:, col + machine_mod.CALLS]
-        runs, successes = ((DIAG_RUNS, DIAG_SUCCESS) if name == "diagonal" else
-                           (STRAIGHT_RUNS, STRAIGHT_SUCCESS))
-        out[:, runs] = rows[:, col + machine_mod.RUNS]
-        out[:, successes] = rows[:, col + machine_mod.SUCCESSES]
-    return out
 
   # ---- metrics ------------------------------------------------------------------
 

@@ -23,6 +23,7 @@ Views (what a node's learner sees of the world's state):
   LocalTiles(coder)            the ship's state in the call's local 150 m frame
                                (origin: where it was called; rotation: the
                                `direction` argument of its `Child`), as CMAC tiles
+  StateTiles(coder)            the world's state itself, as CMAC tiles (a flat learner)
 
 Terminations and internal rewards:
 
@@ -81,6 +82,12 @@ class GridCell:
 @dataclasses.dataclass(eq=False)
 class LocalTiles:
   """The ship's state in the call's local frame, coded by `coder`."""
+  coder: tiles_mod.TileCoder
+
+
+@dataclasses.dataclass(eq=False)
+class StateTiles:
+  """The world's state as it is, coded by `coder`."""
   coder: tiles_mod.TileCoder
 
 

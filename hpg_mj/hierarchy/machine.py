@@ -55,7 +55,7 @@ from hpg_mj.worlds import ship_core as core
 # Node kinds, learner kinds, views, ends, internal rewards, rewards seen.
 PRIMITIVE, SUBTASK = 0, 1
 NO_LEARNER, Q_TABLE, GAUSSIAN_CMAC = 0, 1, 2
-NO_VIEW, VIEW_GRID_CELL, VIEW_LOCAL_TILES = 0, 1, 2
+NO_VIEW, VIEW_GRID_CELL, VIEW_LOCAL_TILES, VIEW_STATE_TILES = 0, 1, 2, 3
 END_NEVER, END_LOCAL_GOAL = 0, 1
 G_NONE, G_SHAPING = 0, 1
 SEEN_SUMMED, SEEN_STEP = 0, 1
@@ -132,6 +132,9 @@ def _view(P, Q, G, T, S, K, d, obs, which):
     local = K.local
     core.global_to_local(obs, K.origin[d], K.ints[d, S_ARG], local)
     tiles_mod.active_tiles(local, tiling, K.tiles[d, which, :tiling.offsets.shape[0]])
+  elif kind == VIEW_STATE_TILES:
+    tiling = _tiling(T, row[VIEW_SLOT])
+    tiles_mod.active_tiles(obs, tiling, K.tiles[d, which, :tiling.offsets.shape[0]])
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
@@ -473,9 +476,10 @@ class Machine:
       if len(refs) != 1 or self.graph.nodes[refs[0].node].action is not None:
         raise GraphError(f"subtask {name!r}: a GaussianCMAC's one child is a continuous "
                          f"primitive (Primitive(name) without an action)")
-      if not isinstance(node.view, blocks.LocalTiles) or node.view.coder != learner.coder:
-        raise GraphError(f"subtask {name!r}: a GaussianCMAC needs a LocalTiles view over "
-                         "its own coder")
+      if not isinstance(node.view, (blocks.LocalTiles, blocks.StateTiles)) or \
+          node.view.coder != learner.coder:
+        raise GraphError(f"subtask {name!r}: a GaussianCMAC needs a LocalTiles or StateTiles "
+                         "view over its own coder")
     else:
       raise GraphError(f"subtask {name!r}: learner {learner!r} is not a machine learner; "
                        "allowed: QTable, GaussianCMAC (hpg_mj.hierarchy.blocks)")
@@ -485,13 +489,13 @@ class Machine:
     if isinstance(view, blocks.GridCell):
       row[VIEW] = VIEW_GRID_CELL
       p[CELL_M], p[GRID] = float(view.cell_m), float(view.grid)
-    elif isinstance(view, blocks.LocalTiles):
-      row[VIEW] = VIEW_LOCAL_TILES
+    elif isinstance(view, (blocks.LocalTiles, blocks.StateTiles)):
+      row[VIEW] = VIEW_LOCAL_TILES if isinstance(view, blocks.LocalTiles) else VIEW_STATE_TILES
       row[VIEW_SLOT] = len(self.codings)
       self.codings.append(view.coder)
     else:
       raise GraphError(f"subtask {name!r}: view {view!r} is not a machine view; allowed: "
-                       "GridCell, LocalTiles (hpg_mj.hierarchy.blocks)")
+                       "GridCell, LocalTiles, StateTiles (hpg_mj.hierarchy.blocks)")
 
   def _end(self, name, node, row):
     end, internal = node.termination, node.internal_reward
