@@ -1,5 +1,5 @@
 """Puts tests/ on the import path, for the shared test helpers (taxi_grid.py,
-experiment_file.py);
+experiment_file.py, oracle.py);
 the suite imports its test files with --import-mode=importlib."""
 import pathlib
 import sys

@@ -1,0 +1,190 @@
+"""The compiled machine (`hierarchy.machine`) against the pure-Python oracle on random
+graphs of blocks: fused, step by step and in the oracle, every record and every
+learned parameter is the same bit for bit; and what the machine refuses."""
+import numpy as np
+import pytest
+
+import hpg_mj  # noqa: F401
+import gymnasium
+from hpg_mj.hierarchy import blocks, machine, ship_rules
+from hpg_mj.hierarchy.graph import Child, GraphError, Primitive, Subtask, TaskGraph
+from hpg_mj.learners import eligibility as el
+from hpg_mj.learners import rng, tiles
+import oracle
+
+
+def _local_coder(g):
+  return tiles.TileCoder((0.0, 0.0, -180.0, -15.0), (150.0, 150.0, 180.0, 15.0),
+                         (int(g.integers(2, 6)), int(g.integers(2, 6)), int(g.integers(4, 37)),
+                          int(g.integers(2, 6))), (False, False, True, False),
+                         int(g.integers(1, 6)))
+
+
+def random_graph(seed):
+  """A random graph of blocks: flat, two levels (root over legs) or three (root
+  over regions over legs), with random learners, sizes, ends and rewards."""
+  g = np.random.default_rng(seed)
+  shape = ("flat", "two", "three")[seed % 3]
+  if shape == "flat":
+    coder = tiles.TileCoder((0.0, 0.0, -180.0, -15.0), (1000.0, 1000.0, 180.0, 15.0),
+                            (int(g.integers(2, 21)), int(g.integers(2, 21)), 36, 5),
+                            (False, False, True, False), int(g.integers(1, 10)))
+    learner = blocks.GaussianCMAC(coder, float(g.uniform(0.002, 0.05)),
+                                  float(g.choice([1.0, 0.97])), 0.0, 15.0)
+    return TaskGraph("policy", [Subtask("policy", children=["turn"], learner=learner,
+                                        view=blocks.StateTiles(coder),
+                                        termination=blocks.Never()), Primitive("turn")])
+  legs = []
+  for i in range(int(g.integers(1, 3))):
+    coder = _local_coder(g)
+    learner = blocks.GaussianCMAC(coder, float(g.uniform(0.002, 0.05)),
+                                  float(g.choice([1.0, 0.95])), float(g.choice([0.0, 0.1])),
+                                  15.0)
+    legs.append(Subtask(f"leg{i}", children=["turn"], learner=learner,
+                        view=blocks.LocalTiles(coder),
+                        termination=blocks.LocalGoal(int(g.integers(20, 300))),
+                        internal_reward=blocks.Shaping() if g.random() < 0.7 else None,
+                        reward=blocks.STEP if g.random() < 0.7 else blocks.SUMMED))
+
+  def calls(k):
+    directions = g.choice(8, size=int(g.integers(1, k + 1)), replace=False)
+    return [Child(legs[int(g.integers(len(legs)))].name, direction=int(d)) for d in directions]
+
+  def q_table(n_states):
+    return blocks.QTable(n_states, float(g.uniform(0.05, 0.3)), float(g.uniform(0.0, 0.95)),
+                         float(g.uniform(0.05, 0.5)), epsilon_schedule=bool(g.random() < 0.5))
+
+  grid = int(g.choice([10, 20]))
+  root_children = calls(8)
+  mids = []
+  if shape == "three":
+    mids = [Subtask("region", children=calls(4), learner=q_table(400),
+                    view=blocks.GridCell(50.0, 20),
+                    termination=blocks.LocalGoal(int(g.integers(50, 400))))]
+    root_children = [Child("region", direction=int(d))
+                     for d in g.choice(8, size=int(g.integers(1, 5)), replace=False)]
+    grid = 4
+  root = Subtask("root", children=root_children, learner=q_table(grid * grid),
+                 view=blocks.GridCell(1000.0 / grid, grid), termination=blocks.Never())
+  used = sorted({r.node for r in root_children} | {c.node for m in mids for c in m.children})
+  watch = tuple(used[:int(g.integers(0, len(used) + 1))])
+  return TaskGraph("root", [root, *mids, *legs, Primitive("turn")],
+                   schedule=blocks.HeldEpsilon(float(g.uniform(0.1, 0.5)), watch, 0.5, 3, 2, 1.5))
+
+
+def _parameters(m, graph):
+  out = {}
+  for node in graph.subtasks():
+    if isinstance(node.learner, blocks.QTable):
+      out[node.name] = m.q_arrays(node.learner)[0].copy()
+    else:
+      trace, values = m.gaussian_arrays(node.learner)
+      out[node.name] = np.concatenate([el.parameters(trace), values])
+  return out
+
+
+def _oracle_parameters(o, graph):
+  out = {}
+  for node in graph.subtasks():
+    learner = o.learners[id(node.learner)]
+    if isinstance(node.learner, blocks.QTable):
+      out[node.name] = learner.q.copy()
+    else:
+      out[node.name] = np.concatenate([learner.parameters(), learner.values])
+  return out
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_random_graphs_give_the_oracles_numbers_on_every_path(seed):
+  graph = random_graph(seed)
+  max_steps = 150 + 25 * seed
+  world = (100.0, -300.0, max_steps)
+  env = gymnasium.make("hpg_mj/ShipSteering-v0", backend="analytic", max_steps=max_steps,
+                       gate_reward=100.0, out_of_bounds_reward=-300.0)
+  fused, stepwise = machine.Machine(graph), machine.Machine(graph)
+  states = [rng.make_state(seed) for _ in range(3)]
+  o = oracle.Oracle(graph, states[2])
+
+  def start(state):
+    def draw():
+      out = np.empty(4)
+      ship_rules.sample_start(state, out)
+      return out
+    return draw
+
+  for learn, sample, episodes in ((True, True, 6), (False, True, 2), (False, False, 2)):
+    a = fused.run(episodes, learn, sample, states[0], world)
+    b = machine.run_stepwise(stepwise, env, episodes, learn, sample, states[1],
+                             start(states[1]), passed=lambda info: info.get("event") == "gate")
+    c = o.run(env, episodes, learn, sample, start(states[2]))
+    np.testing.assert_array_equal(a, c, err_msg=f"fused vs oracle, learn={learn}")
+    np.testing.assert_array_equal(b, c, err_msg=f"stepwise vs oracle, learn={learn}")
+    if learn:
+      assert a[:, 1].sum() >= 400                                 # real episodes
+  assert a.shape[1] == 3 + 3 * len(graph.nodes)
+  np.testing.assert_array_equal(states[0], states[2])
+  np.testing.assert_array_equal(states[1], states[2])
+  want = _oracle_parameters(o, graph)
+  for got in (_parameters(fused, graph), _parameters(stepwise, graph)):
+    for name, value in want.items():
+      np.testing.assert_array_equal(got[name], value, err_msg=name)
+  assert any(np.any(v != 0.0) for v in want.values())          # something was learned
+
+
+def test_random_graphs_cover_every_shape_and_a_subtask_run():
+  shapes = {len([n for n in random_graph(s).subtasks() if isinstance(n.learner, blocks.QTable)])
+            for s in range(12)}
+  assert shapes == {0, 1, 2}                     # flat, two and three levels
+
+
+def _coder():
+  return tiles.TileCoder((0.0, 0.0, -180.0, -15.0), (150.0, 150.0, 180.0, 15.0), (3, 3, 8, 3),
+                         (False, False, True, False), 2)
+
+
+def _leg(learner=None, children=("turn",), view=None, **kw):
+  coder = _coder()
+  learner = learner or blocks.GaussianCMAC(coder)
+  return Subtask("leg", children=list(children), learner=learner,
+                 view=view or blocks.LocalTiles(learner.coder if hasattr(learner, "coder")
+                                                else coder),
+                 termination=kw.get("termination", blocks.LocalGoal(50)))
+
+
+def _root(children=None, **kw):
+  return Subtask("root", children=children or [Child("leg", direction=0)],
+                 learner=kw.get("learner", blocks.QTable(400)),
+                 view=kw.get("view", blocks.GridCell()), termination=blocks.Never())
+
+
+@pytest.mark.parametrize("nodes, schedule, message", [
+    (lambda: [_root(), _leg(learner=object()), Primitive("turn")], None,
+     "subtask 'leg': learner .* is not a machine learner; allowed: QTable, GaussianCMAC"),
+    (lambda: [_root(view=blocks.LocalTiles(_coder())), _leg(), Primitive("turn")], None,
+     "subtask 'root': a QTable needs a GridCell view"),
+    (lambda: [_root(), _leg(children=("turn", "turn2")), Primitive("turn"), Primitive("turn2")],
+     None, "subtask 'leg': a GaussianCMAC's one child is a continuous primitive"),
+    (lambda: [_root(), _leg(view=blocks.GridCell()), Primitive("turn")], None,
+     "subtask 'leg': a GaussianCMAC needs a LocalTiles or StateTiles view over its own coder"),
+    (lambda: [_root(), _leg(termination=object()), Primitive("turn")], None,
+     "subtask 'leg': termination .* is not a machine termination; allowed: Never, LocalGoal"),
+    (lambda: [_root(), _leg(), Primitive("turn")], blocks.HeldEpsilon(watch=("nowhere",)),
+     "the epsilon schedule watches 'nowhere', which is not a subtask of the graph"),
+])
+def test_what_the_machine_refuses_is_named(nodes, schedule, message):
+  with pytest.raises(GraphError, match=message):
+    machine.Machine(TaskGraph("root", nodes(), schedule=schedule))
+
+
+def test_a_shared_qtable_needs_one_number_of_children():
+  shared = blocks.QTable(400)
+  nodes = [_root(children=[Child("mid", direction=0), Child("other", direction=2)],
+                 learner=blocks.QTable(400)),
+           Subtask("mid", children=[Child("leg", direction=0)], learner=shared,
+                   view=blocks.GridCell(), termination=blocks.LocalGoal(100)),
+           Subtask("other", children=[Child("leg", direction=0), Child("leg", direction=2)],
+                   learner=shared, view=blocks.GridCell(), termination=blocks.LocalGoal(100)),
+           _leg(), Primitive("turn")]
+  with pytest.raises(GraphError, match="subtask '(mid|other)': its QTable is shared with a "
+                                       "node of [12] children, it has [12]"):
+    machine.Machine(TaskGraph("root", nodes))

@@ -1,0 +1,138 @@
+"""The machine's test oracle: a graph of blocks rewritten as a graph of Python
+callables and step-by-step learner objects, run by the pure-Python executor
+(`hierarchy.executor`, recursive Algorithm 1). The oracle shares only the
+learning rules with the machine (`learners`), not its stack, its bookkeeping or
+its order of calls, so a test that holds the two equal checks the machine's
+control flow: calls, returns, rewards summed per level, ends, runs and draws."""
+import numpy as np
+
+from hpg_mj.hierarchy import blocks, executor
+from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
+from hpg_mj.learners import agents, schedules, tiles
+from hpg_mj.worlds import ship_core as core
+
+
+def _grid_cell(x, y, cell_m, grid):
+  return min(max(int(x // cell_m), 0), grid - 1) * grid + min(max(int(y // cell_m), 0), grid - 1)
+
+
+class Oracle:
+  """Runs `graph` (of blocks) with fresh learners of the same hyper-parameters."""
+
+  def __init__(self, graph, rng_state):
+    sb = graph.schedule or blocks.HeldEpsilon()
+    self.schedule = schedules.new_schedule(sb.epsilon, sb.window, max(len(sb.watch), 1))
+    self.sb = sb
+    self.learners = {}
+    self.names = [n for n in graph.nodes if n != graph.root] + [graph.root]
+    self.counters = np.zeros((len(self.names), 3))
+    self.learn = True
+    nodes = []
+    for name, node in graph.nodes.items():
+      if isinstance(node, Primitive):
+        nodes.append(node)
+        continue
+      refs = graph.children(name)
+      nodes.append(Subtask(name, children=[Child(r.node, **r.args) for r in refs],
+                           learner=self._learner(node.learner, len(refs)),
+                           view=self._view(node.view), termination=self._end(node),
+                           internal_reward=self._internal(node),
+                           reward=self._seen(node), on_exit=self._exit(name)))
+    self.graph = TaskGraph(graph.root, nodes, on_episode_end=self._episode_end)
+    self.rng_state = rng_state
+
+  def _learner(self, block, n_children):
+    if id(block) not in self.learners:
+      if isinstance(block, blocks.QTable):
+        source = (lambda: self.schedule[0][0]) if block.epsilon_schedule else None
+        self.learners[id(block)] = agents.QLambda(
+            block.n_states, n_children, block.alpha, block.trace_decay, block.gamma,
+            block.epsilon, epsilon_source=source, trace_capacity=block.trace_capacity)
+      else:
+        self.learners[id(block)] = agents.GaussianPolicyGradient(
+            block.coder.size, block.coder.n_tilings, block.r_max, block.alpha,
+            block.trace_gamma, baseline=block.baseline)
+    return self.learners[id(block)]
+
+  def _view(self, view):
+    if isinstance(view, blocks.GridCell):
+      return lambda call, obs: _grid_cell(obs[0], obs[1], view.cell_m, view.grid)
+    arrays = view.coder.arrays()
+    out = np.empty(view.coder.n_tilings, dtype=np.int64)
+    local = np.empty(4)
+    if isinstance(view, blocks.StateTiles):
+      def state_view(call, obs):
+        tiles.active_tiles(np.asarray(obs, dtype=np.float64), arrays, out)
+        return out
+      return state_view
+
+    def local_view(call, obs):
+      core.global_to_local(obs, self._origin(call), call.args["direction"], local)
+      tiles.active_tiles(local, arrays, out)
+      return out
+    return local_view
+
+  @staticmethod
+  def _origin(call):
+    return call.memo.setdefault("origin", np.array(call.origin[:2], dtype=np.float64))
+
+  def _outcome(self, node, call, step):
+    """(local event, G) of a LocalGoal node after a child returned, once per return."""
+    if call.memo.get("seen_at") != call.steps:
+      event, internal = core.low_level_outcome(
+          step.info["positions"], step.obs, self._origin(call), call.args["direction"],
+          call.steps, np.empty((4, 2)), np.empty(4), node.termination.max_steps)
+      call.memo.update(seen_at=call.steps, event=event, internal=internal)
+    return call.memo["event"], call.memo["internal"]
+
+  def _end(self, node):
+    if isinstance(node.termination, blocks.Never):
+      return lambda call, step: False
+    return lambda call, step: self._outcome(node, call, step)[0] != core.NO_EVENT
+
+  def _internal(self, node):
+    if node.internal_reward is None:
+      return None
+    return lambda call, step: self._outcome(node, call, step)[1]
+
+  def _seen(self, node):
+    if node.reward != blocks.STEP:
+      return None
+
+    def step_reward(call, step, child_reward):
+      k = call.steps - call.memo.get("counted", 0)
+      call.memo["counted"] = call.steps
+      return core.STEP_REWARD * k
+    return step_reward
+
+  def _exit(self, name):
+    i = self.names.index(name)
+
+    def on_exit(call, step, episode_over):
+      if name == self.names[-1]:
+        return
+      self.counters[i, 0] += 1
+      if not episode_over:
+        success = call.memo.get("event") == core.SUCCESS
+        self.counters[i, 1] += 1
+        self.counters[i, 2] += success
+        if self.learn and name in self.sb.watch:
+          schedules.record_run(self.schedule[1], self.schedule[2], self.sb.watch.index(name),
+                               success)
+    return on_exit
+
+  def _episode_end(self, last, learn):
+    if learn:
+      schedules.end_episode(*self.schedule, self.sb.threshold, self.sb.every, self.sb.divisor)
+
+  def run(self, env, episodes, learn, sample, start):
+    """Rows as the machine's: passed, steps, return, per node calls, runs, successes."""
+    run = executor.Executor(self.graph, executor.adapter_for(env), self.rng_state)
+    rows = np.zeros((episodes, 3 + self.counters.size))
+    self.learn = learn
+    for i in range(episodes):
+      self.counters[:] = 0.0
+      total, steps, last = run.run_episode(start(), learn=learn, sample=sample)
+      rows[i, :3] = last.info.get("event") == "gate", steps, total
+      rows[i, 3:] = self.counters.reshape(-1)
+    return rows
