@@ -145,25 +145,45 @@ def format_rows(rows):
   return "\n".join(lines)
 
 
-def bench_train(min_seconds=2.0):
-  """Rows of (name, unit, steps per second): every shipped task file's agent on its
-  compiled path, learning, and the hybrid step by step through dm_control."""
+def bench_task(path, min_seconds=2.0):
+  """One task file's agent (a shipped one, or a user's) on its compiled path, learning:
+  {task, unit, compile_seconds, train_seconds, steps, steps_per_second}. The first
+  call, one episode, is timed apart: it holds numba's compiling (or loading from its
+  cache); the speed is over at least `min_seconds` of training after it."""
+  from hpg_mj import agents
+
+  task = agents.load_task(path)
+  agent = agents.build(task, seed=0)
+  unit = "control steps/s" if task.section("environment")["world"] == "ship" else \
+      "primitive steps/s"
+  chunk = 1000
+  if agent.record_steps:                   # a continuing agent: rows of an hour each
+    chunk = 20
+  start = time.perf_counter()
+  agent.train(1, "analytic")                          # compile (or load), one episode
+  compile_seconds = time.perf_counter() - start
+  steps, start = 0, time.perf_counter()
+  n = 10
+  while time.perf_counter() - start < min_seconds:
+    steps += int(agent.train(n, "analytic")["steps"].sum())
+    n = min(2 * n, chunk)
+  seconds = time.perf_counter() - start
+  return {"task": task.path.stem, "unit": unit, "compile_seconds": compile_seconds,
+          "train_seconds": seconds, "steps": steps, "steps_per_second": _rate(steps, seconds)}
+
+
+def bench_train(min_seconds=2.0, tasks=None):
+  """Rows of (name, unit, steps per second): every shipped task file's agent (or the
+  task files `tasks`) on its compiled path, learning, and, for the shipped set, the
+  stand-alone subtasks and the hybrid step by step through dm_control."""
   from hpg_mj import agents
 
   rows = []
-  for name, path in agents.shipped_tasks().items():
-    task = agents.load_task(path)
-    agent = agents.build(task, seed=0)
-    unit = "control steps/s" if task.section("environment")["world"] == "ship" else \
-        "primitive steps/s"
-    chunk = 100 if "flat_pg" in name or "actor_critic" in name else 1000
-    if agent.record_steps:                   # a continuing agent: rows of an hour each
-      chunk = 20
-    agent.train(5, "analytic")                          # compile, warm up
-    steps, start = 0, time.perf_counter()
-    while time.perf_counter() - start < min_seconds:
-      steps += int(agent.train(chunk, "analytic")["steps"].sum())
-    rows.append((f"{name}, compiled, learning", unit, _rate(steps, time.perf_counter() - start)))
+  for path in (tasks or agents.shipped_tasks().values()):
+    row = bench_task(path, min_seconds)
+    rows.append((f"{row['task']}, compiled, learning", row["unit"], row["steps_per_second"]))
+  if tasks:
+    return rows
 
   # The stand-alone subtasks with the learned exploration width (SPEC section 8).
   from hpg_mj.agents import ship_subtask

@@ -123,9 +123,16 @@ def _cmd_doctor(args):
 def _cmd_bench(args):
   from hpg_mj import bench
   if args.what == "envs":
-    print(bench.format_rows(bench.bench_envs(min_seconds=args.seconds)))
+    print(bench.format_rows(bench.bench_envs(min_seconds=args.seconds or 1.0)))
   elif args.what == "train":
-    print(bench.format_rows(bench.bench_train(min_seconds=max(args.seconds, 2.0))))
+    seconds = 2.0 if args.seconds is None else args.seconds
+    if args.json:
+      from hpg_mj import agents
+      tasks = args.task or list(agents.shipped_tasks().values())
+      import json
+      print(json.dumps([bench.bench_task(t, seconds) for t in tasks], indent=2))
+    else:
+      print(bench.format_rows(bench.bench_train(min_seconds=seconds, tasks=args.task)))
   else:
     _bench_experiments(args)
   return 0
@@ -576,7 +583,14 @@ def build_parser():
   p = sub.add_parser("bench", help="print speed figures")
   p.add_argument("what", choices=["envs", "train", "experiments"],
                  help="environments, training loops, or the paper's protocols end to end")
-  p.add_argument("--seconds", type=float, default=1.0, help="measuring time per row")
+  p.add_argument("--seconds", type=float, default=None,
+                 help="measuring time per row (envs: 1 s, train: 2 s)")
+  p.add_argument("--task", action="append", default=None, metavar="FILE",
+                 help="train: this task file (a shipped name or a path; repeat for more) "
+                      "instead of every shipped one")
+  p.add_argument("--json", action="store_true",
+                 help="train: one JSON object per task file, compile seconds apart from "
+                      "training seconds")
   p.add_argument("--workers", type=_at_least(1), default=None, help="experiments: processes")
   p.set_defaults(func=_cmd_bench)
 

@@ -69,13 +69,8 @@ def run_low_level(state, direction, low, low_values, tiling, s, learn, sample, r
   core.global_to_local(state, origin, direction, local_state)
   tiles.active_tiles(local_state, tiling, scratch_tiles)
   while True:
-    if sample:
-      r = policies.gaussian_act(low, scratch_tiles, core.MAX_TURN_RATE, rng_state, scratch_psi)
-      if learn and beta != 0.0:
-        policies.subtract_baseline(low.theta, low_values, scratch_tiles, s.low_level_alpha,
-                                   scratch_psi)
-    else:
-      r = policies.gaussian_greedy(low, scratch_tiles, core.MAX_TURN_RATE)
+    r = policies.gaussian_choose(low, low_values, scratch_tiles, scratch_psi, s.low_level_alpha,
+                                 beta, core.MAX_TURN_RATE, learn, sample, rng_state)
     core.euler_control(state, r, samples)
     k += 1
     global_event, reward = core.global_outcome(samples, s.environment_gate_reward,
@@ -89,11 +84,8 @@ def run_low_level(state, direction, low, low_values, tiling, s, learn, sample, r
     if not ended:       # the next state, already local (`low_level_outcome`), and its tiles
       tiles.active_tiles(local_state, tiling, scratch_next)
     if learn:                                          # Eq. 3 with R + G
-      el.learn(low, s.low_level_alpha, core.STEP_REWARD + internal, s.low_level_trace_gamma)
-      if beta != 0.0:
-        next_value = 0.0 if ended else policies.tile_mean(low_values, scratch_next)
-        policies.learn_baseline(low_values, scratch_tiles, beta, core.STEP_REWARD + internal,
-                                s.low_level_trace_gamma, next_value)
+      policies.gaussian_learn(low, low_values, scratch_tiles, scratch_next, s.low_level_alpha,
+                              s.low_level_trace_gamma, beta, core.STEP_REWARD + internal, ended)
     if ended:
       return global_event, local_event, reward_root, k
     arrays.copy_into(scratch_tiles, scratch_next)

@@ -44,6 +44,7 @@ from hpg_mj.hierarchy import ship_rules
 from hpg_mj.hierarchy.graph import Child, GraphError, Primitive, Subtask
 from hpg_mj.learners import arrays
 from hpg_mj.learners import eligibility as el
+from hpg_mj.learners import jit
 from hpg_mj.learners import policies
 from hpg_mj.learners import qlambda
 from hpg_mj.learners import schedules
@@ -117,7 +118,7 @@ def grid_cell(x, y, cell_m, grid):
   return i * grid + j
 
 
-@numba.njit(cache=True, error_model="numpy", inline="always")
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _view(P, Q, G, T, S, K, d, obs, which):
   """The node at depth d views `obs`: a table's state into S_STATE (which = 0) or
   S_NEXT_STATE (1); tiles into its tiles[d, which]."""
@@ -137,7 +138,7 @@ def _view(P, Q, G, T, S, K, d, obs, which):
     tiles_mod.active_tiles(obs, tiling, K.tiles[d, which, :tiling.offsets.shape[0]])
 
 
-@numba.njit(cache=True, error_model="numpy", inline="always")
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _choose(P, Q, G, T, S, K, d, learn, sample, rng_state):
   """Algorithm 1: choose a with mu^i(s, theta^i); sets the stack's choice and action."""
   node = K.ints[d, S_NODE]
@@ -152,20 +153,13 @@ def _choose(P, Q, G, T, S, K, d, learn, sample, rng_state):
                                                        row[N_CHILDREN], epsilon, rng_state)
   elif row[LEARNER] == GAUSSIAN_CMAC:
     k = T.n_tilings[row[VIEW_SLOT]]
-    tiles = K.tiles[d, 0, :k]
-    g = G
-    trace = _trace(g, slot)
-    if sample:
-      psi = K.psi[d, :k]
-      K.floats[d, F_ACTION] = policies.gaussian_act(trace, tiles, p[R_MAX], rng_state, psi)
-      if learn and p[BETA] != 0.0:
-        policies.subtract_baseline(g.theta[slot], g.values[slot], tiles, p[ALPHA], psi)
-    else:
-      K.floats[d, F_ACTION] = policies.gaussian_greedy(trace, tiles, p[R_MAX])
+    K.floats[d, F_ACTION] = policies.gaussian_choose(
+        _trace(G, slot), G.values[slot], K.tiles[d, 0, :k], K.psi[d, :k], p[ALPHA], p[BETA],
+        p[R_MAX], learn, sample, rng_state)
     K.ints[d, S_CHOICE] = 0
 
 
-@numba.njit(cache=True, error_model="numpy", inline="always")
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
 def _call(P, Q, G, T, S, K, d, node, arg, obs, learn, sample, rng_state):
   """Task `node` is called at depth d with `arg` from `obs`: z <- 0, its view, its
   first choice."""
@@ -182,24 +176,31 @@ def _call(P, Q, G, T, S, K, d, node, arg, obs, learn, sample, rng_state):
     qlambda.clear(Q.count[row[SLOT]])
   elif row[LEARNER] == GAUSSIAN_CMAC:
     el.reset(_trace(G, row[SLOT]))                  # Eq. 3: z <- 0
-  _view(P, Q, G, T, S, K, d, obs, 0)
+  _view(P, Q, G, T, S, K, d, obs, np.int64(0))
   _choose(P, Q, G, T, S, K, d, learn, sample, rng_state)
 
 
-@numba.njit(cache=True, error_model="numpy", inline="always")
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _primitive_action(P, K, d):
+  """The action of the child chosen at depth d if it is a primitive (a continuous
+  one: the value its parent drew), else NaN."""
+  child = P.children[P.nodes[K.ints[d, S_NODE], FIRST_CHILD] + K.ints[d, S_CHOICE], 0]
+  if P.nodes[child, KIND] != PRIMITIVE:
+    return np.nan
+  K.episode[E_DEPTH] = d
+  action = P.params[child, ACTION]
+  return K.floats[d, F_ACTION] if action != action else action       # NaN: continuous
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _descend(P, Q, G, T, S, K, d, obs, learn, sample, rng_state):
   """From depth d, calls the chosen children down to a primitive; returns the
-  primitive's action (a continuous one: the value its parent drew)."""
-  ints = K.ints
-  nodes = P.nodes
+  primitive's action."""
   while True:
-    node = ints[d, S_NODE]
-    child = P.children[nodes[node, FIRST_CHILD] + ints[d, S_CHOICE]]
-    if nodes[child[0], KIND] == PRIMITIVE:
-      K.episode[E_DEPTH] = d
-      if P.params[child[0], ACTION] != P.params[child[0], ACTION]:
-        return K.floats[d, F_ACTION]          # continuous: NaN marks it
-      return P.params[child[0], ACTION]
+    action = _primitive_action(P, K, d)
+    if action == action:
+      return action
+    child = P.children[P.nodes[K.ints[d, S_NODE], FIRST_CHILD] + K.ints[d, S_CHOICE]]
     d += 1
     _call(P, Q, G, T, S, K, d, child[0], child[1], obs, learn, sample, rng_state)
 
@@ -213,11 +214,12 @@ def begin(P, Q, G, T, S, K, obs, learn, sample, rng_state):
       c[i, j] = 0.0
   K.episode[E_STEPS] = 0
   K.total[0] = 0.0
-  _call(P, Q, G, T, S, K, 0, P.nodes.shape[0] - 1, -1, obs, learn, sample, rng_state)
-  return _descend(P, Q, G, T, S, K, 0, obs, learn, sample, rng_state)
+  _call(P, Q, G, T, S, K, np.int64(0), P.nodes.shape[0] - 1, np.int64(-1), obs, learn, sample,
+        rng_state)
+  return _descend(P, Q, G, T, S, K, np.int64(0), obs, learn, sample, rng_state)
 
 
-@numba.njit(cache=True, error_model="numpy", inline="always")
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _end_of(P, K, d, obs, samples):
   """After a child of the node at depth d returned: (its own event, G)."""
   node = K.ints[d, S_NODE]
@@ -231,7 +233,7 @@ def _end_of(P, K, d, obs, samples):
   return core.NO_EVENT, 0.0
 
 
-@numba.njit(cache=True, error_model="numpy", inline="always")
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _observe(P, Q, G, T, S, K, d, obs, signal, done, terminal, learn, sample, rng_state):
   """Algorithm 1: the learner of the node at depth d takes R + G of its child's run;
   unless done, it makes its next choice."""
@@ -241,40 +243,28 @@ def _observe(P, Q, G, T, S, K, d, obs, signal, done, terminal, learn, sample, rn
   slot = row[SLOT]
   ints = K.ints
   if row[LEARNER] == Q_TABLE:
-    _view(P, Q, G, T, S, K, d, obs, 1)
-    q = Q
-    s_next = ints[d, S_NEXT_STATE]
-    a_next = 0              # no draw when the call is over
-    if not done:
-      epsilon = 0.0
-      if sample:
-        epsilon = S.epsilon[0] if row[EPS_SCHEDULE] else p[EPSILON]
-      a_next = qlambda.epsilon_greedy(q.q[slot], s_next, row[N_CHILDREN], epsilon, rng_state)
-    if learn:
-      qlambda.update(q.q[slot], row[N_CHILDREN], q.index[slot], q.value[slot], q.count[slot],
-                     ints[d, S_STATE], ints[d, S_CHOICE], signal, s_next, a_next, terminal,
-                     p[ALPHA], p[GAMMA], p[DECAY])
-      if done:
-        qlambda.clear(q.count[slot])
-    ints[d, S_STATE] = s_next
-    ints[d, S_CHOICE] = a_next
+    _view(P, Q, G, T, S, K, d, obs, np.int64(1))
+    epsilon = 0.0
+    if sample:
+      epsilon = S.epsilon[0] if row[EPS_SCHEDULE] else p[EPSILON]
+    ints[d, S_CHOICE] = qlambda.smdp_step(
+        Q.q[slot], row[N_CHILDREN], Q.index[slot], Q.value[slot], Q.count[slot],
+        ints[d, S_STATE], ints[d, S_CHOICE], signal, ints[d, S_NEXT_STATE], done, terminal,
+        epsilon, p[ALPHA], p[GAMMA], p[DECAY], learn, rng_state)
+    ints[d, S_STATE] = ints[d, S_NEXT_STATE]
   elif row[LEARNER] == GAUSSIAN_CMAC:
     k = T.n_tilings[row[VIEW_SLOT]]
     if not done:
-      _view(P, Q, G, T, S, K, d, obs, 1)
-    g = G
+      _view(P, Q, G, T, S, K, d, obs, np.int64(1))
     if learn:                                          # Eq. 3 with R + G
-      el.learn(_trace(g, slot), p[ALPHA], signal, p[DECAY])
-      if p[BETA] != 0.0:
-        next_value = 0.0 if done else policies.tile_mean(g.values[slot], K.tiles[d, 1, :k])
-        policies.learn_baseline(g.values[slot], K.tiles[d, 0, :k], p[BETA], signal,
-                                p[DECAY], next_value)
+      policies.gaussian_learn(_trace(G, slot), G.values[slot], K.tiles[d, 0, :k],
+                              K.tiles[d, 1, :k], p[ALPHA], p[DECAY], p[BETA], signal, done)
     if not done:
       arrays.copy_into(K.tiles[d, 0, :k], K.tiles[d, 1, :k])
       _choose(P, Q, G, T, S, K, d, learn, sample, rng_state)
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@numba.njit(cache=True, error_model="numpy", _nrt=False)
 def step(P, Q, G, T, S, K, obs, samples, reward, terminated, truncated, learn, sample,
          rng_state):
   """A primitive step ended in `obs` with `reward` (`samples`: the positions
@@ -302,10 +292,13 @@ def step(P, Q, G, T, S, K, obs, samples, reward, terminated, truncated, learn, s
       seen = floats[d, F_REWARD]
     floats[d, F_REWARD] = 0.0
     ints[d, S_CHILD_STEPS] = 0
-    _observe(P, Q, G, T, S, K, d, obs, seen + internal, done, terminated or event != core.NO_EVENT, learn,
-             sample, rng_state)
+    _observe(P, Q, G, T, S, K, d, obs, seen + internal, done,
+             terminated or event != core.NO_EVENT, learn, sample, rng_state)
     if not done:
-      return False, _descend(P, Q, G, T, S, K, d, obs, learn, sample, rng_state)
+      action = _primitive_action(P, K, d)        # the common case: no call to make
+      if action != action:
+        action = _descend(P, Q, G, T, S, K, d, obs, learn, sample, rng_state)
+      return False, action
     # The call returns (Algorithm 1: return to the parent).
     c = K.counters[node]
     if d == 0:
@@ -573,8 +566,19 @@ class Machine:
 
   # -- running it --
 
+  def _bottom_up(self):
+    """The machine's functions, callees first, with arguments of the types its
+    callers pass (`learners.jit.compile_first`: each then compiles near the top of
+    the Python stack). One list for every graph: their types do not depend on it."""
+    b = self.banks
+    d, obs, rng_state = np.int64(0), np.zeros(4), np.zeros(4, dtype=np.uint64)
+    return [(_call, (*b, d, d, d, obs, False, False, rng_state)),
+            (step, (*b, obs, np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)), 0.0, False, False,
+                    False, False, rng_state))]
+
   def run(self, episodes, learn, sample, rng_state, world, start=None):
     """Episodes fused with the analytic ship; rows as `run_ship` writes them."""
+    jit.compile_first(run_ship, self._bottom_up)
     rows = np.zeros((int(episodes), 3 + 3 * len(self.names)))
     fixed = np.empty(0) if start is None else np.asarray(start, dtype=np.float64)
     run_ship(*self.banks, int(episodes), bool(learn), bool(sample), rng_state,

@@ -91,21 +91,22 @@ class GaussianPolicyGradient(_PolicyGradient):
     self.values = np.zeros(n_weights)
 
   def act(self, features, mask, rng_state, sample):
-    if sample:
-      self._tiles[:] = features             # the view's array is reused for the next state
-      return policies.gaussian_act(self.trace, features, self.r_max, rng_state, self._psi)
-    return policies.gaussian_greedy(self.trace, features, self.r_max)
+    self._tiles[:] = features               # the view's array is reused for the next state
+    # (Its baseline's -alpha b(s) psi waits for `observe`, which knows whether it learns:
+    # the same numbers as `policies.gaussian_choose`, which makes it at once.)
+    return policies.gaussian_choose(self.trace, self.values, self._tiles, self._psi, self.alpha,
+                                    0.0, self.r_max, False, sample, rng_state)
 
   def observe(self, signal, next_features, done, terminal, learn):
-    # In the order of the fused loop (hpg_mj.agents.ship_hybrid.run_low_level).
-    if learn and self.baseline != 0.0:
-      policies.subtract_baseline(self.trace.theta, self.values, self._tiles, self.alpha,
-                                 self._psi)
-    super().observe(signal, next_features, done, terminal, learn)
-    if learn and self.baseline != 0.0:
-      next_value = 0.0 if done else policies.tile_mean(self.values, next_features)
-      policies.learn_baseline(self.values, self._tiles, self.baseline, signal, self.gamma,
-                              next_value)
+    if learn:
+      if self.baseline != 0.0:
+        policies.subtract_baseline(self.trace.theta, self.values, self._tiles, self.alpha,
+                                   self._psi)
+      policies.gaussian_learn(self.trace, self.values, self._tiles,
+                              self._tiles if done else next_features, self.alpha, self.gamma,
+                              self.baseline, signal, done)
+      if self.reset_states is not None and not done and self.reset_states(next_features):
+        el.reset(self.trace)
 
 
 @dataclasses.dataclass

@@ -177,6 +177,34 @@ def learn_baseline(values, tiles, beta, signal, gamma, next_value):
     values[tiles[k]] += beta * delta
 
 
+# The Eq. 3 step of a subtask over a CMAC, with its baseline (SPEC section 3): what a
+# subtask does when it chooses, and when its child returns R + G. Every path that
+# runs such a subtask calls these two.
+
+@numba.njit(cache=True, error_model="numpy")
+def gaussian_choose(t, values, tiles, psi, alpha, beta, r_max, learn, sample, rng_state):
+  """Algorithm 1, choose a: u ~ Normal(m, 1) with its score added to z
+  (`gaussian_act`) and, with a baseline (beta != 0) while learning, theta <- theta -
+  alpha b(s) psi; without sampling, the mode. Returns the action r."""
+  if sample:
+    r = gaussian_act(t, tiles, r_max, rng_state, psi)
+    if learn and beta != 0.0:
+      subtract_baseline(t.theta, values, tiles, alpha, psi)
+    return r
+  return gaussian_greedy(t, tiles, r_max)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def gaussian_learn(t, values, tiles, next_tiles, alpha, gamma, beta, signal, done):
+  """Algorithm 1, the child returned R + G = `signal`: Eq. 3 (theta <- theta + alpha
+  (R + G) z, then z <- gamma z) and the baseline's TD(0) step with b(s') over
+  `next_tiles` (0 when the call is `done`)."""
+  el.learn(t, alpha, signal, gamma)
+  if beta != 0.0:
+    next_value = 0.0 if done else tile_mean(values, next_tiles)
+    learn_baseline(values, tiles, beta, signal, gamma, next_value)
+
+
 # A learned exploration width (SPEC section 8, the paper's future work; a new rule
 # beside `gaussian_act`, which stays the paper's sigma = 1). The width is linear in
 # log space over the same tiles: log sigma(s) = the mean of `width.theta` over the

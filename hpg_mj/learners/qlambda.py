@@ -90,6 +90,24 @@ def update(q, n_actions, tr_index, tr_value, tr_count, s, a, reward, s_next, a_n
   return delta
 
 
+@numba.njit(cache=True)
+def smdp_step(q, n_actions, tr_index, tr_value, tr_count, s, a, signal, s_next, done, terminal,
+              epsilon, alpha, gamma_tau, lam, learn, rng_state):
+  """The root's SMDP step (SPEC section 3) when its child returns R = `signal` in s':
+  unless the call is `done`, the next choice a' (epsilon-greedy in s'); then, learning,
+  the backup of (s, a, R, s', a') (`update`), and the trace cleared when done.
+  Returns a' (0, and no draw, when done)."""
+  a_next = 0
+  if not done:
+    a_next = epsilon_greedy(q, s_next, n_actions, epsilon, rng_state)
+  if learn:
+    update(q, n_actions, tr_index, tr_value, tr_count, s, a, signal, s_next, a_next, terminal,
+           alpha, gamma_tau, lam)
+    if done:
+      clear(tr_count)
+  return a_next
+
+
 @numba.njit(cache=True, inline="always")
 def _carry_trace(tr_index, tr_value, tr_count, next_is_greedy, decay):
   """After a backup: e <- decay * e if a' is greedy in s' (dropping what has decayed
