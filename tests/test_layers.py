@@ -55,3 +55,46 @@ def test_there_is_no_folder_level_cycle():
       reach(nxt, seen + [nxt])
   for folder in graph:
     reach(folder, [folder])
+
+
+def _module_graph():
+  """Every module of hpg_mj, top-level ones too, -> the hpg_mj modules it imports
+  (`from package import module` is an import of the module), lazy imports included."""
+  def name_of(path):
+    parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+  modules = {name_of(p): p for p in PACKAGE.rglob("*.py")}
+  graph = {}
+  for name, path in modules.items():
+    deps = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+      if isinstance(node, ast.Import):
+        deps.update(a.name for a in node.names if a.name in modules)
+      elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+        for a in node.names:
+          full = f"{node.module}.{a.name}"
+          deps.add(full if full in modules else node.module)
+    graph[name] = deps & set(modules) - {name}
+  return graph
+
+
+def test_no_module_imports_itself_through_others():
+  """No import circle between modules, the top-level ones included (the MuJoCo ship's
+  model is `worlds/ship_model.py`, which the render worker's drawing and the dm_control
+  domain both import; the domain imports the worker, the model does not)."""
+  graph = _module_graph()
+  assert graph["hpg_mj.render.drawing"] >= {"hpg_mj.worlds.ship_model"}
+  assert "hpg_mj._render_worker" not in graph["hpg_mj.worlds.ship_model"]
+  done, cycles = set(), []
+
+  def visit(name, path):
+    for nxt in sorted(graph[name]):
+      if nxt in path:
+        cycles.append(path[path.index(nxt):] + [nxt])
+      elif nxt not in done:
+        visit(nxt, path + [nxt])
+    done.add(name)
+  for name in sorted(graph):
+    if name not in done:
+      visit(name, [name])
+  assert cycles == []

@@ -73,8 +73,8 @@ class ShipDrawing:
   """The field, the gate, the bounds, the ship at a state and its wake."""
 
   def __init__(self, width=640, height=480):
-    from hpg_mj.worlds import ship
-    self.physics = ship.Physics.from_xml_string(*ship.get_model_and_assets())
+    from hpg_mj.worlds import ship_model
+    self.physics = ship_model.ShipPhysics.from_xml_string(*ship_model.get_model_and_assets())
     self.width, self.height = int(width), int(height)
     self._renderer = mujoco.Renderer(self.physics.model.ptr, self.height, self.width,
                                      max_geom=4000)

@@ -17,23 +17,21 @@ One control step is 0.6 s: the desired turning rate r (deg/s) is held for three
 
 Creating a `Physics` stops MuJoCo's built-in profiler for the whole process (its
 `mjData.timer` stays 0) unless the user installed a clock (`stop_profiler_clock`).
+The model and its readings are `worlds.ship_model`'s; this module adds the tasks and
+the drawing through the render worker.
 """
 import collections
-import math
 
-import numba
 import numpy as np
 
-from hpg_mj import _assets
 from hpg_mj import _headless
 from hpg_mj import _validation
 from hpg_mj import _render_worker as worker
 from hpg_mj.worlds import ship_core as core
+from hpg_mj.worlds import ship_model
 from hpg_mj.worlds.ship_task import ShipRules
 
 with _headless.simulation_imports():   # no GL in the simulating process (SPEC section 9)
-  import mujoco as mj
-  from dm_control import mujoco
   from dm_control.rl import control
   from dm_control.suite import base
   from dm_control.utils import containers
@@ -42,175 +40,13 @@ with _headless.simulation_imports():   # no GL in the simulating process (SPEC s
 SUITE = containers.TaggedTasks()
 
 
-def get_model_and_assets():
-  """Returns the MJCF model of the ship and the (empty) assets dict."""
-  return _assets.read_model("ship.xml"), {}
+get_model_and_assets = ship_model.get_model_and_assets
+set_orthographic_extents = ship_model.set_orthographic_extents
+stop_profiler_clock = ship_model.stop_profiler_clock
 
 
-def set_orthographic_extents(model):
-  """Applies the custom numerics `ortho_extent_<camera>` to the cameras' fovy.
-
-  MuJoCo's compiler refuses a fovy above 180, also for an orthographic camera,
-  whose fovy is its vertical extent in metres; a 1 km field needs more.
-  """
-  for i in range(model.nnumeric):
-    name = mj.mj_id2name(model, mj.mjtObj.mjOBJ_NUMERIC, i)
-    if name and name.startswith("ortho_extent_"):
-      camera = mj.mj_name2id(model, mj.mjtObj.mjOBJ_CAMERA, name[len("ortho_extent_"):])
-      if camera < 0:
-        raise ValueError(f"custom numeric {name!r} names no camera in the model")
-      model.cam_fovy[camera] = model.numeric_data[model.numeric_adr[i]]
-
-
-@numba.cfunc(numba.float64(), cache=True)
-def _stopped_clock():
-  """A clock that always reads 0: as MuJoCo's `mjcb_time`, every profiler timing is 0."""
-  return 0.0
-
-
-def stop_profiler_clock():
-  """Stops MuJoCo's built-in profiler (`mjData.timer` then stays at 0) unless the user
-  installed a clock of their own with `mujoco.set_mjcb_time`.
-
-  "Installing [mjcb_time] enables the built-in profiler, and keeps timing statistics in
-  mjData.timer" (MuJoCo API reference, mjcb_time). The C library's default is none; the
-  Python bindings install a steady clock with every MjData (mujoco issue #2354), and
-  `set_mjcb_time(None)` brings that clock back. Its 28 readings per mj_step cost this
-  small model a third of its step (1.85 against 1.24 us here, hpg-mj bench envs), so a
-  C clock that returns 0 (a compiled cfunc, never Python) takes its place: process-wide,
-  as the callback is. A clock set by the user is left alone.
-  """
-  if mj.get_mjcb_time() is None:    # the bindings' default clock (or none)
-    mj.set_mjcb_time(_stopped_clock.ctypes)
-
-
-@numba.njit(cache=True)
-def bow_readings(qpos, act, bow, positions, state):
-  """The bow's positions (rows of `qpos`: x, y, yaw) into `positions`, and the last
-  row's ship state [x, y, theta_deg, theta_dot_deg] into `state`, the turning rate
-  being the rudder filter's activation `act[0]`: the arithmetic of `Physics.position`
-  and `heading_deg` compiled, one call per control step."""
-  for k in range(qpos.shape[0]):
-    theta = qpos[k, 2]
-    positions[k, 0] = qpos[k, 0] + bow * math.sin(theta)
-    positions[k, 1] = qpos[k, 1] + bow * math.cos(theta)
-  last = qpos.shape[0] - 1
-  state[0] = positions[last, 0]
-  state[1] = positions[last, 1]
-  state[2] = core.wrap_deg(math.degrees(qpos[last, 2]))
-  state[3] = act[0]
-
-
-class Physics(mujoco.Physics):
-  """The MuJoCo ship with named readings in the paper's units."""
-
-  # Sampled positions of the last step: row 0 is where it began, row k the
-  # position after sampling interval k (SPEC section 2 checks each segment).
-  _samples = None
-
-  def _reload_from_data(self, data):
-    super()._reload_from_data(data)
-    set_orthographic_extents(self.model.ptr)
-    stop_profiler_clock()   # after MjData's creation, which installs the bindings' clock
-    # The raw MuJoCo structures and the bow's offset, read once: the readings
-    # below run several times per control step, and dm_control's named and
-    # wrapped access costs microseconds each (hpg-mj bench envs).
-    self._model_ptr, self._data_ptr = self.model.ptr, self.data.ptr
-    # Views of mjData's arrays, taken once for this data: the bindings build a new
-    # numpy view at each attribute access.
-    self._qpos, self._act, self._ctrl = self._data_ptr.qpos, self._data_ptr.act, self._data_ptr.ctrl
-    self._bow = float(self.named.model.site_pos["bow", 1])
-    # (nstep, MuJoCo steps per 0.2 s sample, the joint positions at each sample) of
-    # the last `step`, checked when nstep first differs from the step before.
-    self._sampling = None
-
-  def _substeps_per_sample(self):
-    substeps = core.SAMPLING_INTERVAL / self._model_ptr.opt.timestep
-    n = int(round(substeps))
-    if n < 1 or abs(n - substeps) > 1e-9:
-      raise ValueError(f"ship model timestep {self._model_ptr.opt.timestep} s must divide the "
-                       f"{core.SAMPLING_INTERVAL} s sampling interval")
-    return n
-
-  def bow_offset(self):
-    """Distance (m) from the joint origin to the bow site, the reported position."""
-    return self._bow
-
-  def heading_deg(self):
-    """Heading, degrees clockwise from +y, wrapped to [-180, 180)."""
-    return (math.degrees(self._data_ptr.qpos[2]) + 180.0) % 360.0 - 180.0   # core.wrap_deg
-
-  def turning_rate_deg(self):
-    """Actual turning rate theta_dot (deg/s): the state of the rudder filter."""
-    return float(self._data_ptr.act[0])
-
-  def _position(self):
-    x, y, theta = self._data_ptr.qpos.tolist()
-    return x + self._bow * math.sin(theta), y + self._bow * math.cos(theta)
-
-  def position(self):
-    """(x, y) of the ship in metres (the bow site, see assets/ship.xml)."""
-    return np.array(self._position())
-
-  def ship_state(self):
-    """[x, y, theta_deg, theta_dot_deg] as a new array."""
-    data = self._data_ptr
-    state = np.empty(4)
-    bow_readings(data.qpos.reshape(1, 3), data.act, self._bow, np.empty((1, 2)), state)
-    return state
-
-  def set_ship_state(self, state):
-    """Places the ship at [x, y, theta_deg, theta_dot_deg], sailing at speed V."""
-    x, y, theta_deg, theta_dot_deg = (float(v) for v in state)
-    theta = np.radians(theta_deg)
-    c = self.bow_offset()
-    sin, cos = np.sin(theta), np.cos(theta)
-    self.data.qpos[:] = (x - c * sin, y - c * cos, theta)
-    self.data.qvel[:] = (core.SPEED * sin, core.SPEED * cos, np.radians(theta_dot_deg))
-    self.data.act[:] = theta_dot_deg
-    self.data.ctrl[:2] = theta_dot_deg
-    mj.mj_kinematics(self.model.ptr, self.data.ptr)
-
-  def set_turn_command(self, r_deg):
-    """Sets the desired turning rate r (deg/s) on both rudder filters."""
-    ctrl = self._ctrl
-    ctrl[0] = r_deg
-    ctrl[1] = r_deg
-
-  def place_target(self, xy):
-    """Shows a subtask's goal disc at `xy`, or hides it when `xy` is None."""
-    pos = (-5000.0, -5000.0, -50.0) if xy is None else (xy[0], xy[1], 0.3)
-    self.named.data.mocap_pos["target"] = pos
-
-  def sampled_positions(self):
-    """Positions sampled during the last `step` (rows: start, then each 0.2 s)."""
-    if self._samples is None:
-      return self.position()[None, :]
-    return self._samples
-
-  def _sampling_of(self, nstep):
-    """`self._sampling` for steps of `nstep` MuJoCo steps, or ValueError."""
-    substeps = self._substeps_per_sample()
-    if nstep % substeps:
-      raise ValueError(f"the ship steps whole 0.2 s sampling intervals ({substeps} MuJoCo "
-                       f"steps each), got nstep={nstep}")
-    return nstep, substeps, np.empty((nstep // substeps + 1, 3))
-
-  def step(self, nstep=1):
-    """Advances `nstep` MuJoCo steps, sampling the position every 0.2 s."""
-    sampling = self._sampling
-    if sampling is None or sampling[0] != nstep:
-      sampling = self._sampling = self._sampling_of(nstep)
-    _, substeps, rows = sampling
-    model, data, qpos = self._model_ptr, self._data_ptr, self._qpos
-    rows[0] = qpos
-    for k in range(1, rows.shape[0]):
-      mj.mj_step(model, data, substeps)
-      rows[k] = qpos
-    # New arrays each step: callers keep the last step's samples and state.
-    self._samples = np.empty((rows.shape[0], 2))
-    self.stepped_state = np.empty(4)   # `ship_state()` after this step, read with it
-    bow_readings(rows, self._act, self._bow, self._samples, self.stepped_state)
+class Physics(ship_model.ShipPhysics):
+  """The MuJoCo ship (`ship_model.ShipPhysics`), drawn by the render worker."""
 
   def render(self, height=240, width=320, camera_id=-1, **options):
     """dm_control's `render`, drawn in a worker process (SPEC section 9)."""
