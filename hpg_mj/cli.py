@@ -358,6 +358,10 @@ def _cmd_run(args):
   experiment = runner.load_experiment(args.experiment_file)   # refused before any run
   from hpg_mj import _paths
   _paths.check_folder_out(runner.folder(experiment, args.out, args.quick))
+  import importlib.util
+  if args.executor == "ray" and importlib.util.find_spec("ray") is None:
+    raise ValueError("--executor ray needs Ray, which is not installed here: pip install "
+                     "'hpg_mj[ray]', or use --executor process")
   from tqdm import tqdm
   all_jobs = runner.jobs(experiment, args.out, args.quick)
   todo = runner.pending(experiment, args.out, args.quick)

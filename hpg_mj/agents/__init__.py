@@ -262,7 +262,11 @@ def load_task(path):
 def build(task, seed=None):
   """An agent for a loaded task file (seed: the file's unless given)."""
   seed = task.protocol.seed if seed is None else seed
-  return lookup(task.kind)(task.config, seed=seed, task=task)
+  cls = lookup(task.kind)
+  try:
+    return cls(task.config, seed=seed, task=task)
+  except ValueError as err:      # a world's own limit (e.g. the taxi's capacity): name the file
+    raise taskfile.TaskFileError(f"{task.path}: {err}") from None
 
 
 # ---- training in chunks ------------------------------------------------------------
