@@ -199,42 +199,39 @@ def _short(task):
   return env.get("max_steps", 0) <= 5000
 
 
+def read_then_run(text, name, load, too_long, argv):
+  """Writes the mutated file; if `load` takes it and `too_long(loaded)`, stops there
+  (read and taken); else runs `argv(path, out)` through `run_cli` (a refusal by
+  `load` must reach the user as one line)."""
+  with sandbox() as (parent, box):
+    path = box / name
+    path.write_bytes(text)
+    try:
+      loaded = load(path)
+    except taskfile.TaskFileError:
+      loaded = None
+    if loaded is not None and too_long(loaded):
+      event(f"{name}: read, too long to run")
+      return
+    run_cli(argv(path, box / "out"), parent, [box / "out"])
+
+
 @SETTINGS
 @given(st.data())
 def test_mutated_task_files_train_or_are_refused_in_one_line(data):
-  text = mutated(TASK, data.draw)
-  with sandbox() as (parent, box):
-    path = box / "t.toml"
-    path.write_bytes(text)
-    try:
-      task = agents.load_task(path)
-    except taskfile.TaskFileError:
-      task = None                      # refused: the command line must say so in one line
-    if task is not None and not _short(task):
-      event("train: read, too long to run")
-      return                           # read and taken; too long to run here
-    run_cli(["train", path, "--episodes", 2, "--seed", 1, "--out", box / "out", "--quiet"],
-            parent, [box / "out"])
+  read_then_run(mutated(TASK, data.draw), "t.toml", agents.load_task,
+                lambda task: not _short(task),
+                lambda path, out: ["train", path, "--episodes", 2, "--seed", 1, "--out", out,
+                                   "--quiet"])
 
 
 @settings(SETTINGS, max_examples=60)
 @given(st.data())
 def test_mutated_experiment_files_run_or_are_refused_in_one_line(data):
-  text = mutated(EXPERIMENT, data.draw)
-  with sandbox() as (parent, box):
-    path = box / "e.toml"
-    path.write_bytes(text)
-    try:
-      experiment = runner.load_experiment(path)
-    except taskfile.TaskFileError:
-      experiment = None
-    if experiment is not None and (
-        experiment["runs"] * experiment["episodes"] > 2000
-        or not all(_short(t) for t in experiment["task_files"])):
-      event("run: read, too long to run")
-      return                           # read and taken; too long to run here
-    out = box / "out"
-    run_cli(["run", path, "--out", out, "--workers", 1, "--quiet"], parent, [out])
+  read_then_run(mutated(EXPERIMENT, data.draw), "e.toml", runner.load_experiment,
+                lambda e: (e["runs"] * e["episodes"] > 2000
+                           or not all(_short(t) for t in e["task_files"])),
+                lambda path, out: ["run", path, "--out", out, "--workers", 1, "--quiet"])
 
 
 PATHS = ["out/new", "notes.txt", "notes.txt/sub", "mine", "../escaped", "ABSOLUTE", "", ".",
