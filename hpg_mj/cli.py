@@ -306,7 +306,9 @@ def _cmd_evaluate(args):
     record = agent.evaluate(args.episodes, backend, policy=args.policy)
     starts = f"drawn from seed {args.seed}"
   metrics = agent.metrics(record)
+  from hpg_mj.agents import window
   metrics.update({"agent_dir": str(args.agent_dir), "episodes": args.episodes,
+                  "evaluation_window": f"{window.phrase(agent)} of the evaluation",
                   "backend": backend, "policy": args.policy, "starts": starts,
                   "wall_seconds": round(time.perf_counter() - start, 3)})
   _print_metrics(metrics, args.json)

@@ -99,3 +99,13 @@ def test_train_names_the_window_and_reports_compile_time_apart(tmp_path, capsys)
         metrics["compile_seconds"] + metrics["train_seconds"], abs=0.0015)
     seconds.append(metrics["compile_seconds"])
   assert seconds[0] > 0.0 and seconds[1] == 0.0     # compiled once, in the first train
+
+
+def test_evaluate_names_its_window_too(tmp_path, capsys):
+  assert cli.main(["train", "taxi_fuel_flat_q", "--episodes", "5", "--quiet",
+                   "--out", str(tmp_path / "a")]) == 0
+  capsys.readouterr()
+  assert cli.main(["evaluate", str(tmp_path / "a"), "--episodes", "1200", "--json"]) == 0
+  metrics = json.loads(capsys.readouterr().out)
+  assert metrics["evaluation_window"] == "last 1,000 episodes of the evaluation"
+  assert metrics["episodes_measured"] == 1000 and metrics["episodes"] == 1200
