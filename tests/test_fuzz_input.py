@@ -236,14 +236,23 @@ def test_mutated_experiment_files_run_or_are_refused_in_one_line(data):
 
 PATHS = ["out/new", "notes.txt", "notes.txt/sub", "mine", "../escaped", "ABSOLUTE", "", ".",
          "agent"]                         # ABSOLUTE: a path outside the folder, made absolute
-OPTIONS = {
-    "--episodes": ["1", "2", "0", "-1", "x", "", "1.5", "2e0"],
-    "--seed": ["0", "3", str(2 ** 64 - 1), str(2 ** 64), "-1", "1e3", "seed"],
-    "--backend": ["analytic", "mujoco", "gpu", ""],
-    "--policy": ["greedy", "sampled", "best"],
-    "--out": PATHS,
+COUNTS = ["1", "2", "0", "-1", "x", "", "1.5", "2e0"]
+OPTIONS = {          # each command's options, with good and bad values
+    "train": {"--episodes": COUNTS, "--seed": ["0", "3", str(2 ** 64 - 1), str(2 ** 64), "-1",
+                                               "1e3", "seed"],
+              "--backend": ["analytic", "mujoco", "gpu", ""], "--out": PATHS,
+              "--json": None, "--quiet": None, "--force": None},
+    "evaluate": {"--episodes": COUNTS, "--seed": ["0", str(2 ** 64), "-2"],
+                 "--backend": ["analytic", "gpu"], "--policy": ["greedy", "sampled", "best"],
+                 "--json": None},
+    "run": {"--workers": ["1", "0", "x"], "--checkpoint-every": ["500", "0", "-1", "y"],
+            "--executor": ["process", "dask"], "--out": PATHS, "--quick": None,
+            "--no-wait": None, "--quiet": None},
 }
-FLAGS = ["--json", "--quiet", "--force", "--bogus", "--help-me"]
+FOREIGN = {"--bogus": None, "--help-me": None, "--policy": ["greedy"], "--force": None}
+FIRST = {"train": [TASK_NAME, "t.toml", "agent", "nowhere", ""],
+         "evaluate": ["agent", "mine", "notes.txt", "nowhere", ""],
+         "run": ["e.toml", "nowhere.toml", "notes.txt", "agent", ""]}
 
 
 @pytest.fixture(scope="module")
@@ -256,8 +265,10 @@ def trained(tmp_path_factory):
 @settings(SETTINGS, max_examples=120)
 @given(st.data())
 def test_mutated_command_lines_run_or_are_refused_in_one_line(trained, data):
-  command = data.draw(st.sampled_from(["train", "evaluate"]))
-  names = data.draw(st.lists(st.sampled_from(sorted(OPTIONS) + FLAGS), max_size=4))
+  command = data.draw(st.sampled_from(sorted(OPTIONS)))
+  options = {**OPTIONS[command], **FOREIGN} if data.draw(st.integers(0, 4)) == 0 else \
+      OPTIONS[command]
+  names = data.draw(st.lists(st.sampled_from(sorted(options)), max_size=4))
   with sandbox() as (parent, box):
     (box / "notes.txt").write_text("mine")
     (box / "mine").mkdir()
@@ -265,16 +276,16 @@ def test_mutated_command_lines_run_or_are_refused_in_one_line(trained, data):
     (box / "agent").mkdir()
     for f in trained.iterdir():
       (box / "agent" / f.name).write_bytes(f.read_bytes())
-    first = data.draw(st.sampled_from([TASK_NAME, "t.toml", "agent", "nowhere", ""]
-                                      if command == "train" else
-                                      ["agent", "mine", "notes.txt", "nowhere", ""]))
-    argv = [command, first]
+    (box / "e.toml").write_text(dumps(EXPERIMENT))
+    argv = [command, data.draw(st.sampled_from(FIRST[command]))]
     if command == "train" and "--episodes" not in names:
       argv += ["--episodes", "2"]       # never the task file's 100,000
+    if command == "run" and "--workers" not in names:
+      argv += ["--workers", "1"]        # no process pool to start
     for name in names:
       argv.append(name)
-      if name in OPTIONS:
-        value = data.draw(st.sampled_from(OPTIONS[name]))
+      if options[name] is not None:
+        value = data.draw(st.sampled_from(options[name]))
         argv.append(str(parent / "elsewhere") if value == "ABSOLUTE" else value)
     outs = [argv[k + 1] for k, a in enumerate(argv[:-1]) if a == "--out"]
     allowed = [box / o for o in outs] or [box / "runs"]
