@@ -188,7 +188,8 @@ def run_cli(argv, parent, allowed):
   said = lines[0].split(": error: ", 1)[1].split(".toml: ")[-1] if rc else ""
   event(f"{argv[0]}: exit {rc}" + (f" ({said[:30]})" if rc else ""))
   new = tree(parent) - before
-  outside = [p for p in new if not any(_inside(p, a) for a in allowed)]
+  outside = [p for p in new if not any(_inside(p, a) or (p.is_dir() and _inside(a, p))
+                                        for a in allowed)]     # or a folder made on the way
   assert not outside, (argv, sorted(map(str, outside)))
   return rc
 
