@@ -164,28 +164,39 @@ def import_module(name):
   a dotted module name, searched in the current folder and on sys.path, or a
   `.py` file's path. Refused with one line (AgentNotFound) when it cannot be."""
   import sys
+  what = f"--import {name}"
+  if not name.endswith(".py"):
+    return _import(name, what)
+  path = pathlib.Path(name)
+  if not path.is_file():
+    raise AgentNotFound(f"{what}: no such file")
+  if not path.stem.isidentifier() or path.stem in sys.modules:    # never shadow a module
+    raise AgentNotFound(f"{what}: its module name {path.stem!r} is not an identifier or is "
+                        f"taken by a module imported already; rename the file")
+  spec = importlib.util.spec_from_file_location(path.stem, path)
+  module = importlib.util.module_from_spec(spec)
+  sys.modules[path.stem] = module
   try:
-    if name.endswith(".py"):
-      path = pathlib.Path(name)
-      if not path.is_file():
-        raise AgentNotFound(f"--import {name}: no such file")
-      spec = importlib.util.spec_from_file_location(path.stem, path)
-      module = importlib.util.module_from_spec(spec)
-      sys.modules[path.stem] = module
-      spec.loader.exec_module(module)
-      return module
-    with _user_path():
-      return importlib.import_module(name)
-  except AgentNotFound:
-    raise
-  except ModuleNotFoundError as err:
-    if err.name and name.startswith(err.name):
-      raise AgentNotFound(f"--import {name}: no module {err.name!r} in the current folder or "
-                          f"on sys.path (a module name such as my_pkg.agents, or a .py "
-                          f"file's path)") from None
-    raise AgentNotFound(f"--import {name}: {_raised(err)}") from None
+    spec.loader.exec_module(module)
   except Exception as err:  # noqa: BLE001  (a user's module may raise anything)
-    raise AgentNotFound(f"--import {name}: {_raised(err)}") from None
+    del sys.modules[path.stem]
+    raise AgentNotFound(f"{what}: {_raised(err)}") from None
+  return module
+
+
+def _import(module_name, what):
+  """A user's module, searched in the current folder and on sys.path; else
+  AgentNotFound, `what` naming where it was asked for."""
+  try:
+    with _user_path():
+      return importlib.import_module(module_name)
+  except ModuleNotFoundError as err:
+    if err.name and (module_name + ".").startswith(err.name + "."):
+      raise AgentNotFound(f"{what}: no module {err.name!r} in the current folder or on "
+                          f"sys.path") from None
+    raise AgentNotFound(f"{what}: {_raised(err)}") from None
+  except Exception as err:  # noqa: BLE001  (a user's module may raise anything)
+    raise AgentNotFound(f"{what}: {_raised(err)}") from None
 
 
 def _raised(err):
@@ -205,16 +216,7 @@ def _import_class(spec):
                                             module_name.split(".") + attr.split(".")):
     raise AgentNotFound(f"{spec!r} is not an import path 'module:Class' (e.g. "
                         f"'my_pkg.agents:MyAgent')")
-  try:
-    with _user_path():
-      obj = importlib.import_module(module_name)
-  except ModuleNotFoundError as err:
-    if err.name and module_name.startswith(err.name):
-      raise AgentNotFound(f"{spec!r}: no module {err.name!r} in the current folder or on "
-                          f"sys.path") from None
-    raise AgentNotFound(f"{spec!r}: {_raised(err)}") from None
-  except Exception as err:  # noqa: BLE001  (a user's module may raise anything)
-    raise AgentNotFound(f"{spec!r}: {_raised(err)}") from None
+  obj = _import(module_name, repr(spec))
   for part in attr.split("."):
     if not hasattr(obj, part):
       raise AgentNotFound(f"{spec!r}: module {module_name!r} has no {attr!r}")

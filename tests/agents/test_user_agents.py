@@ -220,6 +220,10 @@ def test_a_module_that_fails_to_import_is_one_line(tmp_path):
   assert done.stderr.strip() == ("hpg-mj doctor: error: --import broken: importing it raised "
                                  "NameError: name 'undefined_name' is not defined "
                                  f"({tmp_path / 'broken.py'}, line 2)")
+  # A .py path never shadows a module imported already (os, imported at start-up).
+  (tmp_path / "os.py").write_text("raise SystemExit('must not run')\n")
+  done = _run(tmp_path, "--import", "os.py", "doctor")
+  assert done.returncode == 2 and "'os' is not an identifier or is taken" in done.stderr
 
 
 def test_an_agent_saved_from_a_script_says_why_it_is_not_found(tmp_path):
