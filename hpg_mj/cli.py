@@ -26,10 +26,26 @@ def _cmd_verify(args):
   return 0 if ok else 1
 
 
+def _video_out(args, default):
+  """The video's path (--out, or `default`; .gif with --gif), checked before any
+  frame is drawn."""
+  import pathlib
+
+  from hpg_mj import _paths
+  from hpg_mj.render import video
+  out = pathlib.Path(args.out or default)
+  if args.gif and out.suffix.lower() != ".gif":
+    out = out.with_suffix(".gif")
+  _paths.check_file_out(out, "--out", video.VideoWriter.SUFFIXES)
+  return out
+
+
 def _cmd_render(args):
   from hpg_mj.render import video
   if getattr(args, "agent", None) is not None:
     return _render_agent(args)
+  args.out = _video_out(args, f"videos/{args.domain}_{args.task}_{args.policy}."
+                              f"{'gif' if args.gif else 'mp4'}")
   path, summary = video.render_task(args.domain, args.task, policy=args.policy, seed=args.seed,
                                     out=args.out, gif=args.gif, width=args.width,
                                     height=args.height, max_steps=args.max_steps,
@@ -43,17 +59,18 @@ def _cmd_render(args):
 
 def _render_agent(args):
   """`hpg-mj render --agent DIR`: a greedy episode streamed to the video file."""
-  import pathlib
   import time
 
   from tqdm import tqdm
 
   from hpg_mj import agents
   from hpg_mj.experiments import videos
+  if args.out is not None:
+    out = _video_out(args, None)         # before the agent is loaded, as without --agent
   agent, _, _ = agents.load(args.agent)
-  out = pathlib.Path(args.out or f"videos/{agent.name}.{'gif' if args.gif else 'mp4'}")
-  if args.gif and out.suffix.lower() != ".gif":
-    out = out.with_suffix(".gif")
+  if args.out is None:                   # a user's kind may be "module:Class"
+    name = agent.name.replace(":", ".")
+    out = _video_out(args, f"videos/{name}.{'gif' if args.gif else 'mp4'}")
   bar = tqdm(total=None, unit="step", desc=f"filming {agent.name}", dynamic_ncols=True,
              disable=args.quiet or not sys.stderr.isatty())
 
@@ -227,6 +244,13 @@ def _compile_listener(callback):
   return listening()
 
 
+def _compile_timer(callback):
+  """A context after which `callback(seconds)` is told the time numba spent
+  compiling in it (outermost compilations; loading from its cache is not one)."""
+  from numba.core import event
+  return event.install_timer("numba:compile", callback)
+
+
 def _print_metrics(metrics, as_json):
   import json
   if as_json:
@@ -238,28 +262,36 @@ def _print_metrics(metrics, as_json):
 
 def _cmd_train(args):
   import pathlib
+  import time
 
   from hpg_mj import agents
   from hpg_mj.agents import storage
+  from hpg_mj.agents import window
   task = agents.load_task(args.task_file)
   seed = task.protocol.seed if args.seed is None else args.seed
   episodes = task.protocol.episodes if args.episodes is None else args.episodes
   out = pathlib.Path(args.out) if args.out else pathlib.Path("runs") / f"{task.path.stem}-seed{seed}"
-  held = [n for n in (storage.METADATA, storage.ARRAYS) if (out / n).exists()]
-  if held and not args.force:       # refused before training, not after
-    raise ValueError(f"{out} holds a saved agent ({', '.join(held)}); pass --force to "
-                     f"replace it, or choose another --out")
+  storage.check_out(out, args.force)      # refused before training, not after
   bar, update, compiling = _progress_bar(episodes, args.quiet or args.json, task.path.stem)
+  compile_seconds = []
   try:
-    with compiling:
-      agent, record, wall = agents.train(task, episodes=episodes, seed=seed,
-                                         backend=args.backend, progress=update)
+    with compiling, _compile_timer(compile_seconds.append):
+      start = time.perf_counter()
+      agent, record, _ = agents.train(task, episodes=episodes, seed=seed,
+                                      backend=args.backend, progress=update)
+      wall = time.perf_counter() - start
   finally:
     bar.close()
+  compiled = sum(compile_seconds, 0.0)
   metrics = agent.metrics(record)
+  metrics.update(window.described(agent))       # the rows the online metrics are over
   metrics.update(agent.final_metrics(record))    # e.g. a continuing agent's comparisons
   metrics.update({"task": str(task.path), "seed": seed, "episodes": episodes,
-                  "backend": args.backend or agent.backend, "wall_seconds": round(wall, 3)})
+                  "backend": args.backend or agent.backend,
+                  # wall = compile + train: numba's compiling (0 once cached) apart, so
+                  # that a speed is computed from train_seconds
+                  "wall_seconds": round(wall, 3), "compile_seconds": round(compiled, 3),
+                  "train_seconds": round(wall - compiled, 3)})
   agents.save(agent, out, record, {"metrics": metrics})
   metrics["agent_dir"] = str(out)
   _print_metrics(metrics, args.json)
@@ -281,7 +313,9 @@ def _cmd_evaluate(args):
     record = agent.evaluate(args.episodes, backend, policy=args.policy)
     starts = f"drawn from seed {args.seed}"
   metrics = agent.metrics(record)
+  from hpg_mj.agents import window
   metrics.update({"agent_dir": str(args.agent_dir), "episodes": args.episodes,
+                  "evaluation_window": f"{window.phrase(agent)} of the evaluation",
                   "backend": backend, "policy": args.policy, "starts": starts,
                   "wall_seconds": round(time.perf_counter() - start, 3)})
   _print_metrics(metrics, args.json)
@@ -295,6 +329,9 @@ def _cmd_tune(args):
   from hpg_mj import agents
   from hpg_mj.experiments import tuning
   tasks = [agents.load_task(t) for t in args.task_files]      # refused before any run
+  if args.json:
+    from hpg_mj import _paths
+    _paths.check_file_out(args.json, "--json")
   seeds = None
   if args.seeds is not None:
     try:
@@ -328,6 +365,12 @@ def _cmd_tune(args):
 def _cmd_run(args):
   from hpg_mj.experiments import locks, runner
   experiment = runner.load_experiment(args.experiment_file)   # refused before any run
+  from hpg_mj import _paths
+  _paths.check_folder_out(runner.folder(experiment, args.out, args.quick))
+  import importlib.util
+  if args.executor == "ray" and importlib.util.find_spec("ray") is None:
+    raise ValueError("--executor ray needs Ray, which is not installed here: pip install "
+                     "'hpg_mj[ray]', or use --executor process")
   from tqdm import tqdm
   all_jobs = runner.jobs(experiment, args.out, args.quick)
   todo = runner.pending(experiment, args.out, args.quick)
@@ -400,6 +443,8 @@ FIGURE_EXPERIMENTS = {"fig6": "fig6", "fig7": "fig7_11", "fig8": "fig7_11", "fig
 def _cmd_reproduce(args):
   """The paper's figures from the shipped experiment files; `beyond`: SPEC
   section 8's continuing task (hpg_mj.experiments.beyond)."""
+  from hpg_mj import _paths
+  _paths.check_folder_out(args.out)
   if args.figure == "beyond":
     return _reproduce_beyond(args)
   if args.figure == "all":
@@ -474,6 +519,28 @@ def _add_run_options(p):
                       "experiment")
 
 
+def _seed(text):
+  """An argparse type: a seed the agents' generator takes (0..rng.MAX_SEED)."""
+  from hpg_mj.learners import rng
+  value = _at_least(0)(text)
+  if value > rng.MAX_SEED:
+    raise argparse.ArgumentTypeError(f"{value} is out of range; allowed: 0..{rng.MAX_SEED} "
+                                     f"(the generator keeps a seed's low 64 bits)")
+  return value
+
+
+def _positive_seconds(text):
+  """An argparse type: a positive finite number of seconds."""
+  import math
+  try:
+    value = float(text)
+  except ValueError:
+    raise argparse.ArgumentTypeError(f"{text!r} is not a number; allowed: seconds > 0") from None
+  if not (math.isfinite(value) and value > 0):
+    raise argparse.ArgumentTypeError(f"{text!r} is out of range; allowed: seconds > 0")
+  return value
+
+
 def _at_least(low):
   """An argparse type: an integer >= low, refused in the words of task-file ranges."""
   def convert(text):
@@ -488,9 +555,22 @@ def _at_least(low):
   return convert
 
 
+class _Parser(argparse.ArgumentParser):
+  """Refuses a bad option in one line, naming it and what is allowed (issue 23),
+  instead of argparse's usage block."""
+
+  def error(self, message):
+    self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see {self.prog} --help)\n")
+
+
 def build_parser():
-  parser = argparse.ArgumentParser(
+  parser = _Parser(
       prog="hpg-mj", description="Hierarchical policy gradient benchmarks on MuJoCo.")
+  parser.add_argument("--import", dest="imports", action="append", default=[],
+                      metavar="MODULE",
+                      help="import a module of your own first (a name such as "
+                      "my_pkg.agents, searched in the current folder and on sys.path, or a "
+                      ".py file) that registers agents with hpg_mj.agents.register; repeatable")
   sub = parser.add_subparsers(dest="command", required=True)
 
   p = sub.add_parser("verify", help="ship: the MuJoCo ship against the continuous ODE; "
@@ -499,7 +579,7 @@ def build_parser():
   p.add_argument("--controls", type=_at_least(1), default=1000,
                  help="random 0.6 s controls per start")
   p.add_argument("--starts", type=_at_least(1), default=3, help="random starting states")
-  p.add_argument("--seed", type=_at_least(0), default=0)
+  p.add_argument("--seed", type=_seed, default=0)
   p.set_defaults(func=_cmd_verify)
 
   p = sub.add_parser("render", help="write a video of one episode (of a task's scripted or "
@@ -509,7 +589,7 @@ def build_parser():
                  help="ship: steer, diagonal, straight, patrol; taxi: fuel, classic")
   p.add_argument("--policy", choices=["scripted", "random"], default=None,
                  help="default scripted")
-  p.add_argument("--seed", type=_at_least(0), default=0)
+  p.add_argument("--seed", type=_seed, default=0)
   p.add_argument("--out", default=None, help="output path (.mp4 or .gif)")
   p.add_argument("--gif", action="store_true", help="write an animated GIF instead of MP4")
   p.add_argument("--width", type=_at_least(16), default=None,
@@ -533,7 +613,7 @@ def build_parser():
   p.add_argument("--episodes", type=_at_least(1), default=None,
                  help="override [protocol] episodes (a continuing agent's: record rows, "
                  "hours for ship_patrol)")
-  p.add_argument("--seed", type=_at_least(0), default=None, help="override [protocol] seed")
+  p.add_argument("--seed", type=_seed, default=None, help="override [protocol] seed")
   p.add_argument("--backend", choices=["analytic", "mujoco"], default=None)
   p.add_argument("--out", default=None, help="agent folder (default runs/<task>-seed<S>)")
   p.add_argument("--force", action="store_true",
@@ -572,7 +652,7 @@ def build_parser():
   p = sub.add_parser("evaluate", help="run a saved agent without learning")
   p.add_argument("agent_dir")
   p.add_argument("--episodes", type=_at_least(1), default=1000)
-  p.add_argument("--seed", type=_at_least(0), default=None,
+  p.add_argument("--seed", type=_seed, default=None,
                  help="draw the starts from this seed (default: the fixed seeded start set "
                       "of the reports, SPEC section 7)")
   p.add_argument("--backend", choices=["analytic", "mujoco"], default=None)
@@ -583,7 +663,7 @@ def build_parser():
   p = sub.add_parser("bench", help="print speed figures")
   p.add_argument("what", choices=["envs", "train", "experiments"],
                  help="environments, training loops, or the paper's protocols end to end")
-  p.add_argument("--seconds", type=float, default=None,
+  p.add_argument("--seconds", type=_positive_seconds, default=None,
                  help="measuring time per row (envs: 1 s, train: 2 s)")
   p.add_argument("--task", action="append", default=None, metavar="FILE",
                  help="train: this task file (a shipped name or a path; repeat for more) "
@@ -600,7 +680,7 @@ def build_parser():
 
   p = sub.add_parser("demo", help="the README's main job: videos, verification, benchmark")
   p.add_argument("--out", default="videos")
-  p.add_argument("--seconds", type=float, default=1.0)
+  p.add_argument("--seconds", type=_positive_seconds, default=1.0)
   p.set_defaults(func=_cmd_demo)
   return parser
 
@@ -624,9 +704,15 @@ def main(argv=None):
       shown(message, category, *rest, **kwargs)
   warnings.showwarning = show
   try:
+    from hpg_mj import agents
+    for module in args.imports:          # a user's agents, registered before the command
+      agents.import_module(module)
     return args.func(args)
-  except (ValueError, FileNotFoundError, RenderingUnavailable) as err:
+  except RenderingUnavailable as err:
     print(f"hpg-mj {args.command}: error: {err}", file=sys.stderr)
+    return 2
+  except (ValueError, OSError) as err:   # a user's file, option or path: one line
+    print(f"hpg-mj {args.command}: error: {' '.join(str(err).split())}", file=sys.stderr)
     return 2
   except KeyboardInterrupt:
     again = (" (run the same command again to resume from the last checkpoints)"

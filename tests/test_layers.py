@@ -1,7 +1,8 @@
 """Folders import one way only: worlds and learners at the bottom knowing nothing of
 each other, hierarchies above them, agents above those, experiments and the
 command line on top; no folder-level cycle. (Top-level `_` modules are shared
-utilities: the assets, validation, headless imports, the render worker.)"""
+utilities: the assets, validation, headless imports, the render worker, the checks
+of user-given paths.)"""
 import ast
 import pathlib
 
@@ -15,9 +16,10 @@ ALLOWED = {
     "envs": {"worlds", "render", "_validation", "_assets", "_headless"},
     "render": {"worlds", "_assets", "_validation", "_headless", "_render_worker"},
     "hierarchy": {"learners", "worlds"},
-    "agents": {"hierarchy", "learners", "worlds", "envs", "suite", "render", "provenance"},
+    "agents": {"hierarchy", "learners", "worlds", "envs", "suite", "render", "provenance",
+               "_paths"},
     "experiments": {"agents", "hierarchy", "learners", "worlds", "envs", "suite", "render",
-                    "provenance"},
+                    "provenance", "_paths"},
 }
 
 

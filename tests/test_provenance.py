@@ -114,4 +114,5 @@ def test_bad_counts_are_refused_with_the_allowed_range(argv, message, capsys):
     cli.main(argv)
   assert exit_.value.code == 2
   err = capsys.readouterr().err
-  assert err.rstrip().endswith(f"error: {message}") and "Traceback" not in err
+  # One line (issue 23), not argparse's usage block.
+  assert err == f"hpg-mj {argv[0]}: error: {message} (see hpg-mj {argv[0]} --help)\n"

@@ -8,15 +8,20 @@ name in a registry that other packages extend.
     record = agent.train(1000)
     print(agent.metrics(record))
 
-A package adds agents without any edit to hpg_mj through the entry-point group
+An agent of one's own is found in three ways, none of which edits hpg_mj: a task
+file names its class by import path (`[task] kind = "my_pkg.agents:MyAgent"`); a
+module that calls `register` is imported first (`hpg-mj --import my_pkg.agents ...`,
+or `import_module`); or an installed package lists it in the entry-point group
 `hpg_mj.agents` (in its pyproject.toml:
-`[project.entry-points."hpg_mj.agents"] my_agent = "my_pkg.agent:MyAgent"`).
+`[project.entry-points."hpg_mj.agents"] my_agent = "my_pkg.agents:MyAgent"`). A
+saved agent records its class's import path, so another process finds it too.
 
 Shipped: ship_hybrid, ship_beyond (past the paper's route, SPEC section 8),
 ship_flat_pg, ship_actor_critic, ship_patrol (continuing, SPEC section 8), taxi_hpg,
 taxi_maxq, taxi_flat_q (each one module here).
 """
 import importlib
+import importlib.util
 import pathlib
 import time
 
@@ -101,26 +106,133 @@ def names():
 
 
 def lookup(name):
-  """The agent class registered as `name`; an unknown name lists the known ones."""
+  """The agent class registered as `name`, or at the import path `name`
+  ("module:Class"); an unknown name lists the known ones."""
   _read_entry_points()
+  if isinstance(name, str) and ":" in name and name not in _registered:
+    _registered[name] = name             # imported, checked and named below
   if name not in _registered:
     raise KeyError(f"no agent {name!r} is registered; registered: {names()}")
   entry = _registered[name]
   if isinstance(entry, str):
-    module, _, attr = entry.partition(":")
     try:
-      cls = getattr(importlib.import_module(module), attr)
-    except (ImportError, AttributeError) as err:
-      raise ImportError(f"agent {name!r}: cannot load {entry!r}: {err}") from err
-    _check_class(name, cls)
+      cls = _import_class(entry)
+      _check_class(name, cls)
+    except (AgentNotFound, TypeError) as err:
+      if entry == name:                  # an import path that finds no agent
+        del _registered[name]
+      named = entry == name or isinstance(err, TypeError)   # the message names it already
+      raise AgentNotFound(str(err) if named else f"agent {name!r}: {err}") from None
     cls.name = name
     _registered[name] = entry = cls
   return entry
 
 
+class AgentNotFound(taskfile.TaskFileError):
+  """A user's agent module or class that cannot be imported; the message says why."""
+
+
+# The three ways to a user's agent, for the errors that find none.
+HOW_TO_ADD = ("or a class by its import path 'module:Class' (e.g. "
+              "'my_pkg.agents:MyAgent'); a name is registered by a module that calls "
+              "hpg_mj.agents.register, imported first with `hpg-mj --import MODULE`, or by an "
+              f"installed package's entry-point group {ENTRY_POINT_GROUP!r}")
+
+
+def _user_path():
+  """sys.path with the current folder first, as `python -m` searches it."""
+  import contextlib
+  import os
+  import sys
+
+  @contextlib.contextmanager
+  def searching():
+    cwd = os.getcwd()
+    added = cwd not in sys.path
+    if added:
+      sys.path.insert(0, cwd)
+    try:
+      yield
+    finally:
+      if added and cwd in sys.path:
+        sys.path.remove(cwd)
+  return searching()
+
+
+def import_module(name):
+  """Imports a user's module that registers agents (`hpg-mj --import MODULE`):
+  a dotted module name, searched in the current folder and on sys.path, or a
+  `.py` file's path. Refused with one line (AgentNotFound) when it cannot be."""
+  import sys
+  what = f"--import {name}"
+  if not name.endswith(".py"):
+    return _import(name, what)
+  path = pathlib.Path(name)
+  if not path.is_file():
+    raise AgentNotFound(f"{what}: no such file")
+  if not path.stem.isidentifier() or path.stem in sys.modules:    # never shadow a module
+    raise AgentNotFound(f"{what}: its module name {path.stem!r} is not an identifier or is "
+                        f"taken by a module imported already; rename the file")
+  spec = importlib.util.spec_from_file_location(path.stem, path)
+  module = importlib.util.module_from_spec(spec)
+  sys.modules[path.stem] = module
+  try:
+    spec.loader.exec_module(module)
+  except Exception as err:  # noqa: BLE001  (a user's module may raise anything)
+    del sys.modules[path.stem]
+    raise AgentNotFound(f"{what}: {_raised(err)}") from None
+  return module
+
+
+def _import(module_name, what):
+  """A user's module, searched in the current folder and on sys.path; else
+  AgentNotFound, `what` naming where it was asked for."""
+  try:
+    with _user_path():
+      return importlib.import_module(module_name)
+  except ModuleNotFoundError as err:
+    if err.name and (module_name + ".").startswith(err.name + "."):
+      raise AgentNotFound(f"{what}: no module {err.name!r} in the current folder or on "
+                          f"sys.path") from None
+    raise AgentNotFound(f"{what}: {_raised(err)}") from None
+  except Exception as err:  # noqa: BLE001  (a user's module may raise anything)
+    raise AgentNotFound(f"{what}: {_raised(err)}") from None
+
+
+def _raised(err):
+  """'importing it raised NameError: ... (file.py, line 3)': one line on a failed import."""
+  import traceback
+  where = traceback.extract_tb(err.__traceback__)
+  at = f" ({where[-1].filename}, line {where[-1].lineno})" if where else ""
+  text = " ".join(str(err).split())
+  return f"importing it raised {type(err).__name__}: {text}{at}"
+
+
+def _import_class(spec):
+  """The object at an import path "module:Class" (the module searched in the
+  current folder and on sys.path), or AgentNotFound naming the path."""
+  module_name, _, attr = spec.partition(":")
+  if not module_name or not attr or not all(p.isidentifier() for p in
+                                            module_name.split(".") + attr.split(".")):
+    raise AgentNotFound(f"{spec!r} is not an import path 'module:Class' (e.g. "
+                        f"'my_pkg.agents:MyAgent')")
+  obj = _import(module_name, repr(spec))
+  for part in attr.split("."):
+    if not hasattr(obj, part):
+      raise AgentNotFound(f"{spec!r}: module {module_name!r} has no {attr!r}")
+    obj = getattr(obj, part)
+  return obj
+
+
+def class_path(cls):
+  """The import path "module:Class" that finds `cls` in another process."""
+  return f"{cls.__module__}:{cls.__qualname__}"
+
+
 class _Registry:
   names = staticmethod(names)
   lookup = staticmethod(lookup)
+  how_to_add = HOW_TO_ADD
 
 
 # ---- task files ------------------------------------------------------------------
@@ -152,7 +264,11 @@ def load_task(path):
 def build(task, seed=None):
   """An agent for a loaded task file (seed: the file's unless given)."""
   seed = task.protocol.seed if seed is None else seed
-  return lookup(task.kind)(task.config, seed=seed, task=task)
+  cls = lookup(task.kind)
+  try:
+    return cls(task.config, seed=seed, task=task)
+  except ValueError as err:      # a world's own limit (e.g. the taxi's capacity): name the file
+    raise taskfile.TaskFileError(f"{task.path}: {err}") from None
 
 
 # ---- training in chunks ------------------------------------------------------------
@@ -195,6 +311,27 @@ def train(task, episodes=None, seed=None, backend=None, progress=None):
 
 # ---- saving and loading --------------------------------------------------------------
 
+def _find_saved_class(kind, spec, directory):
+  """Registers a saved agent's class as `kind`, found by its recorded import path
+  `spec` (whose module may register it itself); refuses when it cannot be."""
+  where = f"{directory}: agent kind {kind!r} is not registered here"
+  if not isinstance(kind, str) or not kind.isidentifier():
+    raise storage.AgentFileError(f"{where}; registered: {names()}")
+  if not isinstance(spec, str) or spec.startswith("__main__:"):
+    made = ("it was saved from a class defined in a script (__main__), which another "
+            "process cannot import" if isinstance(spec, str) else "it records no class")
+    raise storage.AgentFileError(f"{where}; {made}: put the class in a module and give "
+                                 f"[task] kind as 'module:Class', or {HOW_TO_ADD[3:]}")
+  try:
+    cls = _import_class(spec)
+  except AgentNotFound as err:
+    raise storage.AgentFileError(f"{where}, and its class cannot be imported: {err}") from None
+  if kind not in names():                # its module did not register it: register it here
+    try:
+      register(kind, cls)
+    except (TypeError, ValueError) as err:
+      raise storage.AgentFileError(f"{where}: {err}") from None
+
 def save(agent, directory, record, extra=None, compress=True):
   """Writes the agent's whole state, its record, its task file and what made it
   (`hpg_mj.provenance`) to `directory` (`compress`: see `storage.save`)."""
@@ -202,6 +339,7 @@ def save(agent, directory, record, extra=None, compress=True):
   text = agent.task.text if agent.task else None
   meta = {"task_file": str(agent.task.path) if agent.task else None,
           "task_text": text, "seed": agent.seed, "episodes": agent.episodes,
+          "agent_class": class_path(type(agent)),      # found by `load` in a new process
           "provenance": provenance.collect(text, agent.seed)}
   meta.update(extra or {})
   arrays = dict(agent.state())
@@ -210,16 +348,19 @@ def save(agent, directory, record, extra=None, compress=True):
 
 
 def load(directory):
-  """Loads a saved agent (and its training record) from `directory`; one made by
-  another version of hpg_mj or of its libraries is loaded with a
-  `provenance.VersionWarning` that says which."""
+  """Loads a saved agent from `directory`; returns (agent, record, metadata): the
+  agent with its whole state restored, its training record (None if none was
+  saved) and the metadata dict of its agent.json (task file, seed, episodes,
+  provenance, metrics, ...). One made by another version of hpg_mj or of its
+  libraries is loaded with a `provenance.VersionWarning` that says which. An agent
+  of a kind not registered here is found by the import path of its class, which
+  `save` records."""
   from hpg_mj import provenance
   meta, arrays = storage.load(directory)
   provenance.warn_if_different(meta.get("provenance"), directory)
   kind = meta.get("kind")
-  if kind not in names():
-    raise storage.AgentFileError(f"{directory}: unknown agent kind {kind!r}; registered: "
-                                 f"{names()}")
+  if not isinstance(kind, str) or (kind not in names() and ":" not in kind):
+    _find_saved_class(kind, meta.get("agent_class"), directory)
   path = pathlib.Path(meta.get("task_file") or "task.toml")
   task = taskfile.loads(meta.get("task_text") or "", path, _Registry)
   agent = build(task, meta.get("seed", 0))

@@ -12,8 +12,6 @@ from hpg_mj.hierarchy import machine as machine_mod
 from hpg_mj.hierarchy import ship_rules as rules
 from hpg_mj.worlds import ship_core as core
 
-METRIC_WINDOW = 1000   # online metrics are over the last 1,000 episodes
-
 # SPEC section 7: J, the discounted return under MushroomRL's ShipSteering rewards,
 # so that our ships compare with MushroomRL-based results.
 J_GAMMA = 0.99
@@ -118,7 +116,7 @@ class ShipAgent(base.Agent):
     return mushroom_j(record, env.max_steps, env.out_of_bounds_reward)
 
   def metrics(self, record):
-    w = record[-METRIC_WINDOW:]
+    w = record[-self.metric_window:]
     passed = w["passed"] > 0
     return {
         "episodes_measured": int(len(w)),

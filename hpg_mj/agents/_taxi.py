@@ -14,8 +14,6 @@ from hpg_mj.worlds import taxi_core
 from hpg_mj.worlds import taxi_core as core
 from hpg_mj.worlds import taxi_rules as world_rules
 
-METRIC_WINDOW = 1000
-
 
 @numba.njit(cache=True)
 def sample_start(rng_state, world, state):
@@ -128,7 +126,7 @@ class TaxiAgent(base.Agent):
 
   def metrics(self, record):
     from hpg_mj.worlds import taxi_values
-    w = record[-METRIC_WINDOW:]
+    w = record[-self.metric_window:]
     optimal = self.optimal_mean_return()
     mean = float(w["return"].mean()) if len(w) else None
     return {"episodes_measured": int(len(w)), "mean_return": mean,

@@ -22,7 +22,10 @@ and it implements
                                live arrays: restoring writes into them)
   make_env(api, backend, ...)  an environment of its task ("gymnasium" or
                                "dm_control"), configured from its task file
-  metrics(record)              what a record says (a dict of numbers)
+  metrics(record)              what a record says (a dict of numbers): its online
+                               measures over the last `metric_window` rows
+                               (1,000 by default), counts such as control_steps
+                               over the whole record
   compiled(n, learn, sample)   optional: the fused loop over the analytic world,
                                returning (n, len(record_fields)) float rows
   final_metrics(record)        optional: numbers measured once training is over
@@ -51,6 +54,10 @@ POLICIES = ("greedy", "sampled")
 # generator restarted from GREEDY_SEED + i (far from any training or tuning seed).
 GREEDY_STARTS = 1000
 GREEDY_SEED = 1_000_000
+# The online metrics (`metrics(record)`) are over a record's last METRIC_WINDOW rows:
+# an episodic agent's last 1,000 episodes; a continuing agent sets its own
+# `metric_window` (ship_patrol: its last 125 hours). hpg_mj.agents.window names it.
+METRIC_WINDOW = 1000
 
 
 def _check_count(name, value):
@@ -67,6 +74,7 @@ class Agent:
   figure = None
   tags = ()
   record_steps = None                # control steps per record row of a continuing agent
+  metric_window = METRIC_WINDOW      # the record's last rows `metrics` is over
 
   def __init__(self, config=None, seed=0, task=None):
     if self.Config is not None and config is None:

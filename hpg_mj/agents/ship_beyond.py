@@ -526,7 +526,7 @@ class ShipBeyond(_ship.ShipAgent):
 
   def metrics(self, record):
     out = super().metrics(record)
-    w = record[-_ship.METRIC_WINDOW:]
+    w = record[-self.metric_window:]
     runs = w["aim_runs"].sum()
     out.update({
         "calls_per_episode": float(w["calls"].mean()) if len(w) else None,

@@ -230,7 +230,7 @@ class ShipHybrid(_ship.ShipMachineAgent):
 
   def metrics(self, record):
     out = super().metrics(record)
-    w = record[-_ship.METRIC_WINDOW:]
+    w = record[-self.metric_window:]
     diag_runs, str_runs = w["diagonal_runs"].sum(), w["straight_runs"].sum()
     out.update({
         "calls_per_episode": float(w["calls"].mean()) if len(w) else None,

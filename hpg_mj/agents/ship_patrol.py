@@ -291,6 +291,7 @@ class ShipPatrol(_ship.ShipAgent):
                    "gain")
   figure = "gates_per_hour"
   record_steps = core.HOUR_STEPS       # a continuing agent: one record row per hour
+  metric_window = 125                  # online metrics: the last 125 hours (beyond's block)
 
   def __init__(self, config=None, seed=0, task=None):
     super().__init__(config, seed, task)
@@ -502,6 +503,14 @@ class ShipPatrol(_ship.ShipAgent):
   # ---- metrics -------------------------------------------------------------------
 
   def metrics(self, record):
+    """The online rates over the record's last `metric_window` hours (the block of
+    `hpg-mj reproduce beyond`, whose report reads them so); control_steps counts
+    the whole record."""
+    return dict(self.rates(record[-self.metric_window:]),
+                control_steps=int(record["steps"].sum()))
+
+  def rates(self, record):
+    """Gates, departures, reward and calls per hour (or step) over all of `record`."""
     steps = float(record["steps"].sum())
     hours = steps / core.HOUR_STEPS
     runs = {k: record[f"{k}_runs"].sum() for k in ("diagonal", "straight")}
@@ -543,16 +552,16 @@ class ShipPatrol(_ship.ShipAgent):
     from hpg_mj import agents
     comparison = self.config.comparison
     hours = comparison.evaluation_hours
-    out = {"greedy_gates_per_hour": self.metrics(self.evaluation(hours))["gates_per_hour"],
-           "scripted_gates_per_hour": self.metrics(self.evaluation(hours, "scripted"))[
+    out = {"greedy_gates_per_hour": self.rates(self.evaluation(hours))["gates_per_hour"],
+           "scripted_gates_per_hour": self.rates(self.evaluation(hours, "scripted"))[
                "gates_per_hour"],
            "evaluation_hours": hours}
     if comparison.episodic_task:
       task = agents.load_task(comparison.episodic_task)
       episodes = comparison.episodic_episodes or task.protocol.episodes
       episodic, episodic_record, _ = agents.train(task, episodes=episodes, seed=self.seed)
-      out["episodic_gates_per_hour"] = self.metrics(self.evaluation(hours, "episodic",
-                                                                    episodic))["gates_per_hour"]
+      out["episodic_gates_per_hour"] = self.rates(self.evaluation(hours, "episodic",
+                                                                  episodic))["gates_per_hour"]
       out["episodic_task"] = str(task.path.name)
       out["episodic_episodes"] = int(episodes)
       out["episodic_control_steps"] = int(episodic_record["steps"].sum())

@@ -12,6 +12,8 @@ import zipfile
 
 import numpy as np
 
+from hpg_mj import _paths
+
 FORMAT = "hpg_mj-agent"
 VERSION = 1
 ARRAYS = "arrays.npz"
@@ -105,3 +107,43 @@ def restore_into(target: dict, arrays: dict, where):
       raise AgentFileError(f"{where}: array {name!r} is {src.dtype}{list(src.shape)}, this "
                            f"agent needs {dst.dtype}{list(dst.shape)}")
     dst[...] = src
+
+
+def _is_saved(metadata):
+  """Whether `metadata` is a saved agent's agent.json (its format, at least)."""
+  try:
+    meta = json.loads(metadata.read_text())
+  except (OSError, ValueError):
+    return False
+  return isinstance(meta, dict) and meta.get("format") == FORMAT
+
+
+def check_out(out, force, option="--out"):
+  """Refuses, before training, an agent folder `out` that is a file; that holds a
+  saved agent (unless `force`, which replaces its two files); or that holds other
+  files (unless `force`, which writes beside them and never replaces a file of the
+  agent's names that is not a saved agent's)."""
+  refused = _paths.OutputRefused
+  out = pathlib.Path(out)
+  if out.exists() and not out.is_dir():
+    raise refused(f"{option} {out} is a file; an agent is saved in a folder (choose another "
+                  f"{option})")
+  _paths.check_above(out, out, option)
+  if not out.is_dir():
+    return
+  ours = {METADATA, ARRAYS, METADATA + ".tmp", ARRAYS + ".tmp"}
+  entries = sorted(p.name for p in out.iterdir())
+  other = [n for n in entries if n not in ours]
+  agent = _is_saved(out / METADATA)
+  names = [n for n in (METADATA, ARRAYS) if n in entries]
+  if names and not agent:
+    raise refused(f"{option} {out} holds {', '.join(names)}, which is not a saved hpg_mj "
+                  f"agent; it is not replaced, even with --force (choose another {option})")
+  if agent and not force:
+    raise refused(f"{out} holds a saved agent ({', '.join(names)}); pass --force to replace "
+                  f"it, or choose another {option}")
+  if other and not force:
+    shown = ", ".join(other[:3]) + (f" and {len(other) - 3} more" if len(other) > 3 else "")
+    raise refused(f"{option} {out} is a folder that holds files that are not a saved agent "
+                  f"({shown}); choose an empty or new folder, or pass --force to write the "
+                  f"agent beside them (they are left as they are)")

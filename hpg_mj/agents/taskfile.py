@@ -13,6 +13,9 @@ import math
 import pathlib
 import tomllib
 
+from hpg_mj import _paths
+from hpg_mj.learners.rng import MAX_SEED
+
 # Types accepted for a schema entry: "float" (int or float), "int", "bool",
 # "str", "str_list" (a non-empty list of strings), ("choice", options),
 # ("int_list", length) (positive integers), ("int_min", least),
@@ -60,8 +63,10 @@ def _check(path, where, key, value, kind):
     if not isinstance(value, str):
       raise TaskFileError(f"{where} must be a string, got {value!r}")
     return value
-  if kind == "int_list_any":
-    if not isinstance(value, list) or not value or not all(_is_int(v) and v >= 0 for v in value):
+  if kind in ("int_list_any", "seed_list"):
+    high = MAX_SEED if kind == "seed_list" else math.inf
+    if not isinstance(value, list) or not value or not all(_is_int(v) and 0 <= v <= high
+                                                           for v in value):
       raise TaskFileError(f"{where} must be {_describe(kind)}, got {value!r}")
     return list(value)
   if kind == "str_list":
@@ -83,6 +88,8 @@ def check_table(path, where, table, required, optional=None):
   """The values of one TOML table (`where`, e.g. "[root]"), converted, after
   refusing unknown keys, missing required ones and wrong types; optional keys
   may be left out."""
+  if not isinstance(table, dict):
+    raise TaskFileError(f"{path}: {where} must be a table of keys, got {table!r}")
   optional = optional or {}
   allowed = {**required, **optional}
   unknown = set(table) - set(allowed)
@@ -229,10 +236,10 @@ class Protocol(Section):
   """[protocol]: how long a run trains, its default seed, and the seeds its
   hyper-parameters were tuned on (never reported)."""
   episodes: int = param(1000, "training episodes of one run", low=1)
-  seed: int = param(0, "the default seed", low=0)
+  seed: int = param(0, "the default seed", low=0, high=MAX_SEED)
 
 
-PROTOCOL_OPTIONAL = {"tuning_seeds": "int_list_any"}
+PROTOCOL_OPTIONAL = {"tuning_seeds": "seed_list"}
 # A continuing agent (its class sets `record_steps`, the control steps of one record
 # row) may give its training length in control steps or hours of sailing instead
 # of episodes (SPEC section 8); exactly one of the three. It becomes `episodes`, the
@@ -310,8 +317,7 @@ def load(path, registry):
   path = pathlib.Path(path)
   if not path.is_file():
     raise TaskFileError(f"{path}: no such task file")
-  text = path.read_text()
-  return loads(text, path, registry)
+  return loads(_paths.read_text(path, "task file", TaskFileError), path, registry)
 
 
 def loads(text, path, registry):
@@ -325,10 +331,15 @@ def loads(text, path, registry):
   if not isinstance(task, dict) or "kind" not in task:
     raise TaskFileError(f"{path}: [task] kind is missing; allowed kinds: {registry.names()}")
   kind = task["kind"]
-  if not isinstance(kind, str) or kind not in registry.names():
+  how = getattr(registry, "how_to_add", "")       # a user's agent: the ways to it
+  if not isinstance(kind, str) or (kind not in registry.names() and not (how and ":" in kind)):
     raise TaskFileError(f"{path}: [task] kind = {kind!r} is not allowed; allowed: "
-                        f"{registry.names()}")
-  agent_class = registry.lookup(kind)
+                        f"{registry.names()}" + (f", {how}" if how else ""))
+  try:
+    agent_class = registry.lookup(kind)
+  except (ValueError, TypeError, ImportError) as err:    # a user's class that is not found
+    text = str(err).removeprefix(f"{kind!r}: ")
+    raise TaskFileError(f"{path}: [task] kind = {kind!r}: {text}") from None
   data = dict(data)
   tuning_table = data.pop("tuning", None)
   schema = {"task": section_schema(Task), **config_schema(agent_class.Config),
@@ -420,4 +431,5 @@ def _describe(kind):
             "float_lists": lambda: f"a non-empty list of {kind[2]}"}[kind[0]]()
   return {"float": "a number", "int": "an integer", "bool": "true or false",
           "str": "a string", "str_list": "a non-empty list of strings",
-          "int_list_any": "a non-empty list of integers >= 0"}[kind]
+          "int_list_any": "a non-empty list of integers >= 0",
+          "seed_list": f"a non-empty list of seeds, integers in 0..{MAX_SEED}"}[kind]

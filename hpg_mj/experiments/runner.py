@@ -61,10 +61,12 @@ import time
 
 import numpy as np
 
+from hpg_mj import _paths
 from hpg_mj import agents
 from hpg_mj.experiments import locks
 from hpg_mj.experiments import runs
 from hpg_mj.agents import taskfile
+from hpg_mj.learners import rng
 
 POSITIVE = ("int_min", 1)
 EXPERIMENT_SCHEMA = {"name": "str", "description": "str", "tasks": "str_list", "runs": POSITIVE,
@@ -108,6 +110,8 @@ def _check_figures(path, section, tasks, figures_):
                                    f"{sorted(FIGURE_KINDS)}")
     required, optional = FIGURE_KINDS[kind]
     fig = taskfile.check_table(path, where, fig, {**FIGURE_COMMON, **required}, optional)
+    _paths.check_name(fig["name"], f"{path}: {where} name",      # OUT/<experiment>/<name>.png
+                      taskfile.TaskFileError)
     checked.append(fig)
     where = f"[[figure]] {fig['name']!r}"
     if fig["name"] in seen:
@@ -148,7 +152,7 @@ def load_experiment(path):
     else:
       raise taskfile.TaskFileError(f"{path}: no such experiment file; shipped: {sorted(shipped)}")
   try:
-    data = tomllib.loads(path.read_text())
+    data = tomllib.loads(_paths.read_text(path, "experiment file", taskfile.TaskFileError))
   except tomllib.TOMLDecodeError as err:
     raise taskfile.TaskFileError(f"{path}: not valid TOML: {err}") from None
   if "experiment" not in data or set(data) - {"experiment", "figure"}:
@@ -158,7 +162,17 @@ def load_experiment(path):
                                  EXPERIMENT_OPTIONAL)
   section.setdefault("first_seed", 0)
   section.setdefault("tuning", False)
+  _paths.check_name(section["name"], f"{path}: [experiment] name",   # OUT/<name>/
+                    taskfile.TaskFileError)
+  last_seed = section["first_seed"] + max(section["runs"], section["quick_runs"]) - 1
+  if last_seed > rng.MAX_SEED:
+    raise taskfile.TaskFileError(f"{path}: [experiment] first_seed = {section['first_seed']} "
+                                 f"gives runs seeds up to {last_seed}; allowed: seeds in "
+                                 f"0..{rng.MAX_SEED}")
   tasks = [agents.load_task(t) for t in section["tasks"]]   # refused here, before any run
+  for t in tasks:                                   # OUT/<experiment>/<task file's name>/
+    _paths.check_name(t.path.stem, f"{path}: [experiment] tasks: the name of {t.path}",
+                      taskfile.TaskFileError)
   # SPEC section 7: published numbers never come from the seeds a task was tuned on.
   first = section["first_seed"]
   used = set(range(first, first + max(section["runs"], section["quick_runs"])))
@@ -178,6 +192,12 @@ def load_experiment(path):
   if len(set(stems)) < len(stems):
     raise taskfile.TaskFileError(f"{path}: [experiment] tasks names a task twice: {stems}")
   figures_ = _check_figures(path, section, tasks, data.get("figure"))
+  from hpg_mj.experiments import figures
+  short = [k for k in ("episodes", "quick_episodes") if section[k] < figures.BLOCK]
+  if short and any(fig["kind"] == "curve" for fig in figures_):
+    raise taskfile.TaskFileError(f"{path}: [experiment] {short[0]} = {section[short[0]]}; a "
+                                 f"curve plots one point per {figures.BLOCK:,} episodes, so "
+                                 f"allowed: >= {figures.BLOCK}")
   return dict(section, path=path, task_files=tasks, figures=figures_)
 
 

@@ -10,6 +10,10 @@ import numba
 import numpy as np
 
 _MASK = (1 << 64) - 1
+# The seeds the generator takes: make_state keeps a seed's low 64 bits, so a larger
+# seed would give the same numbers as a smaller one; the command line and the task
+# and experiment files refuse seeds outside 0..MAX_SEED.
+MAX_SEED = _MASK
 
 
 def make_state(seed: int) -> np.ndarray:

@@ -150,3 +150,103 @@ def test_an_agent_from_another_package_goes_through_everything(tmp_path):
     np.testing.assert_array_equal(value, killed[2][name], err_msg=name)
   report = (out / "mine" / "REPORT.md").read_text()
   assert "tabular_q" in report and (out / "mine" / "mine.png").stat().st_size > 1000
+
+
+# ---- a user's agent found by the command line without a package (issue 23) ------------
+
+def _module(folder, register):
+  """my_agents.py in `folder`: the README block's class, as its section says to put it
+  (with or without its `agents.register` line)."""
+  code = _block("Write your own agent").split("agents.register(")[0]
+  if register:
+    code += 'agents.register("tabular_q", TabularQ)\n'
+  (folder / "my_agents.py").write_text(code)
+
+
+def _run(folder, *args):
+  return subprocess.run(CLI + [str(a) for a in args], capture_output=True, text=True,
+                        cwd=folder, env=dict(os.environ, PYTHONPATH=""))
+
+
+def test_the_command_line_finds_a_class_by_its_import_path(tmp_path):
+  _module(tmp_path, register=False)
+  (tmp_path / "t.toml").write_text(TASK.replace('kind = "tabular_q"',
+                                                'kind = "my_agents:TabularQ"'))
+  done = _run(tmp_path, "train", "t.toml", "--episodes", 50, "--out", "a", "--json")
+  assert done.returncode == 0, done.stderr
+  assert json.loads(done.stdout)["episodes_measured"] == 50
+  meta = json.loads((tmp_path / "a" / "agent.json").read_text())
+  assert meta["agent_class"] == "my_agents:TabularQ"
+  # Evaluated and filmed in new processes, found by the recorded import path.
+  done = _run(tmp_path, "evaluate", "a", "--episodes", 3, "--json")
+  assert done.returncode == 0, done.stderr
+  assert json.loads(done.stdout)["episodes_measured"] == 3
+  done = _run(tmp_path, "render", "--agent", "a", "--out", "a.gif", "--gif", "--width", 32,
+              "--height", 32, "--max-frames", 12, "--quiet")
+  assert done.returncode == 0, done.stderr
+  assert (tmp_path / "a.gif").stat().st_size > 100
+  # Where the module cannot be imported, one line says which and why.
+  elsewhere = tmp_path / "elsewhere"
+  elsewhere.mkdir()
+  done = _run(elsewhere, "evaluate", tmp_path / "a", "--episodes", 3)
+  assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1
+  assert "'my_agents:TabularQ': no module 'my_agents'" in done.stderr
+
+
+def test_import_registers_a_users_module_before_the_command(tmp_path):
+  _module(tmp_path, register=True)
+  (tmp_path / "t.toml").write_text(TASK)
+  done = _run(tmp_path, "train", "t.toml", "--episodes", 50, "--out", "a")
+  assert done.returncode == 2 and "kind = 'tabular_q' is not allowed" in done.stderr
+  for way in ("'module:Class'", "--import MODULE", "entry-point group 'hpg_mj.agents'"):
+    assert way in done.stderr, way                  # the three ways, named
+  done = _run(tmp_path, "--import", "my_agents", "train", "t.toml", "--episodes", 50,
+              "--out", "a", "--json")
+  assert done.returncode == 0, done.stderr
+  assert json.loads((tmp_path / "a" / "agent.json").read_text())["kind"] == "tabular_q"
+  # A new process without --import: found by the recorded class, whose module registers it.
+  done = _run(tmp_path, "evaluate", "a", "--episodes", 3, "--json")
+  assert done.returncode == 0, done.stderr
+  # A .py path works as a module name does.
+  done = _run(tmp_path / "a", "--import", tmp_path / "my_agents.py", "train", tmp_path / "t.toml",
+              "--episodes", 20, "--out", tmp_path / "b", "--quiet")
+  assert done.returncode == 0, done.stderr
+
+
+def test_a_module_that_fails_to_import_is_one_line(tmp_path):
+  (tmp_path / "broken.py").write_text("x = 1\ny = undefined_name\n")
+  done = _run(tmp_path, "--import", "broken", "doctor")
+  assert done.returncode == 2 and "Traceback" not in done.stderr
+  assert done.stderr.strip() == ("hpg-mj doctor: error: --import broken: importing it raised "
+                                 "NameError: name 'undefined_name' is not defined "
+                                 f"({tmp_path / 'broken.py'}, line 2)")
+  # A .py path never shadows a module imported already (os, imported at start-up).
+  (tmp_path / "os.py").write_text("raise SystemExit('must not run')\n")
+  done = _run(tmp_path, "--import", "os.py", "doctor")
+  assert done.returncode == 2 and "'os' is not an identifier or is taken" in done.stderr
+
+
+def test_an_agent_saved_from_a_script_says_why_it_is_not_found(tmp_path):
+  (tmp_path / "script.py").write_text(_block("Write your own agent") +
+                                      'agents.save(agent, "a", record)\n')
+  done = subprocess.run([sys.executable, "script.py"], cwd=tmp_path, capture_output=True,
+                        text=True)
+  assert done.returncode == 0, done.stderr
+  meta = json.loads((tmp_path / "a" / "agent.json").read_text())
+  assert meta["agent_class"] == "__main__:TabularQ"
+  done = _run(tmp_path, "evaluate", "a", "--episodes", 3)
+  assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1
+  assert "defined in a script (__main__)" in done.stderr and "'module:Class'" in done.stderr
+
+
+def test_load_returns_what_its_docstring_says(tmp_path):
+  assert "returns (agent, record, metadata)" in " ".join(agents.load.__doc__.split())
+  task = agents.load_task("taxi_fuel_flat_q")
+  agent, record, _ = agents.train(task, episodes=7, seed=2)
+  agents.save(agent, tmp_path / "a", record, {"metrics": {"x": 1.0}})
+  loaded, loaded_record, meta = agents.load(tmp_path / "a")
+  assert isinstance(loaded, type(agent)) and loaded.episodes == 7 and loaded.seed == 2
+  np.testing.assert_array_equal(loaded_record, record)
+  assert meta["metrics"] == {"x": 1.0} and meta["agent_class"] == agents.class_path(type(agent))
+  for name, value in agent.state().items():
+    np.testing.assert_array_equal(loaded.state()[name], value, err_msg=name)

@@ -1,0 +1,111 @@
+"""The online metrics mean one thing (issue 23 item 5): every shipped agent's
+`metrics(record)` is over its declared window, the record's last `metric_window`
+rows, which the README states and `hpg-mj train --json` names; compile time and
+training time are reported apart."""
+import json
+import pathlib
+
+import numba
+import numpy as np
+import pytest
+
+from hpg_mj import agents
+from hpg_mj import cli
+from hpg_mj.agents import window
+from hpg_mj.experiments import beyond
+
+README = (pathlib.Path(__file__).resolve().parents[2] / "README.md").read_text()
+TOTALS = ("control_steps", "primitive_steps")     # counts of the whole record
+DOCUMENTED = {"episodes": "an episodic agent's last 1,000 episodes",
+              "hours": "the continuing patrol's last 125 hours"}
+
+
+def _one_task_per_kind():
+  tasks = {}
+  for path in agents.shipped_tasks().values():
+    task = agents.load_task(path)
+    tasks.setdefault(task.kind, task)
+  return tasks
+
+
+TASKS = _one_task_per_kind()
+
+
+def _record(agent, rows, seed):
+  """A record of `rows` rows with values the metrics can read (steps >= 1, flags 0/1)."""
+  gen = np.random.default_rng(seed)
+  data = gen.integers(0, 4, size=(rows, len(agent.record_fields))).astype(float)
+  for k, name in enumerate(agent.record_fields):
+    if name == "steps":
+      data[:, k] = gen.integers(1, 400, rows) * (agent.record_steps or 1)
+    elif name == "passed":
+      data[:, k] = gen.integers(0, 2, rows)
+    elif name in ("return", "gain"):
+      data[:, k] = gen.normal(-50.0, 30.0, rows)
+  return agent.as_record(data)
+
+
+def test_every_shipped_agent_has_a_task_file_here():
+  assert sorted(TASKS) == sorted(agents._SHIPPED)
+
+
+@pytest.mark.parametrize("kind", sorted(TASKS))
+def test_the_online_metrics_are_over_the_declared_window(kind):
+  agent = agents.build(TASKS[kind], seed=0)
+  n = agent.metric_window
+  record = _record(agent, 3 * n + 7, seed=len(kind))
+  whole, last = agent.metrics(record), agent.metrics(record[-n:])
+  # The rows before the window change nothing but the whole-record counts.
+  earlier = record.copy()
+  earlier[:-n] = _record(agent, 2 * n + 7, seed=99)
+  for key, value in whole.items():
+    if key in TOTALS:
+      assert value == int(record["steps"].sum()), key
+      continue
+    assert value == pytest.approx(last[key], nan_ok=True), key
+    assert agent.metrics(earlier)[key] == pytest.approx(value, nan_ok=True), key
+  assert whole["episodes_measured"] == n
+  # The README states this window.
+  assert DOCUMENTED[window.unit(agent)].endswith(window.phrase(agent))
+  assert DOCUMENTED[window.unit(agent)] in " ".join(README.split())
+
+
+def test_the_patrols_window_is_the_block_beyond_reads():
+  patrol = agents.lookup("ship_patrol")
+  assert patrol.metric_window == beyond.FULL[2] == 125
+  assert window.phrase(patrol) == "last 125 hours"
+
+
+def test_train_names_the_window_and_reports_compile_time_apart(tmp_path, capsys):
+  from hpg_mj.agents.taxi_flat_q import TaxiFlatQ
+  fresh = numba.njit(lambda rows: rows + 0.0)      # not cached: compiled in its first train
+
+  class FreshlyCompiled(TaxiFlatQ):
+    def compiled(self, episodes, learn, sample):
+      return fresh(super().compiled(episodes, learn, sample))
+
+  agents.register("freshly_compiled_test", FreshlyCompiled, replace=True)
+  task = tmp_path / "t.toml"
+  task.write_text(TASKS["taxi_flat_q"].text.replace('kind = "taxi_flat_q"',
+                                                    'kind = "freshly_compiled_test"'))
+  seconds = []
+  for k in range(2):
+    assert cli.main(["train", str(task), "--episodes", "20", "--json", "--quiet",
+                     "--out", str(tmp_path / f"a{k}")]) == 0
+    metrics = json.loads(capsys.readouterr().out)
+    assert metrics["online_window"] == "last 1,000 episodes of training"
+    assert metrics["online_window_rows"] == 1000 and metrics["episodes_measured"] == 20
+    assert metrics["wall_seconds"] == pytest.approx(
+        metrics["compile_seconds"] + metrics["train_seconds"], abs=0.0015)
+    seconds.append(metrics["compile_seconds"])
+  assert seconds[0] > 0.0 and seconds[1] == 0.0     # compiled once, in the first train
+
+
+def test_evaluate_names_its_window_too(tmp_path, capsys):
+  assert cli.main(["train", "taxi_fuel_flat_q", "--episodes", "5", "--quiet",
+                   "--out", str(tmp_path / "a")]) == 0
+  capsys.readouterr()
+  assert cli.main(["evaluate", str(tmp_path / "a"), "--episodes", "1200", "--json"]) == 0
+  metrics = json.loads(capsys.readouterr().out)
+  assert metrics["evaluation_window"] == "last 1,000 episodes of the evaluation"
+  assert metrics["episodes_measured"] == 1000 and metrics["episodes"] == 1200
