@@ -234,6 +234,7 @@ def _cmd_train(args):
 
   from hpg_mj import agents
   from hpg_mj.agents import storage
+  from hpg_mj.experiments import bounds
   task = agents.load_task(args.task_file)
   seed = task.protocol.seed if args.seed is None else args.seed
   episodes = task.protocol.episodes if args.episodes is None else args.episodes
@@ -250,6 +251,7 @@ def _cmd_train(args):
   finally:
     bar.close()
   metrics = agent.metrics(record)
+  metrics.update(bounds.normalized(bounds.task_name(agent), metrics))   # SPEC section 7.1
   metrics.update(agent.final_metrics(record))    # e.g. a continuing agent's comparisons
   metrics.update({"task": str(task.path), "seed": seed, "episodes": episodes,
                   "backend": args.backend or agent.backend, "wall_seconds": round(wall, 3)})

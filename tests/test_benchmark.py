@@ -355,3 +355,17 @@ def test_a_real_stable_baselines3_model_is_scored():
   assert result.record.shape == (8,) and np.all(result.record["steps"] <= 60)
   again = benchmark.evaluate(model, "ship", 8, max_steps=60, progress=False)
   np.testing.assert_array_equal(result.record, again.record)     # deterministic=True
+
+
+def test_the_readme_block_runs_as_printed(capsys):
+  import pathlib
+  import re
+  readme = (pathlib.Path(__file__).resolve().parents[1] / "README.md").read_text()
+  section = readme.split("## Score your own policy\n", 1)[1]
+  block = re.search(r"```python\n(.*?)```", section, re.S).group(1)
+  exec(compile(block, "README.md: Score your own policy", "exec"), {"__name__": "readme"})
+  printed = capsys.readouterr().out
+  # r = 5 deg/s holds a circle of ~34 m: from most starts the ship circles until the cap.
+  metrics = eval(printed.splitlines()[0], {"__builtins__": {}}, {"None": None})
+  assert metrics["max_steps"] == 1000 and not metrics["official"]
+  assert metrics["J"] < -99.0 and metrics["J_normalized"] < 0
