@@ -42,6 +42,7 @@ import importlib.util
 import math
 import pathlib
 import sys
+import time
 import types
 
 import numba
@@ -316,7 +317,7 @@ def sail(act, batched, task, starts, num_envs=DEFAULT_NUM_ENVS, backend="analyti
   returns = np.zeros(num_envs)
   actions = np.zeros(num_envs, dtype=np.float64 if task.world == "ship" else np.int64)
   obs, _ = env.reset(options={"state": placed})
-  total_steps, loops = 0, 0
+  total_steps, loops, shown = 0, 0, time.monotonic()
   try:
     while (episode >= 0).any():
       live = np.flatnonzero(episode >= 0)
@@ -352,10 +353,13 @@ def sail(act, batched, task, starts, num_envs=DEFAULT_NUM_ENVS, backend="analyti
         steps[ended] = 0
         returns[ended] = 0.0
       loops += 1
-      if bar is not None and loops % 64 == 0:
-        bar.set_postfix_str(f"{total_steps:,} steps", refresh=False)
+      if bar is not None and loops % 16 == 0 and time.monotonic() - shown > 0.5:
+        bar.set_postfix_str(f"{total_steps:,} steps")      # moves while no episode ends
+        shown = time.monotonic()
   finally:
     env.close()
+  if bar is not None:
+    bar.set_postfix_str(f"{total_steps:,} steps")
   return record
 
 
@@ -370,15 +374,21 @@ def _act(act, batched, obs, episodes, steps, check):
       raise PolicyError(f"the policy raised at {where}: {type(err).__name__}: {err}") from err
     return check(out, len(obs), lambda k: f"episode {int(episodes[k])}, step {int(steps[k])}",
                  where)
-  out = np.empty(len(obs), dtype=np.float64)
-  for k in range(len(obs)):
-    where = f"episode {int(episodes[k])}, step {int(steps[k])}"
-    try:
-      action = act(obs[k])
-    except Exception as err:
-      raise PolicyError(f"the policy raised at {where}: {type(err).__name__}: {err}") from err
-    out[k] = check(action, None, lambda _: where, where)[0]
-  return out
+  def at(k):
+    return f"episode {int(episodes[k])}, step {int(steps[k])}"
+  outs, k = [], 0
+  try:
+    for k, one in enumerate(obs):
+      outs.append(act(one))
+  except Exception as err:
+    raise PolicyError(f"the policy raised at {at(k)}: {type(err).__name__}: {err}") from err
+  try:                # one conversion for the batch (the common case: a number each)
+    arr = np.asarray(outs)
+  except Exception:   # shapes that differ: checked one by one below
+    arr = None
+  if arr is not None and arr.shape in ((len(obs),), (len(obs), 1)) and arr.dtype.kind in "iuf":
+    return check(arr, len(obs), at, at(0))
+  return np.array([check(a, None, lambda _, k=k: at(k), at(k))[0] for k, a in enumerate(outs)])
 
 
 def _few(episodes, shown=5):
