@@ -184,7 +184,7 @@ def record_dtype(world):
 
 def evaluate(policy, task=None, episodes=base.GREEDY_STARTS, max_steps=None, *,
              seed=base.GREEDY_SEED, batched=None, num_envs=DEFAULT_NUM_ENVS,
-             backend="analytic", progress=None):
+             backend=None, progress=None):
   """Scores `policy` greedily on `episodes` fixed starts of `task` (see the module
   docstring); returns an `Evaluation`.
 
@@ -192,13 +192,16 @@ def evaluate(policy, task=None, episodes=base.GREEDY_STARTS, max_steps=None, *,
   "ship"). `max_steps`: a step cap (default the task's limit: ship 5,000 control
   steps, taxi 200 primitive steps). `batched`: whether a function takes a batch
   of observations (default: False for a function, True for an object with
-  `predict`). `backend`: the ship's "analytic" Equation 1 or "mujoco".
+  `predict`). `backend`: "analytic" (the ship's Equation 1) or "mujoco" (default:
+  an agent's own, as `hpg-mj evaluate`; else "analytic").
   `progress`: a progress bar on stderr (None: when stderr is a terminal).
   """
   _count("episodes", episodes)
   _count("seed", seed)
   if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
     raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+  if backend is None:
+    backend = policy.backend if isinstance(policy, base.Agent) else "analytic"
   if backend not in base.BACKENDS:
     raise ValueError(f"unknown backend {backend!r}; valid backends: {list(base.BACKENDS)}")
   if isinstance(policy, base.Agent):

@@ -369,3 +369,23 @@ def test_the_readme_block_runs_as_printed(capsys):
   metrics = eval(printed.splitlines()[0], {"__builtins__": {}}, {"None": None})
   assert metrics["max_steps"] == 1000 and not metrics["official"]
   assert metrics["J"] < -99.0 and metrics["J_normalized"] < 0
+
+
+def test_the_mujoco_ship_scores_like_the_analytic_one():
+  """The same helmsman on the MJCF ship (SPEC section 1: within 0.25 m of the ODE,
+  Euler within ~0.5 m): the same passes, the steps within one."""
+  mujoco = benchmark.evaluate(benchmark.helmsman, "ship", 6, backend="mujoco", progress=False)
+  analytic = benchmark.evaluate(benchmark.helmsman, "ship", 6, progress=False)
+  np.testing.assert_array_equal(mujoco.record["passed"], analytic.record["passed"])
+  assert np.abs(mujoco.record["steps"] - analytic.record["steps"]).max() <= 1
+
+
+def test_an_interval_normalizes_end_by_end():
+  from hpg_mj.experiments import bounds
+  ship = bounds.bounds()["tasks"]["ship"]
+  low, high = ship["random"]["J"], ship["best"]["J"]
+  assert bounds.normalize("ship", "J", low) == 0.0
+  assert bounds.normalize("ship", "J", high) == 100.0
+  assert bounds.normalize("ship", "J", (low + high) / 2) == pytest.approx(50.0)
+  assert bounds.normalize("ship", "J", None) is None
+  assert bounds.normalize(None, "J", -90.0) is None

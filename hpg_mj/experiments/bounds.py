@@ -38,16 +38,22 @@ def task_name(agent):
   return None
 
 
-def normalized(task, metrics, published=None):
-  """{"<score>_normalized": 100 (score - random) / (best known - random)} for the
-  scores of `SCORES[task]` in `metrics`; empty for no task (None) or where no
-  bounds are published."""
+def normalize(task, score, value, published=None):
+  """One value of `score` on `task` normalized: 100 (value - random) / (best known -
+  random); None without published bounds or a value. Linear, so an interval's
+  ends normalize to the normalized interval."""
   entry = (published or bounds())["tasks"].get(task) if task is not None else None
-  if entry is None:
+  if entry is None or value is None:
+    return None
+  low, high = entry["random"][score], entry["best"][score]
+  return None if low is None or high is None or high == low else \
+      100.0 * (value - low) / (high - low)
+
+
+def normalized(task, metrics, published=None):
+  """{"<score>_normalized": `normalize(...)`} for the scores of `SCORES[task]` in
+  `metrics`; empty for no task (None) or where no bounds are published."""
+  if task is None or (published or bounds())["tasks"].get(task) is None:
     return {}
-  out = {}
-  for score in SCORES[task]:
-    value, low, high = metrics.get(score), entry["random"][score], entry["best"][score]
-    out[f"{score}_normalized"] = (None if value is None or low is None or high is None
-                                  or high == low else 100.0 * (value - low) / (high - low))
-  return out
+  return {f"{score}_normalized": normalize(task, score, metrics.get(score), published)
+          for score in SCORES[task]}
