@@ -355,6 +355,9 @@ def test_a_real_stable_baselines3_model_is_scored():
   assert result.record.shape == (8,) and np.all(result.record["steps"] <= 60)
   again = benchmark.evaluate(model, "ship", 8, max_steps=60, progress=False)
   np.testing.assert_array_equal(result.record, again.record)     # deterministic=True
+  taxi = sb3.DQN("MlpPolicy", gymnasium.make("hpg_mj/TaxiFuel-v0"), seed=0, device="cpu")
+  scored = benchmark.evaluate(taxi, "taxi_fuel", 8, progress=False)
+  assert scored.record.shape == (8,) and scored.metrics["mean_return_normalized"] is not None
 
 
 def test_the_readme_block_runs_as_printed(capsys):
