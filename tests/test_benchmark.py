@@ -392,3 +392,15 @@ def test_an_interval_normalizes_end_by_end():
   assert bounds.normalize("ship", "J", (low + high) / 2) == pytest.approx(50.0)
   assert bounds.normalize("ship", "J", None) is None
   assert bounds.normalize(None, "J", -90.0) is None
+
+
+def test_hpg_mj_bounds_writes_what_compute_bounds_gives(tmp_path, capsys):
+  out = tmp_path / "bounds.json"
+  assert cli.main(["bounds", "--episodes", "4", "--out", str(out), "--quiet"]) == 0
+  printed = capsys.readouterr().out
+  assert "ship (max_steps 5000; normalized: J, gate_pass_rate;" in printed
+  assert f"wrote {out}" in printed
+  written = json.loads(out.read_text())
+  assert written == json.loads(json.dumps(benchmark.compute_bounds(4, progress=False)))
+  assert set(written["tasks"]) == set(benchmark.TASKS)
+  assert written["tasks"]["taxi_fuel"]["best"]["fraction_of_optimum"] == 1.0
