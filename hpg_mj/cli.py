@@ -267,6 +267,7 @@ def _cmd_train(args):
   from hpg_mj import agents
   from hpg_mj.agents import storage
   from hpg_mj.agents import window
+  from hpg_mj.experiments import bounds
   task = agents.load_task(args.task_file)
   seed = task.protocol.seed if args.seed is None else args.seed
   episodes = task.protocol.episodes if args.episodes is None else args.episodes
@@ -285,6 +286,7 @@ def _cmd_train(args):
   compiled = sum(compile_seconds, 0.0)
   metrics = agent.metrics(record)
   metrics.update(window.described(agent))       # the rows the online metrics are over
+  metrics.update(bounds.normalized(bounds.task_name(agent), metrics))   # SPEC section 7.1
   metrics.update(agent.final_metrics(record))    # e.g. a continuing agent's comparisons
   metrics.update({"task": str(task.path), "seed": seed, "episodes": episodes,
                   "backend": args.backend or agent.backend,
@@ -302,23 +304,78 @@ def _cmd_evaluate(args):
   import time
 
   from hpg_mj import agents
+  from hpg_mj.experiments import bounds
+  if args.agent_dir is None:
+    if args.policy is None or args.policy in agents.POLICIES:
+      raise ValueError("give a saved agent folder, or --policy module:function to score a "
+                       "policy of your own")
+    return _evaluate_policy(args)
+  policy = args.policy or "greedy"
+  if policy not in agents.POLICIES:
+    raise ValueError(f"--policy {policy!r} with a saved agent: allowed {list(agents.POLICIES)} "
+                     "(module:function scores a policy without an agent folder)")
+  for flag, value in (("--task", args.task), ("--max-steps", args.max_steps),
+                      ("--batched", args.batched or None)):
+    if value is not None:
+      raise ValueError(f"{flag} is for --policy; a saved agent runs its own task file")
   agent, _, meta = agents.load(args.agent_dir)
   backend = args.backend or agent.backend
   start = time.perf_counter()
   if args.seed is None:      # SPEC section 7: the fixed seeded start set of every report
-    record = agent.evaluate_fixed(args.episodes, backend, policy=args.policy)
+    record = agent.evaluate_fixed(args.episodes, backend, policy=policy)
     starts = f"fixed set (start i from seed {agents.base.GREEDY_SEED} + i)"
   else:
     agent.set_seed(args.seed)
-    record = agent.evaluate(args.episodes, backend, policy=args.policy)
+    record = agent.evaluate(args.episodes, backend, policy=policy)
     starts = f"drawn from seed {args.seed}"
   metrics = agent.metrics(record)
   from hpg_mj.agents import window
+  # SPEC section 7.1: every score also normalized (none for a subtask or the patrol)
+  metrics.update(bounds.normalized(bounds.task_name(agent), metrics))
   metrics.update({"agent_dir": str(args.agent_dir), "episodes": args.episodes,
                   "evaluation_window": f"{window.phrase(agent)} of the evaluation",
-                  "backend": backend, "policy": args.policy, "starts": starts,
+                  "backend": backend, "policy": policy, "starts": starts,
                   "wall_seconds": round(time.perf_counter() - start, 3)})
   _print_metrics(metrics, args.json)
+  return 0
+
+
+def _evaluate_policy(args):
+  """`hpg-mj evaluate --policy module:function`: `hpg_mj.benchmark.evaluate`."""
+  import time
+
+  from hpg_mj import benchmark
+  if args.seed is not None:
+    raise ValueError("--seed is for a saved agent; --policy runs the fixed starts of the "
+                     "reports (SPEC section 7)")
+  policy = benchmark.load_policy(args.policy)
+  start = time.perf_counter()
+  result = benchmark.evaluate(policy, args.task or "ship", args.episodes, args.max_steps,
+                              batched=True if args.batched else None, num_envs=args.num_envs,
+                              backend=args.backend or "analytic",
+                              progress=False if args.quiet or args.json else None)
+  metrics = dict(result.metrics)
+  metrics.update({"policy": args.policy, "backend": args.backend or "analytic",
+                  "starts": f"fixed set (start i from seed {benchmark.base.GREEDY_SEED} + i)",
+                  "wall_seconds": round(time.perf_counter() - start, 3)})
+  _print_metrics(metrics, args.json)
+  return 0
+
+
+def _cmd_bounds(args):
+  """`hpg-mj bounds`: SPEC section 7.1's reference scores, computed on the fixed starts."""
+  import json
+  import pathlib
+
+  from hpg_mj import benchmark
+  say = (lambda line: None) if args.quiet else (
+      lambda line: print(line, file=sys.stderr, flush=True))
+  published = benchmark.compute_bounds(args.episodes, progress=False if args.quiet else None,
+                                       say=say)
+  print("\n".join(benchmark.format_bounds(published)))
+  if args.out:
+    pathlib.Path(args.out).write_text(json.dumps(published, indent=1) + "\n")
+    print(f"wrote {args.out}")
   return 0
 
 
@@ -649,16 +706,38 @@ def build_parser():
   _add_run_options(p)
   p.set_defaults(func=_cmd_reproduce)
 
-  p = sub.add_parser("evaluate", help="run a saved agent without learning")
-  p.add_argument("agent_dir")
+  p = sub.add_parser("evaluate", help="score a saved agent, or any policy (--policy), on "
+                     "the fixed starts of the reports without learning")
+  p.add_argument("agent_dir", nargs="?", default=None, help="a saved agent folder")
+  p.add_argument("--policy", default=None, metavar="MODULE:FUNCTION",
+                 help="without an agent: a function obs -> action, or an object with "
+                 "predict(obs, deterministic=True), as module:name or path/file.py:name "
+                 "(hpg_mj.benchmark.evaluate); with an agent: greedy (default) or sampled")
+  p.add_argument("--task", choices=["ship", "taxi_fuel", "taxi"], default=None,
+                 help="with --policy: the task (default ship)")
+  p.add_argument("--batched", action="store_true",
+                 help="with --policy: the function takes a batch of observations")
+  p.add_argument("--max-steps", type=_at_least(1), default=None,
+                 help="with --policy: a step cap (default the task's: ship 5000, taxi 200)")
+  p.add_argument("--num-envs", type=_at_least(1), default=1000,
+                 help="with --policy: episodes sailed side by side (default 1000)")
   p.add_argument("--episodes", type=_at_least(1), default=1000)
   p.add_argument("--seed", type=_seed, default=None,
-                 help="draw the starts from this seed (default: the fixed seeded start set "
-                      "of the reports, SPEC section 7)")
+                 help="a saved agent: draw the starts from this seed (default: the fixed "
+                      "seeded start set of the reports, SPEC section 7)")
   p.add_argument("--backend", choices=["analytic", "mujoco"], default=None)
-  p.add_argument("--policy", choices=["greedy", "sampled"], default="greedy")
   p.add_argument("--json", action="store_true")
+  p.add_argument("--quiet", action="store_true", help="no progress bar")
   p.set_defaults(func=_cmd_evaluate)
+
+  p = sub.add_parser("bounds", help="the random and best known scores of each task on the "
+                     "fixed starts (SPEC section 7.1), as the package publishes them")
+  p.add_argument("--out", default=None, help="write them as JSON here "
+                 "(the package's: hpg_mj/benchmark_bounds.json)")
+  p.add_argument("--episodes", type=_at_least(1), default=1000,
+                 help="fixed starts (default 1000, the reports')")
+  p.add_argument("--quiet", action="store_true")
+  p.set_defaults(func=_cmd_bounds)
 
   p = sub.add_parser("bench", help="print speed figures")
   p.add_argument("what", choices=["envs", "train", "experiments"],

@@ -74,6 +74,27 @@ class ShipEnvironment(taskfile.Section):
 sample_start = rules.sample_start   # the full task's start (SPEC section 2)
 
 
+def draw_start(rng_state):
+  """A start of the full task drawn from `rng_state` (`sample_start`), as a new array."""
+  start = np.empty(4)
+  sample_start(rng_state, start)
+  return start
+
+
+def gate_metrics(record, max_steps, out_of_bounds_reward):
+  """What a ship record (fields passed, steps, return) says, over all its
+  episodes: the gate pass rate, the control steps to the gate over the passes,
+  the mean return (the task's rewards) and the mean J (`mushroom_j`)."""
+  passed = record["passed"] > 0
+  n = len(record)
+  return {
+      "gate_pass_rate": float(passed.mean()) if n else None,
+      "steps_to_gate": float(record["steps"][passed].mean()) if passed.any() else None,
+      "mean_return": float(record["return"].mean()) if n else None,
+      "J": float(mushroom_j(record, max_steps, out_of_bounds_reward).mean()) if n else None,
+  }
+
+
 class ShipAgent(base.Agent):
   """An agent on the full ship task (subclass it for your own): the environments,
   the starts, and the gate metrics. Its Config needs an `environment:
@@ -101,9 +122,7 @@ class ShipAgent(base.Agent):
     raise ValueError(f"unknown environment api {api!r}; allowed: ['gymnasium', 'dm_control']")
 
   def start_state(self):
-    start = np.empty(4)
-    sample_start(self.rng_state, start)
-    return start
+    return draw_start(self.rng_state)
 
   def end_episode(self, row, total, steps, last, learn):
     row[self.record_fields.index("passed")] = last.info.get("event") == "gate"
@@ -117,16 +136,10 @@ class ShipAgent(base.Agent):
 
   def metrics(self, record):
     w = record[-self.metric_window:]
-    passed = w["passed"] > 0
-    return {
-        "episodes_measured": int(len(w)),
-        "gate_pass_rate": float(passed.mean()) if len(w) else None,
-        "steps_to_gate": float(w["steps"][passed].mean()) if passed.any() else None,
-        "mean_return": float(w["return"].mean()) if len(w) else None,
-        "J": float(self.j(w).mean()) if len(w) else None,
-        "control_steps": int(record["steps"].sum()),
-    }
-
+    env = self.config.environment
+    return {"episodes_measured": int(len(w)),
+            **gate_metrics(w, env.max_steps, env.out_of_bounds_reward),
+            "control_steps": int(record["steps"].sum())}
 
 class ShipMachineAgent(ShipAgent):
   """A ship agent whose `graph()` is made of blocks: `hierarchy.machine` runs it on

@@ -38,6 +38,14 @@ def sample_start(rng_state, world, state):
   state[world_rules.FUEL] = fuel
 
 
+def draw_start(rng_state, world):
+  """A start drawn from `rng_state` (`sample_start`) as a new array: (row, col,
+  passenger, destination, fuel), the fuel left out in the classic task."""
+  state = np.empty(5, dtype=np.int64)
+  sample_start(rng_state, world, state)
+  return state if world[world_rules.W_FUEL_ENABLED] != 0 else state[:4].copy()
+
+
 @dataclasses.dataclass(frozen=True)
 class TaxiEnvironment(taskfile.Section):
   """[environment] of a taxi task file (SPEC section 5)."""
@@ -63,7 +71,6 @@ class TaxiAgent(base.Agent):
     env = self.config.environment
     self.rules = taxi_core.TaxiRules(env.fuel, capacity=env.capacity, max_steps=env.max_steps)
     self.world = world_rules.world_config(self.rules)
-    self._start = np.empty(5, dtype=np.int64)
     self._optimal = None
 
   def _adopt(self, engine):
@@ -106,8 +113,7 @@ class TaxiAgent(base.Agent):
     return self.make_env("dm_control" if backend == "mujoco" else "gymnasium")
 
   def start_state(self):
-    sample_start(self.rng_state, self.world, self._start)
-    return self._start.copy() if self.rules.fuel_enabled else self._start[:4].copy()
+    return draw_start(self.rng_state, self.world)
 
   def end_episode(self, row, total, steps, last, learn):
     row[self.record_fields.index("return")] = total

@@ -65,6 +65,16 @@ def _check_count(name, value):
     raise ValueError(f"{name} must be a non-negative integer, got {value!r}")
 
 
+def seeded_starts(draw, episodes=GREEDY_STARTS, seed=GREEDY_SEED):
+  """SPEC section 7's fixed start set: row i is `draw(generator)`, the first start
+  drawn by a generator (`learners.rng`) made from `seed + i`. The one rule behind
+  `Agent.fixed_starts`, `Agent.evaluate_fixed` and `hpg_mj.benchmark`."""
+  _check_count("episodes", episodes)
+  _check_count("seed", seed)
+  return np.array([np.array(draw(rng.make_state(int(seed) + i)), dtype=np.float64)
+                   for i in range(int(episodes))])
+
+
 class Agent:
   """Base class of every agent (see the module docstring)."""
 
@@ -131,7 +141,11 @@ class Agent:
   @classmethod
   def as_record(cls, rows):
     """Float rows (episodes, fields) as a record with named fields."""
-    rows = np.ascontiguousarray(rows, dtype=np.float64).reshape(-1, len(cls.record_fields))
+    rows = np.ascontiguousarray(rows, dtype=np.float64)
+    if rows.ndim != 2 or rows.shape[1] != len(cls.record_fields):
+      raise ValueError(f"{cls.__name__}.as_record: rows must have shape (episodes, "
+                       f"{len(cls.record_fields)}), one column per record field "
+                       f"{list(cls.record_fields)}; got shape {rows.shape}")
     return rows.view(cls.record_dtype()).reshape(-1)
 
   @classmethod
@@ -184,17 +198,15 @@ class Agent:
 
   def fixed_starts(self, episodes=GREEDY_STARTS, seed=GREEDY_SEED):
     """The starts of `evaluate_fixed` (rows), for checking that they are fixed."""
-    _check_count("episodes", episodes)
-    _check_count("seed", seed)
     saved = self.rng_state.copy()
+
+    def draw(generator):
+      self.rng_state[:] = generator
+      return self.start_state()
     try:
-      starts = []
-      for i in range(int(episodes)):
-        self.set_seed(int(seed) + i)
-        starts.append(np.array(self.start_state(), dtype=np.float64))
+      return seeded_starts(draw, episodes, seed)
     finally:
       self.rng_state[:] = saved
-    return np.array(starts)
 
   def run(self, episodes, backend=None, learn=True, sample=None):
     """Episodes on a backend: "analytic" (the compiled loop, or the step-by-step

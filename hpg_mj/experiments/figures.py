@@ -177,14 +177,24 @@ def draw_trajectories(root, fig, agent, quick=False):
 _SHIP_ROWS = (("gate_pass_rate", "gate pass rate, online", 3),
               ("steps_to_gate", "control steps to the gate, online", 1),
               ("J", "J (MushroomRL rewards), online", 1),
+              ("J_normalized", "J, online, normalized (0 random, 100 best known)", 1),
+              ("gate_pass_rate_normalized",
+               "gate pass rate, online, normalized (0 random, 100 best known)", 1),
               ("greedy.gate_pass_rate", "gate pass rate, greedy", 3),
               ("greedy.steps_to_gate", "control steps to the gate, greedy", 1),
               ("greedy.J", "J (MushroomRL rewards), greedy", 1),
+              ("greedy.J_normalized", "J, greedy, normalized (0 random, 100 best known)", 1),
+              ("greedy.gate_pass_rate_normalized",
+               "gate pass rate, greedy, normalized (0 random, 100 best known)", 1),
               ("calls_per_episode", "low-level calls per episode, online", 2),
               ("diagonal_success_rate", "diagonal subtask success, online", 3),
               ("straight_success_rate", "straight subtask success, online", 3))
 _TAXI_ROWS = (("mean_return", "mean return, online", 3),
-              ("greedy.mean_return", "mean return, greedy", 3))
+              ("mean_return_normalized",
+               "mean return, online, normalized (0 random, 100 best known)", 1),
+              ("greedy.mean_return", "mean return, greedy", 3),
+              ("greedy.mean_return_normalized",
+               "mean return, greedy, normalized (0 random, 100 best known)", 1))
 
 
 def _value(run, key):

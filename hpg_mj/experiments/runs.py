@@ -45,6 +45,7 @@ from hpg_mj import agents
 from hpg_mj import provenance
 from hpg_mj.agents import base
 from hpg_mj.agents import storage
+from hpg_mj.experiments import bounds
 from hpg_mj.experiments import locks
 
 CHECKPOINT_EVERY = 25000    # a killed 50,000-episode ship run loses at most ~5 s of training
@@ -223,6 +224,9 @@ def _run_locked(task_path, seed, episodes, run_dir, checkpoint_every, stop_after
   greedy = agent.evaluate_fixed(GREEDY_STARTS)
   metrics["greedy"] = dict(agent.metrics(greedy), starts=GREEDY_STARTS,
                            start_seed=base.GREEDY_SEED)
+  # SPEC section 7.1: every score also normalized (0 = random, 100 = best known).
+  for scores in (metrics, metrics["greedy"]):
+    scores.update(bounds.normalized(bounds.task_name(agent), scores))
   metrics.update({"task": task.path.stem, "seed": seed, "episodes": episodes,
                   "wall_seconds": round(wall, 3),
                   "provenance": provenance.collect(task.text, seed)})

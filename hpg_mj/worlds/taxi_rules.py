@@ -75,8 +75,12 @@ def primitive_step(state, episode, action, world):
 
 def outcome_of(last):
   """How an episode ended, from the last `Step` of a step-by-step run (the codes above)."""
-  return (TRUNCATED if last.truncated else
-          DELIVERED if last.reward == core.DELIVERY_REWARD else OUT_OF_FUEL)
+  return outcome(last.truncated, last.reward)
+
+
+def outcome(truncated, reward):
+  """How an episode ended, from its last step's truncation flag and reward."""
+  return TRUNCATED if truncated else DELIVERED if reward == core.DELIVERY_REWARD else OUT_OF_FUEL
 
 
 @numba.njit(cache=True)

@@ -90,6 +90,13 @@ def test_finished_runs_are_skipped_and_figures_written(tmp_path, capsys):
   assert len(greedy) == finished["greedy"]["episodes_measured"] == 1000
   assert finished["greedy"]["J"] == pytest.approx(float(np.mean(
       _ship.mushroom_j(greedy, 5000, -300.0))))
+  # SPEC section 7.1: the scores also normalized against the published bounds.
+  from hpg_mj.experiments import bounds
+  ship = bounds.bounds()["tasks"]["ship"]
+  assert finished["greedy"]["J_normalized"] == pytest.approx(
+      100 * (finished["greedy"]["J"] - ship["random"]["J"]) / (ship["best"]["J"]
+                                                             - ship["random"]["J"]))
+  assert "| J, greedy, normalized (0 random, 100 best known) | " in report
   header = (out / "tiny" / "fig9.csv").read_text().splitlines()[0]
   assert "ship_hybrid_ci_low" in header and "ship_hybrid_fraction_passed" in header
 

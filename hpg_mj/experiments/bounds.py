@@ -1,0 +1,59 @@
+"""SPEC section 7.1: each benchmark task's published bounds, the random policy's
+score and the best known one on the fixed greedy starts, and normalized scores
+(0 = random, 100 = best known, as D4RL and Minari). `hpg_mj.benchmark` computes
+the bounds (`hpg-mj bounds`) into `hpg_mj/benchmark_bounds.json`; this module
+reads them, for the benchmark's scores and the experiments' reports alike."""
+import json
+import pathlib
+
+TASKS = ("ship", "taxi_fuel", "taxi")
+# The scores normalized against the bounds (higher is better for each).
+SCORES = {"ship": ("J", "gate_pass_rate"), "taxi_fuel": ("mean_return",),
+          "taxi": ("mean_return",)}
+BOUNDS_FILE = pathlib.Path(__file__).resolve().parents[1] / "benchmark_bounds.json"
+
+_LOADED = []
+
+
+def bounds():
+  """The published bounds: {"protocol": ..., "tasks": {task: {"random": metrics,
+  "best": metrics, ...}}} (no tasks where the file is missing)."""
+  if not _LOADED:
+    _LOADED.append(json.loads(BOUNDS_FILE.read_text()) if BOUNDS_FILE.is_file() else
+                   {"protocol": None, "tasks": {}})
+  return _LOADED[0]
+
+
+def task_name(agent):
+  """The benchmark task an agent acts on ("ship", "taxi_fuel", "taxi"), or None
+  (a subtask, a continuing agent)."""
+  if getattr(agent, "record_steps", None) is not None:
+    return None
+  env = getattr(getattr(agent, "config", None), "environment", None)
+  world = getattr(env, "world", None)
+  if world == "ship" and hasattr(env, "out_of_bounds_reward"):
+    return "ship"
+  if world == "taxi":
+    return "taxi_fuel" if env.fuel else "taxi"
+  return None
+
+
+def normalize(task, score, value, published=None):
+  """One value of `score` on `task` normalized: 100 (value - random) / (best known -
+  random); None without published bounds or a value. Linear, so an interval's
+  ends normalize to the normalized interval."""
+  entry = (published or bounds())["tasks"].get(task) if task is not None else None
+  if entry is None or value is None:
+    return None
+  low, high = entry["random"][score], entry["best"][score]
+  return None if low is None or high is None or high == low else \
+      100.0 * (value - low) / (high - low)
+
+
+def normalized(task, metrics, published=None):
+  """{"<score>_normalized": `normalize(...)`} for the scores of `SCORES[task]` in
+  `metrics`; empty for no task (None) or where no bounds are published."""
+  if task is None or (published or bounds())["tasks"].get(task) is None:
+    return {}
+  return {f"{score}_normalized": normalize(task, score, metrics.get(score), published)
+          for score in SCORES[task]}
