@@ -19,7 +19,8 @@ An agent is one class with:
 and it implements
 
   state()                      its whole training state: name -> array (the
-                               live arrays: restoring writes into them)
+                               live arrays: restoring writes into them, or
+                               `restore(arrays, where)` if it overrides that)
   make_env(api, backend, ...)  an environment of its task ("gymnasium" or
                                "dm_control"), configured from its task file
   metrics(record)              what a record says (a dict of numbers)
@@ -82,6 +83,13 @@ class Agent:
 
   def state(self):
     raise NotImplementedError
+
+  def restore(self, arrays, where):
+    """Puts saved arrays (name -> array, as `state()` gave them) back into the agent;
+    by default copied into the live arrays of `state()`. An agent whose state is not
+    a fixed set of arrays (e.g. an outside library's, hpg_mj.agents.sb3) overrides it."""
+    from hpg_mj.agents import storage
+    storage.restore_into(self.state(), arrays, where)
 
   def make_env(self, api="gymnasium", backend="analytic", **kwargs):
     raise NotImplementedError
