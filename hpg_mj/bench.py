@@ -153,6 +153,8 @@ def bench_train(min_seconds=2.0):
   rows = []
   for name, path in agents.shipped_tasks().items():
     task = agents.load_task(path)
+    if "stable-baselines3" in agents.lookup(task.kind).tags:
+      continue                 # scripts/sb3_speed.py measures those, with the sb3 extra
     agent = agents.build(task, seed=0)
     unit = "control steps/s" if task.section("environment")["world"] == "ship" else \
         "primitive steps/s"
