@@ -171,13 +171,18 @@ def test_training_does_not_depend_on_how_it_is_cut(tmp_path):
 
 
 @pytest.mark.parametrize("name", ["ship_sac", "taxi_fuel_ppo"])
-def test_a_run_killed_after_a_checkpoint_resumes_to_the_same_result(tmp_path, name):
+def test_a_run_killed_after_a_checkpoint_resumes_to_the_same_result(tmp_path, monkeypatch, name):
+  from hpg_mj.agents import sb3 as sb3_agents
+  # The agent's own cadence (`checkpoint_rows`) wins over the runner's default of
+  # 25,000 rows; here one row, so that a 3-row run checkpoints.
+  monkeypatch.setattr(sb3_agents._SB3Agent, "checkpoint_rows", 1)
+  monkeypatch.setattr(sb3_agents.ShipSAC, "checkpoint_rows", 1)
   path = tiny_task(tmp_path, name)
-  whole = runs.run(path, 7, 3, tmp_path / "whole", checkpoint_every=1)
+  whole = runs.run(path, 7, 3, tmp_path / "whole")
   with pytest.raises(runs.RunInterrupted):
-    runs.run(path, 7, 3, tmp_path / "cut", checkpoint_every=1, stop_after=2)
+    runs.run(path, 7, 3, tmp_path / "cut", stop_after=2)
   assert (tmp_path / "cut" / "checkpoints" / "ep2").is_dir()
-  resumed = runs.run(path, 7, 3, tmp_path / "cut", checkpoint_every=1)
+  resumed = runs.run(path, 7, 3, tmp_path / "cut")
   assert "resumed from checkpoint ep2" in (tmp_path / "cut" / "events.log").read_text()
   for name_ in ("record", "greedy"):
     np.testing.assert_array_equal(np.load(tmp_path / "whole" / f"{name_}.npy"),

@@ -15,6 +15,8 @@ An agent is one class with:
                   row, an "episode" of its record: then its task file's
                   [protocol] may give `control_steps` or `hours` instead of
                   `episodes` (hpg_mj.agents.taskfile)
+  checkpoint_rows None, or the record rows between a run's checkpoints at the
+                  most (`hpg-mj run` checkpoints at least that often)
 
 and it implements
 
@@ -68,6 +70,7 @@ class Agent:
   figure = None
   tags = ()
   record_steps = None                # control steps per record row of a continuing agent
+  checkpoint_rows = None             # a run checkpoints at least this often (rows), if set
 
   def __init__(self, config=None, seed=0, task=None):
     if self.Config is not None and config is None:

@@ -212,6 +212,7 @@ class _SB3Agent:
   # ---- the agent interface ----------------------------------------------------------
 
   record_steps = 1000            # control steps of one training record row
+  checkpoint_rows = 250          # `hpg-mj run` checkpoints at least every 0.25 M steps
 
   def train(self, episodes, backend=None):
     """Learns for `episodes` record rows of `record_steps` control steps each."""
@@ -412,6 +413,7 @@ class ShipSAC(_SB3Ship):
   name = "ship_sac"
   algorithm = "sac"
   Config = ShipSACConfig
+  checkpoint_rows = 50           # ~10 minutes of SAC on one core
 
 
 # ---- taxi-fuel ---------------------------------------------------------------------
