@@ -190,6 +190,32 @@ def test_a_run_killed_after_a_checkpoint_resumes_to_the_same_result(tmp_path, mo
   assert resumed["greedy"] == whole["greedy"]
 
 
+def test_a_run_killed_by_sigkill_resumes_to_the_same_result(tmp_path):
+  """`runs.run` (what `hpg-mj run` runs for each seed) in another process, killed
+  with SIGKILL once a checkpoint is written, then run again here."""
+  import signal
+  import time
+  path = tiny_task(tmp_path, "taxi_fuel_dqn")
+  whole = runs.run(path, 8, 4, tmp_path / "whole", checkpoint_every=2)
+  run_dir = tmp_path / "killed"
+  code = (f"from hpg_mj.experiments import runs\n"
+          f"runs.run({str(path)!r}, 8, 4, {str(run_dir)!r}, checkpoint_every=2)\n")
+  proc = subprocess.Popen([sys.executable, "-P", "-c", code], cwd=tmp_path,    # the installed
+                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # hpg_mj
+  deadline = time.monotonic() + 300
+  while not (run_dir / "checkpoints" / "ep2").is_dir() and proc.poll() is None:
+    assert time.monotonic() < deadline
+    time.sleep(0.01)
+  proc.send_signal(signal.SIGKILL)
+  proc.wait()
+  assert proc.returncode == -signal.SIGKILL and not runs.is_finished(run_dir)
+  resumed = runs.run(path, 8, 4, run_dir, checkpoint_every=2)
+  assert "resumed from checkpoint ep2" in (run_dir / "events.log").read_text()
+  np.testing.assert_array_equal(np.load(tmp_path / "whole" / "record.npy"),
+                                np.load(run_dir / "record.npy"))
+  assert resumed["greedy"] == whole["greedy"]
+
+
 def test_cli_trains_and_evaluates_an_sb3_agent(tmp_path, capsys):
   out = tmp_path / "agent"
   assert cli.main(["train", str(tiny_task(tmp_path, "taxi_fuel_ppo")), "--episodes", "2",
@@ -206,5 +232,6 @@ def test_the_task_files_load_without_importing_torch():
           "for n in ('ship_ppo', 'ship_sac', 'taxi_fuel_ppo', 'taxi_fuel_dqn'):\n"
           "  agents.load_task(n)\n"
           "print(sorted(m for m in ('torch', 'stable_baselines3') if m in sys.modules))")
-  out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+  out = subprocess.run([sys.executable, "-P", "-c", code], capture_output=True, text=True,
+                       check=True)
   assert out.stdout.strip() == "[]"
