@@ -162,12 +162,28 @@ def test_ship_greedy_episode_is_the_single_environments(tmp_path):
         steps, total, float(info.get("event") == "gate"))
 
 
-def test_training_does_not_depend_on_how_it_is_cut(tmp_path):
+def test_training_does_not_depend_on_how_it_is_cut_nor_on_evaluations(tmp_path):
   task = agents.load_task(tiny_task(tmp_path, "taxi_fuel_dqn"))
   whole = agents.build(task, seed=3).train(3)
   cut = agents.build(task, seed=3)
-  parts = np.concatenate([cut.train(1), cut.train(2)])
-  np.testing.assert_array_equal(parts, whole)
+  first = cut.train(1)
+  cut.evaluate(4, policy="sampled")        # draws from SB3's generators, then puts them back
+  np.testing.assert_array_equal(np.concatenate([first, cut.train(2)]), whole)
+
+
+def test_dqn_epsilon_decays_over_the_declared_control_steps(tmp_path):
+  """One `learn` call is 4 copies x 1,000 steps; epsilon follows [dqn]
+  exploration_steps (8,000 here), not the length of the call."""
+  text = tiny_task(tmp_path, "taxi_fuel_dqn").read_text().replace(
+      "exploration_steps = 1500", "exploration_steps = 8000")
+  path = tmp_path / "eps.toml"
+  path.write_text(text)
+  agent = agents.build(agents.load_task(path), seed=0)
+  agent.train(1)
+  assert agent.model.num_timesteps == 4000
+  assert agent.model.exploration_rate == pytest.approx(1.0 - 0.5 * (1.0 - 0.05))
+  agent.train(4)
+  assert agent.model.exploration_rate == pytest.approx(0.05)
 
 
 @pytest.mark.parametrize("name", ["ship_sac", "taxi_fuel_ppo"])

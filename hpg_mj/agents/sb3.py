@@ -30,6 +30,9 @@ The saved state is SB3's own (`model.save`, the replay buffer's
 generators, the episodes waiting, and the generators of torch, numpy and Python
 and the action space's. A run resumed from a checkpoint continues as the run never
 stopped would, bit for bit on the same machine and torch (tests/test_sb3.py).
+SB3 draws from process-wide generators: two of these agents trained in turn in one
+process draw from the same ones (the runs of `hpg-mj run` are one per process);
+evaluating leaves them as they were. Building one sets torch to one thread.
 """
 import dataclasses
 import io
@@ -123,9 +126,6 @@ class DQNSection(taskfile.Section):
   net_arch: tuple = param((64, 64), NET_ARCH_DOC, length=2, low=1)
 
 
-ALGORITHMS = {"ppo": PPOSection, "sac": SACSection, "dqn": DQNSection}
-
-
 def _model_kwargs(algorithm, section):
   """SB3's constructor arguments from a section (same names, less ours)."""
   values = dataclasses.asdict(section)
@@ -159,7 +159,7 @@ class _SB3Agent:
     self.section = getattr(self.config, self.algorithm)
     self.model = None
     self.env = None
-    self._pending = []           # finished episodes' rows beyond what train() has returned
+    self._pending = []           # finished episodes (NativeVecEnv.finished) past the rows returned
 
   # ---- building ------------------------------------------------------------------
 
@@ -179,11 +179,14 @@ class _SB3Agent:
     n = self.section.n_envs
     return n * (self.section.n_steps if self.algorithm == "ppo" else self.CHUNK_PER_COPY)
 
-  def _build(self):
+  def _algorithm_class(self):
     sb3, torch = _sb3()
     torch.set_num_threads(1)     # runs go in parallel, one per core; a small MLP gains nothing
+    return {"ppo": sb3.PPO, "sac": sb3.SAC, "dqn": sb3.DQN}[self.algorithm]
+
+  def _build(self):
+    cls = self._algorithm_class()
     self.env = self._native(self.section.n_envs)
-    cls = {"ppo": sb3.PPO, "sac": sb3.SAC, "dqn": sb3.DQN}[self.algorithm]
     self.model = cls("MlpPolicy", self.env, seed=self.seed, device="cpu", verbose=0,
                      **_model_kwargs(self.algorithm, self.section))
 
@@ -274,12 +277,16 @@ class _SB3Agent:
     env.set_options({"state": np.asarray(starts, dtype=self.start_dtype)})
     obs = env.reset()
     rows = [None] * len(starts)
-    while any(r is None for r in rows):
-      actions, _ = model.predict(obs, deterministic=policy == "greedy")
-      obs, _, _, _ = env.step(actions)
-      for ended in env.finished():
-        if rows[ended[1]] is None:
-          rows[ended[1]] = self._episode(*ended[1:])
+    saved = _generators()        # a sampled policy draws from them; training must not see it
+    try:
+      while any(r is None for r in rows):
+        actions, _ = model.predict(obs, deterministic=policy == "greedy")
+        obs, _, _, _ = env.step(actions)
+        for ended in env.finished():
+          if rows[ended[1]] is None:
+            rows[ended[1]] = self._episode(*ended[1:])
+    finally:
+      _set_generators(saved)
     return self.as_record(np.array(rows, dtype=np.float64))
 
   def _window(self, record):
@@ -299,7 +306,6 @@ class _SB3Agent:
             "sb3": np.frombuffer(self._snapshot(), dtype=np.uint8)}
 
   def _snapshot(self):
-    _, torch = _sb3()
     model = self._ensure_model()
     out = io.BytesIO()
     with zipfile.ZipFile(out, "w", compression=zipfile.ZIP_STORED) as archive:
@@ -310,8 +316,7 @@ class _SB3Agent:
         buffer = io.BytesIO()
         model.save_replay_buffer(buffer)
         archive.writestr("replay_buffer.pkl", buffer.getvalue())
-      extra = {"env": self.env, "pending": self._pending, "torch": torch.get_rng_state(),
-               "numpy": np.random.get_state(), "python": random.getstate(),
+      extra = {"env": self.env, "pending": self._pending, **_generators(),
                "action_space": model.action_space.np_random.bit_generator.state}
       archive.writestr("extra.pkl", pickle.dumps(extra))
     return out.getvalue()
@@ -323,24 +328,34 @@ class _SB3Agent:
                                    f"{sorted(arrays)}, needs {sorted(expected)})")
     storage.restore_into({"rng_state": self.rng_state}, {"rng_state": arrays["rng_state"]},
                          where)
-    sb3, torch = _sb3()
+    cls = self._algorithm_class()
     try:
       with zipfile.ZipFile(io.BytesIO(arrays["sb3"].tobytes())) as archive:
         names = set(archive.namelist())
         extra = pickle.loads(archive.read("extra.pkl"))
-        cls = {"ppo": sb3.PPO, "sac": sb3.SAC, "dqn": sb3.DQN}[self.algorithm]
         model = cls.load(io.BytesIO(archive.read("model.zip")), env=extra["env"], device="cpu",
                          force_reset=False)   # keep the saved _last_obs: no reset
         if "replay_buffer.pkl" in names:
           model.load_replay_buffer(io.BytesIO(archive.read("replay_buffer.pkl")))
     except (zipfile.BadZipFile, KeyError, pickle.UnpicklingError) as err:
       raise storage.AgentFileError(f"{where}: its SB3 state does not load: {err}") from None
-    torch.set_num_threads(1)
-    torch.set_rng_state(extra["torch"])
-    np.random.set_state(extra["numpy"])
-    random.setstate(extra["python"])
+    _set_generators(extra)
     model.action_space.np_random.bit_generator.state = extra["action_space"]
     self.model, self.env, self._pending = model, extra["env"], list(extra["pending"])
+
+
+def _generators():
+  """The process-wide generators SB3 draws from (torch, numpy's global, Python's)."""
+  _, torch = _sb3()
+  return {"torch": torch.get_rng_state(), "numpy": np.random.get_state(),
+          "python": random.getstate()}
+
+
+def _set_generators(states):
+  _, torch = _sb3()
+  torch.set_rng_state(states["torch"])
+  np.random.set_state(states["numpy"])
+  random.setstate(states["python"])
 
 
 def _check_count(name, value):
