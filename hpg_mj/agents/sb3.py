@@ -296,8 +296,10 @@ class _SB3Agent:
     return record[-k:] if len(record) else record
 
   def graph(self):
-    raise NotImplementedError(f"{self.name} is a flat SB3 policy with no task graph; score it "
-                              "with evaluate / evaluate_fixed")
+    # A ValueError, so that `hpg-mj render --agent` refuses it in one line.
+    raise ValueError(f"{self.name} is a flat Stable-Baselines3 policy with no task graph to "
+                     "sail step by step (render --agent draws those); score it with hpg-mj "
+                     "evaluate")
 
   # ---- saving ---------------------------------------------------------------------------
 
