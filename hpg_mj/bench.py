@@ -180,6 +180,8 @@ def bench_train(min_seconds=2.0, tasks=None):
 
   rows = []
   for path in (tasks or agents.shipped_tasks().values()):
+    if "stable-baselines3" in agents.lookup(agents.load_task(path).kind).tags:
+      continue                 # scripts/sb3_speed.py measures those, with the sb3 extra
     row = bench_task(path, min_seconds)
     rows.append((f"{row['task']}, compiled, learning", row["unit"], row["steps_per_second"]))
   if tasks:

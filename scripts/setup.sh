@@ -22,6 +22,15 @@ if [ ! -x .venv/bin/python ]; then
 fi
 .venv/bin/python -m pip install -q --disable-pip-version-check --upgrade pip
 EXTRAS=${1:+[$1]}
+# The test and sb3 extras bring Stable-Baselines3 and with it torch, which PyPI serves
+# as its CUDA build (~5 GB installed). The tests and the reference agents run on the
+# CPU: take the CPU-only build (~0.9 GB) where its index answers, else PyPI's.
+if [[ "${1:-}" =~ (^|,)(test|sb3)(,|$) ]] && ! .venv/bin/python -c "import torch" 2>/dev/null; then
+  echo "setup: installing the CPU-only torch"
+  .venv/bin/python -m pip install -q --disable-pip-version-check --retries 1 --timeout 20 \
+      torch --index-url https://download.pytorch.org/whl/cpu \
+    || echo "setup: the CPU-only torch index did not answer; pip takes torch from PyPI"
+fi
 # setuptools reuses build/lib between builds, so a module deleted from the checkout
 # would otherwise still ship in the wheel.
 rm -rf build

@@ -18,7 +18,9 @@ saved agent records its class's import path, so another process finds it too.
 
 Shipped: ship_hybrid, ship_beyond (past the paper's route, SPEC section 8),
 ship_flat_pg, ship_actor_critic, ship_patrol (continuing, SPEC section 8), taxi_hpg,
-taxi_maxq, taxi_flat_q (each one module here).
+taxi_maxq, taxi_flat_q (each one module here); and Stable-Baselines3's PPO and SAC on
+the ship, PPO and DQN on the taxi (`hpg_mj.agents.sb3`, with the extra
+`pip install 'hpg_mj[sb3]'`).
 """
 import importlib
 import importlib.util
@@ -54,6 +56,11 @@ _SHIPPED = {
     "taxi_hpg": "hpg_mj.agents.taxi_hpg:TaxiHPG",
     "taxi_maxq": "hpg_mj.agents.taxi_maxq:TaxiMAXQ",
     "taxi_flat_q": "hpg_mj.agents.taxi_flat_q:TaxiFlatQ",
+    # Stable-Baselines3's, with the extra `pip install 'hpg_mj[sb3]'` (issue 21)
+    "ship_ppo": "hpg_mj.agents.sb3:ShipPPO",
+    "ship_sac": "hpg_mj.agents.sb3:ShipSAC",
+    "taxi_ppo": "hpg_mj.agents.sb3:TaxiPPO",
+    "taxi_dqn": "hpg_mj.agents.sb3:TaxiDQN",
 }
 _registered = {}          # name -> class, or "module:Class" until first used
 _entry_points_read = False
@@ -365,6 +372,6 @@ def load(directory):
   task = taskfile.loads(meta.get("task_text") or "", path, _Registry)
   agent = build(task, meta.get("seed", 0))
   record = arrays.pop("record", None)
-  storage.restore_into(agent.state(), arrays, directory)
+  agent.restore(arrays, directory)
   agent.episodes = meta.get("episodes", 0)
   return agent, record, meta

@@ -15,11 +15,14 @@ An agent is one class with:
                   row, an "episode" of its record: then its task file's
                   [protocol] may give `control_steps` or `hours` instead of
                   `episodes` (hpg_mj.agents.taskfile)
+  checkpoint_rows None, or the record rows between a run's checkpoints at the
+                  most (`hpg-mj run` checkpoints at least that often)
 
 and it implements
 
   state()                      its whole training state: name -> array (the
-                               live arrays: restoring writes into them)
+                               live arrays: restoring writes into them, or
+                               `restore(arrays, where)` if it overrides that)
   make_env(api, backend, ...)  an environment of its task ("gymnasium" or
                                "dm_control"), configured from its task file
   metrics(record)              what a record says (a dict of numbers): its online
@@ -85,6 +88,7 @@ class Agent:
   tags = ()
   record_steps = None                # control steps per record row of a continuing agent
   metric_window = METRIC_WINDOW      # the record's last rows `metrics` is over
+  checkpoint_rows = None             # a run checkpoints at least this often (rows), if set
 
   def __init__(self, config=None, seed=0, task=None):
     if self.Config is not None and config is None:
@@ -100,6 +104,13 @@ class Agent:
 
   def state(self):
     raise NotImplementedError
+
+  def restore(self, arrays, where):
+    """Puts saved arrays (name -> array, as `state()` gave them) back into the agent;
+    by default copied into the live arrays of `state()`. An agent whose state is not
+    a fixed set of arrays (e.g. an outside library's, hpg_mj.agents.sb3) overrides it."""
+    from hpg_mj.agents import storage
+    storage.restore_into(self.state(), arrays, where)
 
   def make_env(self, api="gymnasium", backend="analytic", **kwargs):
     raise NotImplementedError

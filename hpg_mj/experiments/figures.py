@@ -43,6 +43,11 @@ METRICS = {
     "straight_successes": (("straight_successes", "straight_runs"),
                            lambda r: _blocks(r["straight_successes"], r["straight_runs"]) * BLOCK),
     "mean_return": (("return",), lambda r: _blocks(r["return"])),
+    # Records whose rows are sums over 1,000 control steps (hpg_mj.agents.sb3): per
+    # block of rows, over the episodes that ended in it.
+    "gate_fraction": (("gates", "episodes"), lambda r: _blocks(r["gates"], r["episodes"])),
+    "return_per_episode": (("return_sum", "episodes"),
+                           lambda r: _blocks(r["return_sum"], r["episodes"])),
 }
 X_AXES = ("episodes", "steps")
 REFERENCES = ("optimal",)

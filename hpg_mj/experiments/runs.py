@@ -204,6 +204,9 @@ def _run_locked(task_path, seed, episodes, run_dir, checkpoint_every, stop_after
     raise ValueError(f"{run_dir}: its checkpoint is at episode {done}, past the {episodes} "
                      f"episodes asked for; use another output folder")
   progress = _ProgressFile(run_dir, agent.figure, done)
+  # An agent whose rows are dear (e.g. hpg_mj.agents.sb3's) asks for checkpoints at
+  # least every `checkpoint_rows` rows.
+  checkpoint_every = min(checkpoint_every, agent.checkpoint_rows or checkpoint_every)
   try:
     for now, record, seconds in agents.chunks(agent, episodes, done=done, every=checkpoint_every):
       n, done = now - done, now

@@ -1,0 +1,123 @@
+"""A task file's tuning (SPEC section 7) as resumable runs of `hpg-mj run`: writes,
+into OUT, one task file per configuration `hpg-mj tune` would try (the same
+`[tuning]` budget and draw, `hpg_mj.experiments.tuning.candidates`) and an experiment
+file running each on the task's tuning seeds for `[tuning] episodes`; then
+
+    nice -n 19 hpg-mj run OUT/tuning_<task>.toml --out OUT/runs --workers 1
+
+trains them with checkpoints (a killed command resumes when run again), and
+
+    python scripts/tuning_runs.py --summary OUT/runs/tuning_<task>
+
+prints each configuration's mean `[tuning] score` over the seeds finished so far.
+For long learners such as the SB3 reference agents (`hpg-mj tune` keeps its runs
+in memory, so a 10 M-step tuning could not survive a restart).
+
+    python scripts/tuning_runs.py ship_ppo taxi_fuel_dqn --out runs/tuning
+"""
+import argparse
+import json
+import pathlib
+import re
+import sys
+
+import numpy as np
+
+from hpg_mj import agents
+from hpg_mj.experiments import tuning
+
+FIGURE_METRICS = {"ship": "gate_fraction", "taxi": "return_per_episode"}
+
+
+def with_changes(text, changes, path):
+  """The task file's text with `changes` ({section: {key: value}}) written in."""
+  for section, keys in changes.items():
+    match = re.search(rf"^\[{re.escape(section)}\][^\n]*\n(.*?)(?=^\[|\Z)", text, re.M | re.S)
+    if match is None:
+      raise ValueError(f"{path}: has no [{section}] section to tune")
+    body = match.group(1)
+    for key, value in keys.items():
+      body, n = re.subn(rf"^{re.escape(key)}\s*=.*$", f"{key} = {value!r}  # tuning candidate",
+                        body, count=1, flags=re.M)
+      if n != 1:
+        raise ValueError(f"{path}: [{section}] has no line {key} = ...")
+    text = text[:match.start(1)] + body + text[match.end(1):]
+  return text
+
+
+def write(name, out):
+  task = agents.load_task(name)
+  out = pathlib.Path(out).resolve()
+  out.mkdir(parents=True, exist_ok=True)
+  text = task.path.read_text()
+  paths = []
+  for k, changes in enumerate(tuning.candidates(task, task.tuning["budget"])):
+    path = out / f"{task.path.stem}_tune{k}.toml"
+    variant = with_changes(text, changes, task.path).replace(
+        "[tuning]", f"# candidate {k}: {tuning.describe(changes)}\n[tuning]", 1)
+    agents.taskfile.loads(variant, path, agents._Registry)    # refused here if malformed
+    path.write_text(variant)
+    paths.append(path)
+  seeds = sorted(task.tuning_seeds)
+  if seeds != list(range(seeds[0], seeds[0] + len(seeds))):
+    raise ValueError(f"{task.path}: tuning seeds {seeds} are not consecutive")
+  world = task.section("environment")["world"]
+  experiment = out / f"tuning_{task.path.stem}.toml"
+  experiment.write_text(f'''# The tuning of {task.path.name} ({len(paths)} configurations x seeds
+# {seeds[0]}-{seeds[-1]}), written by scripts/tuning_runs.py. Not for publication.
+[experiment]
+name = "tuning_{task.path.stem}"
+description = "tuning of {task.path.stem}"
+tasks = {json.dumps([str(p) for p in paths])}
+runs = {len(seeds)}
+episodes = {task.tuning["episodes"]}
+quick_runs = 1
+quick_episodes = {task.tuning["episodes"]}
+first_seed = {seeds[0]}
+tuning = true
+
+[[figure]]
+name = "tuning_{task.path.stem}"
+kind = "curve"
+metric = "{FIGURE_METRICS[world]}"
+x = "steps"
+title = "tuning of {task.path.stem}"
+ylabel = "{FIGURE_METRICS[world]}"
+paper = "none: tuning"
+''')
+  return experiment
+
+
+def summary(folder):
+  folder = pathlib.Path(folder)
+  for task_dir in sorted(p for p in folder.iterdir() if p.is_dir()):
+    scores, score_name = [], None
+    for metrics in sorted(task_dir.glob("seed*/metrics.json")):
+      data = json.loads(metrics.read_text())
+      score_name = score_name or _score_name(data)
+      scores.append(data[score_name])
+    mean = f"{np.mean(scores):.4g}" if scores else "-"
+    print(f"{task_dir.name}: {score_name or 'score'} mean {mean} over {len(scores)} seeds")
+
+
+def _score_name(metrics):
+  """The SB3 task files' [tuning] score: the ship's J, the taxi's mean return."""
+  return "J" if "J" in metrics else "mean_return"
+
+
+def main(argv=None):
+  parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+  parser.add_argument("tasks", nargs="*", help="task files or shipped names")
+  parser.add_argument("--out", default="runs/tuning")
+  parser.add_argument("--summary", help="a tuning experiment's output folder")
+  args = parser.parse_args(argv)
+  if args.summary:
+    summary(args.summary)
+    return 0
+  for name in args.tasks:
+    print(write(name, args.out))
+  return 0
+
+
+if __name__ == "__main__":
+  sys.exit(main())
