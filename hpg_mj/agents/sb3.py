@@ -148,6 +148,9 @@ class _SB3Agent:
   env_id = None
   rescale = False
   tags = ("reference", "stable-baselines3")
+  # The online metrics are over the last 100 rows (1,000 control steps each): the
+  # episodes that ended in the last 100,000 control steps of training.
+  metric_window = 100
   CHUNK_PER_COPY = 1000          # control steps per copy in one off-policy `learn` call
   start_dtype = np.float64       # of the world's states
 
@@ -289,12 +292,6 @@ class _SB3Agent:
       _set_generators(saved)
     return self.as_record(np.array(rows, dtype=np.float64))
 
-  def _window(self, record):
-    """The latest rows that hold at least METRIC_WINDOW episodes (all if fewer)."""
-    counts = np.cumsum(record["episodes"][::-1])
-    k = int(np.searchsorted(counts, self.METRIC_WINDOW)) + 1
-    return record[-k:] if len(record) else record
-
   def graph(self):
     # A ValueError, so that `hpg-mj render --agent` refuses it in one line.
     raise ValueError(f"{self.name} is a flat Stable-Baselines3 policy with no task graph to "
@@ -386,7 +383,6 @@ class _SB3Ship(_SB3Agent, _ship.ShipAgent):
   env_id = "hpg_mj/ShipSteering-v0"
   rescale = True
   record_fields = ("steps", "episodes", "gates", "gate_steps", "return_sum", "j_sum")
-  METRIC_WINDOW = _ship.METRIC_WINDOW
 
   def __init__(self, config=None, seed=0, task=None):
     _ship.ShipAgent.__init__(self, config, seed, task)
@@ -406,10 +402,10 @@ class _SB3Ship(_SB3Agent, _ship.ShipAgent):
 
   def metrics(self, record):
     """ShipAgent's metrics, from the row sums."""
-    w = self._window(record)
+    w = record[-self.metric_window:]
     episodes, gates = w["episodes"].sum(), w["gates"].sum()
     return {
-        "episodes_measured": int(episodes),
+        "episodes_measured": int(episodes), "rows_measured": int(len(w)),
         "gate_pass_rate": float(gates / episodes) if episodes else None,
         "steps_to_gate": float(w["gate_steps"].sum() / gates) if gates else None,
         "mean_return": float(w["return_sum"].sum() / episodes) if episodes else None,
@@ -454,7 +450,6 @@ class _SB3Taxi(_SB3Agent, _taxi.TaxiAgent):
 
   record_fields = ("steps", "episodes", "return_sum", "episode_steps", "deliveries")
   start_dtype = np.int64
-  METRIC_WINDOW = _taxi.METRIC_WINDOW
 
   def __init__(self, config=None, seed=0, task=None):
     _taxi.TaxiAgent.__init__(self, config, seed, task)
@@ -481,11 +476,12 @@ class _SB3Taxi(_SB3Agent, _taxi.TaxiAgent):
   def metrics(self, record):
     """TaxiAgent's metrics, from the row sums."""
     from hpg_mj.worlds import taxi_values
-    w = self._window(record)
+    w = record[-self.metric_window:]
     episodes = w["episodes"].sum()
     optimal = self.optimal_mean_return()
     mean = float(w["return_sum"].sum() / episodes) if episodes else None
-    return {"episodes_measured": int(episodes), "mean_return": mean,
+    return {"episodes_measured": int(episodes), "rows_measured": int(len(w)),
+            "mean_return": mean,
             "optimal_mean_return": optimal,
             "reaches_95_percent": bool(mean is not None and mean >=
                                        taxi_values.performance_threshold(optimal, 0.95)),
