@@ -20,7 +20,7 @@ learner that solves it. `hpg_mj.hierarchy.executor` runs a graph with the
 stack discipline of Algorithm 1.
 """
 import dataclasses
-from typing import Any, Callable, Optional, Sequence
+from typing import Any, Callable, Optional, Protocol, Sequence, runtime_checkable
 
 
 @dataclasses.dataclass(frozen=True)
@@ -95,8 +95,60 @@ class Subtask:
   on_exit: Optional[Callable[[Call, Optional[Step], bool], None]] = None
 
 
+@runtime_checkable
+class Learner(Protocol):
+  """What a subtask's learner must answer when the Python executor runs its graph
+  (`hierarchy.executor`; a graph of blocks needs none of this: `hierarchy.machine`
+  runs it). Checked when the graph is built (`TaskGraph`), naming the node.
+
+  start()
+      The subtask is called (Algorithm 1: z <- 0 for Eq. 3; a trace cleared).
+  act(features, mask, rng_state, sample) -> int or float
+      Choose a child: its index among the node's children, or, for a node whose one
+      child is a continuous primitive (`Primitive(name)` without an action), the
+      action's value. `features` is the node's view of the state: the same array
+      object may be reused and overwritten for the next state, so a learner that
+      keeps it must copy it. `mask` is None or a bool array, one entry per child
+      (the node's `available`): choose only where it is True. `rng_state` is the
+      agent's generator (`learners.rng`): draw only from it, so that a seed gives
+      the same numbers on every path. `sample` False: the greedy choice.
+  observe(signal, next_features, done, terminal, learn)
+      The child returned: `signal` is R + G (the child's rewards as the node sees
+      them, plus its internal reward); `next_features` the view of the state now
+      (None when the episode terminated); `done` whether this call ends (its own
+      termination or the episode's end); `terminal` whether it ends in a terminal
+      state (no bootstrapping); `learn` whether to update.
+
+  A learner with `n_actions` (a discrete learner) must have one per child.
+  """
+
+  def start(self) -> None: ...
+
+  def act(self, features, mask, rng_state, sample): ...
+
+  def observe(self, signal, next_features, done, terminal, learn) -> None: ...
+
+
 class GraphError(ValueError):
   """A task graph that cannot be executed: the message names the node."""
+
+
+def _check_learner(node):
+  """A Python learner meets the `Learner` contract (a block is the machine's)."""
+  learner = node.learner
+  if type(learner).__module__ == "hpg_mj.hierarchy.blocks":
+    return
+  missing = [m for m in ("start", "act", "observe") if not callable(getattr(learner, m, None))]
+  if missing:
+    raise GraphError(f"subtask {node.name!r}: its learner {type(learner).__name__} has no "
+                     f"{', '.join(missing)}; a learner answers start(), act(features, mask, "
+                     "rng_state, sample) and observe(signal, next_features, done, terminal, "
+                     "learn) (hpg_mj.hierarchy.graph.Learner), or is a block of "
+                     "hpg_mj.hierarchy.blocks")
+  n_actions = getattr(learner, "n_actions", None)
+  if n_actions is not None and int(n_actions) != len(node.children):
+    raise GraphError(f"subtask {node.name!r}: its learner {type(learner).__name__} chooses "
+                     f"among {n_actions} actions, the node has {len(node.children)} children")
 
 
 class TaskGraph:
@@ -135,6 +187,7 @@ class TaskGraph:
           raise GraphError(f"subtask {node.name!r} has no {field}")
       if not node.children:
         raise GraphError(f"subtask {node.name!r} has no children")
+      _check_learner(node)
       refs = []
       for child in node.children:
         ref = child if isinstance(child, Child) else Child(child)

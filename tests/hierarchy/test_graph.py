@@ -96,3 +96,23 @@ def test_paper_ship_graph_shape():
   assert [r.node for r in refs] == ["straight", "diagonal"] * 4
   assert [r.args["direction"] for r in refs] == list(range(8))
   assert graph.nodes["diagonal"].learner is not graph.nodes["straight"].learner
+
+
+def test_a_learner_missing_a_method_is_refused_when_the_graph_is_built():
+  class NoObserve:
+    def start(self):
+      pass
+
+    def act(self, features, mask, rng_state, sample):
+      return 0
+  with pytest.raises(GraphError, match=r"subtask 'root': its learner NoObserve has no observe; "
+                                       r"a learner answers start\(\)"):
+    TaskGraph("root", [_subtask("root", ["go"], learner=NoObserve()), Primitive("go", 0)])
+
+
+def test_a_learner_of_the_wrong_action_size_is_refused_naming_the_node():
+  with pytest.raises(GraphError, match="subtask 'root': its learner SoftmaxPolicyGradient "
+                                       "chooses among 3 actions, the node has 2 children"):
+    TaskGraph("root", [_subtask("root", ["go", "stop"],
+                                learner=agents.SoftmaxPolicyGradient(1, 3, 0.1)),
+                       Primitive("go", 0), Primitive("stop", 1)])

@@ -8,6 +8,7 @@ import hpg_mj  # noqa: F401
 import gymnasium
 from hpg_mj.hierarchy import blocks, machine, ship_rules
 from hpg_mj.hierarchy.graph import Child, GraphError, Primitive, Subtask, TaskGraph
+from hpg_mj.learners import agents as stepwise
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import rng, tiles
 import oracle
@@ -158,8 +159,11 @@ def _root(children=None, **kw):
 
 
 @pytest.mark.parametrize("nodes, schedule, message", [
-    (lambda: [_root(), _leg(learner=object()), Primitive("turn")], None,
+    (lambda: [_root(), _leg(learner=stepwise.SoftmaxPolicyGradient(1, 1, 0.1)),
+              Primitive("turn")], None,
      "subtask 'leg': learner .* is not a machine learner; allowed: QTable, GaussianCMAC"),
+    (lambda: [_root(), _leg(learner=object()), Primitive("turn")], None,
+     "subtask 'leg': its learner object has no start, act, observe"),
     (lambda: [_root(view=blocks.LocalTiles(_coder())), _leg(), Primitive("turn")], None,
      "subtask 'root': a QTable needs a GridCell view"),
     (lambda: [_root(), _leg(children=("turn", "turn2")), Primitive("turn"), Primitive("turn2")],
