@@ -178,7 +178,7 @@ def main():
     record = agent.as_record(np.concatenate(
         [agent.compiled(1, False, False, start=s) for s in fixed]))
     ok = record["passed"] > 0
-    j = ship_beyond.discounted_return(record).mean()
+    j = agent.j(record).mean()
     rows.append((ok.mean(), record["steps"][ok].mean(), j, record["calls"].mean()))
     print(f"seed {seed}: gate {ok.mean():.3f}  steps {rows[-1][1]:.1f}  J {j:.2f}  "
           f"calls {rows[-1][3]:.2f}  ({seconds:.0f} s)", flush=True)

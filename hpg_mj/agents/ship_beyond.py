@@ -533,15 +533,3 @@ class ShipBeyond(_ship.ShipAgent):
         "aim_success_rate": float(w["aim_successes"].sum() / runs) if runs else None,
     })
     return out
-
-
-def discounted_return(record, gamma=0.99):
-  """J per episode with MushroomRL's ShipSteering rewards (SPEC section 7): -1 per
-  control step, 0 on the step that passes the gate, -100 on the step that leaves;
-  a truncated episode is -1 every step."""
-  steps = np.asarray(record["steps"], dtype=np.float64)
-  passed = np.asarray(record["passed"]) > 0
-  left = (~passed) & (np.asarray(record["return"]) < -steps - 1e-9)
-  before = -(1.0 - gamma ** (steps - 1)) / (1.0 - gamma)
-  last = np.where(passed, 0.0, np.where(left, -100.0, -1.0)) * gamma ** (steps - 1)
-  return before + last

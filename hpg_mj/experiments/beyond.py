@@ -135,7 +135,6 @@ def route_seed(task, seed, episodes=None, starts=None):
   protocol), then sails greedily from each of `starts` (`route_starts()`); returns
   (the agent, the greedy record, its numbers)."""
   from hpg_mj import agents
-  from hpg_mj.agents import ship_beyond
   starts = route_starts() if starts is None else starts
   agent, _, seconds = agents.train(task, episodes=episodes, seed=seed)
   record = agent.as_record(np.concatenate(
@@ -144,7 +143,7 @@ def route_seed(task, seed, episodes=None, starts=None):
   steps = float(record["steps"][ok].mean()) if ok.any() else float("nan")
   return agent, record, {"seed": seed, "gate_pass_rate": float(ok.mean()),
                          "steps_to_gate": steps,
-                         "J": float(ship_beyond.discounted_return(record).mean()),
+                         "J": float(agent.j(record).mean()),
                          "calls": float(record["calls"].mean()),
                          "wall_seconds": round(seconds, 1)}
 

@@ -130,12 +130,12 @@ def test_aim_outcome_success_failure_and_shaping():
   assert g == pytest.approx(math.exp(-9.0) - 1.0 - 100.0)
 
 
-def test_discounted_return_by_hand():
+def test_the_routes_j_is_the_ship_agents_by_hand():
   record = np.zeros(4, dtype=[("steps", float), ("passed", float), ("return", float)])
   record["steps"] = [1, 3, 3, 5000]
   record["passed"] = [1, 1, 0, 0]
   record["return"] = [99.0, 97.0, -303.0, -5000.0]          # gate, gate, left, truncated
-  j = sb.discounted_return(record)
+  j = agents.build(agents.load_task("ship_hybrid_beyond"), seed=0).j(record)
   np.testing.assert_allclose(j[:3], [0.0, -1.99, -1.99 - 100 * 0.99 ** 2], rtol=1e-12)
   assert j[3] == pytest.approx(-(1 - 0.99 ** 5000) / 0.01)
 
