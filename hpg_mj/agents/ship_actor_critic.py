@@ -4,116 +4,28 @@ Q_critic(s, a) * psi(s, a); the critic is linear over 9 tilings of
 5 x 5 x 36 x 5 x 30 = 135,000 tiles of (x, y, theta, theta_dot, r), learned by
 TD(lambda) (SARSA-style on the actions taken). Acts every 0.6 s with SPEC
 section 2's rewards. A baseline of the hierarchy (tag "baseline").
-"""
-import collections
-import dataclasses
 
-import numba
-import numpy as np
+The agent is its Config and a one-node graph of blocks (`blocks.ActorCritic`), which
+`hierarchy.machine` runs on both paths. Per step, with a = (u, r) drawn from the
+actor in s and a' in s': delta = R + Q(s', a') - Q(s, a) (no Q(s', a') at a
+terminal state), then `learners.actor_critic.learn`.
+"""
+import dataclasses
 
 from hpg_mj.agents import _ship
 from hpg_mj.agents import taskfile
 from hpg_mj.agents.taskfile import param
 from hpg_mj.agents.ship_flat_pg import actor_coder
-from hpg_mj.hierarchy import flat as flat_graph
-from hpg_mj.learners import arrays
-from hpg_mj.learners import actor_critic
-from hpg_mj.learners import agents as learners
-from hpg_mj.learners import eligibility as el
-from hpg_mj.learners import policies
+from hpg_mj.hierarchy import blocks
+from hpg_mj.hierarchy.graph import Primitive, Subtask, TaskGraph
 from hpg_mj.learners import tiles as tiles_mod
 from hpg_mj.worlds import ship_core as core
-
-# Per-episode record columns (the order of `record_fields`).
-PASSED, STEPS, RETURN = 0, 1, 2
-N_RECORD = 3
 
 def critic_coder(n_tilings=9, tiles=(5, 5, 36, 5, 30)):
   return tiles_mod.TileCoder(
       (0.0, 0.0, -180.0, -core.MAX_TURN_RATE, -core.MAX_TURN_RATE),
       (core.FIELD_SIZE, core.FIELD_SIZE, 180.0, core.MAX_TURN_RATE, core.MAX_TURN_RATE),
       tuple(tiles), (False, False, True, False, False), n_tilings)
-
-
-# The hyper-parameters the compiled loop takes, named [section] key as in the task file.
-Settings = collections.namedtuple("Settings", (
-    "actor_alpha", "critic_alpha", "critic_trace_decay", "environment_max_steps",
-    "environment_gate_reward", "environment_out_of_bounds_reward"))
-
-
-def settings(config):
-  actor, critic, env = config.actor, config.critic, config.environment
-  return Settings(float(actor.alpha), float(critic.alpha), float(critic.trace_decay),
-                  int(env.max_steps), float(env.gate_reward), float(env.out_of_bounds_reward))
-
-
-# error_model="numpy": no raising branch on division, less reference counting (learners.policies).
-@numba.njit(cache=True, error_model="numpy")
-def train_actor_critic(n_episodes, learn, sample, rng_state, actor_w, actor_tiling, critic,
-                       critic_tiling, s, record, fixed_start):
-  """Konda's actor-critic on the full task: the actor's weights over `actor_tiling`,
-  the critic's TD(lambda) trace over `critic_tiling` (`learners.actor_critic`).
-
-  Per step, with a = (u, r) drawn from the actor in s and a' in s':
-    delta = R + Q(s', a') - Q(s, a)                   (no Q(s', a') at the end)
-  then `actor_critic.learn`. Q(s, a) is the critic's value before this step's update.
-  """
-  state = np.empty(4)
-  samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
-  sa = np.empty(5)
-  a_tiles = np.empty(actor_tiling.offsets.shape[0], dtype=np.int64)
-  a_next = np.empty_like(a_tiles)
-  c_tiles = np.empty(critic_tiling.offsets.shape[0], dtype=np.int64)
-  c_next = np.empty_like(c_tiles)
-  ones = np.ones(critic_tiling.offsets.shape[0])
-  for episode in range(n_episodes):
-    if fixed_start.shape[0] == 4:
-      arrays.copy_into(state, fixed_start)
-    else:
-      _ship.sample_start(rng_state, state)
-    el.reset(critic)                                   # e <- 0
-    tiles_mod.active_tiles(state, actor_tiling, a_tiles)
-    m = policies.tile_mean(actor_w, a_tiles)
-    u = policies.gaussian_draw(m, rng_state) if sample else m
-    total = 0.0
-    steps = 0
-    event = core.NO_EVENT
-    r = policies.squash(u, core.MAX_TURN_RATE)
-    arrays.copy_into(sa[:4], state)
-    sa[4] = r
-    tiles_mod.active_tiles(sa, critic_tiling, c_tiles)
-    while True:
-      q = actor_critic.critic_value(critic, c_tiles)
-      core.euler_control(state, r, samples)
-      steps += 1
-      event, reward = core.global_outcome(samples, s.environment_gate_reward,
-                                          s.environment_out_of_bounds_reward)
-      total += reward
-      done = event != core.NO_EVENT or steps >= s.environment_max_steps
-      target = reward
-      if not done or event == core.NO_EVENT:
-        # The next action (also at a truncation, to bootstrap from it).
-        tiles_mod.active_tiles(state, actor_tiling, a_next)
-        m_next = policies.tile_mean(actor_w, a_next)
-        u_next = policies.gaussian_draw(m_next, rng_state) if sample else m_next
-        r_next = policies.squash(u_next, core.MAX_TURN_RATE)
-        arrays.copy_into(sa[:4], state)
-        sa[4] = r_next
-        tiles_mod.active_tiles(sa, critic_tiling, c_next)
-        target += actor_critic.critic_value(critic, c_next)
-      if learn:
-        actor_critic.learn(critic, c_tiles, ones, s.critic_alpha, target - q,
-                           s.critic_trace_decay, actor_w, a_tiles, s.actor_alpha, q, u, m)
-      if done:
-        break
-      arrays.copy_into(a_tiles, a_next)   # (s', a') is the next step's (s, a): its tiles are known
-      arrays.copy_into(c_tiles, c_next)
-      m = m_next
-      u = u_next
-      r = r_next
-    record[episode, PASSED] = event == core.SUCCESS
-    record[episode, STEPS] = steps
-    record[episode, RETURN] = total
 
 
 @dataclasses.dataclass(frozen=True)
@@ -144,8 +56,8 @@ class Config:
   critic: Critic = dataclasses.field(default_factory=Critic)
 
 
-class ShipActorCritic(_ship.ShipAgent):
-  """The actor-critic's arrays and generator, trained step by step or compiled."""
+class ShipActorCritic(_ship.ShipMachineAgent):
+  """The actor-critic: a one-node graph whose learner is Konda's actor-critic."""
 
   name = "ship_actor_critic"
   Config = Config
@@ -157,24 +69,20 @@ class ShipActorCritic(_ship.ShipAgent):
     actor, critic = self.config.actor, self.config.critic
     self.actor_coder = actor_coder(actor.tilings, actor.tiles)
     self.critic_coder = critic_coder(critic.tilings, critic.tiles)
-    self.learner = learners.ActorCritic(self.actor_coder, self.critic_coder, core.MAX_TURN_RATE,
-                                        actor.alpha, critic.alpha, critic.trace_decay)
+    self.learner = blocks.ActorCritic(self.actor_coder, self.critic_coder, actor.alpha,
+                                      critic.alpha, critic.trace_decay, core.MAX_TURN_RATE)
 
   def state(self):
-    lr = self.learner
-    out = {"rng_state": self.rng_state, "actor_w": lr.actor_w}
-    out.update({f"critic_{k}": v for k, v in lr.critic._asdict().items()})
+    actor_w, critic = self.machine.actor_critic_arrays(self.learner)
+    out = {"rng_state": self.rng_state, "actor_w": actor_w}
+    out.update({f"critic_{k}": v for k, v in critic._asdict().items()})
     return out
 
-  def compiled(self, episodes, learn, sample, start=None):
-    lr = self.learner
-    rows = np.zeros((episodes, N_RECORD))
-    fixed = np.empty(0) if start is None else np.array(start, dtype=np.float64)
-    train_actor_critic(episodes, learn, sample, self.rng_state, lr.actor_w, lr.actor_arrays,
-                       lr.critic, lr.critic_arrays, settings(self.config), rows, fixed)
-    return rows
-
   def graph(self):
-    return flat_graph.flat_graph(self.learner,
-                                 lambda call, obs: np.array(obs, dtype=np.float64), ["turn"],
-                                 continuous=True)
+    """One node over the whole task: the actor over the state's tiles, acting every
+    0.6 s; the critic over (state, r)."""
+    return TaskGraph("policy", [
+        Subtask("policy", children=["turn"], learner=self.learner,
+                view=blocks.StateTiles(self.actor_coder), termination=blocks.Never()),
+        Primitive("turn"),
+    ])

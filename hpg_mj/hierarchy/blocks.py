@@ -17,6 +17,12 @@ share its parameters):
       optionally with a baseline b(s) over the same tiles; its node's only child
       is a continuous primitive (the value it draws is the action).
 
+  ActorCritic(actor_coder, critic_coder, alpha_actor, alpha_critic, trace_decay, r_max)
+      Konda's actor-critic (SPEC section 4): a Gaussian-with-sigmoid actor over its
+      view's tiles (a StateTiles view over `actor_coder`), a critic linear over
+      `critic_coder`'s tiles of (state, action), learned by TD(lambda); its one child
+      is a continuous primitive.
+
 Views (what a node's learner sees of the world's state):
 
   GridCell(cell_m, grid)       the (x, y) cell of a grid over the field
@@ -69,6 +75,18 @@ class GaussianCMAC:
   alpha: float = 0.01
   trace_gamma: float = 1.0
   baseline: float = 0.0
+  r_max: float = 15.0
+
+
+@dataclasses.dataclass(eq=False)
+class ActorCritic:
+  """Konda's actor-critic: the actor over `actor_coder`'s tiles of the state, the
+  critic over `critic_coder`'s tiles of (state, r)."""
+  actor_coder: tiles_mod.TileCoder
+  critic_coder: tiles_mod.TileCoder
+  alpha_actor: float = 1e-4
+  alpha_critic: float = 0.01
+  trace_decay: float = 0.9
   r_max: float = 15.0
 
 

@@ -42,6 +42,7 @@ import numpy as np
 from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy import ship_rules
 from hpg_mj.hierarchy.graph import Child, GraphError, Primitive, Subtask
+from hpg_mj.learners import actor_critic
 from hpg_mj.learners import arrays
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import jit
@@ -55,7 +56,7 @@ from hpg_mj.worlds import ship_core as core
 
 # Node kinds, learner kinds, views, ends, internal rewards, rewards seen.
 PRIMITIVE, SUBTASK = 0, 1
-NO_LEARNER, Q_TABLE, GAUSSIAN_CMAC = 0, 1, 2
+NO_LEARNER, Q_TABLE, GAUSSIAN_CMAC, ACTOR_CRITIC = 0, 1, 2, 3
 NO_VIEW, VIEW_GRID_CELL, VIEW_LOCAL_TILES, VIEW_STATE_TILES = 0, 1, 2, 3
 END_NEVER, END_LOCAL_GOAL = 0, 1
 G_NONE, G_SHAPING = 0, 1
@@ -63,16 +64,17 @@ SEEN_SUMMED, SEEN_STEP = 0, 1
 
 # Columns of the node table (int64[n_nodes, N_INT]).
 (KIND, LEARNER, SLOT, VIEW, VIEW_SLOT, END, INTERNAL, SEEN, MAX_STEPS, FIRST_CHILD,
- N_CHILDREN, WATCH, EPS_SCHEDULE) = range(13)
-N_INT = 13
+ N_CHILDREN, WATCH, EPS_SCHEDULE, CRITIC_SLOT) = range(14)
+N_INT = 14
 # Columns of the node parameters (float64[n_nodes, N_FLOAT]).
-ALPHA, DECAY, GAMMA, BETA, R_MAX, EPSILON, CELL_M, GRID, ACTION = range(9)
-N_FLOAT = 9
+ALPHA, DECAY, GAMMA, BETA, R_MAX, EPSILON, CELL_M, GRID, ACTION, ALPHA_ACTOR = range(10)
+N_FLOAT = 10
 # Columns of the per-node counters of an episode (float64[n_nodes, 3]).
 CALLS, RUNS, SUCCESSES = range(3)
 
 Program = collections.namedtuple("Program", ("nodes", "params", "children"))
-# Each learner kind's parameters, one row per learner (slot).
+# Each learner kind's parameters, one row per learner (slot). An actor-critic keeps its
+# critic's trace in a GaussianBank row and its actor's weights in that row's values.
 QBank = collections.namedtuple("QBank", ("q", "index", "value", "count"))
 GaussianBank = collections.namedtuple("GaussianBank", ("theta", "zs", "y", "touched", "marked",
                                                        "count", "acc", "values"))
@@ -83,12 +85,13 @@ Schedule = collections.namedtuple("Schedule", ("epsilon", "outcomes", "counts", 
 # The call stack and the episode: per depth d the node, its choice, its argument, its
 # steps, the steps of its current child's run, its state (a table's) and the next;
 # the reward of the current child's run, the action value chosen; the call's origin;
-# its tiles (current, next) and score; the episode's [depth, steps], [return],
-# per-node counters; scratch of the local frame.
+# its tiles (current, next; an actor-critic's critic tiles: current, next) and score;
+# an actor-critic's mean m and draw u; the episode's [depth, steps], [return],
+# per-node counters; scratch of the local frame and of (state, action).
 (S_NODE, S_CHOICE, S_ARG, S_STEPS, S_CHILD_STEPS, S_STATE, S_NEXT_STATE) = range(7)
-F_REWARD, F_ACTION = range(2)
+F_REWARD, F_ACTION, F_MEAN, F_U = range(4)
 Stack = collections.namedtuple("Stack", ("ints", "floats", "origin", "tiles", "psi", "episode",
-                                         "total", "counters", "local", "local_samples"))
+                                         "total", "counters", "local", "local_samples", "sa"))
 E_DEPTH, E_STEPS = range(2)
 Banks = collections.namedtuple("Banks", ("program", "q", "gaussian", "tiling", "schedule",
                                          "stack"))
@@ -139,7 +142,19 @@ def _view(P, Q, G, T, S, K, d, obs, which):
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _choose(P, Q, G, T, S, K, d, learn, sample, rng_state):
+def _critic_tiles(P, T, K, d, obs, r, which):
+  """An actor-critic's critic tiles of (obs, r) into tiles[d, 2 + which]."""
+  tiling = _tiling(T, P.nodes[K.ints[d, S_NODE], CRITIC_SLOT])
+  sa = K.sa
+  n = sa.shape[0] - 1
+  for i in range(n):
+    sa[i] = obs[i]
+  sa[n] = r
+  tiles_mod.active_tiles(sa, tiling, K.tiles[d, 2 + which, :tiling.offsets.shape[0]])
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _choose(P, Q, G, T, S, K, d, obs, learn, sample, rng_state):
   """Algorithm 1: choose a with mu^i(s, theta^i); sets the stack's choice and action."""
   node = K.ints[d, S_NODE]
   row = P.nodes[node]
@@ -156,6 +171,14 @@ def _choose(P, Q, G, T, S, K, d, learn, sample, rng_state):
     K.floats[d, F_ACTION] = policies.gaussian_choose(
         _trace(G, slot), G.values[slot], K.tiles[d, 0, :k], K.psi[d, :k], p[ALPHA], p[BETA],
         p[R_MAX], learn, sample, rng_state)
+  elif row[LEARNER] == ACTOR_CRITIC:
+    k = T.n_tilings[row[VIEW_SLOT]]
+    m, u, r = actor_critic.choose(G.values[slot], K.tiles[d, 0, :k], p[R_MAX], sample,
+                                  rng_state)
+    K.floats[d, F_MEAN] = m
+    K.floats[d, F_U] = u
+    K.floats[d, F_ACTION] = r
+    _critic_tiles(P, T, K, d, obs, r, np.int64(0))
     K.ints[d, S_CHOICE] = 0
 
 
@@ -176,8 +199,12 @@ def _call(P, Q, G, T, S, K, d, node, arg, obs, learn, sample, rng_state):
     qlambda.clear(Q.count[row[SLOT]])
   elif row[LEARNER] == GAUSSIAN_CMAC:
     el.reset(_trace(G, row[SLOT]))                  # Eq. 3: z <- 0
+  elif row[LEARNER] == ACTOR_CRITIC:
+    el.reset(_trace(G, row[SLOT]))                  # the critic's e <- 0
+    for i in range(K.psi.shape[1]):
+      K.psi[d, i] = 1.0                             # phi(s, a) of the critic's tiles
   _view(P, Q, G, T, S, K, d, obs, np.int64(0))
-  _choose(P, Q, G, T, S, K, d, learn, sample, rng_state)
+  _choose(P, Q, G, T, S, K, d, obs, learn, sample, rng_state)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -261,7 +288,32 @@ def _observe(P, Q, G, T, S, K, d, obs, signal, done, terminal, learn, sample, rn
                               K.tiles[d, 1, :k], p[ALPHA], p[DECAY], p[BETA], signal, done)
     if not done:
       arrays.copy_into(K.tiles[d, 0, :k], K.tiles[d, 1, :k])
-      _choose(P, Q, G, T, S, K, d, learn, sample, rng_state)
+      _choose(P, Q, G, T, S, K, d, obs, learn, sample, rng_state)
+  elif row[LEARNER] == ACTOR_CRITIC:
+    # delta = R + Q(s', a') - Q(s, a), with a' drawn in s' unless s' is terminal (also
+    # when the call is cut, to bootstrap from it); the next step's a is that a'.
+    k = T.n_tilings[row[VIEW_SLOT]]
+    kc = T.n_tilings[row[CRITIC_SLOT]]
+    critic = _trace(G, slot)
+    q = actor_critic.critic_value(critic, K.tiles[d, 2, :kc])
+    target = signal
+    m, u, r = 0.0, 0.0, 0.0
+    if not terminal:
+      _view(P, Q, G, T, S, K, d, obs, np.int64(1))
+      m, u, r = actor_critic.choose(G.values[slot], K.tiles[d, 1, :k], p[R_MAX], sample,
+                                    rng_state)
+      _critic_tiles(P, T, K, d, obs, r, np.int64(1))
+      target += actor_critic.critic_value(critic, K.tiles[d, 3, :kc])
+    if learn:
+      actor_critic.learn(critic, K.tiles[d, 2, :kc], K.psi[d, :kc], p[ALPHA], target - q,
+                         p[DECAY], G.values[slot], K.tiles[d, 0, :k], p[ALPHA_ACTOR], q,
+                         K.floats[d, F_U], K.floats[d, F_MEAN])
+    if not done:
+      arrays.copy_into(K.tiles[d, 0, :k], K.tiles[d, 1, :k])
+      arrays.copy_into(K.tiles[d, 2, :kc], K.tiles[d, 3, :kc])
+      K.floats[d, F_MEAN] = m
+      K.floats[d, F_U] = u
+      K.floats[d, F_ACTION] = r
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False)
@@ -357,6 +409,18 @@ def run_ship(P, Q, G, T, S, K, n_episodes, learn, sample, rng_state, world, reco
 
 # ---- building the arrays from a graph of blocks ---------------------------------------
 
+def _trace_size(learner):
+  """The weights of a GaussianBank row's trace: the policy's, or the critic's."""
+  return (learner.critic_coder.size if isinstance(learner, blocks.ActorCritic) else
+          learner.coder.size)
+
+
+def _values_size(learner):
+  """The row's values: the baseline b over the tiles, or the actor's weights."""
+  return (learner.actor_coder.size if isinstance(learner, blocks.ActorCritic) else
+          learner.coder.size)
+
+
 def _stack_rows(arrays_, dtype):
   """Rows of one length (zero-padded) from 1-D arrays; at least one row."""
   width = max([len(a) for a in arrays_] + [1])
@@ -412,12 +476,12 @@ class Machine:
                   _stack_rows([np.zeros(b.trace_capacity) for b in q], np.int64),
                   _stack_rows([np.zeros(b.trace_capacity) for b in q], np.float64),
                   np.zeros((max(len(q), 1), 1), dtype=np.int64))
-    sizes = [b.coder.size for b in g]
+    sizes = [_trace_size(b) for b in g]
     gbank = GaussianBank(*(_stack_rows([np.zeros(n) for n in sizes], dt) for dt in
                            (np.float64, np.float64, np.float64, np.int64, np.bool_)),
                          np.zeros((max(len(g), 1), 1), dtype=np.int64),
                          np.tile(np.array([0.0, 1.0]), (max(len(g), 1), 1)),
-                         _stack_rows([np.zeros(n) for n in sizes], np.float64))
+                         _stack_rows([np.zeros(_values_size(b)) for b in g], np.float64))
     self.tile_bank = self._tile_bank()
     k = int(self.tile_bank.n_tilings.max())
     depth = self._depth(graph.root)
@@ -429,11 +493,16 @@ class Machine:
     eps, outcomes, counts = schedules.new_schedule(sb.epsilon, sb.window, max(len(sb.watch), 1))
     schedule = Schedule(eps, outcomes, counts,
                         np.array([sb.threshold, sb.every, sb.divisor], dtype=np.float64))
-    stack = Stack(np.zeros((depth, 7), dtype=np.int64), np.zeros((depth, 2)),
-                  np.zeros((depth, 2)), np.zeros((depth, 2, k), dtype=np.int64),
+    critics = [b.critic_coder for b in g if isinstance(b, blocks.ActorCritic)]
+    stack = Stack(np.zeros((depth, 7), dtype=np.int64), np.zeros((depth, 4)),
+                  np.zeros((depth, 2)), np.zeros((depth, 4, k), dtype=np.int64),
                   np.zeros((depth, k)), np.zeros(2, dtype=np.int64), np.zeros(1),
                   np.zeros((len(order), 3)), np.zeros(4),
-                  np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)))
+                  np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)),
+                  np.zeros(len(critics[0].low) if critics else 1))
+    if len({len(c.low) for c in critics}) > 1:
+      raise GraphError("the graph's actor-critics' critics code (state, action) of "
+                       f"different sizes: {sorted({len(c.low) for c in critics})}")
     program = Program(nodes, params, np.array(children, dtype=np.int64).reshape(-1, 2))
     self.banks = Banks(program, qbank, gbank, self.tile_bank, schedule, stack)
 
@@ -461,6 +530,19 @@ class Machine:
       if not isinstance(node.view, blocks.GridCell):
         raise GraphError(f"subtask {name!r}: a QTable needs a GridCell view, got "
                          f"{type(node.view).__name__}")
+    elif isinstance(learner, blocks.ActorCritic):
+      row[LEARNER] = ACTOR_CRITIC
+      row[SLOT] = self._slot(GAUSSIAN_CMAC, learner)
+      p[ALPHA], p[DECAY], p[ALPHA_ACTOR], p[R_MAX] = (learner.alpha_critic, learner.trace_decay,
+                                                      learner.alpha_actor, learner.r_max)
+      if len(refs) != 1 or self.graph.nodes[refs[0].node].action is not None:
+        raise GraphError(f"subtask {name!r}: an ActorCritic's one child is a continuous "
+                         f"primitive (Primitive(name) without an action)")
+      if not isinstance(node.view, blocks.StateTiles) or node.view.coder != learner.actor_coder:
+        raise GraphError(f"subtask {name!r}: an ActorCritic needs a StateTiles view over its "
+                         "actor_coder")
+      row[CRITIC_SLOT] = len(self.codings)
+      self.codings.append(learner.critic_coder)
     elif isinstance(learner, blocks.GaussianCMAC):
       row[LEARNER] = GAUSSIAN_CMAC
       row[SLOT] = self._slot(GAUSSIAN_CMAC, learner)
@@ -475,7 +557,7 @@ class Machine:
                          "view over its own coder")
     else:
       raise GraphError(f"subtask {name!r}: learner {learner!r} is not a machine learner; "
-                       "allowed: QTable, GaussianCMAC (hpg_mj.hierarchy.blocks)")
+                       "allowed: QTable, GaussianCMAC, ActorCritic (hpg_mj.hierarchy.blocks)")
 
   def _view(self, name, node, row, p):
     view = node.view
@@ -553,6 +635,15 @@ class Machine:
     trace = el.Trace(b.theta[slot, :n], b.zs[slot, :n], b.y[slot, :n], b.touched[slot, :n],
                      b.marked[slot, :n], b.count[slot], b.acc[slot])
     return trace, b.values[slot, :n]
+
+  def actor_critic_arrays(self, learner):
+    """(the actor's weights, the critic's trace `eligibility.Trace`) of an ActorCritic."""
+    slot = self._slot_of[id(learner)]
+    b = self.banks.gaussian
+    n = learner.critic_coder.size
+    trace = el.Trace(b.theta[slot, :n], b.zs[slot, :n], b.y[slot, :n], b.touched[slot, :n],
+                     b.marked[slot, :n], b.count[slot], b.acc[slot])
+    return b.values[slot, :learner.actor_coder.size], trace
 
   @property
   def epsilon_schedule(self):
@@ -632,7 +723,7 @@ def run_stepwise(machine, env, episodes, learn, sample, rng_state, start, passed
 
 def graph_is_data(graph):
   """Whether every subtask of `graph` is made of blocks (the machine can run it)."""
-  kinds = (blocks.QTable, blocks.GaussianCMAC)
+  kinds = (blocks.QTable, blocks.GaussianCMAC, blocks.ActorCritic)
   return all(isinstance(n.learner, kinds) for n in graph.subtasks())
 
 

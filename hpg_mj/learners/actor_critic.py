@@ -13,6 +13,16 @@ operations) on the arrays they take. Nothing else changes: the same numbers, fas
 import numba
 
 from hpg_mj.learners import eligibility as el
+from hpg_mj.learners import policies
+
+
+@numba.njit(cache=True, error_model="numpy")
+def choose(actor_w, actor_tiles, r_max, sample, rng_state):
+  """The actor's choice in a state (its active tiles): (m, u, r) with m the mean over
+  the tiles, u ~ Normal(m, 1) (u = m without sampling) and r the squashed action."""
+  m = policies.tile_mean(actor_w, actor_tiles)
+  u = policies.gaussian_draw(m, rng_state) if sample else m
+  return m, u, policies.squash(u, r_max)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")

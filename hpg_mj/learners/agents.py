@@ -218,7 +218,7 @@ class ActorCritic:
   `actor_coder`'s tiles (plain weights, stepped along Q(s, a) psi); the critic is
   linear over `critic_coder`'s tiles of (state, r), learned by TD(lambda) on an
   Eq. 3-style lazy trace. The order of draws and updates is that of
-  `hpg_mj.agents.ship_actor_critic.train_actor_critic`.
+  the machine's (`hierarchy.machine`, learner kind ACTOR_CRITIC).
   """
 
   def __init__(self, actor_coder, critic_coder, r_max, alpha_actor, alpha_critic, lam):
