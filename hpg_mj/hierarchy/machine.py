@@ -535,9 +535,7 @@ class Machine:
       row[SLOT] = self._slot(GAUSSIAN_CMAC, learner)
       p[ALPHA], p[DECAY], p[ALPHA_ACTOR], p[R_MAX] = (learner.alpha_critic, learner.trace_decay,
                                                       learner.alpha_actor, learner.r_max)
-      if len(refs) != 1 or self.graph.nodes[refs[0].node].action is not None:
-        raise GraphError(f"subtask {name!r}: an ActorCritic's one child is a continuous "
-                         f"primitive (Primitive(name) without an action)")
+      self._one_continuous_child(name, "an ActorCritic", refs)
       if not isinstance(node.view, blocks.StateTiles) or node.view.coder != learner.actor_coder:
         raise GraphError(f"subtask {name!r}: an ActorCritic needs a StateTiles view over its "
                          "actor_coder")
@@ -548,9 +546,7 @@ class Machine:
       row[SLOT] = self._slot(GAUSSIAN_CMAC, learner)
       p[ALPHA], p[DECAY], p[BETA], p[R_MAX] = (learner.alpha, learner.trace_gamma,
                                                learner.baseline, learner.r_max)
-      if len(refs) != 1 or self.graph.nodes[refs[0].node].action is not None:
-        raise GraphError(f"subtask {name!r}: a GaussianCMAC's one child is a continuous "
-                         f"primitive (Primitive(name) without an action)")
+      self._one_continuous_child(name, "a GaussianCMAC", refs)
       if not isinstance(node.view, (blocks.LocalTiles, blocks.StateTiles)) or \
           node.view.coder != learner.coder:
         raise GraphError(f"subtask {name!r}: a GaussianCMAC needs a LocalTiles or StateTiles "
@@ -558,6 +554,11 @@ class Machine:
     else:
       raise GraphError(f"subtask {name!r}: learner {learner!r} is not a machine learner; "
                        "allowed: QTable, GaussianCMAC, ActorCritic (hpg_mj.hierarchy.blocks)")
+
+  def _one_continuous_child(self, name, kind, refs):
+    if len(refs) != 1 or self.graph.nodes[refs[0].node].action is not None:
+      raise GraphError(f"subtask {name!r}: {kind}'s one child is a continuous primitive "
+                       "(Primitive(name) without an action)")
 
   def _view(self, name, node, row, p):
     view = node.view
@@ -630,20 +631,20 @@ class Machine:
   def gaussian_arrays(self, learner):
     """The Eq. 3 trace (`eligibility.Trace`) and baseline values of a GaussianCMAC."""
     slot = self._slot_of[id(learner)]
-    n = learner.coder.size
-    b = self.banks.gaussian
-    trace = el.Trace(b.theta[slot, :n], b.zs[slot, :n], b.y[slot, :n], b.touched[slot, :n],
-                     b.marked[slot, :n], b.count[slot], b.acc[slot])
-    return trace, b.values[slot, :n]
+    return self._bank_trace(slot, learner.coder.size), \
+        self.banks.gaussian.values[slot, :learner.coder.size]
 
   def actor_critic_arrays(self, learner):
     """(the actor's weights, the critic's trace `eligibility.Trace`) of an ActorCritic."""
     slot = self._slot_of[id(learner)]
+    return (self.banks.gaussian.values[slot, :learner.actor_coder.size],
+            self._bank_trace(slot, learner.critic_coder.size))
+
+  def _bank_trace(self, slot, n):
+    """The Eq. 3 trace of GaussianBank row `slot` over its first n weights (views)."""
     b = self.banks.gaussian
-    n = learner.critic_coder.size
-    trace = el.Trace(b.theta[slot, :n], b.zs[slot, :n], b.y[slot, :n], b.touched[slot, :n],
-                     b.marked[slot, :n], b.count[slot], b.acc[slot])
-    return b.values[slot, :learner.actor_coder.size], trace
+    return el.Trace(b.theta[slot, :n], b.zs[slot, :n], b.y[slot, :n], b.touched[slot, :n],
+                    b.marked[slot, :n], b.count[slot], b.acc[slot])
 
   @property
   def epsilon_schedule(self):
