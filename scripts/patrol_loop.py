@@ -78,10 +78,10 @@ def sail_calls(ship, q, low, tiling, s, view, sample_low, rng_state, first, max_
 
 
 def period(pairs):
-  """The shortest p with the last 3p (state, action) pairs repeating with period p."""
+  """The shortest p with all of `pairs` ((state, action) of the last calls)
+  repeating with period p (p at most a third of them), or None."""
   for p in range(1, len(pairs) // 3 + 1):
-    tail = pairs[-3 * p:]
-    if all(tail[i] == tail[i + p] for i in range(2 * p)):
+    if all(pairs[i] == pairs[i + p] for i in range(len(pairs) - p)):
       return p
   return None
 
@@ -179,7 +179,7 @@ def report(agent, q, low, view, rho, moved, args):
   pairs = [(int(c[STATE]), int(c[ACTION])) for c in calls[-600:]]
   per = period(pairs)
   if per is None:
-    print("  no periodic loop in the last 600 calls; its last 6:", flush=True)
+    print("  no loop repeats over the last 600 calls; the last 6 calls:", flush=True)
     loop = calls[-6:]
   else:
     loop = calls[-per:]

@@ -142,6 +142,20 @@ def test_stepwise_and_compiled_paths_give_identical_results(tmp_path, learn):
   for name, value in _arrays(stepwise).items():
     np.testing.assert_array_equal(value, _arrays(compiled)[name], err_msg=name)
   assert stepwise.episodes == compiled.episodes == 2       # learning rows only
+  if learn:                     # the shipped planning swept on both paths alike
+    assert compiled.model[3][0] == a["calls"].sum() >= 2 * compiled.config.root.planning_every
+
+
+def test_without_planning_no_model_is_kept_and_the_values_differ(tmp_path):
+  planned = agents.build(agents.load_task(small_task(tmp_path)), seed=4)
+  path = small_task(tmp_path, name="off.toml")
+  path.write_text(path.read_text().replace("planning_every = 100", "planning_every = 0"))
+  plain = agents.build(agents.load_task(path), seed=4)
+  plain.train(1)
+  planned.train(1)
+  assert plain.model[0].size == 0 and plain.model[3][0] == 0
+  assert planned.model[3][0] >= 100 and (planned.model[0] >= 0).sum() > 10
+  assert not np.array_equal(plain.q, planned.q)
 
 
 def test_stepwise_rows_continue_the_process(tmp_path):
@@ -175,7 +189,9 @@ def test_the_root_state_is_the_cell_and_the_heading_sector(theta, sector):
 
 def test_the_shipped_root_sees_the_heading():
   agent = agents.build(agents.load_task("ship_patrol_average_reward"), seed=0)
-  assert agent.config.root.heading_sectors == 8 and agent.q.shape == (400 * 8 * 8,)
+  root = agent.config.root
+  assert root.heading_sectors == 8 and (root.near_gate_m, root.near_gate_cell_m) == (50.0, 25.0)
+  assert agent.q.shape == ((400 + 16) * 8 * 8,) and root.planning_every == 100
 
 
 def test_finer_cells_about_the_gate_are_numbered_after_the_grid():
@@ -209,7 +225,7 @@ def test_bad_near_gate_cells_are_refused(tmp_path, line, match):
 
 def test_near_gate_cells_must_tile_the_square(tmp_path):
   path = small_task(tmp_path)
-  path.write_text(path.read_text().replace("near_gate_m = 0.0 ", "near_gate_m = 60.0 "))
+  path.write_text(path.read_text().replace("near_gate_m = 50.0 ", "near_gate_m = 60.0 "))
   with pytest.raises(ValueError, match=r"near_gate_cell_m = 25.0 must divide twice "
                                        r"near_gate_m = 60.0"):
     agents.build(agents.load_task(path), seed=0)
@@ -217,7 +233,7 @@ def test_near_gate_cells_must_tile_the_square(tmp_path):
 
 def test_near_gate_cells_give_identical_results_on_both_paths(tmp_path):
   path = small_task(tmp_path)
-  path.write_text(path.read_text().replace("near_gate_m = 0.0 ", "near_gate_m = 100.0 "))
+  path.write_text(path.read_text().replace("near_gate_m = 50.0 ", "near_gate_m = 100.0 "))
   task = agents.load_task(path)
   stepwise, compiled = agents.build(task, seed=5), agents.build(task, seed=5)
   assert compiled.q.shape == ((400 + 64) * 8 * 8,)
