@@ -1,28 +1,32 @@
 """The continuing ship task's comparison from `scripts/patrol_seeds.py`'s JSON lines:
-per seed and as means with 95% bootstrap intervals (scipy.stats.bootstrap, BCa,
-random_state 0), greedy gate passes an hour of the average-reward root, the
-episodic hybrid sailed on the same task and the figure-eight helmsman; the
-paired difference root minus hybrid; the seeds below the helmsman. Prints
-Markdown.
+per seed and as means with 95% bootstrap intervals, greedy gate passes an hour
+of the average-reward root, the episodic hybrid sailed on the same task and the
+figure-eight helmsman; the paired difference root minus hybrid; the seeds below
+the helmsman. Prints Markdown. The intervals are `hpg-mj reproduce beyond`'s (percentile bootstrap,
+`hpg_mj.experiments.stats.mean_ci`).
 
   .venv/bin/python scripts/patrol_seeds.py 10001-10020 > fresh.jsonl
   .venv/bin/python scripts/patrol_compare.py fresh.jsonl
+  .venv/bin/python scripts/patrol_compare.py --report fresh.jsonl   # REPORT.md's section
+
+With --report, the continuing task's section of figures/beyond/REPORT.md as
+`hpg-mj reproduce beyond` writes it (`hpg_mj.experiments.beyond`), from these lines.
 """
 import json
 import sys
 
 import numpy as np
-from scipy import stats
+
+from hpg_mj import agents
+from hpg_mj.experiments import beyond
+from hpg_mj.experiments import stats
 
 
 def band(values):
-  values = np.asarray(values, dtype=np.float64)
-  if len(values) < 2 or np.ptp(values) == 0.0:
-    return f"{values.mean():+.1f}" if values.min() < 0 else f"{values.mean():.1f}"
-  ci = stats.bootstrap((values,), np.mean, confidence_level=0.95, random_state=0)
-  low, high = ci.confidence_interval
-  sign = "+" if values.min() < 0 else ""
-  return f"{values.mean():{sign}.1f} [{low:{sign}.1f}, {high:{sign}.1f}]"
+  """mean [95% interval] by the report's rule (`hpg_mj.experiments.stats.mean_ci`)."""
+  mean, low, high = stats.mean_ci(values)
+  sign = "+" if min(values) < 0 else ""
+  return f"{mean:{sign}.1f} [{low:{sign}.1f}, {high:{sign}.1f}]"
 
 
 def main(paths):
@@ -37,7 +41,7 @@ def main(paths):
   online = np.array([r["online_gates_per_hour"] for r in rows])
   diff = root - hybrid
   print(f"Seeds {seeds[0]}-{seeds[-1]} ({len(seeds)} runs), greedy gate passes an hour over "
-        f"100 hours, mean [95% BCa bootstrap CI]\n")
+        f"100 hours, mean [95% bootstrap CI]\n")
   print("| policy | mean | per seed |\n|---|---|---|")
   for name, values in (("average-reward root, greedy", root),
                        ("average-reward root, online (last 125 h, exploring)", online),
@@ -50,5 +54,16 @@ def main(paths):
         f"{(hybrid < helmsman).sum()} (min {hybrid.min():.1f}).")
 
 
+def report(paths):
+  rows = sorted((json.loads(line) for path in paths for line in open(path)
+                 if line.startswith("{")), key=lambda r: r["seed"])
+  task = agents.load_task(beyond.TASK)
+  print("\n".join(beyond._report(task, [r["seed"] for r in rows], task.protocol.episodes,
+                                  rows, False)))
+
+
 if __name__ == "__main__":
-  main(sys.argv[1:])
+  if sys.argv[1:2] == ["--report"]:
+    report(sys.argv[2:])
+  else:
+    main(sys.argv[1:])

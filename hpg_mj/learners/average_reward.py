@@ -26,6 +26,14 @@ tests/learners/test_average_reward.py it settles ~3% low.) For an optimal
 policy h(s) = max_a Q(s, a) satisfies the average-reward Bellman equation
 h(s) = r(s, a) - rho tau(s, a) + E h(s') up to a constant; that test solves a
 small SMDP exactly and compares.
+
+Planning (`new_model`, `remember_and_plan`, `plan`): Dyna-Q (Sutton 1990) with a
+model that keeps each (s, a)'s latest transition, swept with the same backup and
+today's rho (as the differential Dyna of Wan, Naik & Sutton 2021, "Learning and
+planning in average-reward Markov decision processes"). A continuing process
+that has settled in one part of its states meets the rest rarely; their values
+keep the level of the gain when they were last met, and sweeping their kept
+transitions brings them to today's (issue 24).
 """
 import numba
 import numpy as np
