@@ -2,26 +2,37 @@
 continuing ship task, and what holds it there.
 
   .venv/bin/python scripts/patrol_loop.py --seeds 2 [--root '{...}'] [--rollouts 20]
+  .venv/bin/python scripts/patrol_loop.py --seeds 5004 --episodic    # the episodic hybrid
 
 For each seed, tasks/ship_patrol_average_reward.toml's agent trains on its
-protocol (`[root]` keys replaced by the JSON object given), then sails greedily
-from the evaluation's start (`ShipPatrol.evaluation`) and prints:
+protocol (`[root]` keys replaced by the JSON object given; in blocks of 100 hours,
+the same process, to see when each Q(s, a) last moved), then sails 100 greedy
+hours from the evaluation's start (`ShipPatrol.evaluation`) and prints:
 
-- the loop: the last calls of 100 greedy hours, as (cell, heading sector, chosen
-  direction, control steps, gate?), the period, its gates an hour;
-- the values that hold it: in each of the loop's root states, Q(s, .) and the
-  learned gain rho (reward per control step) against the loop's own;
+- the learned gain rho (reward per control step, and as gates an hour), the
+  online gates an hour of the last 125 training hours, epsilon at the end;
+- where the greedy hours go: the (root state, direction) pairs with the largest
+  share of the control steps, their steps, gate passes and subtask successes per
+  call, and the training hour their Q(s, a) last moved;
+- the loop, if the last 600 calls repeat with a period: its calls, steps and
+  gates an hour; in each of its root states Q(s, .), and the backup's target with
+  today's rho against the value that holds (a large gap: a stale value);
 - rollouts: from the ship's state at each of the loop's calls, every first
   direction sailed, then the greedy root, for `--horizon` control steps, the
   subtasks steered as in training (sampled, `--rollouts` times) and as in the
   evaluation (their mean, once): the reward over the horizon minus the greedy
-  choice's (a positive number is a direction the values rank below the loop's
-  although it earns more), and the first call's subtask success;
-- the subtasks: the success rates of the run's last 1,000 runs of each (what
-  holds epsilon), and per direction over the last training hours.
+  choice's (a positive number: a direction that earns more than the greedy one
+  from this very state), and the first call's subtask success;
+- the subtasks' success over their last 1,000 runs (what holds epsilon) and over
+  the last 125 training hours.
 
-Seeds 4001-4009 and 5000-5009 (issue 24) and 100-119 (the design) were looked at
-before; tune only on 0-9 (scripts/patrol_tuning.py).
+With --episodic, the episodic hybrid (the task file's [comparison] episodic_task,
+trained on its own protocol with the seed) is sailed instead, its root's cell-only
+table of discounted values in place of Q.
+
+Seeds looked at before: 100-119 (the design before), 4001-4009 and 5000-5009
+(issue 24); 4004 and 5004 were used for this diagnosis. Tune only on 0-9
+(scripts/patrol_tuning.py).
 """
 import argparse
 import dataclasses
