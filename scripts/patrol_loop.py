@@ -72,8 +72,9 @@ def sail_calls(ship, q, low, tiling, s, view, sample_low, rng_state, first, max_
   i = 0
   while steps < max_steps and i < out.shape[0]:
     state = sp.root_state(ship, sectors, near_m, near_cell_m)
-    a = first if (i == 0 and first >= 0) else qlambda.greedy(q, state, rules.N_DIRECTIONS,
-                                                               rng_state)
+    # epsilon 0 through epsilon_greedy: the generator's draws are the evaluation's.
+    a = first if (i == 0 and first >= 0) else qlambda.epsilon_greedy(
+        q, state, rules.N_DIRECTIONS, 0.0, rng_state)
     row = out[i]
     row[0], row[1], row[2], row[9] = ship[0], ship[1], ship[2], ship[3]
     trace, values = ((diagonal, diagonal_values) if rules.subtask_of(a) == rules.DIAGONAL
@@ -169,8 +170,10 @@ def report(agent, q, low, view, rho, moved, args):
   ship = np.empty(4)
   _ship.sample_start(rng_state, ship)
   out = np.zeros((200_000, 10))
-  n = sail_calls(ship, q, low, agent.tile_arrays, s, view, False, rng_state, -1,
-                 100 * core.HOUR_STEPS, out, scratch)
+  n = 0
+  for _ in range(100):          # hour by hour, as the evaluation's rows: the same calls
+    n += sail_calls(ship, q, low, agent.tile_arrays, s, view, False, rng_state, -1,
+                    core.HOUR_STEPS, out[n:], scratch)
   calls = out[:n]
   gates = (calls[:, G_EVENT] == core.SUCCESS).sum()
   print(f"  greedy: {gates / (calls[:, STEPS].sum() / core.HOUR_STEPS):.1f} gates/h, "

@@ -243,3 +243,49 @@ def test_near_gate_cells_give_identical_results_on_both_paths(tmp_path):
   assert (compiled.q.reshape(-1, 8)[400 * 8:] != 0).any()      # the fine cells are visited
   for name, value in _arrays(stepwise).items():
     np.testing.assert_array_equal(value, _arrays(compiled)[name], err_msg=name)
+
+
+def _script(name):
+  import importlib.util
+  import pathlib
+  path = pathlib.Path(__file__).resolve().parents[2] / "scripts" / f"{name}.py"
+  spec = importlib.util.spec_from_file_location(name, path)
+  script = importlib.util.module_from_spec(spec)
+  spec.loader.exec_module(script)
+  return script
+
+
+def test_the_loop_script_sails_what_the_evaluation_sails(tmp_path, capsys):
+  # scripts/patrol_loop.py (issue 24) calls the agent's rules directly: its greedy
+  # hours are the evaluation's, call for call, so its gates an hour are the same.
+  import argparse
+  import re
+  script = _script("patrol_loop")
+  agent = agents.build(agents.load_task(small_task(tmp_path)), seed=1)
+  agent.train(2)
+  root = agent.config.root
+  view = (root.heading_sectors, root.near_gate_m, root.near_gate_cell_m)
+  moved = np.full(agent.q.size, 2)
+  args = argparse.Namespace(rollouts=1, horizon=200)
+  script.report(agent, agent.q, agent._tables(None), view, agent.gain[0], moved, args)
+  out = capsys.readouterr().out
+  gates = float(re.search(r"greedy: ([\d.]+) gates/h", out).group(1))
+  assert gates == pytest.approx(agent.metrics(agent.evaluation(100))["gates_per_hour"], abs=0.05)
+  assert "reward over 200 steps minus the greedy's" in out and "nan" not in out
+  assert script.period([(1, 2), (3, 4)] * 5) == 2
+  assert script.period([(1, 2)] * 4 + [(3, 4)]) is None
+
+
+def test_the_compare_script_pairs_seeds(tmp_path, capsys):
+  script = _script("patrol_compare")
+  lines = [{"seed": s, "greedy_gates_per_hour": g, "episodic_gates_per_hour": e,
+            "scripted_gates_per_hour": 117.6, "online_gates_per_hour": 90.0}
+           for s, g, e in ((3, 200.0, 150.0), (1, 100.0, 130.0), (2, 240.0, 40.0))]
+  path = tmp_path / "lines.jsonl"
+  path.write_text("\n".join(json.dumps(line) for line in lines) + "\n")
+  script.main([str(path)])
+  out = capsys.readouterr().out
+  assert "Seeds 1-3 (3 runs)" in out
+  assert "| paired: root minus episodic hybrid | +73.3 [" in out and "-30.0, 200.0, 50.0" in out
+  assert "Root ahead on 2 of 3 seeds; below the helmsman: root 1 (min 100.0), episodic " \
+         "hybrid 1 (min 40.0)." in out
