@@ -122,15 +122,16 @@ def _count_run(row, sub, l_event, g_event):
 
 @numba.njit(cache=True)
 def patrol(n_rows, record_steps, learn, sample, rng_state, ship, q, gain, schedule, low_level,
-           tiling, s, gain_step, view, record, model, planning_every):
+           tiling, s, rule, view, record):
   """Sails the continuing task for `n_rows` rows of at least `record_steps` control
   steps each (a call is never cut: the row in which it starts holds it), from
   and into `ship` (the process's state, kept between calls).
 
   The root chooses epsilon-greedily from `q` (epsilon 0 unless `sample`); with
   `learn` it learns by average-reward SMDP Q-learning (`gain` = [rho, greedy
-  transitions], `gain_step` Schwartz's step size; SPEC section 8) and the
-  subtasks by Eq. 3 with the hybrid's baseline (`hybrid.run_low_level`). Without
+  transitions]; `rule` = (gain_step, Schwartz's step size; the planning model;
+  planning_every); SPEC section 8) and the subtasks by Eq. 3 with the hybrid's
+  baseline (`hybrid.run_low_level`). Without
   `learn`, `q` may be any root's table, the episodic hybrid's too: each runs its
   greedy policy on this task. `low_level` = (diagonal trace, its baseline values,
   straight trace, its baseline values); `view` = (heading_sectors, near_gate_m,
@@ -147,6 +148,7 @@ def patrol(n_rows, record_steps, learn, sample, rng_state, ship, q, gain, schedu
              np.empty(2))
   n = rules.N_DIRECTIONS
   heading_sectors, near_m, near_cell_m = view
+  gain_step, model, planning_every = rule
   for i in range(n_rows):
     row = record[i]
     row[:] = 0.0
@@ -506,7 +508,7 @@ class ShipPatrol(_ship.ShipAgent):
     patrol(int(hours), self.record_steps, learn, sample, rng_state, ship,
            self.q if q is None else q, self.gain, (self.schedule, self.outcomes, self.counts),
            self._tables(low), self.tile_arrays, settings(cfg),
-           float(cfg.root.gain_step), view, rows, self.model, int(cfg.root.planning_every))
+           (float(cfg.root.gain_step), self.model, int(cfg.root.planning_every)), view, rows)
     return rows
 
   def compiled(self, episodes, learn, sample):
