@@ -12,6 +12,10 @@ the gain rho, the reward per control step, by average-reward SMDP Q-learning
 Ghavamzadeh & Mahadevan 2001, 2002); and its state is the 50 m cell and, with
 `heading_sectors` > 1, the ship's heading (`root_state`): passing the gate again
 is a U-turn that only pays from a cell when the ship points away from the gate.
+With `planning_every` > 0 the root also plans (`average_reward.plan`, issue 24):
+the cells the process meets only after a rare departure keep values learned
+while the gain was low unless their latest calls are backed up again with
+today's gain.
 A low-level call returns to the root at its own success or failure, at a gate
 pass, or when the ship leaves the field.
 
@@ -118,19 +122,22 @@ def _count_run(row, sub, l_event, g_event):
 
 @numba.njit(cache=True)
 def patrol(n_rows, record_steps, learn, sample, rng_state, ship, q, gain, schedule, low_level,
-           tiling, s, gain_step, view, record):
+           tiling, s, rule, view, record):
   """Sails the continuing task for `n_rows` rows of at least `record_steps` control
   steps each (a call is never cut: the row in which it starts holds it), from
   and into `ship` (the process's state, kept between calls).
 
   The root chooses epsilon-greedily from `q` (epsilon 0 unless `sample`); with
   `learn` it learns by average-reward SMDP Q-learning (`gain` = [rho, greedy
-  transitions], `gain_step` Schwartz's step size; SPEC section 8) and the
-  subtasks by Eq. 3 with the hybrid's baseline (`hybrid.run_low_level`). Without
+  transitions]; `rule` = (gain_step, Schwartz's step size; the planning model;
+  planning_every); SPEC section 8) and the subtasks by Eq. 3 with the hybrid's
+  baseline (`hybrid.run_low_level`). Without
   `learn`, `q` may be any root's table, the episodic hybrid's too: each runs its
   greedy policy on this task. `low_level` = (diagonal trace, its baseline values,
   straight trace, its baseline values); `view` = (heading_sectors, near_gate_m,
-  near_gate_cell_m) of `root_state`.
+  near_gate_cell_m) of `root_state`. With `learn` and `planning_every` > 0, each
+  call's transition is kept in `model` and every `planning_every` of them one
+  sweep of `average_reward.plan` backs the whole model up (issue 24).
   """
   eps_state, outcomes, counts = schedule
   diagonal, diagonal_values, straight, straight_values = low_level
@@ -141,6 +148,7 @@ def patrol(n_rows, record_steps, learn, sample, rng_state, ship, q, gain, schedu
              np.empty(2))
   n = rules.N_DIRECTIONS
   heading_sectors, near_m, near_cell_m = view
+  gain_step, model, planning_every = rule
   for i in range(n_rows):
     row = record[i]
     row[:] = 0.0
@@ -165,9 +173,11 @@ def patrol(n_rows, record_steps, learn, sample, rng_state, ship, q, gain, schedu
         row[DEPARTURES] += 1
         _ship.sample_start(rng_state, ship)
       if learn:
-        average_reward.update(q, n, gain, cell, a, reward, float(k),
-                              root_state(ship, heading_sectors, near_m, near_cell_m), s.root_alpha, gain_step,
-                              was_greedy)
+        after = root_state(ship, heading_sectors, near_m, near_cell_m)
+        average_reward.update(q, n, gain, cell, a, reward, float(k), after, s.root_alpha,
+                              gain_step, was_greedy)
+        average_reward.remember_and_plan(q, n, gain, model, cell, a, reward, float(k), after,
+                                         s.root_alpha, planning_every)
         # The held schedule, counted in root decisions (there are no episodes).
         schedules.end_episode(eps_state, outcomes, counts, s.root_epsilon_threshold,
                               s.root_epsilon_every, s.root_epsilon_divisor)
@@ -262,6 +272,8 @@ class Root:
   epsilon_window: int = param(1000, "runs per subtask the threshold looks at", low=1)
   epsilon_every: int = param(400, "root decisions between divisions of epsilon", low=1)
   epsilon_divisor: float = param(1.01, "epsilon is divided by this", low=1)
+  planning_every: int = param(0, "root decisions between sweeps of planning over the latest "
+                              "transition of each (state, direction) (0: no planning)", low=0)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -308,6 +320,9 @@ class ShipPatrol(_ship.ShipAgent):
     self.q = np.zeros(n_root_cells(root.near_gate_m, root.near_gate_cell_m) *
                       root.heading_sectors * rules.N_DIRECTIONS)
     self.gain = average_reward.new_gain()
+    # The planning model (`average_reward.new_model`); its first array of length 0
+    # when [root] planning_every is 0, so nothing is kept.
+    self.model = average_reward.new_model(self.q.size if root.planning_every else 0)
     self.ship = np.zeros(4)
     self.started = np.zeros(1)         # 1 once the process has its first start
     self._sailing = None               # the state a step-by-step run sails on from
@@ -316,6 +331,8 @@ class ShipPatrol(_ship.ShipAgent):
 
   def state(self):
     out = {"rng_state": self.rng_state, "root_q": self.q, "root_gain": self.gain,
+           **{f"root_model_{k}": v for k, v in zip(("next", "reward", "steps", "count"),
+                                                    self.model)},
            "ship_state": self.ship, "ship_started": self.started,
            "epsilon_schedule": self.schedule, "subtask_outcomes": self.outcomes,
            "subtask_counts": self.counts}
@@ -403,7 +420,8 @@ class ShipPatrol(_ship.ShipAgent):
     near_m, near_cell_m = float(cfg.root.near_gate_m), float(cfg.root.near_gate_cell_m)
     root_learner = average_reward.RLearning(self.q, self.gain, rules.N_DIRECTIONS,
                                             cfg.root.alpha, cfg.root.gain_step,
-                                            lambda: self.schedule[0])
+                                            lambda: self.schedule[0], self.model,
+                                            cfg.root.planning_every)
 
     def low_view(call, obs):
       origin = call.memo.setdefault("origin", np.array(call.origin[:2], dtype=np.float64))
@@ -485,7 +503,7 @@ class ShipPatrol(_ship.ShipAgent):
     patrol(int(hours), self.record_steps, learn, sample, rng_state, ship,
            self.q if q is None else q, self.gain, (self.schedule, self.outcomes, self.counts),
            self._tables(low), self.tile_arrays, settings(cfg),
-           float(cfg.root.gain_step), view, rows)
+           (float(cfg.root.gain_step), self.model, int(cfg.root.planning_every)), view, rows)
     return rows
 
   def compiled(self, episodes, learn, sample):

@@ -275,7 +275,7 @@ def _observe(P, Q, G, T, S, K, d, obs, signal, done, terminal, learn, sample, rn
     if sample:
       epsilon = S.epsilon[0] if row[EPS_SCHEDULE] else p[EPSILON]
     ints[d, S_CHOICE] = qlambda.smdp_step(
-        Q.q[slot], row[N_CHILDREN], Q.index[slot], Q.value[slot], Q.count[slot],
+        (Q.q[slot], Q.index[slot], Q.value[slot], Q.count[slot]), row[N_CHILDREN],
         ints[d, S_STATE], ints[d, S_CHOICE], signal, ints[d, S_NEXT_STATE], done, terminal,
         epsilon, p[ALPHA], p[GAMMA], p[DECAY], learn, rng_state)
     ints[d, S_STATE] = ints[d, S_NEXT_STATE]

@@ -26,6 +26,14 @@ tests/learners/test_average_reward.py it settles ~3% low.) For an optimal
 policy h(s) = max_a Q(s, a) satisfies the average-reward Bellman equation
 h(s) = r(s, a) - rho tau(s, a) + E h(s') up to a constant; that test solves a
 small SMDP exactly and compares.
+
+Planning (`new_model`, `remember_and_plan`, `plan`): Dyna-Q (Sutton 1990) with a
+model that keeps each (s, a)'s latest transition, swept with the same backup and
+today's rho (as the differential Dyna of Wan, Naik & Sutton 2021, "Learning and
+planning in average-reward Markov decision processes"). A continuing process
+that has settled in one part of its states meets the rest rarely; their values
+keep the level of the gain when they were last met, and sweeping their kept
+transitions brings them to today's (issue 24).
 """
 import numba
 import numpy as np
@@ -54,6 +62,44 @@ def update(q, n_actions, gain, s, a, reward, duration, s_next, alpha, gain_step,
   return delta
 
 
+def new_model(n_entries):
+  """A last-transition model of the SMDP for planning (`remember_and_plan`, `plan`): per
+  (s, a), the next state of its latest transition (-1: never taken), its reward
+  and its duration; and [transitions remembered] (what counts the sweeps)."""
+  return (np.full(n_entries, -1, dtype=np.int64), np.zeros(n_entries), np.zeros(n_entries),
+          np.zeros(1, dtype=np.int64))
+
+
+@numba.njit(cache=True)
+def remember_and_plan(q, n_actions, gain, model, s, a, reward, duration, s_next, alpha, every):
+  """After `update` of (s, a, r, tau, s'): with `every` > 0, keeps it as the latest
+  transition of (s, a) and, every `every` transitions kept, one sweep of `plan`."""
+  if every <= 0:
+    return
+  entry = s * n_actions + a
+  model[0][entry] = s_next
+  model[1][entry] = reward
+  model[2][entry] = duration
+  model[3][0] += 1
+  if model[3][0] % every == 0:
+    plan(q, n_actions, gain, model, alpha)
+
+
+@numba.njit(cache=True)
+def plan(q, n_actions, gain, model, alpha):
+  """One sweep of planning (Dyna-Q, Sutton 1990; in the average-reward setting as
+  Wan, Naik & Sutton 2021's differential Dyna): every (s, a) of the model backed up
+  once, in order, as if its latest transition happened again now, with today's
+  gain rho and today's values of its next state; rho itself is not moved (no new
+  experience). An entry the process has not met again since the gain was low
+  thus learns what its call costs at the gain of now."""
+  next_state, reward, duration, _ = model
+  for entry in range(q.shape[0]):
+    if next_state[entry] >= 0:
+      update(q, n_actions, gain, entry // n_actions, entry % n_actions, reward[entry],
+             duration[entry], next_state[entry], alpha, 0.0, False)
+
+
 @numba.njit(cache=True)
 def is_greedy(q, s, a, n_actions):
   """Whether action a has the largest value in s (ties count as greedy)."""
@@ -78,8 +124,11 @@ class RLearning:
   `epsilon_source()` reads the schedule that owns epsilon.
   """
 
-  def __init__(self, q, gain, n_actions, alpha, gain_step, epsilon_source):
+  def __init__(self, q, gain, n_actions, alpha, gain_step, epsilon_source, model=None,
+               planning_every=0):
     self.q, self.gain = q, gain
+    self.planning_every = int(planning_every)
+    self.model = new_model(0) if model is None else model
     self.n_actions = int(n_actions)
     self.alpha, self.gain_step = float(alpha), float(gain_step)
     self.epsilon_source = epsilon_source
@@ -103,6 +152,9 @@ class RLearning:
       update(self.q, self.n_actions, self.gain, self._state, self._action, signal,
              float(self.duration), int(next_features), self.alpha, self.gain_step,
              self._greedy)
+      remember_and_plan(self.q, self.n_actions, self.gain, self.model, self._state,
+                        self._action, signal, float(self.duration), int(next_features),
+                        self.alpha, self.planning_every)
 
   def parameters(self):
     return self.q.copy()

@@ -91,12 +91,14 @@ def update(q, n_actions, tr_index, tr_value, tr_count, s, a, reward, s_next, a_n
 
 
 @numba.njit(cache=True)
-def smdp_step(q, n_actions, tr_index, tr_value, tr_count, s, a, signal, s_next, done, terminal,
-              epsilon, alpha, gamma_tau, lam, learn, rng_state):
+def smdp_step(table, n_actions, s, a, signal, s_next, done, terminal, epsilon, alpha, gamma_tau,
+              lam, learn, rng_state):
   """The root's SMDP step (SPEC section 3) when its child returns R = `signal` in s':
   unless the call is `done`, the next choice a' (epsilon-greedy in s'); then, learning,
   the backup of (s, a, R, s', a') (`update`), and the trace cleared when done.
-  Returns a' (0, and no draw, when done)."""
+  `table` = (q, trace index, trace value, trace count). Returns a' (0, and no draw,
+  when done)."""
+  q, tr_index, tr_value, tr_count = table
   a_next = 0
   if not done:
     a_next = epsilon_greedy(q, s_next, n_actions, epsilon, rng_state)

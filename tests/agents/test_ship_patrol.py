@@ -142,6 +142,20 @@ def test_stepwise_and_compiled_paths_give_identical_results(tmp_path, learn):
   for name, value in _arrays(stepwise).items():
     np.testing.assert_array_equal(value, _arrays(compiled)[name], err_msg=name)
   assert stepwise.episodes == compiled.episodes == 2       # learning rows only
+  if learn:                     # the shipped planning swept on both paths alike
+    assert compiled.model[3][0] == a["calls"].sum() >= 2 * compiled.config.root.planning_every
+
+
+def test_without_planning_no_model_is_kept_and_the_values_differ(tmp_path):
+  planned = agents.build(agents.load_task(small_task(tmp_path)), seed=4)
+  path = small_task(tmp_path, name="off.toml")
+  path.write_text(path.read_text().replace("planning_every = 100", "planning_every = 0"))
+  plain = agents.build(agents.load_task(path), seed=4)
+  plain.train(1)
+  planned.train(1)
+  assert plain.model[0].size == 0 and plain.model[3][0] == 0
+  assert planned.model[3][0] >= 100 and (planned.model[0] >= 0).sum() > 10
+  assert not np.array_equal(plain.q, planned.q)
 
 
 def test_stepwise_rows_continue_the_process(tmp_path):
@@ -175,7 +189,9 @@ def test_the_root_state_is_the_cell_and_the_heading_sector(theta, sector):
 
 def test_the_shipped_root_sees_the_heading():
   agent = agents.build(agents.load_task("ship_patrol_average_reward"), seed=0)
-  assert agent.config.root.heading_sectors == 8 and agent.q.shape == (400 * 8 * 8,)
+  root = agent.config.root
+  assert root.heading_sectors == 8 and (root.near_gate_m, root.near_gate_cell_m) == (50.0, 25.0)
+  assert agent.q.shape == ((400 + 16) * 8 * 8,) and root.planning_every == 100
 
 
 def test_finer_cells_about_the_gate_are_numbered_after_the_grid():
@@ -209,7 +225,7 @@ def test_bad_near_gate_cells_are_refused(tmp_path, line, match):
 
 def test_near_gate_cells_must_tile_the_square(tmp_path):
   path = small_task(tmp_path)
-  path.write_text(path.read_text().replace("near_gate_m = 0.0 ", "near_gate_m = 60.0 "))
+  path.write_text(path.read_text().replace("near_gate_m = 50.0 ", "near_gate_m = 60.0 "))
   with pytest.raises(ValueError, match=r"near_gate_cell_m = 25.0 must divide twice "
                                        r"near_gate_m = 60.0"):
     agents.build(agents.load_task(path), seed=0)
@@ -217,7 +233,7 @@ def test_near_gate_cells_must_tile_the_square(tmp_path):
 
 def test_near_gate_cells_give_identical_results_on_both_paths(tmp_path):
   path = small_task(tmp_path)
-  path.write_text(path.read_text().replace("near_gate_m = 0.0 ", "near_gate_m = 100.0 "))
+  path.write_text(path.read_text().replace("near_gate_m = 50.0 ", "near_gate_m = 100.0 "))
   task = agents.load_task(path)
   stepwise, compiled = agents.build(task, seed=5), agents.build(task, seed=5)
   assert compiled.q.shape == ((400 + 64) * 8 * 8,)
@@ -227,3 +243,49 @@ def test_near_gate_cells_give_identical_results_on_both_paths(tmp_path):
   assert (compiled.q.reshape(-1, 8)[400 * 8:] != 0).any()      # the fine cells are visited
   for name, value in _arrays(stepwise).items():
     np.testing.assert_array_equal(value, _arrays(compiled)[name], err_msg=name)
+
+
+def _script(name):
+  import importlib.util
+  import pathlib
+  path = pathlib.Path(__file__).resolve().parents[2] / "scripts" / f"{name}.py"
+  spec = importlib.util.spec_from_file_location(name, path)
+  script = importlib.util.module_from_spec(spec)
+  spec.loader.exec_module(script)
+  return script
+
+
+def test_the_loop_script_sails_what_the_evaluation_sails(tmp_path, capsys):
+  # scripts/patrol_loop.py (issue 24) calls the agent's rules directly: its greedy
+  # hours are the evaluation's, call for call, so its gates an hour are the same.
+  import argparse
+  import re
+  script = _script("patrol_loop")
+  agent = agents.build(agents.load_task(small_task(tmp_path)), seed=1)
+  agent.train(2)
+  root = agent.config.root
+  view = (root.heading_sectors, root.near_gate_m, root.near_gate_cell_m)
+  moved = np.full(agent.q.size, 2)
+  args = argparse.Namespace(rollouts=1, horizon=200)
+  script.report(agent, agent.q, agent._tables(None), view, agent.gain[0], moved, args)
+  out = capsys.readouterr().out
+  gates = float(re.search(r"greedy: ([\d.]+) gates/h", out).group(1))
+  assert gates == pytest.approx(agent.metrics(agent.evaluation(100))["gates_per_hour"], abs=0.05)
+  assert "reward over 200 steps minus the greedy's" in out and "nan" not in out
+  assert script.period([(1, 2), (3, 4)] * 5) == 2
+  assert script.period([(1, 2)] * 4 + [(3, 4)]) is None
+
+
+def test_the_compare_script_pairs_seeds(tmp_path, capsys):
+  script = _script("patrol_compare")
+  lines = [{"seed": s, "greedy_gates_per_hour": g, "episodic_gates_per_hour": e,
+            "scripted_gates_per_hour": 117.6, "online_gates_per_hour": 90.0}
+           for s, g, e in ((3, 200.0, 150.0), (1, 100.0, 130.0), (2, 240.0, 40.0))]
+  path = tmp_path / "lines.jsonl"
+  path.write_text("\n".join(json.dumps(line) for line in lines) + "\n")
+  script.main([str(path)])
+  out = capsys.readouterr().out
+  assert "Seeds 1-3 (3 runs)" in out
+  assert "| paired: root minus episodic hybrid | +73.3 [" in out and "-30.0, 200.0, 50.0" in out
+  assert "Root ahead on 2 of 3 seeds; below the helmsman: root 1 (min 100.0), episodic " \
+         "hybrid 1 (min 40.0)." in out

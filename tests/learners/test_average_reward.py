@@ -90,3 +90,41 @@ def test_learned_gain_and_relative_values_match_the_exact_ones(seed):
   shift = q.reshape(3, 2).max(axis=1)[0]
   np.testing.assert_allclose(q.reshape(3, 2) - shift, q_exact, atol=0.15)
   assert tuple(q.reshape(3, 2).argmax(axis=1)) == best
+
+
+def test_planning_corrects_a_loop_whose_values_are_stale():
+  # Issue 24's collapse in miniature: states A = 0 and B = 1 far from a gate loop
+  # G = 2 whose gain is rho = 1 (+100 every 50 steps, -1 a step). A and B were last
+  # valued while rho was ~ -1, so their calls (100 steps, -100) are worth ~0 and
+  # their order is noise: the greedy root sails A -> B -> A forever. Planning
+  # backs the kept transitions up with today's rho: A's way to G wins, rho and
+  # the entries never taken stay as they were.
+  n = 2
+  q = np.zeros(3 * n)
+  q[0 * n + 0], q[1 * n + 0], q[2 * n + 0] = 14.0, 13.0, 500.0
+  gain = ar.new_gain()
+  gain[ar.RHO] = 1.0
+  model = ar.new_model(q.size)
+  for s, a, r, tau, s_next in ((0, 0, -100.0, 100.0, 1), (1, 0, -100.0, 100.0, 0),
+                               (0, 1, -100.0, 100.0, 2), (2, 0, 50.0, 50.0, 2)):
+    ar.remember_and_plan(q, n, gain, model, s, a, r, tau, s_next, 0.1, 1000)
+  assert model[3][0] == 4 and q[0 * n + 1] == 0.0 and np.argmax(q[0:2]) == 0
+  for _ in range(100):
+    ar.plan(q, n, gain, model, 0.1)
+  assert np.argmax(q[0:2]) == 1                       # A now heads for the gate loop
+  assert q[0 * n + 1] == pytest.approx(-200.0 + q[2 * n + 0], abs=1.0)
+  assert q[1 * n + 1] == 0.0 and q[2 * n + 1] == 0.0  # never taken: not backed up
+  assert gain[ar.RHO] == 1.0 and gain[ar.GREEDY_SEEN] == 0.0
+
+
+def test_remember_and_plan_sweeps_every_so_many_transitions():
+  n = 2
+  q = np.zeros(2 * n)
+  gain = ar.new_gain()
+  model = ar.new_model(q.size)
+  ar.remember_and_plan(q, n, gain, model, 0, 1, 5.0, 1.0, 1, 0.5, 0)    # 0: no planning
+  assert model[3][0] == 0 and (model[0] == -1).all() and (q == 0).all()
+  ar.remember_and_plan(q, n, gain, model, 0, 1, 5.0, 1.0, 1, 0.5, 2)
+  assert model[3][0] == 1 and model[0][1] == 1 and (q == 0).all()       # kept, no sweep yet
+  ar.remember_and_plan(q, n, gain, model, 1, 0, 1.0, 2.0, 0, 0.5, 2)
+  assert q[1] == pytest.approx(2.5) and q[2] == pytest.approx(0.5 + 0.5 * 2.5)
