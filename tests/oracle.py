@@ -8,7 +8,7 @@ import numpy as np
 
 from hpg_mj.hierarchy import blocks, executor
 from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
-from hpg_mj.learners import agents, schedules, tiles
+from hpg_mj.learners import schedules, stepwise, tiles
 from hpg_mj.worlds import ship_core as core
 
 
@@ -45,11 +45,11 @@ class Oracle:
     if id(block) not in self.learners:
       if isinstance(block, blocks.QTable):
         source = (lambda: self.schedule[0][0]) if block.epsilon_schedule else None
-        self.learners[id(block)] = agents.QLambda(
+        self.learners[id(block)] = stepwise.QLambda(
             block.n_states, n_children, block.alpha, block.trace_decay, block.gamma,
             block.epsilon, epsilon_source=source, trace_capacity=block.trace_capacity)
       else:
-        self.learners[id(block)] = agents.GaussianPolicyGradient(
+        self.learners[id(block)] = stepwise.GaussianPolicyGradient(
             block.coder.size, block.coder.n_tilings, block.r_max, block.alpha,
             block.trace_gamma, baseline=block.baseline)
     return self.learners[id(block)]

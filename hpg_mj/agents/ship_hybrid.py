@@ -19,7 +19,7 @@ from hpg_mj.agents.taskfile import param
 from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy import ship_rules as rules
 from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
-from hpg_mj.learners import agents as learners
+from hpg_mj.learners import stepwise as learners
 from hpg_mj.learners import arrays
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import policies

@@ -12,10 +12,11 @@ from hpg_mj.agents import _taxi
 from hpg_mj.agents import taskfile
 from hpg_mj.agents.taskfile import param
 from hpg_mj.hierarchy import flat as flat_graph
-from hpg_mj.hierarchy import taxi_rules as rules
+from hpg_mj.hierarchy import taxi_subtasks as rules
 from hpg_mj.learners import qlambda
 from hpg_mj.learners import schedules
 from hpg_mj.worlds import taxi_core as core
+from hpg_mj.worlds import taxi_rules as world_rules
 
 # Per-episode record columns (the order of `record_fields`).
 RETURN, STEPS, OUTCOME = 0, 1, 2
@@ -26,9 +27,9 @@ N_RECORD = 3
 def train(n_episodes, first_episode, learn, sample, rng_state, world, q, tr_index, tr_value,
           tr_count, alpha, epsilon_start, epsilon_end, epsilon_episodes, record):
   """Flat Q-learning for `n_episodes`; `first_episode` places them on the schedule."""
-  n_actions = core.NUM_ACTIONS_FUEL if world[rules.W_FUEL_ENABLED] != 0 else \
+  n_actions = core.NUM_ACTIONS_FUEL if world[world_rules.W_FUEL_ENABLED] != 0 else \
       core.NUM_ACTIONS_CLASSIC
-  fuel_enabled = world[rules.W_FUEL_ENABLED] != 0
+  fuel_enabled = world[world_rules.W_FUEL_ENABLED] != 0
   state = np.empty(5, dtype=np.int64)
   episode_info = np.zeros(3, dtype=np.int64)
   for e in range(n_episodes):
@@ -41,14 +42,14 @@ def train(n_episodes, first_episode, learn, sample, rng_state, world, q, tr_inde
     a = qlambda.epsilon_greedy(q, s, n_actions, epsilon, rng_state)
     total = 0.0
     while True:
-      reward = rules.primitive_step(state, episode_info, a, world)
+      reward = world_rules.primitive_step(state, episode_info, a, world)
       total += reward
       s_next = core.encode_state(state[0], state[1], state[2], state[3], state[4], fuel_enabled)
-      outcome = episode_info[rules.E_OUTCOME]
-      if outcome != rules.RUNNING:
+      outcome = episode_info[world_rules.E_OUTCOME]
+      if outcome != world_rules.RUNNING:
         if learn:
           qlambda.update(q, n_actions, tr_index, tr_value, tr_count, s, a, reward, s_next, 0,
-                         outcome != rules.TRUNCATED, alpha, 1.0, 0.0)
+                         outcome != world_rules.TRUNCATED, alpha, 1.0, 0.0)
         break
       a_next = qlambda.epsilon_greedy(q, s_next, n_actions, epsilon, rng_state)
       if learn:
@@ -57,8 +58,8 @@ def train(n_episodes, first_episode, learn, sample, rng_state, world, q, tr_inde
       s = s_next
       a = a_next
     record[e, RETURN] = total
-    record[e, STEPS] = episode_info[rules.E_STEPS]
-    record[e, OUTCOME] = episode_info[rules.E_OUTCOME]
+    record[e, STEPS] = episode_info[world_rules.E_STEPS]
+    record[e, OUTCOME] = episode_info[world_rules.E_OUTCOME]
 
 
 class FlatQTable:
@@ -66,15 +67,15 @@ class FlatQTable:
 
   def __init__(self, alpha=1.0, epsilon_start=0.1, epsilon_end=0.0, epsilon_episodes=50000,
                initial=20.0, seed=0, task=None):
-    from hpg_mj.learners import agents
+    from hpg_mj.learners import stepwise
     from hpg_mj.learners import rng
     self.task = task if task is not None else core.TaxiRules()
-    self.world = rules.world_config(self.task)
+    self.world = world_rules.world_config(self.task)
     self.n_actions = core.num_actions(self.task.fuel_enabled)
     self.n_states = core.num_states(self.task.fuel_enabled, self.task.capacity)
     self.epsilon_start, self.epsilon_end = float(epsilon_start), float(epsilon_end)
     self.epsilon_episodes = int(epsilon_episodes)
-    self.learner = agents.QLambda(self.n_states, self.n_actions, alpha, lam=0.0,
+    self.learner = stepwise.QLambda(self.n_states, self.n_actions, alpha, lam=0.0,
                                   epsilon_source=self._epsilon, trace_capacity=16,
                                   initial=initial)
     self.rng_state = rng.make_state(seed)

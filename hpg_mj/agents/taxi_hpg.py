@@ -67,13 +67,14 @@ from hpg_mj.agents import _taxi
 from hpg_mj.agents import taskfile
 from hpg_mj.agents.taskfile import param
 from hpg_mj.hierarchy import taxi as taxi_hierarchy
-from hpg_mj.hierarchy import taxi_rules as rules
-from hpg_mj.learners import agents as learners
+from hpg_mj.hierarchy import taxi_subtasks as rules
+from hpg_mj.learners import stepwise as learners
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import jit
 from hpg_mj.learners import policies
 from hpg_mj.learners import rng
 from hpg_mj.worlds import taxi_core as core
+from hpg_mj.worlds import taxi_rules as world_rules
 
 # Per-episode record columns: the return, the primitive steps, how the episode
 # ended (taxi_rules.DELIVERED, OUT_OF_FUEL or TRUNCATED), illegal Pickups/Dropoffs.
@@ -202,16 +203,16 @@ def run_navigate(target, nav, state, episode, world, learning, learn, greedy, rn
   begin_call(nav, learn)
   n = rules.N_CHILDREN[rules.NAVIGATE]
   total = 0.0
-  done = rules.episode_over(episode) or rules.navigate_done(target, state, world)
+  done = world_rules.episode_over(episode) or rules.navigate_done(target, state, world)
   here = rules.navigate_state(target, state)
   while not done:
     rules.navigate_children(mask)
     move = choose(nav, here, n, mask, learn, greedy, rng_state, probs, index, psi)
     subtract_baseline(nav.theta, values[rules.NAVIGATE], here, n, mask, learn,
                       alphas[rules.NAVIGATE], index, psi)
-    reward = rules.primitive_step(state, episode, move, world)  # child index = action index
+    reward = world_rules.primitive_step(state, episode, move, world)  # child index = action index
     learn_from(nav, learn, alphas[rules.NAVIGATE], reward, gammas[rules.NAVIGATE])
-    done = rules.episode_over(episode) or rules.navigate_done(target, state, world)
+    done = world_rules.episode_over(episode) or rules.navigate_done(target, state, world)
     there = rules.navigate_state(target, state)
     learn_baseline(values[rules.NAVIGATE], here, learn, betas[rules.NAVIGATE], reward, done,
                    there)
@@ -229,7 +230,7 @@ def run_carry(subtask, carry, nav, state, episode, world, learning, learn, greed
   begin_call(carry, learn)
   n = rules.N_CHILDREN[subtask]
   total = 0.0
-  done = rules.episode_over(episode) or rules.carry_done(subtask, state, world)
+  done = world_rules.episode_over(episode) or rules.carry_done(subtask, state, world)
   here = rules.carry_state(subtask, state)
   while not done:
     rules.carry_children(subtask, state, world, mask)
@@ -239,9 +240,9 @@ def run_carry(subtask, carry, nav, state, episode, world, learning, learn, greed
       reward = run_navigate(rules.carry_target(subtask, state), nav, state, episode, world,
                             learning, learn, greedy, rng_state, scratch)
     else:
-      reward = rules.primitive_step(state, episode, rules.carry_primitive(subtask), world)
+      reward = world_rules.primitive_step(state, episode, rules.carry_primitive(subtask), world)
     learn_from(carry, learn, alphas[subtask], reward, gammas[subtask])
-    done = rules.episode_over(episode) or rules.carry_done(subtask, state, world)
+    done = world_rules.episode_over(episode) or rules.carry_done(subtask, state, world)
     there = rules.carry_state(subtask, state)
     learn_baseline(values[subtask], here, learn, betas[subtask], reward, done, there)
     here = there
@@ -259,7 +260,7 @@ def run_episode(traces, state, episode, world, learning, learn, greedy, rng_stat
   n = rules.N_CHILDREN[rules.ROOT]
   total = 0.0
   here = rules.root_state(state, world)
-  while not rules.episode_over(episode):
+  while not world_rules.episode_over(episode):
     rules.root_children(state, world, mask)
     child = choose(root, here, n, mask, learn, greedy, rng_state, probs, index, psi)
     subtract_baseline(root.theta, values[rules.ROOT], here, n, mask, learn, alphas[rules.ROOT], index,
@@ -276,7 +277,7 @@ def run_episode(traces, state, episode, world, learning, learn, greedy, rng_stat
     learn_from(root, learn, alphas[rules.ROOT], reward, gammas[rules.ROOT])
     there = rules.root_state(state, world)
     learn_baseline(values[rules.ROOT], here, learn, betas[rules.ROOT], reward,
-                   rules.episode_over(episode), there)
+                   world_rules.episode_over(episode), there)
     here = there
     total += reward
   return total
@@ -334,14 +335,14 @@ def train(n_episodes, learn, greedy, rng_state, world, traces, values, settings,
     ret = run_episode(traces, state, episode, world, (alphas, gammas, values, betas), learn,
                       greedy, rng_state, (mask, probs, index, psi))
     record[e, RETURN] = ret
-    record[e, STEPS] = episode[rules.E_STEPS]
-    record[e, OUTCOME] = episode[rules.E_OUTCOME]
-    record[e, ILLEGAL] = episode[rules.E_ILLEGAL]
-    total_steps += episode[rules.E_STEPS]
+    record[e, STEPS] = episode[world_rules.E_STEPS]
+    record[e, OUTCOME] = episode[world_rules.E_OUTCOME]
+    record[e, ILLEGAL] = episode[world_rules.E_ILLEGAL]
+    total_steps += episode[world_rules.E_STEPS]
   return total_steps
 
 
-class HPGTables:
+class HPGEngine:
   """HPG on one taxi task: its learners (`traces`, and the baselines `values`),
   its generator, and a `run` for training and evaluation that wraps the
   compiled `train`."""
@@ -356,12 +357,12 @@ class HPGTables:
     """
     config = Config() if config is None else config
     if not isinstance(config, Config):
-      raise ValueError(f"HPGTables: config must be a taxi_hpg.Config, got "
+      raise ValueError(f"HPGEngine: config must be a taxi_hpg.Config, got "
                        f"{type(config).__name__}")
     if not np.isfinite(initial):
-      raise ValueError(f"HPGTables: initial must be finite, got {initial!r}")
+      raise ValueError(f"HPGEngine: initial must be finite, got {initial!r}")
     self.task = task if task is not None else core.TaxiRules()
-    self.world = rules.world_config(self.task)
+    self.world = world_rules.world_config(self.task)
     self.config = config
     self.rng_state = rng.make_state(seed)
     self.traces = new_traces(self.task.fuel_enabled, self.task.capacity, initial)
@@ -378,9 +379,9 @@ class HPGTables:
     `[row, col, passenger, destination, fuel]` or a list of them, used in turn.
     """
     if not isinstance(n_episodes, (int, np.integer)) or n_episodes < 0:
-      raise ValueError(f"HPGTables.run: n_episodes must be an integer >= 0, got {n_episodes!r}")
+      raise ValueError(f"HPGEngine.run: n_episodes must be an integer >= 0, got {n_episodes!r}")
     if learn and greedy:
-      raise ValueError("HPGTables.run: greedy=True evaluates without learning; pass learn=False")
+      raise ValueError("HPGEngine.run: greedy=True evaluates without learning; pass learn=False")
     start = np.zeros((0, 5), dtype=np.int64)
     if starts is not None:
       rows = np.asarray(starts)
@@ -406,7 +407,7 @@ class HPGTables:
 
   def _rules_bottom_up(self, scratch):
     """The rules `train` calls, callees first, with arguments of the types it calls
-    them with (`learners.jit.compile_first`; see `taxi_maxq.MAXQTables`)."""
+    them with (`learners.jit.compile_first`; see `taxi_maxq.MAXQEngine`)."""
     scratch_int, scratch_float, mask = scratch
     state, episode, index = scratch_int[0:5], scratch_int[5:8], scratch_int[8:12]
     probs, psi, alphas = scratch_float[0:4], scratch_float[4:8], scratch_float[8:13]
@@ -462,9 +463,9 @@ class _BaselinedSoftmax(learners.SoftmaxPolicyGradient):
 
 
 class TaxiHierarchy:
-  """The task graph over an `HPGTables`'s learners (shared arrays)."""
+  """The task graph over an `HPGEngine`'s learners (shared arrays)."""
 
-  def __init__(self, hpg: HPGTables):
+  def __init__(self, hpg: HPGEngine):
     self.hpg = hpg
     self.world = hpg.world
     sizes = rules.n_abstract_states(hpg.task.fuel_enabled, hpg.task.capacity)
@@ -574,7 +575,7 @@ class TaxiHPG(_taxi.TaxiAgent):
 
   def __init__(self, config=None, seed=0, task=None):
     super().__init__(config, seed, task)
-    self._adopt(HPGTables(seed=seed, config=self.config, task=self.rules))
+    self._adopt(HPGEngine(seed=seed, config=self.config, task=self.rules))
     self.hierarchy = TaxiHierarchy(self.engine)
     self._schedule = schedule(self.config)
     self._alphas = np.zeros(len(self.hierarchy.learners))

@@ -89,11 +89,12 @@ from hpg_mj.agents import _taxi
 from hpg_mj.agents import taskfile
 from hpg_mj.agents.taskfile import param
 from hpg_mj.hierarchy import taxi
-from hpg_mj.hierarchy import taxi_rules as rules
+from hpg_mj.hierarchy import taxi_subtasks as rules
 from hpg_mj.learners import jit
 from hpg_mj.learners import rng
 from hpg_mj.learners import schedules
 from hpg_mj.worlds import taxi_core as core
+from hpg_mj.worlds import taxi_rules as world_rules
 
 # Per-episode record columns, as taxi_flat_q's.
 RETURN, STEPS, OUTCOME = 0, 1, 2
@@ -171,9 +172,9 @@ def new_scratch():
 @numba.njit(cache=True, inline="always")
 def full_state(state, world):
   """The full state's index (`taxi_core.encode_state`): Root's rows."""
-  return core.encode_state(state[rules.ROW], state[rules.COL], state[rules.PASSENGER],
-                           state[rules.DESTINATION], state[rules.FUEL],
-                           world[rules.W_FUEL_ENABLED] != 0)
+  return core.encode_state(state[world_rules.ROW], state[world_rules.COL], state[world_rules.PASSENGER],
+                           state[world_rules.DESTINATION], state[world_rules.FUEL],
+                           world[world_rules.W_FUEL_ENABLED] != 0)
 
 
 def n_primitive_states(fuel_enabled: bool = True):
@@ -186,18 +187,18 @@ def primitive_state(state, world):
   """The primitives' abstract state, V(a, s)'s row: a primitive's reward depends on
   the fuel only through an empty tank (-20), so the level itself is left out
   (Dietterich's leaf irrelevance)."""
-  s = core.encode_state(state[rules.ROW], state[rules.COL], state[rules.PASSENGER],
-                        state[rules.DESTINATION], 0, False)
-  if world[rules.W_FUEL_ENABLED] != 0:
-    return s * 2 + (state[rules.FUEL] == 0)
+  s = core.encode_state(state[world_rules.ROW], state[world_rules.COL], state[world_rules.PASSENGER],
+                        state[world_rules.DESTINATION], 0, False)
+  if world[world_rules.W_FUEL_ENABLED] != 0:
+    return s * 2 + (state[world_rules.FUEL] == 0)
   return s
 
 
 @numba.njit(cache=True, inline="always")
 def with_fuel(row, state, world):
   """`taxi_rules`' abstract row with the fuel level added (module docstring)."""
-  if world[rules.W_FUEL_ENABLED] != 0:
-    return row * (world[rules.W_CAPACITY] + 1) + state[rules.FUEL]
+  if world[world_rules.W_FUEL_ENABLED] != 0:
+    return row * (world[world_rules.W_CAPACITY] + 1) + state[world_rules.FUEL]
   return row
 
 
@@ -236,8 +237,8 @@ def available(subtask, state, world, mask):
 @numba.njit(cache=True, inline="always")
 def episode_ended(episode):
   """A delivery or an empty tank ends the episode; a truncation does not (SPEC 5)."""
-  o = episode[rules.E_OUTCOME]
-  return o == rules.DELIVERED or o == rules.OUT_OF_FUEL
+  o = episode[world_rules.E_OUTCOME]
+  return o == world_rules.DELIVERED or o == world_rules.OUT_OF_FUEL
 
 
 @numba.njit(cache=True, inline="always")
@@ -462,13 +463,13 @@ def run_navigate(target, state, episode, world, tables, settings, epsilons, alph
   """One call of Navigate(target); returns the rewards earned."""
   values = tables.values
   total = 0.0
-  while not rules.episode_over(episode) and not rules.navigate_done(target, state, world):
+  while not world_rules.episode_over(episode) and not rules.navigate_done(target, state, world):
     a = choose(rules.NAVIGATE, target, state, world, tables,
                epsilons[rules.NAVIGATE], sample, rng_state, scratch)
-    first = episode[rules.E_STEPS]
+    first = episode[world_rules.E_STEPS]
     record_state(path, state, first)
     s = primitive_state(state, world)
-    reward = rules.primitive_step(state, episode, a, world)
+    reward = world_rules.primitive_step(state, episode, a, world)
     if learn:
       update_primitive(values, s * N_PRIMITIVES + a, reward, alpha_primitive)
       update_completion(rules.NAVIGATE, target, a, path, first, first + 1, state,
@@ -484,22 +485,22 @@ def run_carry(subtask, state, episode, world, tables, settings, epsilons, alpha_
   """One call of Get, Put or Refuel; returns the rewards earned."""
   values = tables.values
   total = 0.0
-  while not rules.episode_over(episode) and not rules.carry_done(subtask, state, world):
+  while not world_rules.episode_over(episode) and not rules.carry_done(subtask, state, world):
     a = choose(subtask, NO_TARGET, state, world, tables,
                epsilons[subtask], sample, rng_state, scratch)
-    first = episode[rules.E_STEPS]
+    first = episode[world_rules.E_STEPS]
     if a == rules.CARRY_PRIMITIVE:
       action = rules.carry_primitive(subtask)
       record_state(path, state, first)
       s = primitive_state(state, world)
-      reward = rules.primitive_step(state, episode, action, world)
+      reward = world_rules.primitive_step(state, episode, action, world)
       if learn:
         update_primitive(values, s * N_PRIMITIVES + action, reward, alpha_primitive)
     else:
       reward = run_navigate(rules.carry_target(subtask, state), state, episode, world, tables, settings, epsilons, alpha_primitive, all_states,
                             learn, sample, rng_state, path, scratch)
     if learn:
-      update_completion(subtask, NO_TARGET, a, path, first, episode[rules.E_STEPS], state,
+      update_completion(subtask, NO_TARGET, a, path, first, episode[world_rules.E_STEPS], state,
                         episode_ended(episode), world, tables, settings,
                         all_states, scratch)
     total += reward
@@ -511,14 +512,14 @@ def run_episode(state, episode, world, tables, settings, epsilons, alpha_primiti
                 learn, sample, rng_state, path, scratch):
   """One call of Root: the whole episode from `state`; returns its return."""
   total = 0.0
-  while not rules.episode_over(episode):
+  while not world_rules.episode_over(episode):
     a = choose(rules.ROOT, NO_TARGET, state, world, tables,
                epsilons[rules.ROOT], sample, rng_state, scratch)
-    first = episode[rules.E_STEPS]
+    first = episode[world_rules.E_STEPS]
     reward = run_carry(a + 1, state, episode, world, tables, settings,
                        epsilons, alpha_primitive, all_states, learn, sample, rng_state, path, scratch)
     if learn:
-      update_completion(rules.ROOT, NO_TARGET, a, path, first, episode[rules.E_STEPS], state,
+      update_completion(rules.ROOT, NO_TARGET, a, path, first, episode[world_rules.E_STEPS], state,
                         episode_ended(episode), world, tables, settings,
                         all_states, scratch)
     total += reward
@@ -547,23 +548,23 @@ def train(n_episodes, first_episode, learn, sample, rng_state, world, tables, se
     ret = run_episode(state, episode, world, tables, settings, epsilons,
                       alpha_primitive, all_states, learn, sample, rng_state, path, scratch)
     record[e, RETURN] = ret
-    record[e, STEPS] = episode[rules.E_STEPS]
-    record[e, OUTCOME] = episode[rules.E_OUTCOME]
-    total_steps += episode[rules.E_STEPS]
+    record[e, STEPS] = episode[world_rules.E_STEPS]
+    record[e, OUTCOME] = episode[world_rules.E_OUTCOME]
+    total_steps += episode[world_rules.E_STEPS]
   return total_steps
 
 
-class MAXQTables:
+class MAXQEngine:
   """MAXQ-Q on one taxi task: its tables, its generator, and `run`, which wraps
   the compiled `train`."""
 
   def __init__(self, seed: int = 0, config=None, task: core.TaxiRules = None):
     config = Config() if config is None else config
     if not isinstance(config, Config):
-      raise ValueError(f"MAXQTables: config must be a taxi_maxq.Config, got "
+      raise ValueError(f"MAXQEngine: config must be a taxi_maxq.Config, got "
                        f"{type(config).__name__}")
     self.task = task if task is not None else core.TaxiRules()
-    self.world = rules.world_config(self.task)
+    self.world = world_rules.world_config(self.task)
     self.config = config
     self.settings = settings(config)
     self.tables = Tables(*new_tables(self.task.fuel_enabled, self.task.capacity))
@@ -581,7 +582,7 @@ class MAXQTables:
     Learning explores (epsilon-greedy); without learning the policy is greedy
     unless `sample`."""
     if not isinstance(n_episodes, (int, np.integer)) or n_episodes < 0:
-      raise ValueError(f"MAXQTables.run: n_episodes must be an integer >= 0, got {n_episodes!r}")
+      raise ValueError(f"MAXQEngine.run: n_episodes must be an integer >= 0, got {n_episodes!r}")
     sample = learn if sample is None else bool(sample or learn)
     record = np.zeros((int(n_episodes), N_RECORD))
     scratch_int, path, epsilons, scratch = self._train_scratch()
@@ -659,7 +660,7 @@ def exact_values(task: core.TaxiRules = None):
   task = task if task is not None else core.TaxiRules()
   fuel = task.fuel_enabled
   model = taxi_values.taxi_values(fuel, tuple(task.fuel_station), task.capacity)
-  world = rules.world_config(task)
+  world = world_rules.world_config(task)
   n = model.v.shape[0]
   ended = n                                     # the extra index: "the episode ended"
   nxt = np.where(model.terminal, ended, model.next_state)
@@ -715,8 +716,8 @@ def exact_values(task: core.TaxiRules = None):
     nav_result.append(result)
     store(rules.NAVIGATE, lambda s: t, np.where(live, v[nxt[:, moves]], 0.0), live, ~done)
   carry_v, carry_result = {}, {}
-  waiting = states[:, rules.PASSENGER] != core.IN_TAXI
-  reachable = ~waiting | (states[:, rules.PASSENGER] != states[:, rules.DESTINATION])
+  waiting = states[:, world_rules.PASSENGER] != core.IN_TAXI
+  reachable = ~waiting | (states[:, world_rules.PASSENGER] != states[:, world_rules.DESTINATION])
   domain = {rules.GET: waiting & reachable, rules.PUT: ~waiting,
             rules.REFUEL: reachable if fuel else np.zeros(n, dtype=np.bool_)}
   for subtask in (rules.GET, rules.PUT, rules.REFUEL):
@@ -771,7 +772,7 @@ Navigate = _level(0.1, 1_000, 0.0, True, "[navigate]: Navigate(t), over (t, row,
 
 
 @dataclasses.dataclass(frozen=True)
-class Primitive(taskfile.Section):
+class PrimitiveLevel(taskfile.Section):
   """[primitive]: V(a, s) over (classic state, tank empty)."""
   alpha: float = param(1.0, "V(a, s) step size", low=0, high=1, low_open=True)
   all_states_updating: bool = param(True, "a child's target updates every state its run "
@@ -798,11 +799,11 @@ class Config:
   root: Root = dataclasses.field(default_factory=Root)
   carry: Carry = dataclasses.field(default_factory=Carry)
   navigate: Navigate = dataclasses.field(default_factory=Navigate)
-  primitive: Primitive = dataclasses.field(default_factory=Primitive)
+  primitive: PrimitiveLevel = dataclasses.field(default_factory=PrimitiveLevel)
 
 
 class MAXQNode:
-  """One subtask's MAXQ-Q learner, in the executor's protocol (`learners.agents`).
+  """One subtask's MAXQ-Q learner, in the executor's protocol (`learners.stepwise`).
 
   act: an epsilon-greedy child by V(a, s) + C~(i, s, a) (`choose`); a
   primitive child's state goes on the episode's path (all-states updating).
@@ -854,9 +855,9 @@ class MAXQNode:
 
 
 class TaxiMAXQHierarchy:
-  """The task graph over a `MAXQTables`' tables (shared arrays, same generator)."""
+  """The task graph over a `MAXQEngine`' tables (shared arrays, same generator)."""
 
-  def __init__(self, agent: "MAXQTables"):
+  def __init__(self, agent: "MAXQEngine"):
     self.agent = agent
     self.world = agent.world
     self.tables = agent.tables
@@ -891,7 +892,7 @@ class TaxiMAXQ(_taxi.TaxiAgent):
 
   def __init__(self, config=None, seed=0, task=None):
     super().__init__(config, seed, task)
-    self._adopt(MAXQTables(seed=seed, config=self.config, task=self.rules))
+    self._adopt(MAXQEngine(seed=seed, config=self.config, task=self.rules))
     self.hierarchy = TaxiMAXQHierarchy(self.engine)
 
   def state(self):

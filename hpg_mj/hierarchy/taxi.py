@@ -13,7 +13,7 @@ run on the same graph.
 """
 import numpy as np
 
-from hpg_mj.hierarchy import taxi_rules as rules
+from hpg_mj.hierarchy import taxi_subtasks as rules
 from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
 from hpg_mj.worlds import taxi_core as core
 

@@ -114,7 +114,7 @@ def relative_values(q, n_states, n_actions, reference=0):
 
 class RLearning:
   """The root's learner on the step-by-step path (the protocol of
-  `hpg_mj.learners.agents`): epsilon-greedy over `q`, and on each return of a
+  `hpg_mj.learners.stepwise`): epsilon-greedy over `q`, and on each return of a
   child the backup `update` above, in the order of the compiled loop
   (`hpg_mj.agents.ship_patrol.patrol`).
 

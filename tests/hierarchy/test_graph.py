@@ -7,13 +7,13 @@ import hpg_mj  # noqa: F401
 from hpg_mj.hierarchy import executor
 from hpg_mj.agents.ship_hybrid import ShipHybrid
 from hpg_mj.hierarchy.graph import Child, GraphError, Primitive, Subtask, TaskGraph
-from hpg_mj.learners import agents, rng, tiles
+from hpg_mj.learners import rng, stepwise, tiles
 from hpg_mj.worlds import ship_core as core
 
 
 def _subtask(name, children, **kw):
   args = dict(termination=lambda call, step: True, view=lambda call, obs: 0,
-              learner=agents.SoftmaxPolicyGradient(1, max(1, len(children)), 0.1))
+              learner=stepwise.SoftmaxPolicyGradient(1, max(1, len(children)), 0.1))
   args.update(kw)
   return Subtask(name, children=children, **args)
 
@@ -49,8 +49,8 @@ def test_a_new_hierarchy_over_the_ship():
   only, on a coarser 10 x 10 grid, reusing the straight subtask's rules."""
   coder = tiles.TileCoder((0.0, 0.0, -180.0, -15.0), (150.0, 150.0, 180.0, 15.0),
                           (5, 5, 36, 5), (False, False, True, False), 9)
-  leg_learner = agents.GaussianPolicyGradient(coder.size, 9, 15.0, alpha=0.01, gamma=0.99)
-  root_learner = agents.SoftmaxPolicyGradient(100, 4, alpha=0.05)
+  leg_learner = stepwise.GaussianPolicyGradient(coder.size, 9, 15.0, alpha=0.01, gamma=0.99)
+  root_learner = stepwise.SoftmaxPolicyGradient(100, 4, alpha=0.05)
   arrays, local, active = coder.arrays(), np.empty(4), np.empty(9, dtype=np.int64)
   local_samples = np.empty((4, 2))
   calls = []
@@ -114,5 +114,5 @@ def test_a_learner_of_the_wrong_action_size_is_refused_naming_the_node():
   with pytest.raises(GraphError, match="subtask 'root': its learner SoftmaxPolicyGradient "
                                        "chooses among 3 actions, the node has 2 children"):
     TaskGraph("root", [_subtask("root", ["go", "stop"],
-                                learner=agents.SoftmaxPolicyGradient(1, 3, 0.1)),
+                                learner=stepwise.SoftmaxPolicyGradient(1, 3, 0.1)),
                        Primitive("go", 0), Primitive("stop", 1)])

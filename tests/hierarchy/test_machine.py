@@ -8,7 +8,7 @@ import hpg_mj  # noqa: F401
 import gymnasium
 from hpg_mj.hierarchy import blocks, machine, ship_rules
 from hpg_mj.hierarchy.graph import Child, GraphError, Primitive, Subtask, TaskGraph
-from hpg_mj.learners import agents as stepwise
+from hpg_mj.learners import stepwise
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import rng, tiles
 import oracle

@@ -1,4 +1,4 @@
-"""The taxi task graph (hpg_mj.hierarchy.taxi_rules) on hand-built states, and
+"""The taxi task graph (hpg_mj.hierarchy.taxi_subtasks) on hand-built states, and
 HPG's compiled loop (hpg_mj.agents.taxi_hpg): exact returns of a
 hand-set optimal policy, determinism under a seed, and (slow) learning to 95%
 of the optimal mean return."""
@@ -12,16 +12,17 @@ from taxi_grid import moves_from
 from hpg_mj.agents import _taxi
 from hpg_mj.agents import taxi_hpg as tcp
 from hpg_mj.agents.taskfile import updated
-from hpg_mj.hierarchy import taxi_rules as tr
+from hpg_mj.hierarchy import taxi_subtasks as tr
 from hpg_mj.learners import rng
 from hpg_mj.worlds import taxi_core as tc
+from hpg_mj.worlds import taxi_rules as world_rules
 from hpg_mj.worlds import taxi_values as tv
 
 R, G, Y, B = 0, 1, 2, 3
 AT = {R: (0, 0), G: (0, 4), Y: (4, 0), B: (4, 3), tr.TARGET_F: (2, 1)}
 IN_TAXI = tc.IN_TAXI
-WORLD = tr.world_config()
-CLASSIC_WORLD = tr.world_config(tc.TaxiRules(False))
+WORLD = world_rules.world_config()
+CLASSIC_WORLD = world_rules.world_config(tc.TaxiRules(False))
 
 
 def state(row, col, passenger, destination, fuel):
@@ -138,25 +139,25 @@ def test_terminations():
 def test_primitive_step_records_how_the_episode_ends():
   episode = np.zeros(3, dtype=np.int64)
   x = state(*AT[G], IN_TAXI, G, 5)
-  assert tr.primitive_step(x, episode, tc.DROPOFF, WORLD) == 20.0
-  assert list(episode) == [1, tr.DELIVERED, 0] and tr.episode_over(episode)
+  assert world_rules.primitive_step(x, episode, tc.DROPOFF, WORLD) == 20.0
+  assert list(episode) == [1, world_rules.DELIVERED, 0] and world_rules.episode_over(episode)
 
   episode[:] = 0
   x = state(1, 1, R, G, 0)
-  assert tr.primitive_step(x, episode, tc.NORTH, WORLD) == -20.0
-  assert episode[tr.E_OUTCOME] == tr.OUT_OF_FUEL
+  assert world_rules.primitive_step(x, episode, tc.NORTH, WORLD) == -20.0
+  assert episode[world_rules.E_OUTCOME] == world_rules.OUT_OF_FUEL
 
   episode[:] = 0
   x = state(1, 1, R, G, 9)
-  assert tr.primitive_step(x, episode, tc.PICKUP, WORLD) == -10.0
-  assert list(episode) == [1, tr.RUNNING, 1] and list(x) == [1, 1, R, G, 8]
+  assert world_rules.primitive_step(x, episode, tc.PICKUP, WORLD) == -10.0
+  assert list(episode) == [1, world_rules.RUNNING, 1] and list(x) == [1, 1, R, G, 8]
 
-  short = tr.world_config(tc.TaxiRules(max_steps=3))
+  short = world_rules.world_config(tc.TaxiRules(max_steps=3))
   episode[:] = 0
   for _ in range(3):
-    assert not tr.episode_over(episode)
-    tr.primitive_step(x, episode, tc.SOUTH, short)
-  assert episode[tr.E_OUTCOME] == tr.TRUNCATED and episode[tr.E_STEPS] == 3
+    assert not world_rules.episode_over(episode)
+    world_rules.primitive_step(x, episode, tc.SOUTH, short)
+  assert episode[world_rules.E_OUTCOME] == world_rules.TRUNCATED and episode[world_rules.E_STEPS] == 3
 
 
 # --- the compiled loop: a hand-set optimal policy -------------------------------------
@@ -191,7 +192,7 @@ def optimal_tables():
 
 def test_optimal_hierarchy_earns_v_star_exactly():
   values = tv.taxi_values(True)
-  agent = tcp.HPGTables(0)
+  agent = tcp.HPGEngine(0)
   for trace, table in zip(agent.traces, optimal_tables()):
     trace[0][:] = table.ravel()
   starts, expected = [], []
@@ -214,7 +215,7 @@ def tables_of(agent):
 
 
 def test_same_seed_same_run():
-  a, b, c = tcp.HPGTables(3), tcp.HPGTables(3), tcp.HPGTables(4)
+  a, b, c = tcp.HPGEngine(3), tcp.HPGEngine(3), tcp.HPGEngine(4)
   rec_a, rec_b, rec_c = a.run(3000), b.run(3000), c.run(3000)
   np.testing.assert_array_equal(rec_a, rec_b)
   for ta, tb in zip(tables_of(a), tables_of(b)):
@@ -225,7 +226,7 @@ def test_same_seed_same_run():
 
 
 def test_evaluation_leaves_the_policies_alone():
-  agent = tcp.HPGTables(5)
+  agent = tcp.HPGEngine(5)
   agent.run(2000)
   before = tables_of(agent)
   sampled = agent.run(500, learn=False)
@@ -233,11 +234,11 @@ def test_evaluation_leaves_the_policies_alone():
   for t0, t1 in zip(before, tables_of(agent)):
     np.testing.assert_array_equal(t0, t1)
   assert agent.episodes == 2000
-  assert set(np.unique(sampled[:, tcp.OUTCOME])) <= {tr.DELIVERED, tr.OUT_OF_FUEL, tr.TRUNCATED}
+  assert set(np.unique(sampled[:, tcp.OUTCOME])) <= {world_rules.DELIVERED, world_rules.OUT_OF_FUEL, world_rules.TRUNCATED}
 
 
 def test_greedy_runs_draw_only_the_starts():
-  agent = tcp.HPGTables(6)
+  agent = tcp.HPGEngine(6)
   expected = agent.rng_state.copy()
   scratch = np.zeros(5, dtype=np.int64)
   for _ in range(50):
@@ -259,9 +260,9 @@ def test_start_states_follow_the_spec_distribution():
 
 
 def test_classic_task_never_refuels():
-  agent = tcp.HPGTables(7, task=tc.TaxiRules(False))
+  agent = tcp.HPGEngine(7, task=tc.TaxiRules(False))
   record = agent.run(2000)
-  assert not np.any(record[:, tcp.OUTCOME] == tr.OUT_OF_FUEL)
+  assert not np.any(record[:, tcp.OUTCOME] == world_rules.OUT_OF_FUEL)
   assert not np.any(agent.policy_tables()[tr.REFUEL])
 
 
@@ -306,7 +307,7 @@ def test_baseline_steps_by_hand():
 def test_baseline_is_an_option():
   off = updated(tcp.Config(), root={"baseline": 0.0}, carry={"baseline": 0.0},
                 navigate={"baseline": 0.0})
-  plain, based = tcp.HPGTables(2, off), tcp.HPGTables(2)
+  plain, based = tcp.HPGEngine(2, off), tcp.HPGEngine(2)
   plain.run(3000)
   based.run(3000)
   assert not any(np.any(v) for v in plain.values)          # b = 0: Eq. 3 exactly
@@ -335,7 +336,7 @@ def test_bad_arguments():
     updated(config, carry={"ramp": 0})
   with pytest.raises(ValueError, match=r"\[carry\] unknown key\(s\) \['ramp_carry'\]"):
     updated(config, carry={"ramp_carry": 0})
-  agent = tcp.HPGTables(0)
+  agent = tcp.HPGEngine(0)
   with pytest.raises(ValueError, match="greedy"):
     agent.run(1, learn=True, greedy=True)
   with pytest.raises(ValueError, match="n_episodes"):
@@ -358,7 +359,7 @@ def test_hpg_reaches_95_percent_of_optimal():
   optimal = tv.optimal_mean_return(True)
   last = []
   for seed in range(5):
-    returns = tcp.HPGTables(seed).run(100_000)[:, tcp.RETURN]
+    returns = tcp.HPGEngine(seed).run(100_000)[:, tcp.RETURN]
     last.append(returns[-1000:].mean())
   assert np.mean(last) >= tv.performance_threshold(optimal, 0.95)
   assert min(last) >= tv.performance_threshold(optimal, 0.90)
@@ -369,7 +370,7 @@ def test_the_rules_compiled_first_are_those_train_calls(tmp_path):
   types `train` calls them with: with an empty numba cache each compiles once."""
   compile_order.assert_each_compiles_once(tmp_path, """
 from hpg_mj.agents import taxi_hpg
-agent = taxi_hpg.HPGTables(seed=0)
+agent = taxi_hpg.HPGEngine(seed=0)
 agent.run(20)
 listed = agent._rules_bottom_up(agent._train_scratch())
 """)

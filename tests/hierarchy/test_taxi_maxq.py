@@ -9,8 +9,9 @@ import hpg_mj  # noqa: F401
 from hpg_mj import suite
 from hpg_mj.agents import taxi_maxq as mq
 from hpg_mj.agents.taskfile import updated
-from hpg_mj.hierarchy import taxi_rules as rules
+from hpg_mj.hierarchy import taxi_subtasks as rules
 from hpg_mj.worlds import taxi_core, taxi_values
+from hpg_mj.worlds import taxi_rules as world_rules
 
 CLASSIC = taxi_core.TaxiRules(fuel_enabled=False)
 # Short schedules: every level explores, then all are greedy by episode 20,000.
@@ -33,7 +34,7 @@ def _entry(agent, subtask, target, state, child):
 def test_completion_updates_match_hand_worked_steps():
   config = updated(mq.Config(), navigate={"alpha": 0.5, "pseudo_reward": -3.0},
                    carry={"alpha": 0.25}, root={"initial": 0.0})
-  agent = mq.MAXQTables(config=config)
+  agent = mq.MAXQEngine(config=config)
   # Navigate(G = (0, 4)) moves East from (0, 3) onto G: it terminated there, so C~
   # gets the pseudo-reward and C gets 0: C~ = 0.5 * -3, C = 0.5 * 0.
   before, after = [0, 3, 2, 1, 9], [0, 4, 2, 1, 8]
@@ -62,7 +63,7 @@ def test_completion_updates_match_hand_worked_steps():
 
 
 def test_all_states_updating_updates_every_state_of_the_childs_run():
-  agent = mq.MAXQTables(config=updated(mq.Config(), root={"initial": 0.0}))
+  agent = mq.MAXQEngine(config=updated(mq.Config(), root={"initial": 0.0}))
   # Get's Navigate(R) ran (2, 0) -> (1, 0) -> (0, 0): both states where it was
   # running get the target of the state it returned in.
   path = np.array([[2, 0, 0, 3, 9], [1, 0, 0, 3, 8], [0, 0, 0, 3, 7]], dtype=np.int64)
@@ -94,17 +95,17 @@ def _greedy_visits(agent):
 
   def run(subtask, target, state, episode):
     total = 0.0
-    while not rules.episode_over(episode) and not mq.terminated(subtask, target, state,
+    while not world_rules.episode_over(episode) and not mq.terminated(subtask, target, state,
                                                                 agent.world):
       a = mq.choose(subtask, target, state, agent.world, agent.tables, 0.0, False,
                     agent.rng_state, (q, v, mask))
       visits.append((subtask, target, state.copy(), a))
       if subtask == rules.NAVIGATE:
-        total += rules.primitive_step(state, episode, a, agent.world)
+        total += world_rules.primitive_step(state, episode, a, agent.world)
       elif subtask == rules.ROOT:
         total += run(a + 1, 0, state, episode)
       elif a == rules.CARRY_PRIMITIVE:
-        total += rules.primitive_step(state, episode, rules.carry_primitive(subtask), agent.world)
+        total += world_rules.primitive_step(state, episode, rules.carry_primitive(subtask), agent.world)
       else:
         total += run(rules.NAVIGATE, rules.carry_target(subtask, state), state, episode)
     return total
@@ -118,7 +119,7 @@ def _greedy_visits(agent):
 
 
 def test_converged_completions_match_the_exact_values_on_the_classic_taxi():
-  agent = mq.MAXQTables(seed=0, config=SHORT, task=CLASSIC)
+  agent = mq.MAXQEngine(seed=0, config=SHORT, task=CLASSIC)
   record = agent.run(30_000)
   assert record[-1000:, mq.RETURN].mean() >= 0.98 * taxi_values.optimal_mean_return(False)
   exact, known, _ = mq.exact_values(CLASSIC)
@@ -146,10 +147,10 @@ def test_converged_completions_match_the_exact_values_on_the_classic_taxi():
 
 
 def test_a_greedy_policy_delivers_every_passenger():
-  agent = mq.MAXQTables(seed=2, config=SHORT, task=CLASSIC)
+  agent = mq.MAXQEngine(seed=2, config=SHORT, task=CLASSIC)
   agent.run(25_000)
   greedy = agent.run(500, learn=False)
-  assert np.all(greedy[:, mq.OUTCOME] == rules.DELIVERED)
+  assert np.all(greedy[:, mq.OUTCOME] == world_rules.DELIVERED)
   assert agent.episodes == 25_000
 
 
@@ -209,7 +210,7 @@ def test_the_rules_compiled_first_are_those_train_calls(tmp_path):
   types `train` calls them with: with an empty numba cache each compiles once."""
   compile_order.assert_each_compiles_once(tmp_path, """
 from hpg_mj.agents import taxi_maxq
-agent = taxi_maxq.MAXQTables(seed=0)
+agent = taxi_maxq.MAXQEngine(seed=0)
 agent.run(20)
 listed = agent._rules_bottom_up(*agent._train_scratch())
 """)

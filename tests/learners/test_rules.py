@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from hpg_mj.learners import agents
+from hpg_mj.learners import stepwise
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import policies
 from hpg_mj.learners import qlambda
@@ -124,7 +124,7 @@ def test_gaussian_agent_baseline_equals_the_compiled_rule_order():
   """The step-by-step learner subtracts b(s) psi for the choice it made, applies Eq. 3,
   then learns b, with the tiles of the choice even though the view's array is reused."""
   gen = np.random.default_rng(2)
-  agent = agents.GaussianPolicyGradient(40, 3, 15.0, 0.05, 0.9, baseline=0.3)
+  agent = stepwise.GaussianPolicyGradient(40, 3, 15.0, 0.05, 0.9, baseline=0.3)
   w, values, z = np.zeros(40), np.zeros(40), np.zeros(40)
   view = np.empty(3, dtype=np.int64)
   probe = rng.make_state(4)
@@ -244,7 +244,7 @@ def test_generator_is_reproducible_and_well_spread():
 
 
 def test_q_learner_object_matches_the_rule_functions():
-  learner = agents.QLambda(3, 2, alpha=0.5, lam=0.9, epsilon=0.0)
+  learner = stepwise.QLambda(3, 2, alpha=0.5, lam=0.9, epsilon=0.0)
   state = rng.make_state(0)
   learner.start()
   a0 = learner.act(0, None, state, True)
@@ -321,7 +321,7 @@ def test_tiled_q_lambda_hand_worked():
 
 
 def test_tiled_q_learner_object_matches_the_rule_functions():
-  learner = agents.TiledQLambda(6, 2, 2, alpha=0.5, lam=0.9, epsilon=0.0)
+  learner = stepwise.TiledQLambda(6, 2, 2, alpha=0.5, lam=0.9, epsilon=0.0)
   state = rng.make_state(0)
   A, B = np.array([0, 3]), np.array([1, 4])
   learner.start()

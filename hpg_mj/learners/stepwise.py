@@ -1,5 +1,7 @@
-"""Learners as objects for the step-by-step path: each holds its arrays and calls
-the compiled rule functions (the same ones the fused loops call).
+"""Learners as objects for the Python executor (`hierarchy.executor`: the compiled
+machine's test oracle, and the step-by-step path of the agents not yet on the
+machine): each holds its arrays and calls the compiled rule functions (the same ones
+the compiled loops call). The contract is `hierarchy.graph.Learner`.
 
 The protocol the executor uses:
   start()                                   the subtask is called (Eq. 3: z <- 0)

@@ -72,13 +72,9 @@ import numba
 import numpy as np
 
 from hpg_mj.worlds import taxi_core as core
-# The world's rules (state layout, world array, primitive step, outcomes), used here
-# by the names the hierarchy's code has always used.
-from hpg_mj.worlds.taxi_rules import (  # noqa: F401
-    COL, DELIVERED, DESTINATION, E_ILLEGAL, E_OUTCOME, E_STEPS, FUEL, N_SQUARES, N_STATIONS,
-    OUT_OF_FUEL, PASSENGER, ROW, RUNNING, TRUNCATED, W_CAPACITY, W_FUEL_COL, W_FUEL_ENABLED,
-    W_FUEL_ROW, W_MAX_STEPS, W_START_FUEL_MAX, W_START_FUEL_MIN, episode_over, outcome_of,
-    primitive_step, world_config)
+# The world's state layout and rules (`worlds.taxi_rules`) that the subtasks read.
+from hpg_mj.worlds.taxi_rules import (COL, DESTINATION, FUEL, N_SQUARES, N_STATIONS,
+    PASSENGER, ROW, W_CAPACITY, W_FUEL_COL, W_FUEL_ENABLED, W_FUEL_ROW)
 
 # Subtask ids: one policy table and one trace each (Navigate's table is shared by
 # its five targets).
