@@ -125,9 +125,10 @@ class Oracle:
     if learn:
       schedules.end_episode(*self.schedule, self.sb.threshold, self.sb.every, self.sb.divisor)
 
-  def run(self, env, episodes, learn, sample, start):
+  def run(self, env, episodes, learn, sample, start, on_call=None):
     """Rows as the machine's: passed, steps, return, per node calls, runs, successes."""
-    run = executor.Executor(self.graph, executor.adapter_for(env), self.rng_state)
+    run = executor.Executor(self.graph, executor.adapter_for(env), self.rng_state,
+                            on_call=on_call)
     rows = np.zeros((episodes, 3 + self.counters.size))
     self.learn = learn
     for i in range(episodes):

@@ -698,11 +698,26 @@ class Machine:
 _NO_SAMPLES = np.zeros((core.SAMPLES_PER_CONTROL + 1, 2))
 
 
-def run_stepwise(machine, env, episodes, learn, sample, rng_state, start, passed):
+def _tell_calls(machine, on_call):
+  """`on_call` of each call below the root that has just begun (no step taken in it)."""
+  from hpg_mj.hierarchy.graph import Call
+  k = machine.banks.stack
+  for d in range(1, int(k.episode[E_DEPTH]) + 1):
+    if k.ints[d, S_STEPS] == 0:
+      arg = int(k.ints[d, S_ARG])
+      on_call(Call(machine.names[int(k.ints[d, S_NODE])], {"direction": arg} if arg >= 0 else {},
+                   k.origin[d].copy()))
+
+
+def run_stepwise(machine, env, episodes, learn, sample, rng_state, start, passed,
+                 on_call=None):
   """The step-by-step path: `episodes` episodes of `machine` through `env` (any
   Gymnasium or dm_control environment), each from `start()` (None: the
   environment's own). Without learning the policies are greedy unless `sample`.
-  `passed(info)` says whether the last step succeeded. Rows as `run_ship`'s."""
+  `passed(info)` says whether the last step succeeded. `on_call(call)`, if given, is
+  told of every subtask called below the root (a `graph.Call`: its node, its
+  arguments, the state where it was called), as the executor tells it. Rows as
+  `run_ship`'s."""
   from hpg_mj.hierarchy import executor     # the environments' adapters
   adapter = executor.adapter_for(env)
   sample = learn if sample is None else (sample or learn)
@@ -710,11 +725,15 @@ def run_stepwise(machine, env, episodes, learn, sample, rng_state, start, passed
   for i in range(int(episodes)):
     obs = adapter.reset(start())
     action = machine.begin(obs, learn, sample, rng_state)
+    if on_call is not None:
+      _tell_calls(machine, on_call)
     over = False
     while not over:
       step_ = adapter.step(action)
       over, action = machine.advance(step_.obs, step_.reward, step_.terminated,
                                      step_.truncated, step_.info, learn, sample, rng_state)
+      if on_call is not None and not over:
+        _tell_calls(machine, on_call)
     rows[i, 0] = passed(step_.info)
     rows[i, 1] = machine.banks.stack.episode[E_STEPS]
     rows[i, 2] = machine.banks.stack.total[0]

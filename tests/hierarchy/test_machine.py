@@ -113,16 +113,24 @@ def test_random_graphs_give_the_oracles_numbers_on_every_path(seed):
       return out
     return draw
 
+  calls = ([], [])
+
+  def told(k):
+    return lambda call: calls[k].append((call.node, call.args.get("direction"),
+                                         float(call.origin[0]), float(call.origin[1])))
+
   for learn, sample, episodes in ((True, True, 6), (False, True, 2), (False, False, 2)):
     a = fused.run(episodes, learn, sample, states[0], world)
     b = machine.run_stepwise(stepwise, env, episodes, learn, sample, states[1],
-                             start(states[1]), passed=lambda info: info.get("event") == "gate")
-    c = o.run(env, episodes, learn, sample, start(states[2]))
+                             start(states[1]), passed=lambda info: info.get("event") == "gate",
+                             on_call=told(0))
+    c = o.run(env, episodes, learn, sample, start(states[2]), on_call=told(1))
     np.testing.assert_array_equal(a, c, err_msg=f"fused vs oracle, learn={learn}")
     np.testing.assert_array_equal(b, c, err_msg=f"stepwise vs oracle, learn={learn}")
     if learn:
       assert a[:, 1].sum() >= 400                                 # real episodes
   assert a.shape[1] == 3 + 3 * len(graph.nodes)
+  assert calls[0] == calls[1]                      # on_call: the same calls, in order
   np.testing.assert_array_equal(states[0], states[2])
   np.testing.assert_array_equal(states[1], states[2])
   want = _oracle_parameters(o, graph)
