@@ -154,6 +154,19 @@ def _critic_tiles(P, T, K, d, obs, r, which):
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _gaussian_choose(P, G, T, K, d, learn, sample, rng_state):
+  """A GaussianCMAC node's choice (`policies.gaussian_choose`) into the stack."""
+  node = K.ints[d, S_NODE]
+  row = P.nodes[node]
+  p = P.params[node]
+  slot = row[SLOT]
+  k = T.n_tilings[row[VIEW_SLOT]]
+  K.floats[d, F_ACTION] = policies.gaussian_choose(
+      _trace(G, slot), G.values[slot], K.tiles[d, 0, :k], K.psi[d, :k], p[ALPHA], p[BETA],
+      p[R_MAX], learn, sample, rng_state)
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _choose(P, Q, G, T, S, K, d, obs, learn, sample, rng_state):
   """Algorithm 1: choose a with mu^i(s, theta^i); sets the stack's choice and action."""
   node = K.ints[d, S_NODE]
@@ -167,10 +180,7 @@ def _choose(P, Q, G, T, S, K, d, obs, learn, sample, rng_state):
     K.ints[d, S_CHOICE] = qlambda.epsilon_greedy(Q.q[slot], K.ints[d, S_STATE],
                                                        row[N_CHILDREN], epsilon, rng_state)
   elif row[LEARNER] == GAUSSIAN_CMAC:
-    k = T.n_tilings[row[VIEW_SLOT]]
-    K.floats[d, F_ACTION] = policies.gaussian_choose(
-        _trace(G, slot), G.values[slot], K.tiles[d, 0, :k], K.psi[d, :k], p[ALPHA], p[BETA],
-        p[R_MAX], learn, sample, rng_state)
+    _gaussian_choose(P, G, T, K, d, learn, sample, rng_state)
   elif row[LEARNER] == ACTOR_CRITIC:
     k = T.n_tilings[row[VIEW_SLOT]]
     m, u, r = actor_critic.choose(G.values[slot], K.tiles[d, 0, :k], p[R_MAX], sample,
@@ -269,8 +279,14 @@ def _observe(P, Q, G, T, S, K, d, obs, signal, done, terminal, learn, sample, rn
   p = P.params[node]
   slot = row[SLOT]
   ints = K.ints
-  if row[LEARNER] == Q_TABLE:
+  kind = row[LEARNER]
+  # The view of s' (one call site: numba copies an inlined body at each): a table's
+  # state always, a policy's tiles unless the call is over, an actor-critic's unless s'
+  # is terminal.
+  if kind == Q_TABLE or (kind == GAUSSIAN_CMAC and not done) or (
+      kind == ACTOR_CRITIC and not terminal):
     _view(P, Q, G, T, S, K, d, obs, np.int64(1))
+  if kind == Q_TABLE:
     epsilon = 0.0
     if sample:
       epsilon = S.epsilon[0] if row[EPS_SCHEDULE] else p[EPSILON]
@@ -279,17 +295,15 @@ def _observe(P, Q, G, T, S, K, d, obs, signal, done, terminal, learn, sample, rn
         ints[d, S_STATE], ints[d, S_CHOICE], signal, ints[d, S_NEXT_STATE], done, terminal,
         epsilon, p[ALPHA], p[GAMMA], p[DECAY], learn, rng_state)
     ints[d, S_STATE] = ints[d, S_NEXT_STATE]
-  elif row[LEARNER] == GAUSSIAN_CMAC:
+  elif kind == GAUSSIAN_CMAC:
     k = T.n_tilings[row[VIEW_SLOT]]
-    if not done:
-      _view(P, Q, G, T, S, K, d, obs, np.int64(1))
     if learn:                                          # Eq. 3 with R + G
       policies.gaussian_learn(_trace(G, slot), G.values[slot], K.tiles[d, 0, :k],
                               K.tiles[d, 1, :k], p[ALPHA], p[DECAY], p[BETA], signal, done)
     if not done:
       arrays.copy_into(K.tiles[d, 0, :k], K.tiles[d, 1, :k])
-      _choose(P, Q, G, T, S, K, d, obs, learn, sample, rng_state)
-  elif row[LEARNER] == ACTOR_CRITIC:
+      _gaussian_choose(P, G, T, K, d, learn, sample, rng_state)
+  elif kind == ACTOR_CRITIC:
     # delta = R + Q(s', a') - Q(s, a), with a' drawn in s' unless s' is terminal (also
     # when the call is cut, to bootstrap from it); the next step's a is that a'.
     k = T.n_tilings[row[VIEW_SLOT]]
@@ -299,7 +313,6 @@ def _observe(P, Q, G, T, S, K, d, obs, signal, done, terminal, learn, sample, rn
     target = signal
     m, u, r = 0.0, 0.0, 0.0
     if not terminal:
-      _view(P, Q, G, T, S, K, d, obs, np.int64(1))
       m, u, r = actor_critic.choose(G.values[slot], K.tiles[d, 1, :k], p[R_MAX], sample,
                                     rng_state)
       _critic_tiles(P, T, K, d, obs, r, np.int64(1))
@@ -316,7 +329,7 @@ def _observe(P, Q, G, T, S, K, d, obs, signal, done, terminal, learn, sample, rn
       K.floats[d, F_ACTION] = r
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def step(P, Q, G, T, S, K, obs, samples, reward, terminated, truncated, learn, sample,
          rng_state):
   """A primitive step ended in `obs` with `reward` (`samples`: the positions
@@ -664,9 +677,7 @@ class Machine:
     the Python stack). One list for every graph: their types do not depend on it."""
     b = self.banks
     d, obs, rng_state = np.int64(0), np.zeros(4), np.zeros(4, dtype=np.uint64)
-    return [(_call, (*b, d, d, d, obs, False, False, rng_state)),
-            (step, (*b, obs, np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)), 0.0, False, False,
-                    False, False, rng_state))]
+    return [(_call, (*b, d, d, d, obs, False, False, rng_state))]
 
   def run(self, episodes, learn, sample, rng_state, world, start=None):
     """Episodes fused with the analytic ship; rows as `run_ship` writes them."""
