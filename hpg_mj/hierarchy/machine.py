@@ -229,7 +229,7 @@ def _primitive_action(P, K, d):
   return K.floats[d, F_ACTION] if action != action else action       # NaN: continuous
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
 def _descend(P, Q, G, T, S, K, d, obs, learn, sample, rng_state):
   """From depth d, calls the chosen children down to a primitive; returns the
   primitive's action."""
@@ -242,7 +242,7 @@ def _descend(P, Q, G, T, S, K, d, obs, learn, sample, rng_state):
     _call(P, Q, G, T, S, K, d, child[0], child[1], obs, learn, sample, rng_state)
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@numba.njit(cache=True, error_model="numpy", _nrt=False)
 def begin(P, Q, G, T, S, K, obs, learn, sample, rng_state):
   """An episode starts at `obs`: the root is called; returns the first action."""
   c = K.counters
@@ -677,7 +677,9 @@ class Machine:
     the Python stack). One list for every graph: their types do not depend on it."""
     b = self.banks
     d, obs, rng_state = np.int64(0), np.zeros(4), np.zeros(4, dtype=np.uint64)
-    return [(_call, (*b, d, d, d, obs, False, False, rng_state))]
+    return [(_call, (*b, d, d, d, obs, False, False, rng_state)),
+            (_descend, (*b, d, obs, False, False, rng_state)),
+            (begin, (*b, obs, False, False, rng_state))]
 
   def run(self, episodes, learn, sample, rng_state, world, start=None):
     """Episodes fused with the analytic ship; rows as `run_ship` writes them."""
