@@ -37,6 +37,9 @@ def _video_out(args, default):
   if args.gif and out.suffix.lower() != ".gif":
     out = out.with_suffix(".gif")
   _paths.check_file_out(out, "--out", video.VideoWriter.SUFFIXES)
+  if args.out and out.is_file() and not args.force:   # the user's file is not replaced
+    raise _paths.OutputRefused(f"--out {out} exists; give another name, or --force to "
+                               "replace it")
   return out
 
 
@@ -649,6 +652,7 @@ def build_parser():
   p.add_argument("--seed", type=_seed, default=0)
   p.add_argument("--out", default=None, help="output path (.mp4 or .gif)")
   p.add_argument("--gif", action="store_true", help="write an animated GIF instead of MP4")
+  p.add_argument("--force", action="store_true", help="replace an existing --out file")
   p.add_argument("--width", type=_at_least(16), default=None,
                  help="pixels (default 640; with --agent 320)")
   p.add_argument("--height", type=_at_least(16), default=None,

@@ -169,7 +169,11 @@ def test_render_checks_its_output_path_before_drawing(tmp_path, capsys):
           "is a file")
   if os.access("/proc", os.W_OK):           # root may "write" /proc, but no file lands there
     refused(capsys, ["render", "--out", "/proc/hpg_mj_test/v.mp4"], "cannot be written")
-  assert tree(tmp_path) == ["folder.mp4", "notes.txt"]
+  mine = tmp_path / "mine.mp4"                # a video of the user's is not replaced
+  mine.write_bytes(b"the user's film")
+  refused(capsys, ["render", "--out", mine], "--out", "mine.mp4 exists", "--force")
+  assert mine.read_bytes() == b"the user's film"
+  assert tree(tmp_path) == ["folder.mp4", "mine.mp4", "notes.txt"]
 
 
 def test_options_are_refused_in_one_line(tmp_path, capsys):
