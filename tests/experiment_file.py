@@ -39,10 +39,12 @@ def experiment_text(name, task, runs, episodes, description="one task", metric=N
 
 
 def final_run(run_dir):
-  """The finished run: metrics without the wall time, record, final agent arrays."""
+  """The finished run: metrics without the seconds, record, final agent arrays."""
   run_dir = pathlib.Path(run_dir)
   metrics = json.loads((run_dir / "metrics.json").read_text())
-  metrics.pop("wall_seconds")
+  wall = metrics.pop("wall_seconds")
+  # compile + train = wall (the seconds differ from run to run; numba's compiling apart)
+  assert abs(metrics.pop("compile_seconds") + metrics.pop("train_seconds") - wall) < 0.0015
   metrics.pop("provenance")     # what made it, not what it is (a Ray worker may run the checkout)
   _, arrays = storage.load(run_dir / "agent")
   return metrics, np.load(run_dir / "record.npy"), arrays

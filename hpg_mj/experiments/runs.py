@@ -40,6 +40,7 @@ import sys
 import time
 
 import numpy as np
+from numba.core import event
 
 from hpg_mj import agents
 from hpg_mj import provenance
@@ -91,22 +92,23 @@ def _checkpoints(run_dir):
   return sorted(found, key=lambda p: int(p.name[2:]), reverse=True)
 
 
-def _write_checkpoint(agent, record, run_dir, done, wall):
+def _write_checkpoint(agent, record, run_dir, done, wall, compiled):
   folder = pathlib.Path(run_dir) / "checkpoints"
   tmp = folder / f".tmp-ep{done}"
   if tmp.exists():
     shutil.rmtree(tmp)
   # Uncompressed: a checkpoint lives until the next but one, and deflating the mostly
   # zero traces took longer than writing them (0.4 s of 0.5 s for the actor-critic).
-  agents.save(agent, tmp, record, {"episodes_done": done, "wall_seconds": wall}, compress=False)
+  agents.save(agent, tmp, record, {"episodes_done": done, "wall_seconds": wall,
+                                   "compile_seconds": compiled}, compress=False)
   os.replace(tmp, folder / f"ep{done}")
   for old in _checkpoints(run_dir)[KEEP_CHECKPOINTS:]:
     shutil.rmtree(old)
 
 
 def _resume(task, seed, run_dir):
-  """(agent, records, episodes done, wall seconds) from the newest good checkpoint,
-  or a fresh agent."""
+  """(agent, records, episodes done, wall seconds, of them compiling) from the newest
+  good checkpoint, or a fresh agent."""
   folder = pathlib.Path(run_dir) / "checkpoints"
   for tmp in folder.glob(".tmp-*"):        # a checkpoint whose writing was cut short
     shutil.rmtree(tmp)
@@ -126,10 +128,11 @@ def _resume(task, seed, run_dir):
            stderr=True)
       continue
     _log(run_dir, f"resumed from checkpoint {path.name} (episode {done})")
-    return agent, [record], done, float(meta.get("wall_seconds", 0.0))
+    return (agent, [record], done, float(meta.get("wall_seconds", 0.0)),
+            float(meta.get("compile_seconds", 0.0)))
   agent = agents.build(task, seed)
   _log(run_dir, f"started seed {seed}")
-  return agent, [], 0, 0.0
+  return agent, [], 0, 0.0, 0.0
 
 
 class _ProgressFile:
@@ -199,7 +202,8 @@ def run(task_path, seed, episodes, run_dir, checkpoint_every=CHECKPOINT_EVERY, s
 def _run_locked(task_path, seed, episodes, run_dir, checkpoint_every, stop_after):
   task = agents.load_task(task_path)
   (run_dir / "checkpoints").mkdir(parents=True, exist_ok=True)
-  agent, records, done, wall = _resume(task, seed, run_dir)
+  agent, records, done, wall, compiled = _resume(task, seed, run_dir)
+  compiling = []                      # numba's compile seconds in this process's chunks
   if done > episodes:
     raise ValueError(f"{run_dir}: its checkpoint is at episode {done}, past the {episodes} "
                      f"episodes asked for; use another output folder")
@@ -208,19 +212,22 @@ def _run_locked(task_path, seed, episodes, run_dir, checkpoint_every, stop_after
   # least every `checkpoint_rows` rows.
   checkpoint_every = min(checkpoint_every, agent.checkpoint_rows or checkpoint_every)
   try:
-    for now, record, seconds in agents.chunks(agent, episodes, done=done, every=checkpoint_every):
-      n, done = now - done, now
-      records.append(record)
-      wall += seconds
-      progress.write(done, wall, n / max(seconds, 1e-9),
-                     next(iter(agent.progress(record).values())))
-      if done % checkpoint_every == 0 and done < episodes:
-        records = [np.concatenate(records)]
-        _write_checkpoint(agent, records[0], run_dir, done, wall)
-      if stop_after is not None and done >= stop_after and done < episodes:
-        raise RunInterrupted(f"stopped at episode {done}")
+    with event.install_timer("numba:compile", compiling.append):
+      for now, record, seconds in agents.chunks(agent, episodes, done=done,
+                                                every=checkpoint_every):
+        n, done = now - done, now
+        records.append(record)
+        wall += seconds
+        progress.write(done, wall, n / max(seconds, 1e-9),
+                       next(iter(agent.progress(record).values())))
+        if done % checkpoint_every == 0 and done < episodes:
+          records = [np.concatenate(records)]
+          _write_checkpoint(agent, records[0], run_dir, done, wall, compiled + sum(compiling))
+        if stop_after is not None and done >= stop_after and done < episodes:
+          raise RunInterrupted(f"stopped at episode {done}")
   finally:
     progress.close()
+  compiled += sum(compiling)
   record = np.concatenate(records)
   metrics = agent.metrics(record)
   # SPEC section 7: the final agent, greedy, without learning, on the fixed starts.
@@ -231,7 +238,10 @@ def _run_locked(task_path, seed, episodes, run_dir, checkpoint_every, stop_after
   for scores in (metrics, metrics["greedy"]):
     scores.update(bounds.normalized(bounds.task_name(agent), scores))
   metrics.update({"task": task.path.stem, "seed": seed, "episodes": episodes,
-                  "wall_seconds": round(wall, 3),
+                  # wall = compile + train: numba's compiling apart (0 once cached), so
+                  # that a speed is computed from train_seconds
+                  "wall_seconds": round(wall, 3), "compile_seconds": round(compiled, 3),
+                  "train_seconds": round(wall - compiled, 3),
                   "provenance": provenance.collect(task.text, seed)})
   agent_dir = run_dir / "agent"
   if agent_dir.exists():
