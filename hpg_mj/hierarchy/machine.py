@@ -664,11 +664,6 @@ class Machine:
     s = self.banks.schedule
     return s.epsilon, s.outcomes, s.counts
 
-  def counter_fields(self):
-    """The names of a record row's per-node columns (after passed, steps, return)."""
-    return [f"{name}_{what}" for name in self.names
-            for what in ("calls", "runs", "successes")]
-
   # -- running it --
 
   def _bottom_up(self):
@@ -754,10 +749,4 @@ def run_stepwise(machine, env, episodes, learn, sample, rng_state, start, passed
   return rows
 
 
-def graph_is_data(graph):
-  """Whether every subtask of `graph` is made of blocks (the machine can run it)."""
-  kinds = (blocks.QTable, blocks.GaussianCMAC, blocks.ActorCritic)
-  return all(isinstance(n.learner, kinds) for n in graph.subtasks())
-
-
-__all__ = ["Machine", "Child", "Primitive", "Subtask", "graph_is_data"]
+__all__ = ["Machine", "Child", "Primitive", "Subtask", "begin", "step", "run_ship", "run_stepwise"]
