@@ -57,6 +57,10 @@ class Oracle:
   def _view(self, view):
     if isinstance(view, blocks.GridCell):
       return lambda call, obs: _grid_cell(obs[0], obs[1], view.cell_m, view.grid)
+    if isinstance(view, blocks.CellRule):
+      return lambda call, obs: int(view.rule(np.ascontiguousarray(obs, dtype=np.float64),
+                                             self._origin(call), call.args.get("direction", -1),
+                                             call.steps))
     arrays = view.coder.arrays()
     out = np.empty(view.coder.n_tilings, dtype=np.int64)
     local = np.empty(4)
@@ -77,11 +81,20 @@ class Oracle:
     return call.memo.setdefault("origin", np.array(call.origin[:2], dtype=np.float64))
 
   def _outcome(self, node, call, step):
-    """(local event, G) of a LocalGoal node after a child returned, once per return."""
+    """(the call's event, G) after a child returned, once per return."""
     if call.memo.get("seen_at") != call.steps:
-      event, internal = core.low_level_outcome(
-          step.info["positions"], step.obs, self._origin(call), call.args["direction"],
-          call.steps, np.empty((4, 2)), np.empty(4), node.termination.max_steps)
+      event, internal = core.NO_EVENT, 0.0
+      obs = np.ascontiguousarray(step.obs, dtype=np.float64)
+      arg = call.args.get("direction", -1)
+      if isinstance(node.termination, blocks.LocalGoal):
+        event, internal = core.low_level_outcome(
+            step.info["positions"], step.obs, self._origin(call), arg, call.steps,
+            np.empty((4, 2)), np.empty(4), node.termination.max_steps)
+      elif isinstance(node.termination, blocks.EndRule):
+        event = int(node.termination.rule(obs, self._origin(call), arg, call.steps))
+      if isinstance(node.internal_reward, blocks.RewardRule):
+        internal = float(node.internal_reward.rule(obs, self._origin(call), arg, call.steps,
+                                                   event))
       call.memo.update(seen_at=call.steps, event=event, internal=internal)
     return call.memo["event"], call.memo["internal"]
 

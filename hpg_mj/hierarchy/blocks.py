@@ -39,6 +39,20 @@ Terminations and internal rewards:
                                steps; with `internal_reward=Shaping()` its G is the
                                heading shaping and the local +100 / -100
 
+A user's own rule, where the blocks do not reach: a small `@numba.njit` function of
+(obs, origin, arg, steps) -- the observation now (float64), the first two numbers of
+the observation where the call began, the call's `direction` argument (-1 without
+one) and the primitive steps taken in the call -- compiled into the machine, which
+runs it at the blocks' speed:
+
+  CellRule(rule)               a QTable's view: rule(obs, origin, arg, steps) -> its
+                               state, an integer in [0, n_states)
+  EndRule(rule)                a termination: rule(obs, origin, arg, steps) -> the
+                               call's event: 0 go on, 1 success, -1 failure (the call
+                               ends on either; a run that ends in 1 is a success)
+  RewardRule(rule)             an internal reward G: rule(obs, origin, arg, steps,
+                               event) -> G, after each child's return
+
 Rewards a node's learner sees: `reward=SUMMED` (the rewards of the child's run
 summed: the root's R) or `reward=STEP` (-1 a primitive step: the low level's R,
 SPEC section 3).
@@ -110,6 +124,12 @@ class StateTiles:
 
 
 @dataclasses.dataclass(frozen=True)
+class CellRule:
+  """A QTable's view by a user's `@numba.njit` rule(obs, origin, arg, steps) -> state."""
+  rule: object
+
+
+@dataclasses.dataclass(frozen=True)
 class Never:
   """Ends only with the episode."""
 
@@ -118,6 +138,20 @@ class Never:
 class LocalGoal:
   """The ship's local subtask's end: success, frame left, or `max_steps` steps."""
   max_steps: int = 300
+
+
+@dataclasses.dataclass(frozen=True)
+class EndRule:
+  """A termination by a user's `@numba.njit` rule(obs, origin, arg, steps) -> event
+  (0 go on, 1 success, -1 failure)."""
+  rule: object
+
+
+@dataclasses.dataclass(frozen=True)
+class RewardRule:
+  """An internal reward G by a user's `@numba.njit` rule(obs, origin, arg, steps,
+  event) -> G."""
+  rule: object
 
 
 @dataclasses.dataclass(frozen=True)

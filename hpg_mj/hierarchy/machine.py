@@ -40,6 +40,7 @@ import numba
 import numpy as np
 
 from hpg_mj.hierarchy import blocks
+from hpg_mj.hierarchy import rules as rules_mod
 from hpg_mj.hierarchy import ship_rules
 from hpg_mj.hierarchy.graph import Child, GraphError, Primitive, Subtask
 from hpg_mj.learners import actor_critic
@@ -57,22 +58,25 @@ from hpg_mj.worlds import ship_core as core
 # Node kinds, learner kinds, views, ends, internal rewards, rewards seen.
 PRIMITIVE, SUBTASK = 0, 1
 NO_LEARNER, Q_TABLE, GAUSSIAN_CMAC, ACTOR_CRITIC = 0, 1, 2, 3
-NO_VIEW, VIEW_GRID_CELL, VIEW_LOCAL_TILES, VIEW_STATE_TILES = 0, 1, 2, 3
-END_NEVER, END_LOCAL_GOAL = 0, 1
-G_NONE, G_SHAPING = 0, 1
+NO_VIEW, VIEW_GRID_CELL, VIEW_LOCAL_TILES, VIEW_STATE_TILES, VIEW_RULE = 0, 1, 2, 3, 4
+END_NEVER, END_LOCAL_GOAL, END_RULE = 0, 1, 2
+G_NONE, G_SHAPING, G_RULE = 0, 1, 2
 SEEN_SUMMED, SEEN_STEP = 0, 1
 
 # Columns of the node table (int64[n_nodes, N_INT]).
+# VIEW_SLOT: a tiles view's coder, or a CellRule's number among the graph's rules;
+# END_AT and G_AT: an EndRule's and a RewardRule's number; N_STATES: a QTable's states.
 (KIND, LEARNER, SLOT, VIEW, VIEW_SLOT, END, INTERNAL, SEEN, MAX_STEPS, FIRST_CHILD,
- N_CHILDREN, WATCH, EPS_SCHEDULE, CRITIC_SLOT) = range(14)
-N_INT = 14
+ N_CHILDREN, WATCH, EPS_SCHEDULE, CRITIC_SLOT, END_AT, G_AT, N_STATES) = range(17)
+N_INT = 17
 # Columns of the node parameters (float64[n_nodes, N_FLOAT]).
 ALPHA, DECAY, GAMMA, BETA, R_MAX, EPSILON, CELL_M, GRID, ACTION, ALPHA_ACTOR = range(10)
 N_FLOAT = 10
 # Columns of the per-node counters of an episode (float64[n_nodes, 3]).
 CALLS, RUNS, SUCCESSES = range(3)
 
-Program = collections.namedtuple("Program", ("nodes", "params", "children"))
+# `rules`: the graph's user rules as one first-class function (`hierarchy.rules`).
+Program = collections.namedtuple("Program", ("nodes", "params", "children", "rules"))
 # Each learner kind's parameters, one row per learner (slot). An actor-critic keeps its
 # critic's trace in a GaussianBank row and its actor's weights in that row's values.
 QBank = collections.namedtuple("QBank", ("q", "index", "value", "count"))
@@ -131,6 +135,12 @@ def _view(P, Q, G, T, S, K, d, obs, which):
   if kind == VIEW_GRID_CELL:
     p = P.params[node]
     K.ints[d, S_STATE + which] = grid_cell(obs[0], obs[1], p[CELL_M], np.int64(p[GRID]))
+  elif kind == VIEW_RULE:
+    state = np.int64(P.rules(row[VIEW_SLOT], obs, K.origin[d], K.ints[d, S_ARG],
+                             K.ints[d, S_STEPS], np.int64(0)))
+    if state < 0 or state >= row[N_STATES]:
+      raise IndexError("a CellRule's rule gave a state outside its QTable's states")
+    K.ints[d, S_STATE + which] = state
   elif kind == VIEW_LOCAL_TILES:
     tiling = _tiling(T, row[VIEW_SLOT])
     local = K.local
@@ -261,13 +271,24 @@ def _end_of(P, K, d, obs, samples):
   """After a child of the node at depth d returned: (its own event, G)."""
   node = K.ints[d, S_NODE]
   row = P.nodes[node]
+  event, internal = core.NO_EVENT, 0.0
   if row[END] == END_LOCAL_GOAL:
     event, internal = core.low_level_outcome(samples, obs, K.origin[d],
                                              K.ints[d, S_ARG], K.ints[d, S_STEPS],
                                              K.local_samples, K.local,
                                              row[MAX_STEPS])
-    return event, internal if row[INTERNAL] == G_SHAPING else 0.0
-  return core.NO_EVENT, 0.0
+    if row[INTERNAL] != G_SHAPING:
+      internal = 0.0
+  elif row[END] == END_RULE:
+    said = P.rules(row[END_AT], obs, K.origin[d], K.ints[d, S_ARG], K.ints[d, S_STEPS],
+                   np.int64(0))
+    if said != 0.0 and said != 1.0 and said != -1.0:
+      raise ValueError("an EndRule's rule gave an event other than 0, 1 or -1")
+    event = np.int64(said)
+  if row[INTERNAL] == G_RULE:
+    internal = P.rules(row[G_AT], obs, K.origin[d], K.ints[d, S_ARG], K.ints[d, S_STEPS],
+                       np.int64(event))
+  return event, internal
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -462,6 +483,7 @@ class Machine:
     children = []
     self.learners = {Q_TABLE: [], GAUSSIAN_CMAC: []}
     self.codings = []
+    self.rules = []                     # (node, kind, rule) of its CellRules, EndRules, RewardRules
     self._slot_of = {}
     watch = {name: i for i, name in enumerate(self.schedule_block.watch)}
     for name, node in graph.nodes.items():
@@ -516,7 +538,8 @@ class Machine:
     if len({len(c.low) for c in critics}) > 1:
       raise GraphError("the graph's actor-critics' critics code (state, action) of "
                        f"different sizes: {sorted({len(c.low) for c in critics})}")
-    program = Program(nodes, params, np.array(children, dtype=np.int64).reshape(-1, 2))
+    program = Program(nodes, params, np.array(children, dtype=np.int64).reshape(-1, 2),
+                      rules_mod.compile_rules(self.rules))
     self.banks = Banks(program, qbank, gbank, self.tile_bank, schedule, stack)
 
   # -- what each block puts in the node's row --
@@ -540,8 +563,9 @@ class Machine:
       p[ALPHA], p[DECAY], p[GAMMA], p[EPSILON] = (learner.alpha, learner.trace_decay,
                                                   learner.gamma, learner.epsilon)
       row[EPS_SCHEDULE] = int(bool(learner.epsilon_schedule))
-      if not isinstance(node.view, blocks.GridCell):
-        raise GraphError(f"subtask {name!r}: a QTable needs a GridCell view, got "
+      row[N_STATES] = int(learner.n_states)
+      if not isinstance(node.view, (blocks.GridCell, blocks.CellRule)):
+        raise GraphError(f"subtask {name!r}: a QTable needs a GridCell or CellRule view, got "
                          f"{type(node.view).__name__}")
     elif isinstance(learner, blocks.ActorCritic):
       row[LEARNER] = ACTOR_CRITIC
@@ -578,13 +602,21 @@ class Machine:
     if isinstance(view, blocks.GridCell):
       row[VIEW] = VIEW_GRID_CELL
       p[CELL_M], p[GRID] = float(view.cell_m), float(view.grid)
+    elif isinstance(view, blocks.CellRule):
+      row[VIEW] = VIEW_RULE
+      row[VIEW_SLOT] = self._rule(name, rules_mod.VIEW, view.rule)
     elif isinstance(view, (blocks.LocalTiles, blocks.StateTiles)):
       row[VIEW] = VIEW_LOCAL_TILES if isinstance(view, blocks.LocalTiles) else VIEW_STATE_TILES
       row[VIEW_SLOT] = len(self.codings)
       self.codings.append(view.coder)
     else:
       raise GraphError(f"subtask {name!r}: view {view!r} is not a machine view; allowed: "
-                       "GridCell, LocalTiles, StateTiles (hpg_mj.hierarchy.blocks)")
+                       "GridCell, LocalTiles, StateTiles, CellRule (hpg_mj.hierarchy.blocks)")
+
+  def _rule(self, name, kind, rule):
+    """The rule's number among the graph's rules."""
+    self.rules.append((name, kind, rule))
+    return len(self.rules) - 1
 
   def _end(self, name, node, row):
     end, internal = node.termination, node.internal_reward
@@ -593,16 +625,22 @@ class Machine:
     elif isinstance(end, blocks.LocalGoal):
       row[END] = END_LOCAL_GOAL
       row[MAX_STEPS] = int(end.max_steps)
+    elif isinstance(end, blocks.EndRule):
+      row[END] = END_RULE
+      row[END_AT] = self._rule(name, rules_mod.END, end.rule)
     else:
       raise GraphError(f"subtask {name!r}: termination {end!r} is not a machine "
-                       "termination; allowed: Never, LocalGoal (hpg_mj.hierarchy.blocks)")
+                       "termination; allowed: Never, LocalGoal, EndRule (hpg_mj.hierarchy.blocks)")
     if internal is None:
       row[INTERNAL] = G_NONE
     elif isinstance(internal, blocks.Shaping) and row[END] == END_LOCAL_GOAL:
       row[INTERNAL] = G_SHAPING
+    elif isinstance(internal, blocks.RewardRule):
+      row[INTERNAL] = G_RULE
+      row[G_AT] = self._rule(name, rules_mod.REWARD, internal.rule)
     else:
       raise GraphError(f"subtask {name!r}: internal reward {internal!r} is not allowed; "
-                       "allowed: None, Shaping() with a LocalGoal termination")
+                       "allowed: None, RewardRule, Shaping() with a LocalGoal termination")
     seen = node.reward if node.reward is not None else blocks.SUMMED
     if seen not in (blocks.SUMMED, blocks.STEP):
       raise GraphError(f"subtask {name!r}: reward {seen!r} is not allowed; allowed: "
@@ -688,14 +726,14 @@ class Machine:
 
   def begin(self, obs, learn, sample, rng_state):
     """Resumable: an episode starts at `obs`; returns the first action."""
-    return begin(*self.banks, np.asarray(obs, dtype=np.float64), bool(learn), bool(sample),
-                 rng_state)
+    return begin(*self.banks, np.ascontiguousarray(obs, dtype=np.float64), bool(learn),
+                 bool(sample), rng_state)
 
   def advance(self, obs, reward, terminated, truncated, info, learn, sample, rng_state):
     """Resumable: the environment stepped; returns (episode over, next action)."""
     samples = info.get("positions") if info else None
     samples = _NO_SAMPLES if samples is None else np.asarray(samples, dtype=np.float64)
-    return step(*self.banks, np.asarray(obs, dtype=np.float64), samples, float(reward),
+    return step(*self.banks, np.ascontiguousarray(obs, dtype=np.float64), samples, float(reward),
                 bool(terminated), bool(truncated), bool(learn), bool(sample), rng_state)
 
   def counters(self):

@@ -1,6 +1,7 @@
 """The compiled machine (`hierarchy.machine`) against the pure-Python oracle on random
 graphs of blocks: fused, step by step and in the oracle, every record and every
 learned parameter is the same bit for bit; and what the machine refuses."""
+import numba
 import numpy as np
 import pytest
 
@@ -12,6 +13,28 @@ from hpg_mj.learners import stepwise
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import rng, tiles
 import oracle
+
+
+# A user's rules (`blocks.CellRule`, `EndRule`, `RewardRule`), as a user writes them.
+@numba.njit
+def _boxed(obs, origin, arg, steps):
+  """A region's end: 200 m from where it began (failure), or 120 steps (success)."""
+  dx, dy = obs[0] - origin[0], obs[1] - origin[1]
+  if dx * dx + dy * dy > 200.0 ** 2:
+    return -1
+  return 1 if steps >= 120 else 0
+
+
+@numba.njit
+def _steady(obs, origin, arg, steps, event):
+  """G: turning costs, a success pays."""
+  return -0.01 * abs(obs[3]) + 5.0 * event
+
+
+@numba.njit
+def _quadrant(obs, origin, arg, steps):
+  """The field's quarter, 0-3."""
+  return (obs[0] >= 500.0) * 2 + (obs[1] >= 500.0)
 
 
 def _local_coder(g):
@@ -44,7 +67,8 @@ def random_graph(seed):
     legs.append(Subtask(f"leg{i}", children=["turn"], learner=learner,
                         view=blocks.LocalTiles(coder),
                         termination=blocks.LocalGoal(int(g.integers(20, 300))),
-                        internal_reward=blocks.Shaping() if g.random() < 0.7 else None,
+                        internal_reward=(blocks.Shaping(), None, blocks.RewardRule(_steady))[
+                            int(g.choice(3, p=[0.6, 0.2, 0.2]))],
                         reward=blocks.STEP if g.random() < 0.7 else blocks.SUMMED))
 
   def calls(k):
@@ -59,9 +83,11 @@ def random_graph(seed):
   root_children = calls(8)
   mids = []
   if shape == "three":
-    mids = [Subtask("region", children=calls(4), learner=q_table(400),
-                    view=blocks.GridCell(50.0, 20),
-                    termination=blocks.LocalGoal(int(g.integers(50, 400))))]
+    ruled = g.random() < 0.5
+    mids = [Subtask("region", children=calls(4), learner=q_table(4 if ruled else 400),
+                    view=blocks.CellRule(_quadrant) if ruled else blocks.GridCell(50.0, 20),
+                    termination=(blocks.EndRule(_boxed) if ruled else
+                                 blocks.LocalGoal(int(g.integers(50, 400)))))]
     root_children = [Child("region", direction=int(d))
                      for d in g.choice(8, size=int(g.integers(1, 5)), replace=False)]
     grid = 4
@@ -141,9 +167,13 @@ def test_random_graphs_give_the_oracles_numbers_on_every_path(seed):
 
 
 def test_random_graphs_cover_every_shape_and_a_subtask_run():
-  shapes = {len([n for n in random_graph(s).subtasks() if isinstance(n.learner, blocks.QTable)])
-            for s in range(12)}
+  graphs = [random_graph(s) for s in range(12)]
+  shapes = {len([n for n in g.subtasks() if isinstance(n.learner, blocks.QTable)])
+            for g in graphs}
   assert shapes == {0, 1, 2}                     # flat, two and three levels
+  used = {type(part).__name__ for g in graphs for n in g.subtasks()
+          for part in (n.view, n.termination, n.internal_reward)}
+  assert {"CellRule", "EndRule", "RewardRule", "Shaping", "GridCell", "LocalGoal"} <= used
 
 
 def _coder():
@@ -173,19 +203,55 @@ def _root(children=None, **kw):
     (lambda: [_root(), _leg(learner=object()), Primitive("turn")], None,
      "subtask 'leg': its learner object has no start, act, observe"),
     (lambda: [_root(view=blocks.LocalTiles(_coder())), _leg(), Primitive("turn")], None,
-     "subtask 'root': a QTable needs a GridCell view"),
+     "subtask 'root': a QTable needs a GridCell or CellRule view"),
     (lambda: [_root(), _leg(children=("turn", "turn2")), Primitive("turn"), Primitive("turn2")],
      None, "subtask 'leg': a GaussianCMAC's one child is a continuous primitive"),
     (lambda: [_root(), _leg(view=blocks.GridCell()), Primitive("turn")], None,
      "subtask 'leg': a GaussianCMAC needs a LocalTiles or StateTiles view over its own coder"),
     (lambda: [_root(), _leg(termination=object()), Primitive("turn")], None,
      "subtask 'leg': termination .* is not a machine termination; allowed: Never, LocalGoal"),
+    (lambda: [_root(view=blocks.CellRule(lambda obs, origin, arg, steps: 0)), _leg(),
+              Primitive("turn")], None,
+     "subtask 'root': its CellRule's rule must be an @numba.njit function; got <function"),
+    (lambda: [_root(), _leg(termination=blocks.EndRule(_steady)), Primitive("turn")], None,
+     r"subtask 'leg': its EndRule's rule _steady cannot be compiled for \(obs, origin, arg, "
+     r"steps\) = \(float64 array, float64 array, int, int\): "),
+    (lambda: [_root(), _leg(termination=blocks.EndRule(_pair)), Primitive("turn")], None,
+     r"subtask 'leg': its EndRule's rule _pair returns Tuple\(.*\); a rule returns "
+     "one number"),
     (lambda: [_root(), _leg(), Primitive("turn")], blocks.HeldEpsilon(watch=("nowhere",)),
      "the epsilon schedule watches 'nowhere', which is not a subtask of the graph"),
 ])
 def test_what_the_machine_refuses_is_named(nodes, schedule, message):
   with pytest.raises(GraphError, match=message):
     machine.Machine(TaskGraph("root", nodes(), schedule=schedule))
+
+
+@numba.njit
+def _pair(obs, origin, arg, steps):
+  return 0, 1
+
+
+@numba.njit
+def _far(obs, origin, arg, steps):
+  return 400
+
+
+@numba.njit
+def _two(obs, origin, arg, steps):
+  return 2
+
+
+@pytest.mark.parametrize("root, leg, message", [
+    (dict(view=blocks.CellRule(_far)), {},
+     "a CellRule's rule gave a state outside its QTable's states"),
+    ({}, dict(termination=blocks.EndRule(_two)),
+     "an EndRule's rule gave an event other than 0, 1 or -1"),
+])
+def test_a_rule_that_breaks_its_contract_stops_the_run(root, leg, message):
+  m = machine.Machine(TaskGraph("root", [_root(**root), _leg(**leg), Primitive("turn")]))
+  with pytest.raises((IndexError, ValueError), match=message):
+    m.run(1, True, True, rng.make_state(0), (100.0, -300.0, 100))
 
 
 def test_a_shared_qtable_needs_one_number_of_children():
