@@ -51,7 +51,8 @@ class Oracle:
       else:
         self.learners[id(block)] = stepwise.GaussianPolicyGradient(
             block.coder.size, block.coder.n_tilings, block.r_max, block.alpha,
-            block.trace_gamma, baseline=block.baseline)
+            block.trace_gamma, baseline=block.baseline, width_alpha=block.width_alpha,
+            sigma_low=block.sigma_low, sigma_high=block.sigma_high)
     return self.learners[id(block)]
 
   def _view(self, view):

@@ -24,7 +24,7 @@ Gaussian with sigmoid, learned by Eq. 3 with R + G (G the paper's heading shapin
 towards the target, +100 within `radius` of it or through the gate, -100 off the
 field or after `max_steps`), the discounted trace and the learned baseline b(s)
 of `ship_hybrid`, and optionally the learned exploration width
-(`ship_subtask.act_and_score`). The map from the world to this state is an
+(`policies.gaussian_choose` with a width). The map from the world to this state is an
 isometry of Equation 1 (a translation and a rotation, and for the reflected
 errors a reflection with r -> -r), as SPEC section 3 asks of the paper's local
 frames. Only the -1s, the gate's reward and the field's penalty
@@ -38,8 +38,8 @@ import numba
 import numpy as np
 
 from hpg_mj.agents import _ship
-from hpg_mj.agents import ship_subtask
 from hpg_mj.agents.taskfile import param
+from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
 from hpg_mj.learners import stepwise as learners
 from hpg_mj.learners import arrays
@@ -210,11 +210,9 @@ def run_aim(state, action, trace, width, values, tiling, s, learn, sample, rng_s
   while True:
     reflected = aim_view(state, tx, ty, view, s.sqrt_error, s.reflect_at)
     tiles_mod.active_tiles(view, tiling, tiles)
-    if sample:
-      r = ship_subtask.act_and_score(trace, width, values, tiles, s, learn, rng_state, psi,
-                                     psi_width)
-    else:
-      r = policies.gaussian_greedy(trace, tiles, core.MAX_TURN_RATE)
+    r = policies.gaussian_choose(trace, values, tiles, psi, s.alpha, s.baseline,
+                                 core.MAX_TURN_RATE, learn, sample, rng_state, width, psi_width,
+                                 s.width_alpha, s.log_sigma_low, s.log_sigma_high)
     r *= reflected                                       # the reflection's r -> -r
     core.euler_control(state, r, samples)
     k += 1
@@ -229,8 +227,9 @@ def run_aim(state, action, trace, width, values, tiling, s, learn, sample, rng_s
       if not ended:
         aim_view(state, tx, ty, view, s.sqrt_error, s.reflect_at)
         tiles_mod.active_tiles(view, tiling, next_tiles)
-      ship_subtask.learn_step(trace, width, values, tiles, next_tiles, s,
-                              core.STEP_REWARD + internal, ended)
+      policies.gaussian_learn(trace, values, tiles, next_tiles, s.alpha, s.trace_gamma,
+                              s.baseline, core.STEP_REWARD + internal, ended, width,
+                              s.width_alpha)
     if ended:
       return global_event, local_event, reward_root, k
 
@@ -405,7 +404,7 @@ class ShipBeyond(_ship.ShipAgent):
   def __init__(self, config=None, seed=0, task=None):
     super().__init__(config, seed, task)
     root, low = self.config.root, self.config.low_level
-    ship_subtask.check_width(low.width_alpha, low.sigma_low, low.sigma_high)
+    blocks.check_width(low.width_alpha, low.sigma_low, low.sigma_high, "[low_level]")
     self.s = settings(self.config)
     self.coder = aim_coder(low)
     self.tile_arrays = self.coder.arrays()

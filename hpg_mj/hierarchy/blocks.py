@@ -12,10 +12,12 @@ share its parameters):
       Watkins's Q(lambda) over an SMDP with replacing traces (SPEC section 3),
       epsilon-greedy; `epsilon_schedule=True` reads epsilon from the graph's
       `HeldEpsilon` instead of its own constant.
-  GaussianCMAC(coder, alpha, trace_gamma, baseline, r_max)
+  GaussianCMAC(coder, alpha, trace_gamma, baseline, r_max, width_alpha, sigma_low,
+               sigma_high)
       Eq. 3 with a Gaussian-with-sigmoid policy over a CMAC (SPEC section 3),
-      optionally with a baseline b(s) over the same tiles; its node's only child
-      is a continuous primitive (the value it draws is the action).
+      optionally with a baseline b(s) over the same tiles and a learned
+      exploration width (SPEC section 8); its node's only child is a continuous
+      primitive (the value it draws is the action).
 
   ActorCritic(actor_coder, critic_coder, alpha_actor, alpha_critic, trace_decay, r_max)
       Konda's actor-critic (SPEC section 4): a Gaussian-with-sigmoid actor over its
@@ -63,6 +65,7 @@ every, divisor)` (`learners.schedules`): held until every watched node succeeds 
 episodes.
 """
 import dataclasses
+import math
 
 from hpg_mj.learners import tiles as tiles_mod
 
@@ -82,14 +85,33 @@ class QTable:
   trace_capacity: int = 4096
 
 
+def check_width(width_alpha, sigma_low, sigma_high, where="GaussianCMAC"):
+  """Refuses a learned width's option out of range, naming it and what is allowed."""
+  if not (isinstance(width_alpha, (int, float)) and math.isfinite(width_alpha)
+          and width_alpha >= 0):
+    raise ValueError(f"{where} width_alpha = {width_alpha!r}: must be a finite number >= 0 "
+                     "(0: the paper's fixed sigma = 1)")
+  if not (0 < sigma_low <= 1.0 <= sigma_high and math.isfinite(sigma_high)):
+    raise ValueError(f"{where} sigma_low = {sigma_low!r}, sigma_high = {sigma_high!r}: need "
+                     "0 < sigma_low <= 1 <= sigma_high < inf (sigma starts at 1)")
+
+
 @dataclasses.dataclass(eq=False)
 class GaussianCMAC:
-  """Eq. 3 with a Gaussian-with-sigmoid policy over `coder`'s tiles."""
+  """Eq. 3 with a Gaussian-with-sigmoid policy over `coder`'s tiles; with
+  `width_alpha` > 0, its exploration width sigma(s) learned too, in
+  [sigma_low, sigma_high] (`policies.gaussian_width_act`; 0: the paper's sigma = 1)."""
   coder: tiles_mod.TileCoder
   alpha: float = 0.01
   trace_gamma: float = 1.0
   baseline: float = 0.0
   r_max: float = 15.0
+  width_alpha: float = 0.0
+  sigma_low: float = 0.25
+  sigma_high: float = 4.0
+
+  def __post_init__(self):
+    check_width(self.width_alpha, self.sigma_low, self.sigma_high)
 
 
 @dataclasses.dataclass(eq=False)

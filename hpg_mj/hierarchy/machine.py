@@ -35,6 +35,7 @@ A subtask's *run* is a call that ended by its own termination; a call cut short
 by the end of the episode is counted as a call but no run (`counters`).
 """
 import collections
+import math
 
 import numba
 import numpy as np
@@ -66,12 +67,14 @@ SEEN_SUMMED, SEEN_STEP = 0, 1
 # Columns of the node table (int64[n_nodes, N_INT]).
 # VIEW_SLOT: a tiles view's coder, or a CellRule's number among the graph's rules;
 # END_AT and G_AT: an EndRule's and a RewardRule's number; N_STATES: a QTable's states.
+# WIDTH_SLOT: the GaussianBank row of a GaussianCMAC's learned width (its own row if none).
 (KIND, LEARNER, SLOT, VIEW, VIEW_SLOT, END, INTERNAL, SEEN, MAX_STEPS, FIRST_CHILD,
- N_CHILDREN, WATCH, EPS_SCHEDULE, CRITIC_SLOT, END_AT, G_AT, N_STATES) = range(17)
-N_INT = 17
+ N_CHILDREN, WATCH, EPS_SCHEDULE, CRITIC_SLOT, END_AT, G_AT, N_STATES, WIDTH_SLOT) = range(18)
+N_INT = 18
 # Columns of the node parameters (float64[n_nodes, N_FLOAT]).
-ALPHA, DECAY, GAMMA, BETA, R_MAX, EPSILON, CELL_M, GRID, ACTION, ALPHA_ACTOR = range(10)
-N_FLOAT = 10
+(ALPHA, DECAY, GAMMA, BETA, R_MAX, EPSILON, CELL_M, GRID, ACTION, ALPHA_ACTOR, WIDTH_ALPHA,
+ LOG_SIGMA_LOW, LOG_SIGMA_HIGH) = range(13)
+N_FLOAT = 13
 # Columns of the per-node counters of an episode (float64[n_nodes, 3]).
 CALLS, RUNS, SUCCESSES = range(3)
 
@@ -89,14 +92,16 @@ Schedule = collections.namedtuple("Schedule", ("epsilon", "outcomes", "counts", 
 # The call stack and the episode: per depth d the node, its choice, its argument, its
 # steps, the steps of its current child's run, its state (a table's) and the next;
 # the reward of the current child's run, the action value chosen; the call's origin;
-# its tiles (current, next; an actor-critic's critic tiles: current, next) and score;
-# an actor-critic's mean m and draw u; the episode's [depth, steps], [return],
-# per-node counters; scratch of the local frame and of (state, action).
+# its tiles (current, next; an actor-critic's critic tiles: current, next), score and
+# a learned width's score; an actor-critic's mean m and draw u; the episode's [depth,
+# steps, the root's argument, the root's event when it ended], [return], per-node
+# counters; scratch of the local frame and of (state, action).
 (S_NODE, S_CHOICE, S_ARG, S_STEPS, S_CHILD_STEPS, S_STATE, S_NEXT_STATE) = range(7)
 F_REWARD, F_ACTION, F_MEAN, F_U = range(4)
-Stack = collections.namedtuple("Stack", ("ints", "floats", "origin", "tiles", "psi", "episode",
-                                         "total", "counters", "local", "local_samples", "sa"))
-E_DEPTH, E_STEPS = range(2)
+Stack = collections.namedtuple("Stack", ("ints", "floats", "origin", "tiles", "psi",
+                                         "psi_width", "episode", "total", "counters", "local",
+                                         "local_samples", "sa"))
+E_DEPTH, E_STEPS, E_ROOT_ARG, E_EVENT = range(4)
 Banks = collections.namedtuple("Banks", ("program", "q", "gaussian", "tiling", "schedule",
                                          "stack"))
 
@@ -173,7 +178,8 @@ def _gaussian_choose(P, G, T, K, d, learn, sample, rng_state):
   k = T.n_tilings[row[VIEW_SLOT]]
   K.floats[d, F_ACTION] = policies.gaussian_choose(
       _trace(G, slot), G.values[slot], K.tiles[d, 0, :k], K.psi[d, :k], p[ALPHA], p[BETA],
-      p[R_MAX], learn, sample, rng_state)
+      p[R_MAX], learn, sample, rng_state, _trace(G, row[WIDTH_SLOT]), K.psi_width[d, :k],
+      p[WIDTH_ALPHA], p[LOG_SIGMA_LOW], p[LOG_SIGMA_HIGH])
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -219,6 +225,8 @@ def _call(P, Q, G, T, S, K, d, node, arg, obs, learn, sample, rng_state):
     qlambda.clear(Q.count[row[SLOT]])
   elif row[LEARNER] == GAUSSIAN_CMAC:
     el.reset(_trace(G, row[SLOT]))                  # Eq. 3: z <- 0
+    if row[WIDTH_SLOT] != row[SLOT]:
+      el.reset(_trace(G, row[WIDTH_SLOT]))
   elif row[LEARNER] == ACTOR_CRITIC:
     el.reset(_trace(G, row[SLOT]))                  # the critic's e <- 0
     for i in range(K.psi.shape[1]):
@@ -260,9 +268,10 @@ def begin(P, Q, G, T, S, K, obs, learn, sample, rng_state):
     for j in range(c.shape[1]):
       c[i, j] = 0.0
   K.episode[E_STEPS] = 0
+  K.episode[E_EVENT] = core.NO_EVENT
   K.total[0] = 0.0
-  _call(P, Q, G, T, S, K, np.int64(0), P.nodes.shape[0] - 1, np.int64(-1), obs, learn, sample,
-        rng_state)
+  _call(P, Q, G, T, S, K, np.int64(0), P.nodes.shape[0] - 1, K.episode[E_ROOT_ARG], obs, learn,
+        sample, rng_state)
   return _descend(P, Q, G, T, S, K, np.int64(0), obs, learn, sample, rng_state)
 
 
@@ -320,7 +329,8 @@ def _observe(P, Q, G, T, S, K, d, obs, signal, done, terminal, learn, sample, rn
     k = T.n_tilings[row[VIEW_SLOT]]
     if learn:                                          # Eq. 3 with R + G
       policies.gaussian_learn(_trace(G, slot), G.values[slot], K.tiles[d, 0, :k],
-                              K.tiles[d, 1, :k], p[ALPHA], p[DECAY], p[BETA], signal, done)
+                              K.tiles[d, 1, :k], p[ALPHA], p[DECAY], p[BETA], signal, done,
+                              _trace(G, row[WIDTH_SLOT]), p[WIDTH_ALPHA])
     if not done:
       arrays.copy_into(K.tiles[d, 0, :k], K.tiles[d, 1, :k])
       _gaussian_choose(P, G, T, K, d, learn, sample, rng_state)
@@ -388,6 +398,7 @@ def step(P, Q, G, T, S, K, obs, samples, reward, terminated, truncated, learn, s
     # The call returns (Algorithm 1: return to the parent).
     c = K.counters[node]
     if d == 0:
+      K.episode[E_EVENT] = event
       if learn:
         sch = S
         schedules.end_episode(sch.epsilon, sch.outcomes, sch.counts, sch.settings[0],
@@ -408,30 +419,41 @@ def step(P, Q, G, T, S, K, obs, samples, reward, terminated, truncated, learn, s
 @numba.njit(cache=True, error_model="numpy", _nrt=False)
 def run_ship(P, Q, G, T, S, K, n_episodes, learn, sample, rng_state, world, record,
              fixed_start, state, samples):
-  """`n_episodes` episodes of the full ship task (SPEC section 2) on Equation 1:
-  `world` = [gate reward, out-of-bounds reward, max steps]. Record row: [passed,
+  """`n_episodes` episodes on Equation 1, of the full ship task (SPEC section 2):
+  `world` = [gate reward, out-of-bounds reward, max steps, 0], or of the root alone
+  as a stand-alone subtask (`world[3]` = 1, SPEC section 8): each episode a call at
+  the local start of the root's argument (`sample_local_start`), -1 a step, ended by
+  the root's own termination. Record row: [passed (the gate, or the root's success),
   steps, return, then calls, runs, successes of each node]. `state` (4) and
   `samples` are scratch. Compiled without reference counting, as everything it
   inlines: the machine reads its banks through views, and counting references
   to them cost 70% of its time."""
   max_steps = np.int64(world[2])
+  alone = world[3] != 0.0
   n_nodes = K.counters.shape[0]
   event = core.NO_EVENT
+  reward = core.STEP_REWARD
   for episode in range(n_episodes):
     if fixed_start.shape[0] == 4:
       arrays.copy_into(state, fixed_start)
+    elif alone:
+      ship_rules.sample_local_start(rng_state, K.episode[E_ROOT_ARG], state)
     else:
       ship_rules.sample_start(rng_state, state)
     action = begin(P, Q, G, T, S, K, state, learn, sample, rng_state)
     while True:
       core.euler_control(state, action, samples)
-      event, reward = core.global_outcome(samples, world[0], world[1])
-      terminated = event != core.NO_EVENT
-      truncated = (not terminated) and K.episode[E_STEPS] + 1 >= max_steps
+      terminated, truncated = False, False
+      if not alone:
+        event, reward = core.global_outcome(samples, world[0], world[1])
+        terminated = event != core.NO_EVENT
+        truncated = (not terminated) and K.episode[E_STEPS] + 1 >= max_steps
       over, action = step(P, Q, G, T, S, K, state, samples, reward, terminated, truncated,
                           learn, sample, rng_state)
       if over:
         break
+    if alone:
+      event = K.episode[E_EVENT]
     row = record[episode]
     row[0] = event == core.SUCCESS
     row[1] = K.episode[E_STEPS]
@@ -467,12 +489,15 @@ def _stack_rows(arrays_, dtype):
 class Machine:
   """A task graph of blocks as arrays, and the compiled machine over them.
 
-  `state()` gives every learner's arrays by node name (views of the banks: writing
-  into them restores a checkpoint). Nodes are numbered so that the root is last.
+  `root_args` are the root call's arguments (as a `Child`'s: {"direction": d} runs
+  a subtask on its own). `q_arrays`, `gaussian_arrays`, `width_trace` and
+  `actor_critic_arrays` give a learner's arrays (views of the banks: writing into
+  them restores a checkpoint). Nodes are numbered so that the root is last.
   """
 
-  def __init__(self, graph):
+  def __init__(self, graph, root_args=None):
     self.graph = graph
+    root_args = root_args or {}
     self.schedule_block = graph.schedule or blocks.HeldEpsilon()
     order = [n for n in graph.nodes if n != graph.root] + [graph.root]
     self.names = order
@@ -506,16 +531,24 @@ class Machine:
     self.index = index
     q = self.learners[Q_TABLE]
     g = self.learners[GAUSSIAN_CMAC]
+    # A learned width's trace: a GaussianBank row of its own, after the learners'.
+    widths = [b for b in g if getattr(b, "width_alpha", 0.0) != 0.0]
+    self._width_slot_of = {id(b): len(g) + i for i, b in enumerate(widths)}
+    for i in range(len(order)):
+      if nodes[i, LEARNER] == GAUSSIAN_CMAC:
+        learner = graph.nodes[order[i]].learner
+        nodes[i, WIDTH_SLOT] = self._width_slot_of.get(id(learner), nodes[i, SLOT])
     n_q = [b.n_states * self._n_actions[id(b)] for b in q]
     qbank = QBank(_stack_rows([np.zeros(n) for n in n_q], np.float64),
                   _stack_rows([np.zeros(b.trace_capacity) for b in q], np.int64),
                   _stack_rows([np.zeros(b.trace_capacity) for b in q], np.float64),
                   np.zeros((max(len(q), 1), 1), dtype=np.int64))
-    sizes = [_trace_size(b) for b in g]
+    sizes = [_trace_size(b) for b in g] + [b.coder.size for b in widths]
+    rows = max(len(sizes), 1)
     gbank = GaussianBank(*(_stack_rows([np.zeros(n) for n in sizes], dt) for dt in
                            (np.float64, np.float64, np.float64, np.int64, np.bool_)),
-                         np.zeros((max(len(g), 1), 1), dtype=np.int64),
-                         np.tile(np.array([0.0, 1.0]), (max(len(g), 1), 1)),
+                         np.zeros((rows, 1), dtype=np.int64),
+                         np.tile(np.array([0.0, 1.0]), (rows, 1)),
                          _stack_rows([np.zeros(_values_size(b)) for b in g], np.float64))
     self.tile_bank = self._tile_bank()
     k = int(self.tile_bank.n_tilings.max())
@@ -531,7 +564,9 @@ class Machine:
     critics = [b.critic_coder for b in g if isinstance(b, blocks.ActorCritic)]
     stack = Stack(np.zeros((depth, 7), dtype=np.int64), np.zeros((depth, 4)),
                   np.zeros((depth, 2)), np.zeros((depth, 4, k), dtype=np.int64),
-                  np.zeros((depth, k)), np.zeros(2, dtype=np.int64), np.zeros(1),
+                  np.zeros((depth, k)), np.zeros((depth, k)),
+                  np.array([0, 0, int(root_args.get("direction", -1)), 0], dtype=np.int64),
+                  np.zeros(1),
                   np.zeros((len(order), 3)), np.zeros(4),
                   np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)),
                   np.zeros(len(critics[0].low) if critics else 1))
@@ -583,6 +618,8 @@ class Machine:
       row[SLOT] = self._slot(GAUSSIAN_CMAC, learner)
       p[ALPHA], p[DECAY], p[BETA], p[R_MAX] = (learner.alpha, learner.trace_gamma,
                                                learner.baseline, learner.r_max)
+      p[WIDTH_ALPHA], p[LOG_SIGMA_LOW], p[LOG_SIGMA_HIGH] = (
+          learner.width_alpha, math.log(learner.sigma_low), math.log(learner.sigma_high))
       self._one_continuous_child(name, "a GaussianCMAC", refs)
       if not isinstance(node.view, (blocks.LocalTiles, blocks.StateTiles)) or \
           node.view.coder != learner.coder:
@@ -691,6 +728,11 @@ class Machine:
     return (self.banks.gaussian.values[slot, :learner.actor_coder.size],
             self._bank_trace(slot, learner.critic_coder.size))
 
+  def width_trace(self, learner):
+    """The trace (`eligibility.Trace`) of a GaussianCMAC's learned width, or None."""
+    slot = self._width_slot_of.get(id(learner))
+    return None if slot is None else self._bank_trace(slot, learner.coder.size)
+
   def _bank_trace(self, slot, n):
     """The Eq. 3 trace of GaussianBank row `slot` over its first n weights (views)."""
     b = self.banks.gaussian
@@ -715,13 +757,14 @@ class Machine:
             (begin, (*b, obs, False, False, rng_state))]
 
   def run(self, episodes, learn, sample, rng_state, world, start=None):
-    """Episodes fused with the analytic ship; rows as `run_ship` writes them."""
+    """Episodes fused with the analytic ship; `world` as `run_ship`'s (its last
+    entry may be left out: the full task); rows as `run_ship` writes them."""
     jit.compile_first(run_ship, self._bottom_up)
     rows = np.zeros((int(episodes), 3 + 3 * len(self.names)))
     fixed = np.empty(0) if start is None else np.asarray(start, dtype=np.float64)
-    run_ship(*self.banks, int(episodes), bool(learn), bool(sample), rng_state,
-             np.asarray(world, dtype=np.float64), rows, fixed, np.empty(4),
-             np.empty((core.SAMPLES_PER_CONTROL + 1, 2)))
+    world = np.concatenate([np.asarray(world, dtype=np.float64), np.zeros(4)])[:4]
+    run_ship(*self.banks, int(episodes), bool(learn), bool(sample), rng_state, world, rows,
+             fixed, np.empty(4), np.empty((core.SAMPLES_PER_CONTROL + 1, 2)))
     return rows
 
   def begin(self, obs, learn, sample, rng_state):

@@ -36,6 +36,15 @@ def sample_start(rng_state, out):
 
 
 @numba.njit(cache=True)
+def sample_local_start(rng_state, direction, out):
+  """A stand-alone call of the subtask of `direction` (SPEC section 8): at its local
+  start, the heading and the turning rate uniform, drawn in that order."""
+  out[0], out[1] = core.local_start(direction)
+  out[2] = core.wrap_deg(rng.uniform_range(rng_state, -180.0, 180.0))
+  out[3] = rng.uniform_range(rng_state, -core.MAX_TURN_RATE, core.MAX_TURN_RATE)
+
+
+@numba.njit(cache=True)
 def subtask_of(direction):
   """Which shared low-level subtask sails `direction` (0..7 = N..NW)."""
   return DIAGONAL if direction % 2 == 1 else STRAIGHT

@@ -182,24 +182,41 @@ def learn_baseline(values, tiles, beta, signal, gamma, next_value):
 # runs such a subtask calls these two.
 
 @numba.njit(cache=True, error_model="numpy")
-def gaussian_choose(t, values, tiles, psi, alpha, beta, r_max, learn, sample, rng_state):
+def gaussian_choose(t, values, tiles, psi, alpha, beta, r_max, learn, sample, rng_state,
+                    width=None, psi_width=None, width_alpha=0.0, log_sigma_low=0.0,
+                    log_sigma_high=0.0):
   """Algorithm 1, choose a: u ~ Normal(m, 1) with its score added to z
   (`gaussian_act`) and, with a baseline (beta != 0) while learning, theta <- theta -
-  alpha b(s) psi; without sampling, the mode. Returns the action r."""
+  alpha b(s) psi; without sampling, the mode. Returns the action r. With a learned
+  width (its trace `width`, scratch `psi_width`, width_alpha != 0): u ~ Normal(m,
+  sigma(s)^2) (`gaussian_width_act`), and the baseline's step on the width too."""
   if sample:
-    r = gaussian_act(t, tiles, r_max, rng_state, psi)
+    if width is None:
+      r = gaussian_act(t, tiles, r_max, rng_state, psi)
+    elif width_alpha == 0.0:
+      r = gaussian_act(t, tiles, r_max, rng_state, psi)
+    else:
+      r = gaussian_width_act(t, width, tiles, r_max, log_sigma_low, log_sigma_high, rng_state,
+                             psi, psi_width)
     if learn and beta != 0.0:
       subtract_baseline(t.theta, values, tiles, alpha, psi)
+      if width is not None:
+        if width_alpha != 0.0:
+          subtract_baseline(width.theta, values, tiles, width_alpha, psi_width)
     return r
   return gaussian_greedy(t, tiles, r_max)
 
 
 @numba.njit(cache=True, error_model="numpy")
-def gaussian_learn(t, values, tiles, next_tiles, alpha, gamma, beta, signal, done):
+def gaussian_learn(t, values, tiles, next_tiles, alpha, gamma, beta, signal, done, width=None,
+                   width_alpha=0.0):
   """Algorithm 1, the child returned R + G = `signal`: Eq. 3 (theta <- theta + alpha
-  (R + G) z, then z <- gamma z) and the baseline's TD(0) step with b(s') over
-  `next_tiles` (0 when the call is `done`)."""
+  (R + G) z, then z <- gamma z; the same on a learned width's trace) and the
+  baseline's TD(0) step with b(s') over `next_tiles` (0 when the call is `done`)."""
   el.learn(t, alpha, signal, gamma)
+  if width is not None:
+    if width_alpha != 0.0:
+      el.learn(width, width_alpha, signal, gamma)
   if beta != 0.0:
     next_value = 0.0 if done else tile_mean(values, next_tiles)
     learn_baseline(values, tiles, beta, signal, gamma, next_value)

@@ -78,35 +78,51 @@ class GaussianPolicyGradient(_PolicyGradient):
   the active tile indices; the action is a continuous value in [-r_max, r_max].
 
   `baseline`: the TD(0) step size of a baseline b(s) over the same tiles
-  (`policies.subtract_baseline`; 0: none, Eq. 3 exactly), held in `values`."""
+  (`policies.subtract_baseline`; 0: none, Eq. 3 exactly), held in `values`.
+  `width_alpha` > 0: the exploration width sigma(s) learned too, on its own trace
+  `width`, clipped to [sigma_low, sigma_high] (`policies.gaussian_width_act`)."""
 
   def __init__(self, n_weights, n_active, r_max, alpha, gamma=1.0, reset_states=None,
-               sample_when_evaluating=False, baseline=0.0):
+               sample_when_evaluating=False, baseline=0.0, width_alpha=0.0, sigma_low=0.25,
+               sigma_high=4.0):
     super().__init__(n_weights, alpha, gamma, reset_states)
     if not 0.0 <= baseline <= 1.0:
       raise ValueError(f"baseline step size must lie in [0, 1], got {baseline!r}")
     self.r_max = float(r_max)
     self._psi = np.empty(int(n_active))
+    self._psi_width = np.empty(int(n_active))
     self._tiles = np.empty(int(n_active), dtype=np.int64)
     self.sample_when_evaluating = sample_when_evaluating
     self.baseline = float(baseline)
     self.values = np.zeros(n_weights)
+    self.width_alpha = float(width_alpha)
+    self.width = el.new_trace(n_weights) if width_alpha != 0.0 else None
+    self._log_sigma = (float(np.log(sigma_low)), float(np.log(sigma_high)))
+
+  def start(self):
+    el.reset(self.trace)
+    if self.width is not None:
+      el.reset(self.width)
 
   def act(self, features, mask, rng_state, sample):
     self._tiles[:] = features               # the view's array is reused for the next state
     # (Its baseline's -alpha b(s) psi waits for `observe`, which knows whether it learns:
     # the same numbers as `policies.gaussian_choose`, which makes it at once.)
     return policies.gaussian_choose(self.trace, self.values, self._tiles, self._psi, self.alpha,
-                                    0.0, self.r_max, False, sample, rng_state)
+                                    0.0, self.r_max, False, sample, rng_state, self.width,
+                                    self._psi_width, self.width_alpha, *self._log_sigma)
 
   def observe(self, signal, next_features, done, terminal, learn):
     if learn:
       if self.baseline != 0.0:
         policies.subtract_baseline(self.trace.theta, self.values, self._tiles, self.alpha,
                                    self._psi)
+        if self.width is not None:
+          policies.subtract_baseline(self.width.theta, self.values, self._tiles,
+                                     self.width_alpha, self._psi_width)
       policies.gaussian_learn(self.trace, self.values, self._tiles,
                               self._tiles if done else next_features, self.alpha, self.gamma,
-                              self.baseline, signal, done)
+                              self.baseline, signal, done, self.width, self.width_alpha)
       if self.reset_states is not None and not done and self.reset_states(next_features):
         el.reset(self.trace)
 

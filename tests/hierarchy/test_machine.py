@@ -63,7 +63,8 @@ def random_graph(seed):
     coder = _local_coder(g)
     learner = blocks.GaussianCMAC(coder, float(g.uniform(0.002, 0.05)),
                                   float(g.choice([1.0, 0.95])), float(g.choice([0.0, 0.1])),
-                                  15.0)
+                                  15.0, float(g.choice([0.0, 0.0, 0.01])), 0.25,
+                                  float(g.choice([1.0, 4.0])))
     legs.append(Subtask(f"leg{i}", children=["turn"], learner=learner,
                         view=blocks.LocalTiles(coder),
                         termination=blocks.LocalGoal(int(g.integers(20, 300))),
@@ -106,7 +107,9 @@ def _parameters(m, graph):
       out[node.name] = m.q_arrays(node.learner)[0].copy()
     else:
       trace, values = m.gaussian_arrays(node.learner)
-      out[node.name] = np.concatenate([el.parameters(trace), values])
+      width = m.width_trace(node.learner)
+      out[node.name] = np.concatenate([el.parameters(trace), values] + (
+          [] if width is None else [el.parameters(width)]))
   return out
 
 
@@ -117,7 +120,8 @@ def _oracle_parameters(o, graph):
     if isinstance(node.learner, blocks.QTable):
       out[node.name] = learner.q.copy()
     else:
-      out[node.name] = np.concatenate([learner.parameters(), learner.values])
+      width = [] if learner.width is None else [el.parameters(learner.width)]
+      out[node.name] = np.concatenate([learner.parameters(), learner.values] + width)
   return out
 
 
@@ -174,6 +178,7 @@ def test_random_graphs_cover_every_shape_and_a_subtask_run():
   used = {type(part).__name__ for g in graphs for n in g.subtasks()
           for part in (n.view, n.termination, n.internal_reward)}
   assert {"CellRule", "EndRule", "RewardRule", "Shaping", "GridCell", "LocalGoal"} <= used
+  assert any(getattr(n.learner, "width_alpha", 0.0) for g in graphs for n in g.subtasks())
 
 
 def _coder():
@@ -266,3 +271,34 @@ def test_a_shared_qtable_needs_one_number_of_children():
   with pytest.raises(GraphError, match="subtask '(mid|other)': its QTable is shared with a "
                                        "node of [12] children, it has [12]"):
     machine.Machine(TaskGraph("root", nodes))
+
+
+@pytest.mark.parametrize("task, env_id", [("diagonal", "hpg_mj/ShipSteeringDiagonal-v0"),
+                                          ("straight", "hpg_mj/ShipSteeringStraight-v0")])
+def test_a_subtask_alone_is_the_same_fused_and_through_its_environment(task, env_id):
+  """The stand-alone subtask (`ship_subtask`: the root alone, `root_args`) fused with
+  the analytic ship and step by step through its Gymnasium environment: the same
+  episodes, ends and learned parameters (its environment's reward holds G too,
+  so only the return column differs)."""
+  from hpg_mj.agents import ship_subtask
+  direction = ship_subtask.TASKS[task]
+  runs = []
+  for fused in (True, False):
+    learner = blocks.GaussianCMAC(ship_subtask.paper_coder(), 0.01, 0.99, 0.3, 15.0, 0.003)
+    m = machine.Machine(ship_subtask.graph(task, learner, 300), root_args={"direction": direction})
+    state = rng.make_state(7)
+    if fused:
+      rows = m.run(60, True, True, state, ship_subtask.ALONE)
+    else:
+      def start():
+        out = np.empty(4)
+        ship_rules.sample_local_start(state, direction, out)
+        return out
+      rows = machine.run_stepwise(m, gymnasium.make(env_id, backend="analytic"), 60, True, True,
+                                  state, start, passed=lambda info: info.get("event") == "goal")
+    trace, values = m.gaussian_arrays(learner)
+    runs.append((np.delete(rows, 2, axis=1), el.parameters(trace), values,
+                 el.parameters(m.width_trace(learner))))
+  for a, b in zip(*runs):
+    np.testing.assert_array_equal(a, b)
+  assert runs[0][0][:, 0].sum() > 0                                 # some calls succeeded

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from hpg_mj.agents import ship_subtask
+from hpg_mj.hierarchy import blocks
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import policies
 from hpg_mj.learners import rng
@@ -83,13 +84,13 @@ def test_a_clipped_width_has_no_score_and_the_clipped_sigma():
 
 
 def test_width_alpha_zero_is_the_papers_rule_to_the_bit():
-  s = ship_subtask.WidthSettings(0.01, 0.99, 0.3, 300, 0.0, math.log(0.25), 0.0)
   t1, w1 = _traces()
   t2, _ = _traces()
   values = np.linspace(-1, 1, 30)
   s1, s2 = rng.make_state(5), rng.make_state(5)
   psi1, psi2, psi_w = np.empty(9), np.empty(9), np.empty(9)
-  r1 = ship_subtask.act_and_score(t1, w1, values, TILES, s, True, s1, psi1, psi_w)
+  r1 = policies.gaussian_choose(t1, values, TILES, psi1, 0.01, 0.3, 15.0, True, True, s1, w1,
+                                psi_w, 0.0, math.log(0.25), 0.0)
   r2 = policies.gaussian_act(t2, TILES, 15.0, s2, psi2)
   policies.subtract_baseline(t2.theta, values, TILES, 0.01, psi2)
   assert r1 == r2
@@ -100,9 +101,9 @@ def test_width_alpha_zero_is_the_papers_rule_to_the_bit():
 
 def test_bad_width_options_are_refused_with_what_is_allowed():
   with pytest.raises(ValueError, match=r"width_alpha = -0.1: must be a finite number >= 0"):
-    ship_subtask.check_width(-0.1, 0.25, 1.0)
+    blocks.check_width(-0.1, 0.25, 1.0)
   with pytest.raises(ValueError, match=r"need 0 < sigma_low <= 1 <= sigma_high"):
-    ship_subtask.check_width(0.01, 2.0, 4.0)
+    blocks.GaussianCMAC(ship_subtask.paper_coder(), width_alpha=0.01, sigma_low=2.0)
   with pytest.raises(ValueError, match=r"subtask 'diag' is not known; allowed: \['diagonal'"):
     ship_subtask.train_subtask("diag", 10, 0)
 
