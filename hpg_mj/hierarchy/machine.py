@@ -39,6 +39,8 @@ import math
 
 import numba
 import numpy as np
+from numba import types
+from numba.extending import overload
 
 from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy import rules as rules_mod
@@ -67,7 +69,7 @@ SEEN_SUMMED, SEEN_STEP = 0, 1
 # Columns of the node table (int64[n_nodes, N_INT]).
 # VIEW_SLOT: a tiles view's coder, or a CellRule's number among the graph's rules;
 # END_AT and G_AT: an EndRule's and a RewardRule's number; N_STATES: a QTable's states.
-# WIDTH_SLOT: the GaussianBank row of a GaussianCMAC's learned width (its own row if none).
+# WIDTH_SLOT: the row of a GaussianCMAC's learned width in GaussianBank.widths (-1: none).
 (KIND, LEARNER, SLOT, VIEW, VIEW_SLOT, END, INTERNAL, SEEN, MAX_STEPS, FIRST_CHILD,
  N_CHILDREN, WATCH, EPS_SCHEDULE, CRITIC_SLOT, END_AT, G_AT, N_STATES, WIDTH_SLOT) = range(18)
 N_INT = 18
@@ -83,8 +85,10 @@ Program = collections.namedtuple("Program", ("nodes", "params", "children", "rul
 # Each learner kind's parameters, one row per learner (slot). An actor-critic keeps its
 # critic's trace in a GaussianBank row and its actor's weights in that row's values.
 QBank = collections.namedtuple("QBank", ("q", "index", "value", "count"))
+# `widths`: the learned widths' traces, one row each (a Trace's fields), or None in a
+# machine without any, whose code then does not hold the width's rule (`_width`).
 GaussianBank = collections.namedtuple("GaussianBank", ("theta", "zs", "y", "touched", "marked",
-                                                       "count", "acc", "values"))
+                                                       "count", "acc", "values", "widths"))
 TileBank = collections.namedtuple("TileBank", ("low", "width", "n_tiles", "wrap", "offsets",
                                                "n_tilings"))
 # The epsilon schedule (`learners.schedules`): its arrays and [threshold, every, divisor].
@@ -113,6 +117,40 @@ def _trace(g, slot):
   """The Eq. 3 trace of Gaussian learner `slot` (views of its bank's rows)."""
   return el.Trace(g.theta[slot], g.zs[slot], g.y[slot], g.touched[slot], g.marked[slot],
                   g.count[slot], g.acc[slot])
+
+
+def _width(G, row):
+  """The learned width's trace (`eligibility.Trace`) of the GaussianCMAC node `row`,
+  or None when the machine has no learned width: numba then compiles the Eq. 3 rule
+  without the width (`policies.gaussian_choose` prunes it), which keeps a third of
+  the first compile off the graphs that do not use it."""
+
+
+@overload(_width, inline="always")
+def _width_typed(G, row):
+  if isinstance(dict(zip(G.fields, G.types))["widths"], types.NoneType):
+    return lambda G, row: None
+
+  def width(G, row):
+    w, i = G.widths, max(row[WIDTH_SLOT], 0)
+    return el.Trace(w.theta[i], w.zs[i], w.y[i], w.touched[i], w.marked[i], w.count[i],
+                    w.acc[i])
+  return width
+
+
+def _reset_width(G, row):
+  """z <- 0 on the node's learned width, if it has one."""
+
+
+@overload(_reset_width, inline="always")
+def _reset_width_typed(G, row):
+  if isinstance(dict(zip(G.fields, G.types))["widths"], types.NoneType):
+    return lambda G, row: None
+
+  def reset(G, row):
+    if row[WIDTH_SLOT] >= 0:
+      el.reset(_width(G, row))
+  return reset
 
 
 @numba.njit(cache=True, inline="always")
@@ -178,7 +216,7 @@ def _gaussian_choose(P, G, T, K, d, learn, sample, rng_state):
   k = T.n_tilings[row[VIEW_SLOT]]
   K.floats[d, F_ACTION] = policies.gaussian_choose(
       _trace(G, slot), G.values[slot], K.tiles[d, 0, :k], K.psi[d, :k], p[ALPHA], p[BETA],
-      p[R_MAX], learn, sample, rng_state, _trace(G, row[WIDTH_SLOT]), K.psi_width[d, :k],
+      p[R_MAX], learn, sample, rng_state, _width(G, row), K.psi_width[d, :k],
       p[WIDTH_ALPHA], p[LOG_SIGMA_LOW], p[LOG_SIGMA_HIGH])
 
 
@@ -225,8 +263,7 @@ def _call(P, Q, G, T, S, K, d, node, arg, obs, learn, sample, rng_state):
     qlambda.clear(Q.count[row[SLOT]])
   elif row[LEARNER] == GAUSSIAN_CMAC:
     el.reset(_trace(G, row[SLOT]))                  # Eq. 3: z <- 0
-    if row[WIDTH_SLOT] != row[SLOT]:
-      el.reset(_trace(G, row[WIDTH_SLOT]))
+    _reset_width(G, row)
   elif row[LEARNER] == ACTOR_CRITIC:
     el.reset(_trace(G, row[SLOT]))                  # the critic's e <- 0
     for i in range(K.psi.shape[1]):
@@ -330,7 +367,7 @@ def _observe(P, Q, G, T, S, K, d, obs, signal, done, terminal, learn, sample, rn
     if learn:                                          # Eq. 3 with R + G
       policies.gaussian_learn(_trace(G, slot), G.values[slot], K.tiles[d, 0, :k],
                               K.tiles[d, 1, :k], p[ALPHA], p[DECAY], p[BETA], signal, done,
-                              _trace(G, row[WIDTH_SLOT]), p[WIDTH_ALPHA])
+                              _width(G, row), p[WIDTH_ALPHA])
     if not done:
       arrays.copy_into(K.tiles[d, 0, :k], K.tiles[d, 1, :k])
       _gaussian_choose(P, G, T, K, d, learn, sample, rng_state)
@@ -477,6 +514,14 @@ def _values_size(learner):
           learner.coder.size)
 
 
+def _trace_rows(sizes):
+  """A Trace's fields (`eligibility.Trace`) stacked, one row per size."""
+  rows = max(len(sizes), 1)
+  return (*(_stack_rows([np.zeros(n) for n in sizes], dt) for dt in
+            (np.float64, np.float64, np.float64, np.int64, np.bool_)),
+          np.zeros((rows, 1), dtype=np.int64), np.tile(np.array([0.0, 1.0]), (rows, 1)))
+
+
 def _stack_rows(arrays_, dtype):
   """Rows of one length (zero-padded) from 1-D arrays; at least one row."""
   width = max([len(a) for a in arrays_] + [1])
@@ -531,25 +576,20 @@ class Machine:
     self.index = index
     q = self.learners[Q_TABLE]
     g = self.learners[GAUSSIAN_CMAC]
-    # A learned width's trace: a GaussianBank row of its own, after the learners'.
     widths = [b for b in g if getattr(b, "width_alpha", 0.0) != 0.0]
-    self._width_slot_of = {id(b): len(g) + i for i, b in enumerate(widths)}
+    self._width_slot_of = {id(b): i for i, b in enumerate(widths)}
     for i in range(len(order)):
-      if nodes[i, LEARNER] == GAUSSIAN_CMAC:
-        learner = graph.nodes[order[i]].learner
-        nodes[i, WIDTH_SLOT] = self._width_slot_of.get(id(learner), nodes[i, SLOT])
+      learner = getattr(graph.nodes[order[i]], "learner", None)
+      nodes[i, WIDTH_SLOT] = self._width_slot_of.get(id(learner), -1)
     n_q = [b.n_states * self._n_actions[id(b)] for b in q]
     qbank = QBank(_stack_rows([np.zeros(n) for n in n_q], np.float64),
                   _stack_rows([np.zeros(b.trace_capacity) for b in q], np.int64),
                   _stack_rows([np.zeros(b.trace_capacity) for b in q], np.float64),
                   np.zeros((max(len(q), 1), 1), dtype=np.int64))
-    sizes = [_trace_size(b) for b in g] + [b.coder.size for b in widths]
-    rows = max(len(sizes), 1)
-    gbank = GaussianBank(*(_stack_rows([np.zeros(n) for n in sizes], dt) for dt in
-                           (np.float64, np.float64, np.float64, np.int64, np.bool_)),
-                         np.zeros((rows, 1), dtype=np.int64),
-                         np.tile(np.array([0.0, 1.0]), (rows, 1)),
-                         _stack_rows([np.zeros(_values_size(b)) for b in g], np.float64))
+    gbank = GaussianBank(*_trace_rows([_trace_size(b) for b in g]),
+                         _stack_rows([np.zeros(_values_size(b)) for b in g], np.float64),
+                         el.Trace(*_trace_rows([b.coder.size for b in widths]))
+                         if widths else None)
     self.tile_bank = self._tile_bank()
     k = int(self.tile_bank.n_tilings.max())
     depth = self._depth(graph.root)
@@ -731,11 +771,13 @@ class Machine:
   def width_trace(self, learner):
     """The trace (`eligibility.Trace`) of a GaussianCMAC's learned width, or None."""
     slot = self._width_slot_of.get(id(learner))
-    return None if slot is None else self._bank_trace(slot, learner.coder.size)
+    return None if slot is None else self._bank_trace(slot, learner.coder.size,
+                                                      self.banks.gaussian.widths)
 
-  def _bank_trace(self, slot, n):
-    """The Eq. 3 trace of GaussianBank row `slot` over its first n weights (views)."""
-    b = self.banks.gaussian
+  def _bank_trace(self, slot, n, bank=None):
+    """The Eq. 3 trace of row `slot` of the GaussianBank (or of `bank`, its widths)
+    over its first n weights (views)."""
+    b = self.banks.gaussian if bank is None else bank
     return el.Trace(b.theta[slot, :n], b.zs[slot, :n], b.y[slot, :n], b.touched[slot, :n],
                     b.marked[slot, :n], b.count[slot], b.acc[slot])
 
