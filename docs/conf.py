@@ -1,10 +1,11 @@
 """Sphinx configuration of hpg_mj's documentation (`bash scripts/docs.sh` builds it).
 
-The pages are Markdown (MyST), as Gymnasium's are; the API reference and the
-interfaces are autodoc of the installed package, and the task pages are written at
-build time from the environments' own docstrings (`_ext/task_pages.py`), so that
-neither can drift from the code. The build runs with warnings as errors (-W) and
-nitpicky cross-references: a broken link or reference fails it.
+The pages are Markdown (MyST), as Gymnasium's are. The API reference (a page per
+subpackage, `_ext/api_pages.py`) and the interfaces are autodoc of the installed
+package, and the task pages are written at build time from the environments' own
+docstrings (`_ext/task_pages.py`), so that neither can drift from the code. The
+build runs with warnings as errors (-W) and nitpicky cross-references: a broken
+link or reference fails it.
 """
 import pathlib
 import sys
@@ -19,12 +20,12 @@ copyright = "2026, the hpg_mj authors"
 extensions = [
     "myst_parser",
     "sphinx.ext.autodoc",
-    "sphinx.ext.autosummary",
     "docstrings",     # _ext/docstrings.py: the code's Markdown-flavoured docstrings
     "task_pages",     # _ext/task_pages.py: one page per task, from the docstrings
+    "api_pages",      # _ext/api_pages.py: the API reference, a page per subpackage
 ]
 
-source_suffix = {".md": "markdown", ".rst": "restructuredtext"}   # .rst: the API stubs
+source_suffix = {".md": "markdown"}
 root_doc = "index"
 exclude_patterns = ["_build"]
 html_theme = "furo"
@@ -37,7 +38,6 @@ myst_enable_extensions = ["colon_fence", "dollarmath", "fieldlist"]
 
 # The docstrings write `name` for code, as Markdown does.
 default_role = "code"
-autosummary_generate = True
 autodoc_default_options = {"members": True, "undoc-members": True, "show-inheritance": True}
 autodoc_member_order = "bysource"
 autodoc_typehints = "description"
@@ -54,4 +54,3 @@ nitpick_ignore_regex = [
     ("py:class", r"[a-z][a-z ]*|ObsType|ActType|types\.\w+|Any|Callable|Sequence|Optional"),
     ("py:(class|obj)", r"hpg_mj(\.\w+)*\._\w+(\.\w+)*"),
 ]
-autosummary_ignore_module_all = False   # a module with __all__ lists what it offers

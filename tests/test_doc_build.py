@@ -58,5 +58,5 @@ def test_a_task_page_shows_what_the_code_says(site):
 def test_the_learner_contract_and_the_api_are_documented(site):
   interfaces = (site / "interfaces.html").read_text()
   assert "hpg_mj.hierarchy.graph.Learner" in interfaces and "observe" in interfaces
-  api = (site / "_autosummary" / "hpg_mj.hierarchy.machine.html").read_text()
-  assert "Machine" in api
+  api = (site / "api" / "hpg_mj.hierarchy.html").read_text()
+  assert "hpg_mj.hierarchy.machine.Machine" in api and "hpg_mj.hierarchy.blocks" in api
