@@ -9,6 +9,8 @@ import importlib
 import pathlib
 import pkgutil
 
+import generated   # docs/_ext
+
 PACKAGE = "hpg_mj"
 OUT = "api"          # under docs/, written at build time (not tracked)
 
@@ -42,16 +44,9 @@ def render(page, names):
 
 
 def write_pages(srcdir):
-  """Writes docs/api/*.md; a page whose text is unchanged is left alone."""
-  folder = pathlib.Path(srcdir) / OUT
-  folder.mkdir(exist_ok=True)
+  """Writes docs/api/*.md."""
   texts = {page: render(page, names) for page, names in pages().items()}
-  for page, text in texts.items():
-    path = folder / f"{page}.md"
-    if not path.is_file() or path.read_text() != text:
-      path.write_text(text)
-  for stale in set(folder.glob("*.md")) - {folder / f"{p}.md" for p in texts}:
-    stale.unlink()
+  generated.write(pathlib.Path(srcdir) / OUT, texts)
 
 
 def setup(app):

@@ -16,6 +16,8 @@ import hpg_mj  # noqa: F401  (registers the Gymnasium ids)
 from hpg_mj import envs
 from hpg_mj import suite
 
+import generated   # docs/_ext
+
 REPO = pathlib.Path(__file__).resolve().parents[2]
 OUT = "tasks"         # under docs/, written at build time (not tracked)
 
@@ -194,19 +196,11 @@ def index():
 
 
 def write_pages(srcdir):
-  """Writes docs/tasks/*.md; a page whose text is unchanged is left alone (its
-  modification time is what keeps an incremental build incremental)."""
+  """Writes docs/tasks/*.md."""
   _check_coverage()
-  folder = pathlib.Path(srcdir) / OUT
-  folder.mkdir(exist_ok=True)
   pages = {"index": index()}
   pages.update({page_name(d, t): render(d, t) for d, t in TASKS})
-  for name, text in pages.items():
-    path = folder / f"{name}.md"
-    if not path.is_file() or path.read_text() != text:
-      path.write_text(text)
-  for stale in set(folder.glob("*.md")) - {folder / f"{n}.md" for n in pages}:
-    stale.unlink()
+  generated.write(pathlib.Path(srcdir) / OUT, pages)
 
 
 def setup(app):
