@@ -12,9 +12,9 @@ import pytest
 REPO = pathlib.Path(__file__).resolve().parents[1]
 
 
-def _tracked(folder):
+def _tracked():
   try:
-    names = subprocess.run(["git", "-C", str(REPO), "ls-files", folder], capture_output=True,
+    names = subprocess.run(["git", "-C", str(REPO), "ls-files"], capture_output=True,
                            text=True, check=True).stdout.split()
   except (OSError, subprocess.CalledProcessError):
     pytest.skip("not a git checkout")
@@ -25,7 +25,9 @@ def _tracked(folder):
 def site(tmp_path_factory):
   pytest.importorskip("sphinx")
   clone = tmp_path_factory.mktemp("clone")
-  for name in _tracked("docs") + _tracked("figures") + _tracked("videos") + ["README.md"]:
+  for name in _tracked():                   # the clone: every tracked file, nothing built
+    if not (REPO / name).is_file():         # deleted in the work tree, not yet committed
+      continue
     (clone / name).parent.mkdir(parents=True, exist_ok=True)
     shutil.copy2(REPO / name, clone / name)
   html = clone / "html"
