@@ -28,10 +28,42 @@ class Markdown(SphinxDirective):
     return list(document.children)
 
 
+def _aligned(paragraph):
+  """Whether a paragraph is an indented block laid out in columns (a docstring's
+  table of names and meanings), which Markdown would run together."""
+  return all(line.startswith("  ") for line in paragraph) and not re.match(
+      r"\s*([-*+] |\d+[.)] |```)", paragraph[0])
+
+
+def to_markdown(lines):
+  """One docstring's lines as Markdown: its headings made bold (a docstring has no
+  sections), its indented column layouts kept as they are (preformatted)."""
+  out, paragraph, fenced = [], [], False
+
+  def flush():
+    if paragraph and not fenced and _aligned(paragraph):
+      out.extend(["```text", *(line[2:] for line in paragraph), "```"])
+    else:
+      out.extend(paragraph)
+    paragraph.clear()
+
+  for line in lines:
+    if line.strip().startswith("```"):
+      flush()
+      fenced = not fenced
+      out.append(line)
+    elif not line.strip():
+      flush()
+      out.append(line)
+    else:
+      paragraph.append(line if fenced else _HEADING.sub(r"\1**\2**", line))
+  flush()
+  return out
+
+
 def to_markdown_directive(lines):
-  """One docstring's lines, its headings made bold (a docstring has no sections)."""
-  body = [_HEADING.sub(r"\1**\2**", line) for line in lines]
-  return [".. markdown::", ""] + [f"   {line}" if line.strip() else "" for line in body]
+  """One docstring's lines, as Markdown, in a `markdown` directive."""
+  return [".. markdown::", ""] + [f"   {line}" if line.strip() else "" for line in to_markdown(lines)]
 
 
 _GOOGLE = Config(napoleon_numpy_docstring=False)
