@@ -2,8 +2,9 @@
 # Sets hpg_mj up on a fresh machine: OSMesa for the render worker's headless
 # rendering where there is no GPU, a virtual environment in .venv, and the
 # package installed from this checkout as a wheel, assets included.
-# `scripts/setup.sh test` adds the test-only dependencies (pytest, Ray); the
-# main job (scripts/run.sh) installs none of them.
+# `scripts/setup.sh test` adds the test-only dependencies (pytest, Ray, and Sphinx with
+# furo and MyST, since the tests build the documentation); `scripts/setup.sh docs`
+# only the documentation's. The main job (scripts/run.sh) installs none of them.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 

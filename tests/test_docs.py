@@ -1,6 +1,6 @@
 """A clone explains itself: the specification the code cites is docs/SPEC.md, a
 file of the repository; no tracked file points outside it; every cited section and
-every deviation the README names exists there."""
+every deviation the results name exists there; the README's links lead somewhere."""
 import pathlib
 import re
 import subprocess
@@ -46,16 +46,24 @@ def test_every_cited_spec_section_exists():
   assert missing == {}
 
 
-def test_every_deviation_the_readme_names_is_specified():
+def test_every_deviation_the_results_name_is_specified():
   spec = SPEC.read_text()
   declared = set(re.findall(r"^\| (D\d+) \|", spec, flags=re.M))
   assert declared == {f"D{k}" for k in range(1, len(declared) + 1)} and len(declared) >= 7
-  readme = (REPO / "README.md").read_text()
-  named = set(re.findall(r"\b(D\d)\b", readme))
+  results = (REPO / "docs" / "results.md").read_text()      # the README's results, in full
+  named = set(re.findall(r"\b(D\d)\b", results))
   assert named == declared
-  for link in re.findall(r"\]\((docs/SPEC\.md[^)]*)\)", readme):
-    assert (REPO / link.split("#")[0]).is_file()
-    if "#" in link:          # GitHub's anchor of the heading it names
-      anchors = {re.sub(r"[^a-z0-9 -]", "", h.lower()).replace(" ", "-")
-                 for h in re.findall(r"^## (.+)$", spec, flags=re.M)}
-      assert link.split("#")[1] in anchors
+  anchors = {re.sub(r"[^a-z0-9 -]", "", h.lower()).replace(" ", "-")
+             for h in re.findall(r"^## (.+)$", spec, flags=re.M)}
+  for page, prefix in (("README.md", "docs/"), ("docs/results.md", "")):
+    for link in re.findall(rf"\]\(({prefix}SPEC\.md[^)]*)\)", (REPO / page).read_text()):
+      assert (REPO / page).parent.joinpath(link.split("#")[0]).is_file(), (page, link)
+      if "#" in link:          # GitHub's anchor of the heading it names
+        assert link.split("#")[1] in anchors, (page, link)
+
+
+def test_every_relative_link_of_the_readme_exists():
+  readme = (REPO / "README.md").read_text()
+  links = [link.split("#")[0] for link in re.findall(r"\]\(([^)]+)\)", readme)
+           if "://" not in link]
+  assert links and [link for link in links if not (REPO / link).exists()] == []

@@ -1,0 +1,56 @@
+"""Sphinx configuration of hpg_mj's documentation (`bash scripts/docs.sh` builds it).
+
+The pages are Markdown (MyST), as Gymnasium's are. The API reference (a page per
+subpackage, `_ext/api_pages.py`) and the interfaces are autodoc of the installed
+package, and the task pages are written at build time from the environments' own
+docstrings (`_ext/task_pages.py`), so that neither can drift from the code. The
+build runs with warnings as errors (-W) and nitpicky cross-references: a broken
+link or reference fails it.
+"""
+import pathlib
+import sys
+
+DOCS = pathlib.Path(__file__).resolve().parent
+sys.path.insert(0, str(DOCS / "_ext"))
+
+project = "hpg_mj"
+author = "the hpg_mj authors"
+copyright = "2026, the hpg_mj authors"
+
+extensions = [
+    "myst_parser",
+    "sphinx.ext.autodoc",
+    "docstrings",     # _ext/docstrings.py: the code's Markdown-flavoured docstrings
+    "task_pages",     # _ext/task_pages.py: one page per task, from the docstrings
+    "api_pages",      # _ext/api_pages.py: the API reference, a page per subpackage
+]
+
+source_suffix = {".md": "markdown"}
+root_doc = "index"
+exclude_patterns = ["_build"]
+html_theme = "furo"
+html_title = "hpg_mj"
+
+# SPEC.md's and the pages' section links (SPEC.md#7-evaluation-seeds-and-statistics)
+# are GitHub's heading anchors; MyST makes the same ones.
+myst_heading_anchors = 3
+myst_enable_extensions = ["colon_fence", "dollarmath", "fieldlist"]
+
+# The docstrings write `name` for code, as Markdown does.
+default_role = "code"
+autodoc_default_options = {"members": True, "undoc-members": True, "show-inheritance": True}
+autodoc_member_order = "bysource"
+autodoc_typehints = "description"
+
+# Broken cross-references fail the build. The other libraries' names are not
+# resolvable offline (no intersphinx: CI has no network), so those are let through.
+nitpicky = True
+nitpick_ignore_regex = [
+    ("py:.*", r"(numpy|np|gymnasium|dm_control|dm_env|mujoco|numba|torch|"
+              r"stable_baselines3|scipy|ray|collections|typing|dataclasses|pathlib|"
+              r"concurrent|multiprocessing|subprocess|enum|abc|os|io)(\..*)?"),
+    # napoleon's types in prose ("optional int", "observation"); gymnasium's type
+    # variables; the private base classes of public ones (not in the reference).
+    ("py:class", r"[a-z][a-z ]*|ObsType|ActType|types\.\w+|Any|Callable|Sequence|Optional"),
+    ("py:(class|obj)", r"hpg_mj(\.\w+)*\._\w+(\.\w+)*"),
+]
