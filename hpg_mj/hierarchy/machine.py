@@ -56,6 +56,7 @@ from hpg_mj.learners import qlambda
 from hpg_mj.learners import schedules
 from hpg_mj.learners import tiles as tiles_mod
 from hpg_mj.worlds import ship_core as core
+from hpg_mj.worlds import taxi_core
 from hpg_mj.worlds import taxi_rules
 
 # ---- the graph as arrays --------------------------------------------------------
@@ -181,13 +182,37 @@ def grid_cell(x, y, cell_m, grid):
   return i * grid + j
 
 
+# The taxi blocks' rules (`taxi_subtasks`), each compiled once on its own with a small
+# signature and called: inlined at each of the machine's call sites they made its
+# first compile more than twice as long.
+
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _taxi_state(K, obs):
-  """The taxi's int64 state of an observation (row, col, passenger, destination, fuel)."""
-  state = K.taxi
+def _taxi_state(obs, state):
+  """The taxi's int64 state of an observation (row, col, passenger, destination, fuel;
+  a classic observation's tank full) into `state`."""
   for i in range(state.shape[0]):
-    state[i] = np.int64(obs[i]) if i < obs.shape[0] else 0
+    state[i] = np.int64(obs[i]) if i < obs.shape[0] else taxi_core.CLASSIC_FUEL
   return state
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
+def _taxi_view(subtask, target, obs, world, state):
+  return taxi.abstract_state(subtask, target, _taxi_state(obs, state), world)
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
+def _taxi_done(subtask, target, obs, world, state):
+  return taxi.terminated(subtask, target, _taxi_state(obs, state), world)
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
+def _taxi_available(subtask, obs, world, state, mask):
+  taxi.children_available(subtask, _taxi_state(obs, state), world, mask)
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
+def _taxi_target(subtask, obs, state):
+  return taxi.carry_target(subtask, _taxi_state(obs, state))
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -198,7 +223,7 @@ def _gibbs_choose(P, G, K, d, obs, learn, sample, rng_state):
   n = row[N_CHILDREN]
   mask = K.mask[:n]
   if row[TAXI_CHILDREN] >= 0:
-    taxi.available(row[TAXI_CHILDREN], _taxi_state(K, obs), P.world, mask)
+    _taxi_available(row[TAXI_CHILDREN], obs, P.world, K.taxi, mask)
   else:
     for i in range(n):
       mask[i] = True
@@ -218,8 +243,8 @@ def _view(P, Q, G, T, S, K, d, obs, which):
     p = P.params[node]
     K.ints[d, S_STATE + which] = grid_cell(obs[0], obs[1], p[CELL_M], np.int64(p[GRID]))
   elif kind == VIEW_TAXI:
-    K.ints[d, S_STATE + which] = taxi.view(row[TAXI_VIEW], K.ints[d, S_ARG], _taxi_state(K, obs),
-                                           P.world)
+    K.ints[d, S_STATE + which] = _taxi_view(row[TAXI_VIEW], K.ints[d, S_ARG], obs, P.world,
+                                            K.taxi)
   elif kind == VIEW_RULE:
     state = np.int64(P.rules(row[VIEW_SLOT], obs, K.origin[d], K.ints[d, S_ARG],
                              K.ints[d, S_STEPS], np.int64(0)))
@@ -342,7 +367,7 @@ def _descend(P, Q, G, T, S, K, d, obs, learn, sample, rng_state):
     child = P.children[P.nodes[K.ints[d, S_NODE], FIRST_CHILD] + K.ints[d, S_CHOICE]]
     arg = child[1]
     if child[2] >= 0:                        # a TaxiTarget: Navigate's target bound now
-      arg = taxi.carry_target(child[2], _taxi_state(K, obs))
+      arg = _taxi_target(child[2], obs, K.taxi)
     d += 1
     _call(P, Q, G, T, S, K, d, child[0], arg, obs, learn, sample, rng_state)
 
@@ -385,7 +410,7 @@ def _end_of(P, K, d, obs, samples):
     if row[INTERNAL] != G_SHAPING:
       internal = 0.0
   elif row[END] == END_TAXI:
-    if taxi.done(row[TAXI_END], K.ints[d, S_ARG], _taxi_state(K, obs), P.world):
+    if _taxi_done(row[TAXI_END], K.ints[d, S_ARG], obs, P.world, K.taxi):
       event = core.SUCCESS
   elif row[END] == END_RULE:
     said = P.rules(row[END_AT], obs, K.origin[d], K.ints[d, S_ARG], K.ints[d, S_STEPS],
@@ -615,14 +640,20 @@ def run_taxi(P, Q, G, T, S, K, n_episodes, learn, sample, rng_state, record, sta
 
 # ---- building the arrays from a graph of blocks ---------------------------------------
 
-def _trace_size(learner):
-  """The weights of a GaussianBank row's trace: the policy's, or the critic's."""
+def _trace_size(learner, n_children):
+  """The weights of a GaussianBank row's trace: the policy's (a table's: one per
+  state and child), or the critic's."""
+  if isinstance(learner, blocks.GibbsTable):
+    return learner.n_states * n_children
   return (learner.critic_coder.size if isinstance(learner, blocks.ActorCritic) else
           learner.coder.size)
 
 
 def _values_size(learner):
-  """The row's values: the baseline b over the tiles, or the actor's weights."""
+  """The row's values: the baseline b over the tiles or the table's states, or the
+  actor's weights."""
+  if isinstance(learner, blocks.GibbsTable):
+    return learner.n_states
   return (learner.actor_coder.size if isinstance(learner, blocks.ActorCritic) else
           learner.coder.size)
 
@@ -709,7 +740,7 @@ class Machine:
                   _stack_rows([np.zeros(b.trace_capacity) for b in q], np.int64),
                   _stack_rows([np.zeros(b.trace_capacity) for b in q], np.float64),
                   np.zeros((max(len(q), 1), 1), dtype=np.int64))
-    gbank = GaussianBank(*_trace_rows([_trace_size(b) for b in g],
+    gbank = GaussianBank(*_trace_rows([_trace_size(b, self._n_actions.get(id(b))) for b in g],
                                       [getattr(b, "initial", 0.0) for b in g]),
                          _stack_rows([np.zeros(_values_size(b)) for b in g], np.float64),
                          el.Trace(*_trace_rows([b.coder.size for b in widths]))
@@ -945,6 +976,12 @@ class Machine:
     slot = self._slot_of[id(learner)]
     return self._bank_trace(slot, learner.coder.size), \
         self.banks.gaussian.values[slot, :learner.coder.size]
+
+  def table_arrays(self, learner):
+    """The Eq. 3 trace (`eligibility.Trace`) and baseline values of a GibbsTable."""
+    slot = self._slot_of[id(learner)]
+    return (self._bank_trace(slot, learner.n_states * self._n_actions[id(learner)]),
+            self.banks.gaussian.values[slot, :learner.n_states])
 
   def actor_critic_arrays(self, learner):
     """(the actor's weights, the critic's trace `eligibility.Trace`) of an ActorCritic."""

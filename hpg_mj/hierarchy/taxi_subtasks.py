@@ -257,7 +257,7 @@ def sample_start(rng_state, world, state):
 
 
 @numba.njit(cache=True, inline="always")
-def view(subtask, target, state, world):
+def abstract_state(subtask, target, state, world):
   """The abstract state of `subtask` (`FULL`: the whole state's index,
   `taxi_core.encode_state`); Navigate's is of its `target`."""
   if subtask == ROOT:
@@ -271,7 +271,7 @@ def view(subtask, target, state, world):
 
 
 @numba.njit(cache=True, inline="always")
-def done(subtask, target, state, world):
+def terminated(subtask, target, state, world):
   """Whether `subtask` (Navigate: to `target`) has terminated in `state`."""
   if subtask == NAVIGATE:
     return navigate_done(target, state, world)
@@ -279,7 +279,7 @@ def done(subtask, target, state, world):
 
 
 @numba.njit(cache=True, inline="always")
-def available(subtask, state, world, mask):
+def children_available(subtask, state, world, mask):
   """The children of `subtask` available in `state`, into `mask`."""
   if subtask == ROOT:
     root_children(state, world, mask)

@@ -179,8 +179,10 @@ def learn_baseline(values, tiles, beta, signal, gamma, next_value):
 
 # The tabular Eq. 3 step of a subtask with a Gibbs policy and its baseline (SPEC
 # section 5): what a subtask does when it chooses, and when its child returns R.
+# Compiled without reference counting (they allocate nothing and return no array):
+# counting references to the arrays handed in took half the taxi's time.
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False)
 def softmax_choose(t, values, s, n, mask, alpha, learn, sample, rng_state, probs, index, psi):
   """Algorithm 1, choose a among the `mask`ed children in abstract state s: learning,
   sampled with z <- z + psi (`softmax_act`) and, with a baseline b, theta <- theta -
@@ -202,7 +204,7 @@ def softmax_choose(t, values, s, n, mask, alpha, learn, sample, rng_state, probs
   return a
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False)
 def softmax_learn(t, values, s, s_next, alpha, gamma, beta, signal, done):
   """Algorithm 1, the child chosen in s returned R = `signal` in s': Eq. 3 (theta <-
   theta + alpha R z, then z <- gamma z) and the baseline's TD(0) step on the
