@@ -167,7 +167,7 @@ class ShipMachineAgent(ShipAgent):
   def run_stepwise(self, env, episodes, learn=True, sample=None, start=None, on_call=None):
     rows = machine_mod.run_stepwise(self.machine, env, episodes, learn, sample, self.rng_state,
                                     lambda: self.start_state() if start is None else start,
-                                    outcome=lambda step: step.info.get("event") == "gate",
+                                    passed=lambda info: info.get("event") == "gate",
                                     on_call=on_call)
     if learn:
       self.episodes += int(episodes)

@@ -3,19 +3,39 @@ starts (drawn by the compiled rules, as the fused loops draw them), the episode'
 outcome, and the metrics against the exact optimum."""
 import dataclasses
 
+import numba
 import numpy as np
 
 from hpg_mj.agents import base
 from hpg_mj.agents import taskfile
 from hpg_mj.agents.taskfile import param
-from hpg_mj.hierarchy import machine as machine_mod
-from hpg_mj.hierarchy import taxi_subtasks as subtask_rules
+from hpg_mj.learners import rng
 from hpg_mj.worlds import taxi_core
 from hpg_mj.worlds import taxi_core as core
 from hpg_mj.worlds import taxi_rules as world_rules
 
 
-sample_start = subtask_rules.sample_start     # the start, as the compiled loops draw it
+@numba.njit(cache=True)
+def sample_start(rng_state, world, state):
+  """A start state (SPEC section 5), drawn in the order square, passenger
+  station, destination among the other three, fuel (fuel task only).
+
+  The draws go into `state` first, from one call site of `rng.randint` in a loop:
+  four inlined copies of it made this function's first compile 0.4 s longer."""
+  fuel_min = world[world_rules.W_START_FUEL_MIN]
+  sizes = (np.int64(world_rules.N_SQUARES), np.int64(world_rules.N_STATIONS),
+           np.int64(world_rules.N_STATIONS - 1), world[world_rules.W_START_FUEL_MAX] - fuel_min + 1)
+  n_draws = 4 if world[world_rules.W_FUEL_ENABLED] != 0 else 3
+  for k in range(n_draws):
+    state[k] = rng.randint(rng_state, sizes[k])
+  fuel = fuel_min + state[3] if n_draws == 4 else core.CLASSIC_FUEL
+  row, col, passenger, destination, fuel = core.state_from_draws(state[0], state[1], state[2],
+                                                                 fuel)
+  state[world_rules.ROW] = row
+  state[world_rules.COL] = col
+  state[world_rules.PASSENGER] = passenger
+  state[world_rules.DESTINATION] = destination
+  state[world_rules.FUEL] = fuel
 
 
 def draw_start(rng_state, world):
@@ -120,42 +140,3 @@ class TaxiAgent(base.Agent):
             "reaches_95_percent": bool(mean is not None and mean >=
                                        taxi_values.performance_threshold(optimal, 0.95)),
             "primitive_steps": int(record["steps"].sum())}
-
-
-class TaxiMachineAgent(TaxiAgent):
-  """A taxi agent whose `graph()` is made of blocks: `hierarchy.machine` runs it on
-  both paths (fused with the taxi; step by step through any taxi environment). Its
-  record: return, steps, outcome and, if a field, illegal (the fused path's illegal
-  Pickups and Dropoffs; 0 step by step)."""
-
-  _machine = None
-
-  @property
-  def machine(self):
-    """The compiled machine over `graph()` (built when first needed)."""
-    if self._machine is None:
-      self._machine = machine_mod.Machine(self.graph(), world=self.world)
-    return self._machine
-
-  def compiled(self, episodes, learn, sample):
-    rows = self.machine.run_taxi(episodes, learn, sample, self.rng_state, self.episodes)
-    return self._record_rows(rows, rows[:, -1])
-
-  def run_stepwise(self, env, episodes, learn=True, sample=None, start=None, on_call=None):
-    rows = machine_mod.run_stepwise(
-        self.machine, env, episodes, learn, sample, self.rng_state,
-        lambda: self.start_state() if start is None else np.array(start),
-        outcome=world_rules.outcome_of, on_call=on_call, first_episode=self.episodes)
-    if learn:
-      self.episodes += int(episodes)
-    return self.as_record(self._record_rows(rows))
-
-  def _record_rows(self, rows, illegal=None):
-    """The machine's rows (outcome, steps, return, ...) as this agent's record."""
-    fields = self.record_fields
-    out = np.zeros((rows.shape[0], len(fields)))
-    for k, name in enumerate(("outcome", "steps", "return")):
-      out[:, fields.index(name)] = rows[:, k]
-    if "illegal" in fields and illegal is not None:
-      out[:, fields.index("illegal")] = illegal
-    return out

@@ -57,8 +57,8 @@ then per choice of any subtask, when sampling (training), one uniform (explore o
 and one randint when it explores or when the best children tie.
 
 Speed and the first compile (about 5 million primitive steps per second learning,
-`hpg-mj bench train`; about 8 s to compile `train` into an empty numba cache): the
-graph's fixed depth gives one function per level
+`hpg-mj bench train`; about 8 s to compile `train` into an empty numba cache): as
+in `taxi_hpg`, the graph's fixed depth gives one function per level
 (`run_navigate`, `run_carry`, `run_episode`; `navigate_value`, `carry_value`,
 `root_scores` for the recursive values), compiled without reference counting
 (`_nrt=False`) and allocating nothing: the scratch arrays come from the caller.

@@ -19,13 +19,6 @@ share its parameters):
       exploration width (SPEC section 8); its node's only child is a continuous
       primitive (the value it draws is the action).
 
-  GibbsTable(n_states, alpha, trace_gamma, baseline, warmup, initial)
-      Eq. 3 with a Gibbs (softmax) policy, one parameter per (state, child), and
-      optionally a baseline b(s) learned by TD(0) on the subtask's own return
-      (SPEC section 5); `warmup` = (start_fraction, delay, ramp): the step size
-      alpha * f(e) of learning episode e rises linearly from start_fraction to 1
-      over `ramp` episodes after `delay` (None: alpha throughout). Only the
-      children its `available` block allows are chosen.
   ActorCritic(actor_coder, critic_coder, alpha_actor, alpha_critic, trace_decay, r_max)
       Konda's actor-critic (SPEC section 4): a Gaussian-with-sigmoid actor over its
       view's tiles (a StateTiles view over `actor_coder`), a critic linear over
@@ -39,17 +32,6 @@ Views (what a node's learner sees of the world's state):
                                (origin: where it was called; rotation: the
                                `direction` argument of its `Child`), as CMAC tiles
   StateTiles(coder)            the world's state itself, as CMAC tiles (a flat learner)
-
-The taxi's subtasks (`hierarchy.taxi_subtasks`: MAXQ's graph with the fuel
-subtask), by subtask name, "root", "get", "put", "refuel" or "navigate":
-
-  TaxiCell(subtask)            the subtask's abstract state (Navigate's: of the
-                               call's target); "full": the whole state's index
-  TaxiEnd(subtask)             its termination (Navigate: at its target)
-  TaxiChildren(subtask)        its children available in a state (a Subtask's
-                               `available`): its initiation sets
-  TaxiTarget(subtask)          a Child's `bind`: Navigate's target bound when it is
-                               called (the passenger's station, the destination, F)
 
 Terminations and internal rewards:
 
@@ -80,8 +62,7 @@ SPEC section 3).
 The graph-wide epsilon schedule: `HeldEpsilon(epsilon, watch, threshold, window,
 every, divisor)` (`learners.schedules`): held until every watched node succeeds in
 `threshold` of its last `window` runs, then divided by `divisor` every `every`
-episodes; or `LinearEpsilon(start, end, episodes)`: a linear decay over the
-learning episodes.
+episodes.
 """
 import dataclasses
 import math
@@ -102,20 +83,6 @@ class QTable:
   gamma: float = 1.0
   epsilon_schedule: bool = False
   trace_capacity: int = 4096
-  initial: float = 0.0
-
-
-@dataclasses.dataclass(eq=False)
-class GibbsTable:
-  """Eq. 3 with a Gibbs policy over a table of `n_states` states x the node's
-  children, with a baseline's TD(0) step size `baseline` (0: none) and an optional
-  step-size `warmup` (start_fraction, delay, ramp)."""
-  n_states: int
-  alpha: float = 0.1
-  trace_gamma: float = 1.0
-  baseline: float = 0.0
-  warmup: tuple = None
-  initial: float = 0.0
 
 
 def check_width(width_alpha, sigma_low, sigma_high, where="GaussianCMAC"):
@@ -184,50 +151,6 @@ class CellRule:
   rule: object
 
 
-TAXI_SUBTASKS = ("root", "get", "put", "refuel", "navigate")
-
-
-def _taxi_subtask(block, name, allowed=TAXI_SUBTASKS):
-  if name not in allowed:
-    raise ValueError(f"{block}({name!r}): not a taxi subtask; allowed: {list(allowed)}")
-
-
-@dataclasses.dataclass(frozen=True)
-class TaxiCell:
-  """A taxi subtask's abstract state, or "full": the whole state's index."""
-  subtask: str
-
-  def __post_init__(self):
-    _taxi_subtask("TaxiCell", self.subtask, TAXI_SUBTASKS + ("full",))
-
-
-@dataclasses.dataclass(frozen=True)
-class TaxiEnd:
-  """A taxi subtask's termination (MAXQ's)."""
-  subtask: str
-
-  def __post_init__(self):
-    _taxi_subtask("TaxiEnd", self.subtask, TAXI_SUBTASKS[1:])
-
-
-@dataclasses.dataclass(frozen=True)
-class TaxiChildren:
-  """A taxi subtask's children available in a state (its initiation sets)."""
-  subtask: str
-
-  def __post_init__(self):
-    _taxi_subtask("TaxiChildren", self.subtask)
-
-
-@dataclasses.dataclass(frozen=True)
-class TaxiTarget:
-  """Navigate's target, bound by its parent (get, put or refuel) when called."""
-  subtask: str
-
-  def __post_init__(self):
-    _taxi_subtask("TaxiTarget", self.subtask, TAXI_SUBTASKS[1:4])
-
-
 @dataclasses.dataclass(frozen=True)
 class Never:
   """Ends only with the episode."""
@@ -256,15 +179,6 @@ class RewardRule:
 @dataclasses.dataclass(frozen=True)
 class Shaping:
   """G: the heading shaping and the local +100 / -100 (SPEC section 3)."""
-
-
-@dataclasses.dataclass(frozen=True)
-class LinearEpsilon:
-  """epsilon of learning episode e: from `start` to `end` linearly over `episodes`
-  (`learners.schedules.linear`)."""
-  start: float = 0.1
-  end: float = 0.0
-  episodes: int = 50_000
 
 
 @dataclasses.dataclass(frozen=True)

@@ -45,7 +45,6 @@ from numba.extending import overload
 from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy import rules as rules_mod
 from hpg_mj.hierarchy import ship_rules
-from hpg_mj.hierarchy import taxi_subtasks as taxi
 from hpg_mj.hierarchy.graph import Child, GraphError, Primitive, Subtask
 from hpg_mj.learners import actor_critic
 from hpg_mj.learners import arrays
@@ -56,42 +55,33 @@ from hpg_mj.learners import qlambda
 from hpg_mj.learners import schedules
 from hpg_mj.learners import tiles as tiles_mod
 from hpg_mj.worlds import ship_core as core
-from hpg_mj.worlds import taxi_core
-from hpg_mj.worlds import taxi_rules
 
 # ---- the graph as arrays --------------------------------------------------------
 
 # Node kinds, learner kinds, views, ends, internal rewards, rewards seen.
 PRIMITIVE, SUBTASK = 0, 1
-NO_LEARNER, Q_TABLE, GAUSSIAN_CMAC, ACTOR_CRITIC, GIBBS = 0, 1, 2, 3, 4
-NO_VIEW, VIEW_GRID_CELL, VIEW_LOCAL_TILES, VIEW_STATE_TILES, VIEW_RULE, VIEW_TAXI = range(6)
-END_NEVER, END_LOCAL_GOAL, END_RULE, END_TAXI = 0, 1, 2, 3
-SCHEDULE_HELD, SCHEDULE_LINEAR = 0, 1
+NO_LEARNER, Q_TABLE, GAUSSIAN_CMAC, ACTOR_CRITIC = 0, 1, 2, 3
+NO_VIEW, VIEW_GRID_CELL, VIEW_LOCAL_TILES, VIEW_STATE_TILES, VIEW_RULE = 0, 1, 2, 3, 4
+END_NEVER, END_LOCAL_GOAL, END_RULE = 0, 1, 2
 G_NONE, G_SHAPING, G_RULE = 0, 1, 2
 SEEN_SUMMED, SEEN_STEP = 0, 1
 
 # Columns of the node table (int64[n_nodes, N_INT]).
 # VIEW_SLOT: a tiles view's coder, or a CellRule's number among the graph's rules;
-# END_AT and G_AT: an EndRule's and a RewardRule's number; N_STATES: a table's states;
-# TAXI_VIEW, TAXI_END, TAXI_CHILDREN: the taxi subtask (`taxi_subtasks` id) whose view,
-# termination and available children a TaxiCell, TaxiEnd and TaxiChildren block are (-1).
+# END_AT and G_AT: an EndRule's and a RewardRule's number; N_STATES: a QTable's states.
 # WIDTH_SLOT: the row of a GaussianCMAC's learned width in GaussianBank.widths (-1: none).
 (KIND, LEARNER, SLOT, VIEW, VIEW_SLOT, END, INTERNAL, SEEN, MAX_STEPS, FIRST_CHILD,
- N_CHILDREN, WATCH, EPS_SCHEDULE, CRITIC_SLOT, END_AT, G_AT, N_STATES, WIDTH_SLOT, TAXI_VIEW,
- TAXI_END, TAXI_CHILDREN) = range(21)
-N_INT = 21
+ N_CHILDREN, WATCH, EPS_SCHEDULE, CRITIC_SLOT, END_AT, G_AT, N_STATES, WIDTH_SLOT) = range(18)
+N_INT = 18
 # Columns of the node parameters (float64[n_nodes, N_FLOAT]).
-# START_FRACTION, DELAY, RAMP: a GibbsTable's step-size warm-up (1, 0, 1: none).
 (ALPHA, DECAY, GAMMA, BETA, R_MAX, EPSILON, CELL_M, GRID, ACTION, ALPHA_ACTOR, WIDTH_ALPHA,
- LOG_SIGMA_LOW, LOG_SIGMA_HIGH, START_FRACTION, DELAY, RAMP) = range(16)
-N_FLOAT = 16
+ LOG_SIGMA_LOW, LOG_SIGMA_HIGH) = range(13)
+N_FLOAT = 13
 # Columns of the per-node counters of an episode (float64[n_nodes, 3]).
 CALLS, RUNS, SUCCESSES = range(3)
 
-# `children`: per child its node, its argument and the taxi subtask whose TaxiTarget
-# binds the argument when it is called (-1: none); `rules`: the graph's user rules as
-# one first-class function (`hierarchy.rules`); `world`: the taxi's `world_config`.
-Program = collections.namedtuple("Program", ("nodes", "params", "children", "rules", "world"))
+# `rules`: the graph's user rules as one first-class function (`hierarchy.rules`).
+Program = collections.namedtuple("Program", ("nodes", "params", "children", "rules"))
 # Each learner kind's parameters, one row per learner (slot). An actor-critic keeps its
 # critic's trace in a GaussianBank row and its actor's weights in that row's values.
 QBank = collections.namedtuple("QBank", ("q", "index", "value", "count"))
@@ -101,25 +91,21 @@ GaussianBank = collections.namedtuple("GaussianBank", ("theta", "zs", "y", "touc
                                                        "count", "acc", "values", "widths"))
 TileBank = collections.namedtuple("TileBank", ("low", "width", "n_tiles", "wrap", "offsets",
                                                "n_tilings"))
-# The epsilon schedule (`learners.schedules`): its arrays and [threshold, every, divisor,
-# kind (HeldEpsilon or LinearEpsilon), start, end, episodes].
+# The epsilon schedule (`learners.schedules`): its arrays and [threshold, every, divisor].
 Schedule = collections.namedtuple("Schedule", ("epsilon", "outcomes", "counts", "settings"))
 # The call stack and the episode: per depth d the node, its choice, its argument, its
 # steps, the steps of its current child's run, its state (a table's) and the next;
 # the reward of the current child's run, the action value chosen; the call's origin;
 # its tiles (current, next; an actor-critic's critic tiles: current, next), score and
 # a learned width's score; an actor-critic's mean m and draw u; the episode's [depth,
-# steps, the root's argument, the root's event when it ended, the learning episode's
-# index], [return], per-node counters; scratch of the local frame and of (state,
-# action); a Gibbs choice's mask, probabilities, score (index, psi); the taxi state
-# of an observation; each node's step size this episode.
+# steps, the root's argument, the root's event when it ended], [return], per-node
+# counters; scratch of the local frame and of (state, action).
 (S_NODE, S_CHOICE, S_ARG, S_STEPS, S_CHILD_STEPS, S_STATE, S_NEXT_STATE) = range(7)
 F_REWARD, F_ACTION, F_MEAN, F_U = range(4)
 Stack = collections.namedtuple("Stack", ("ints", "floats", "origin", "tiles", "psi",
                                          "psi_width", "episode", "total", "counters", "local",
-                                         "local_samples", "sa", "mask", "probs", "index",
-                                         "scores", "taxi", "alphas"))
-E_DEPTH, E_STEPS, E_ROOT_ARG, E_EVENT, E_INDEX = range(5)
+                                         "local_samples", "sa"))
+E_DEPTH, E_STEPS, E_ROOT_ARG, E_EVENT = range(4)
 Banks = collections.namedtuple("Banks", ("program", "q", "gaussian", "tiling", "schedule",
                                          "stack"))
 
@@ -182,56 +168,6 @@ def grid_cell(x, y, cell_m, grid):
   return i * grid + j
 
 
-# The taxi blocks' rules (`taxi_subtasks`), each compiled once on its own with a small
-# signature and called: inlined at each of the machine's call sites they made its
-# first compile more than twice as long.
-
-@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _taxi_state(obs, state):
-  """The taxi's int64 state of an observation (row, col, passenger, destination, fuel;
-  a classic observation's tank full) into `state`."""
-  for i in range(state.shape[0]):
-    state[i] = np.int64(obs[i]) if i < obs.shape[0] else taxi_core.CLASSIC_FUEL
-  return state
-
-
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
-def _taxi_view(subtask, target, obs, world, state):
-  return taxi.abstract_state(subtask, target, _taxi_state(obs, state), world)
-
-
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
-def _taxi_done(subtask, target, obs, world, state):
-  return taxi.terminated(subtask, target, _taxi_state(obs, state), world)
-
-
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
-def _taxi_available(subtask, obs, world, state, mask):
-  taxi.children_available(subtask, _taxi_state(obs, state), world, mask)
-
-
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
-def _taxi_target(subtask, obs, state):
-  return taxi.carry_target(subtask, _taxi_state(obs, state))
-
-
-@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _gibbs_choose(P, G, K, d, obs, learn, sample, rng_state):
-  """A GibbsTable node's choice among its available children into the stack."""
-  node = K.ints[d, S_NODE]
-  row = P.nodes[node]
-  n = row[N_CHILDREN]
-  mask = K.mask[:n]
-  if row[TAXI_CHILDREN] >= 0:
-    _taxi_available(row[TAXI_CHILDREN], obs, P.world, K.taxi, mask)
-  else:
-    for i in range(n):
-      mask[i] = True
-  K.ints[d, S_CHOICE] = policies.softmax_choose(
-      _trace(G, row[SLOT]), G.values[row[SLOT]], K.ints[d, S_STATE], n, mask, K.alphas[node],
-      learn, sample, rng_state, K.probs, K.index, K.scores)
-
-
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _view(P, Q, G, T, S, K, d, obs, which):
   """The node at depth d views `obs`: a table's state into S_STATE (which = 0) or
@@ -242,9 +178,6 @@ def _view(P, Q, G, T, S, K, d, obs, which):
   if kind == VIEW_GRID_CELL:
     p = P.params[node]
     K.ints[d, S_STATE + which] = grid_cell(obs[0], obs[1], p[CELL_M], np.int64(p[GRID]))
-  elif kind == VIEW_TAXI:
-    K.ints[d, S_STATE + which] = _taxi_view(row[TAXI_VIEW], K.ints[d, S_ARG], obs, P.world,
-                                            K.taxi)
   elif kind == VIEW_RULE:
     state = np.int64(P.rules(row[VIEW_SLOT], obs, K.origin[d], K.ints[d, S_ARG],
                              K.ints[d, S_STEPS], np.int64(0)))
@@ -302,8 +235,6 @@ def _choose(P, Q, G, T, S, K, d, obs, learn, sample, rng_state):
                                                        row[N_CHILDREN], epsilon, rng_state)
   elif row[LEARNER] == GAUSSIAN_CMAC:
     _gaussian_choose(P, G, T, K, d, learn, sample, rng_state)
-  elif row[LEARNER] == GIBBS:
-    _gibbs_choose(P, G, K, d, obs, learn, sample, rng_state)
   elif row[LEARNER] == ACTOR_CRITIC:
     k = T.n_tilings[row[VIEW_SLOT]]
     m, u, r = actor_critic.choose(G.values[slot], K.tiles[d, 0, :k], p[R_MAX], sample,
@@ -333,9 +264,6 @@ def _call(P, Q, G, T, S, K, d, node, arg, obs, learn, sample, rng_state):
   elif row[LEARNER] == GAUSSIAN_CMAC:
     el.reset(_trace(G, row[SLOT]))                  # Eq. 3: z <- 0
     _reset_width(G, row)
-  elif row[LEARNER] == GIBBS:
-    if learn:
-      el.reset(_trace(G, row[SLOT]))                # Eq. 3: z <- 0
   elif row[LEARNER] == ACTOR_CRITIC:
     el.reset(_trace(G, row[SLOT]))                  # the critic's e <- 0
     for i in range(K.psi.shape[1]):
@@ -365,11 +293,8 @@ def _descend(P, Q, G, T, S, K, d, obs, learn, sample, rng_state):
     if action == action:
       return action
     child = P.children[P.nodes[K.ints[d, S_NODE], FIRST_CHILD] + K.ints[d, S_CHOICE]]
-    arg = child[1]
-    if child[2] >= 0:                        # a TaxiTarget: Navigate's target bound now
-      arg = _taxi_target(child[2], obs, K.taxi)
     d += 1
-    _call(P, Q, G, T, S, K, d, child[0], arg, obs, learn, sample, rng_state)
+    _call(P, Q, G, T, S, K, d, child[0], child[1], obs, learn, sample, rng_state)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False)
@@ -382,15 +307,6 @@ def begin(P, Q, G, T, S, K, obs, learn, sample, rng_state):
   K.episode[E_STEPS] = 0
   K.episode[E_EVENT] = core.NO_EVENT
   K.total[0] = 0.0
-  e = K.episode[E_INDEX]
-  for i in range(P.nodes.shape[0]):                # a GibbsTable's warmed-up step size
-    p = P.params[i]
-    fraction = p[START_FRACTION]
-    if e >= p[DELAY]:
-      fraction += (1.0 - fraction) * min(1.0, (e - p[DELAY] + 1.0) / p[RAMP])
-    K.alphas[i] = p[ALPHA] * fraction
-  if S.settings[3] == SCHEDULE_LINEAR:
-    S.epsilon[0] = schedules.linear(e, S.settings[4], S.settings[5], np.int64(S.settings[6]))
   _call(P, Q, G, T, S, K, np.int64(0), P.nodes.shape[0] - 1, K.episode[E_ROOT_ARG], obs, learn,
         sample, rng_state)
   return _descend(P, Q, G, T, S, K, np.int64(0), obs, learn, sample, rng_state)
@@ -409,9 +325,6 @@ def _end_of(P, K, d, obs, samples):
                                              row[MAX_STEPS])
     if row[INTERNAL] != G_SHAPING:
       internal = 0.0
-  elif row[END] == END_TAXI:
-    if _taxi_done(row[TAXI_END], K.ints[d, S_ARG], obs, P.world, K.taxi):
-      event = core.SUCCESS
   elif row[END] == END_RULE:
     said = P.rules(row[END_AT], obs, K.origin[d], K.ints[d, S_ARG], K.ints[d, S_STEPS],
                    np.int64(0))
@@ -437,7 +350,7 @@ def _observe(P, Q, G, T, S, K, d, obs, signal, done, terminal, learn, sample, rn
   # The view of s' (one call site: numba copies an inlined body at each): a table's
   # state always, a policy's tiles unless the call is over, an actor-critic's unless s'
   # is terminal.
-  if kind == Q_TABLE or kind == GIBBS or (kind == GAUSSIAN_CMAC and not done) or (
+  if kind == Q_TABLE or (kind == GAUSSIAN_CMAC and not done) or (
       kind == ACTOR_CRITIC and not terminal):
     _view(P, Q, G, T, S, K, d, obs, np.int64(1))
   if kind == Q_TABLE:
@@ -449,14 +362,6 @@ def _observe(P, Q, G, T, S, K, d, obs, signal, done, terminal, learn, sample, rn
         ints[d, S_STATE], ints[d, S_CHOICE], signal, ints[d, S_NEXT_STATE], done, terminal,
         epsilon, p[ALPHA], p[GAMMA], p[DECAY], learn, rng_state)
     ints[d, S_STATE] = ints[d, S_NEXT_STATE]
-  elif kind == GIBBS:
-    if learn:
-      policies.softmax_learn(_trace(G, slot), G.values[slot], ints[d, S_STATE],
-                             ints[d, S_NEXT_STATE], K.alphas[node], p[DECAY], p[BETA], signal,
-                             done)
-    ints[d, S_STATE] = ints[d, S_NEXT_STATE]
-    if not done:
-      _gibbs_choose(P, G, K, d, obs, learn, sample, rng_state)
   elif kind == GAUSSIAN_CMAC:
     k = T.n_tilings[row[VIEW_SLOT]]
     if learn:                                          # Eq. 3 with R + G
@@ -531,9 +436,10 @@ def step(P, Q, G, T, S, K, obs, samples, reward, terminated, truncated, learn, s
     c = K.counters[node]
     if d == 0:
       K.episode[E_EVENT] = event
-      if learn and S.settings[3] == SCHEDULE_HELD:
-        schedules.end_episode(S.epsilon, S.outcomes, S.counts, S.settings[0],
-                              np.int64(S.settings[1]), S.settings[2])
+      if learn:
+        sch = S
+        schedules.end_episode(sch.epsilon, sch.outcomes, sch.counts, sch.settings[0],
+                              np.int64(sch.settings[1]), sch.settings[2])
       return True, 0.0
     c[CALLS] += 1
     if not over:
@@ -594,78 +500,25 @@ def run_ship(P, Q, G, T, S, K, n_episodes, learn, sample, rng_state, world, reco
         row[3 + 3 * i + j] = K.counters[i, j]
 
 
-# ---- fused with the taxi --------------------------------------------------------------
-
-@numba.njit(cache=True, error_model="numpy", _nrt=False)
-def run_taxi(P, Q, G, T, S, K, n_episodes, learn, sample, rng_state, record, starts, state, obs,
-             info):
-  """`n_episodes` episodes of the taxi (`P.world`, SPEC section 5), each from a start
-  drawn from `rng_state` (`taxi_subtasks.sample_start`) or, with k = len(starts) > 0,
-  from starts[e % k]; the learning episode's index advances by one an episode.
-  Record row: as `run_ship`'s, [outcome (`taxi_rules`), steps, return, then calls,
-  runs, successes of each node], then the illegal Pickups and Dropoffs. `state`
-  int64[5], `obs` float64[5] and `info` int64[3] are scratch."""
-  n_nodes = K.counters.shape[0]
-  for e in range(n_episodes):
-    if starts.shape[0] > 0:
-      for i in range(5):
-        state[i] = starts[e % starts.shape[0], i]
-    else:
-      taxi.sample_start(rng_state, P.world, state)
-    for i in range(3):
-      info[i] = 0
-    for i in range(5):
-      obs[i] = state[i]
-    action = begin(P, Q, G, T, S, K, obs, learn, sample, rng_state)
-    while True:
-      reward = taxi_rules.primitive_step(state, info, np.int64(action), P.world)
-      for i in range(5):
-        obs[i] = state[i]
-      outcome = info[taxi_rules.E_OUTCOME]
-      over, action = step(P, Q, G, T, S, K, obs, K.local_samples, reward,
-                          outcome == taxi_rules.DELIVERED or outcome == taxi_rules.OUT_OF_FUEL,
-                          outcome == taxi_rules.TRUNCATED, learn, sample, rng_state)
-      if over:
-        break
-    row = record[e]
-    row[0] = info[taxi_rules.E_OUTCOME]
-    row[1] = info[taxi_rules.E_STEPS]
-    row[2] = K.total[0]
-    for i in range(n_nodes):
-      for j in range(3):
-        row[3 + 3 * i + j] = K.counters[i, j]
-    row[3 + 3 * n_nodes] = info[taxi_rules.E_ILLEGAL]
-    K.episode[E_INDEX] += 1
-
-
 # ---- building the arrays from a graph of blocks ---------------------------------------
 
-def _trace_size(learner, n_children):
-  """The weights of a GaussianBank row's trace: the policy's (a table's: one per
-  state and child), or the critic's."""
-  if isinstance(learner, blocks.GibbsTable):
-    return learner.n_states * n_children
+def _trace_size(learner):
+  """The weights of a GaussianBank row's trace: the policy's, or the critic's."""
   return (learner.critic_coder.size if isinstance(learner, blocks.ActorCritic) else
           learner.coder.size)
 
 
 def _values_size(learner):
-  """The row's values: the baseline b over the tiles or the table's states, or the
-  actor's weights."""
-  if isinstance(learner, blocks.GibbsTable):
-    return learner.n_states
+  """The row's values: the baseline b over the tiles, or the actor's weights."""
   return (learner.actor_coder.size if isinstance(learner, blocks.ActorCritic) else
           learner.coder.size)
 
 
-def _trace_rows(sizes, initial=None):
-  """A Trace's fields (`eligibility.Trace`) stacked, one row per size, theta at its
-  `initial` value (0)."""
+def _trace_rows(sizes):
+  """A Trace's fields (`eligibility.Trace`) stacked, one row per size."""
   rows = max(len(sizes), 1)
-  initial = initial or [0.0] * len(sizes)
-  theta = _stack_rows([np.full(n, float(v)) for n, v in zip(sizes, initial)], np.float64)
-  return (theta, *(_stack_rows([np.zeros(n) for n in sizes], dt) for dt in
-                   (np.float64, np.float64, np.int64, np.bool_)),
+  return (*(_stack_rows([np.zeros(n) for n in sizes], dt) for dt in
+            (np.float64, np.float64, np.float64, np.int64, np.bool_)),
           np.zeros((rows, 1), dtype=np.int64), np.tile(np.array([0.0, 1.0]), (rows, 1)))
 
 
@@ -687,7 +540,7 @@ class Machine:
   them restores a checkpoint). Nodes are numbered so that the root is last.
   """
 
-  def __init__(self, graph, root_args=None, world=None):
+  def __init__(self, graph, root_args=None):
     self.graph = graph
     root_args = root_args or {}
     self.schedule_block = graph.schedule or blocks.HeldEpsilon()
@@ -697,16 +550,12 @@ class Machine:
     nodes = np.zeros((len(order), N_INT), dtype=np.int64)
     params = np.zeros((len(order), N_FLOAT))
     params[:, ACTION] = np.nan
-    params[:, START_FRACTION], params[:, RAMP] = 1.0, 1.0        # no warm-up
-    nodes[:, TAXI_VIEW:TAXI_CHILDREN + 1] = -1
     children = []
     self.learners = {Q_TABLE: [], GAUSSIAN_CMAC: []}
     self.codings = []
     self.rules = []                     # (node, kind, rule) of its CellRules, EndRules, RewardRules
-    self._taxi_blocks = False
     self._slot_of = {}
-    watched = getattr(self.schedule_block, "watch", ())
-    watch = {name: i for i, name in enumerate(watched)}
+    watch = {name: i for i, name in enumerate(self.schedule_block.watch)}
     for name, node in graph.nodes.items():
       i = index[name]
       if isinstance(node, Primitive):
@@ -719,10 +568,8 @@ class Machine:
       nodes[i, FIRST_CHILD] = len(children)
       nodes[i, N_CHILDREN] = len(refs)
       for ref in refs:
-        children.append((index[ref.node], int(ref.args.get("direction", -1)),
-                         self._binding(name, ref)))
+        children.append((index[ref.node], int(ref.args.get("direction", -1))))
       nodes[i, WATCH] = watch.get(name, -1)
-      nodes[i, TAXI_CHILDREN] = self._available(name, node)
       self._learner(name, node, nodes[i], params[i], refs)
       self._view(name, node, nodes[i], params[i])
       self._end(name, node, nodes[i])
@@ -735,13 +582,11 @@ class Machine:
       learner = getattr(graph.nodes[order[i]], "learner", None)
       nodes[i, WIDTH_SLOT] = self._width_slot_of.get(id(learner), -1)
     n_q = [b.n_states * self._n_actions[id(b)] for b in q]
-    qbank = QBank(_stack_rows([np.full(n, float(b.initial)) for n, b in zip(n_q, q)],
-                              np.float64),
+    qbank = QBank(_stack_rows([np.zeros(n) for n in n_q], np.float64),
                   _stack_rows([np.zeros(b.trace_capacity) for b in q], np.int64),
                   _stack_rows([np.zeros(b.trace_capacity) for b in q], np.float64),
                   np.zeros((max(len(q), 1), 1), dtype=np.int64))
-    gbank = GaussianBank(*_trace_rows([_trace_size(b, self._n_actions.get(id(b))) for b in g],
-                                      [getattr(b, "initial", 0.0) for b in g]),
+    gbank = GaussianBank(*_trace_rows([_trace_size(b) for b in g]),
                          _stack_rows([np.zeros(_values_size(b)) for b in g], np.float64),
                          el.Trace(*_trace_rows([b.coder.size for b in widths]))
                          if widths else None)
@@ -749,43 +594,27 @@ class Machine:
     k = int(self.tile_bank.n_tilings.max())
     depth = self._depth(graph.root)
     sb = self.schedule_block
-    for name in watched:
+    for name in sb.watch:
       if name not in index or isinstance(graph.nodes[name], Primitive):
         raise GraphError(f"the epsilon schedule watches {name!r}, which is not a subtask of "
                          f"the graph; subtasks: {sorted(n.name for n in graph.subtasks())}")
-    if isinstance(sb, blocks.LinearEpsilon):
-      eps, outcomes, counts = schedules.new_schedule(sb.start, 1, 1)
-      settings = [1.0, 1, 1.0, SCHEDULE_LINEAR, sb.start, sb.end, sb.episodes]
-    elif isinstance(sb, blocks.HeldEpsilon):
-      eps, outcomes, counts = schedules.new_schedule(sb.epsilon, sb.window,
-                                                     max(len(sb.watch), 1))
-      settings = [sb.threshold, sb.every, sb.divisor, SCHEDULE_HELD, 0.0, 0.0, 0.0]
-    else:
-      raise GraphError(f"the graph's schedule {sb!r} is not a machine schedule; allowed: "
-                       "HeldEpsilon, LinearEpsilon (hpg_mj.hierarchy.blocks)")
-    schedule = Schedule(eps, outcomes, counts, np.array(settings, dtype=np.float64))
-    most = max(len(r) for r in self.graph._children.values())
+    eps, outcomes, counts = schedules.new_schedule(sb.epsilon, sb.window, max(len(sb.watch), 1))
+    schedule = Schedule(eps, outcomes, counts,
+                        np.array([sb.threshold, sb.every, sb.divisor], dtype=np.float64))
     critics = [b.critic_coder for b in g if isinstance(b, blocks.ActorCritic)]
     stack = Stack(np.zeros((depth, 7), dtype=np.int64), np.zeros((depth, 4)),
                   np.zeros((depth, 2)), np.zeros((depth, 4, k), dtype=np.int64),
                   np.zeros((depth, k)), np.zeros((depth, k)),
-                  np.array([0, 0, int(root_args.get("direction", -1)), 0, 0], dtype=np.int64),
+                  np.array([0, 0, int(root_args.get("direction", -1)), 0], dtype=np.int64),
                   np.zeros(1),
                   np.zeros((len(order), 3)), np.zeros(4),
                   np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)),
-                  np.zeros(len(critics[0].low) if critics else 1),
-                  np.ones(most, dtype=np.bool_), np.zeros(most), np.zeros(most, dtype=np.int64),
-                  np.zeros(most), np.zeros(5, dtype=np.int64), np.zeros(len(order)))
+                  np.zeros(len(critics[0].low) if critics else 1))
     if len({len(c.low) for c in critics}) > 1:
       raise GraphError("the graph's actor-critics' critics code (state, action) of "
                        f"different sizes: {sorted({len(c.low) for c in critics})}")
-    if self._taxi_blocks and world is None:
-      raise GraphError("a graph of taxi blocks needs the taxi's world "
-                       "(Machine(graph, world=taxi_rules.world_config(rules)))")
-    program = Program(nodes, params, np.array(children, dtype=np.int64).reshape(-1, 3),
-                      rules_mod.compile_rules(self.rules),
-                      np.zeros(0, dtype=np.int64) if world is None else
-                      np.asarray(world, dtype=np.int64))
+    program = Program(nodes, params, np.array(children, dtype=np.int64).reshape(-1, 2),
+                      rules_mod.compile_rules(self.rules))
     self.banks = Banks(program, qbank, gbank, self.tile_bank, schedule, stack)
 
   # -- what each block puts in the node's row --
@@ -796,34 +625,23 @@ class Machine:
       self.learners[kind].append(learner)
     return self._slot_of[id(learner)]
 
-  def _table(self, name, node, row, bank, refs):
-    """A QTable's or GibbsTable's slot in its `bank`, states and view, checked."""
-    learner, kind = node.learner, type(node.learner).__name__
-    row[SLOT] = self._slot(bank, learner)
-    known = self._n_actions.setdefault(id(learner), len(refs))
-    if known != len(refs):
-      raise GraphError(f"subtask {name!r}: its {kind} is shared with a node of {known} "
-                       f"children, it has {len(refs)}")
-    row[N_STATES] = int(learner.n_states)
-    if not isinstance(node.view, (blocks.GridCell, blocks.CellRule, blocks.TaxiCell)):
-      raise GraphError(f"subtask {name!r}: a {kind} needs a GridCell, CellRule or TaxiCell "
-                       f"view, got {type(node.view).__name__}")
-
   def _learner(self, name, node, row, p, refs):
     learner = node.learner
     self._n_actions = getattr(self, "_n_actions", {})
     if isinstance(learner, blocks.QTable):
       row[LEARNER] = Q_TABLE
-      self._table(name, node, row, Q_TABLE, refs)
+      row[SLOT] = self._slot(Q_TABLE, learner)
+      known = self._n_actions.setdefault(id(learner), len(refs))
+      if known != len(refs):
+        raise GraphError(f"subtask {name!r}: its QTable is shared with a node of {known} "
+                         f"children, it has {len(refs)}")
       p[ALPHA], p[DECAY], p[GAMMA], p[EPSILON] = (learner.alpha, learner.trace_decay,
                                                   learner.gamma, learner.epsilon)
       row[EPS_SCHEDULE] = int(bool(learner.epsilon_schedule))
-    elif isinstance(learner, blocks.GibbsTable):
-      row[LEARNER] = GIBBS
-      self._table(name, node, row, GAUSSIAN_CMAC, refs)
-      p[ALPHA], p[DECAY], p[BETA] = learner.alpha, learner.trace_gamma, learner.baseline
-      if learner.warmup is not None:
-        p[START_FRACTION], p[DELAY], p[RAMP] = learner.warmup
+      row[N_STATES] = int(learner.n_states)
+      if not isinstance(node.view, (blocks.GridCell, blocks.CellRule)):
+        raise GraphError(f"subtask {name!r}: a QTable needs a GridCell or CellRule view, got "
+                         f"{type(node.view).__name__}")
     elif isinstance(learner, blocks.ActorCritic):
       row[LEARNER] = ACTOR_CRITIC
       row[SLOT] = self._slot(GAUSSIAN_CMAC, learner)
@@ -849,8 +667,7 @@ class Machine:
                          "view over its own coder")
     else:
       raise GraphError(f"subtask {name!r}: learner {learner!r} is not a machine learner; "
-                       "allowed: QTable, GibbsTable, GaussianCMAC, ActorCritic "
-                       "(hpg_mj.hierarchy.blocks)")
+                       "allowed: QTable, GaussianCMAC, ActorCritic (hpg_mj.hierarchy.blocks)")
 
   def _one_continuous_child(self, name, kind, refs):
     if len(refs) != 1 or self.graph.nodes[refs[0].node].action is not None:
@@ -862,9 +679,6 @@ class Machine:
     if isinstance(view, blocks.GridCell):
       row[VIEW] = VIEW_GRID_CELL
       p[CELL_M], p[GRID] = float(view.cell_m), float(view.grid)
-    elif isinstance(view, blocks.TaxiCell):
-      row[VIEW] = VIEW_TAXI
-      row[TAXI_VIEW] = self._taxi_id(view.subtask)
     elif isinstance(view, blocks.CellRule):
       row[VIEW] = VIEW_RULE
       row[VIEW_SLOT] = self._rule(name, rules_mod.VIEW, view.rule)
@@ -874,32 +688,7 @@ class Machine:
       self.codings.append(view.coder)
     else:
       raise GraphError(f"subtask {name!r}: view {view!r} is not a machine view; allowed: "
-                       "GridCell, LocalTiles, StateTiles, CellRule, TaxiCell "
-                       "(hpg_mj.hierarchy.blocks)")
-
-  def _taxi_id(self, subtask):
-    """A taxi block's subtask id (`taxi_subtasks`)."""
-    self._taxi_blocks = True
-    return (blocks.TAXI_SUBTASKS + ("full",)).index(subtask)
-
-  def _available(self, name, node):
-    """The taxi subtask whose children a TaxiChildren block allows, or -1 (all)."""
-    if node.available is None:
-      return -1
-    if not isinstance(node.available, blocks.TaxiChildren) or \
-        not isinstance(node.learner, blocks.GibbsTable):
-      raise GraphError(f"subtask {name!r}: available {node.available!r} is not allowed; "
-                       "allowed: None, or TaxiChildren with a GibbsTable")
-    return self._taxi_id(node.available.subtask)
-
-  def _binding(self, name, ref):
-    """The taxi subtask whose TaxiTarget binds the child's argument, or -1."""
-    if ref.bind is None:
-      return -1
-    if not isinstance(ref.bind, blocks.TaxiTarget):
-      raise GraphError(f"subtask {name!r}: child {ref.node!r} binds with {ref.bind!r}; "
-                       "allowed: None, TaxiTarget (hpg_mj.hierarchy.blocks)")
-    return self._taxi_id(ref.bind.subtask)
+                       "GridCell, LocalTiles, StateTiles, CellRule (hpg_mj.hierarchy.blocks)")
 
   def _rule(self, name, kind, rule):
     """The rule's number among the graph's rules."""
@@ -913,16 +702,12 @@ class Machine:
     elif isinstance(end, blocks.LocalGoal):
       row[END] = END_LOCAL_GOAL
       row[MAX_STEPS] = int(end.max_steps)
-    elif isinstance(end, blocks.TaxiEnd):
-      row[END] = END_TAXI
-      row[TAXI_END] = self._taxi_id(end.subtask)
     elif isinstance(end, blocks.EndRule):
       row[END] = END_RULE
       row[END_AT] = self._rule(name, rules_mod.END, end.rule)
     else:
       raise GraphError(f"subtask {name!r}: termination {end!r} is not a machine "
-                       "termination; allowed: Never, LocalGoal, EndRule, TaxiEnd "
-                       "(hpg_mj.hierarchy.blocks)")
+                       "termination; allowed: Never, LocalGoal, EndRule (hpg_mj.hierarchy.blocks)")
     if internal is None:
       row[INTERNAL] = G_NONE
     elif isinstance(internal, blocks.Shaping) and row[END] == END_LOCAL_GOAL:
@@ -977,12 +762,6 @@ class Machine:
     return self._bank_trace(slot, learner.coder.size), \
         self.banks.gaussian.values[slot, :learner.coder.size]
 
-  def table_arrays(self, learner):
-    """The Eq. 3 trace (`eligibility.Trace`) and baseline values of a GibbsTable."""
-    slot = self._slot_of[id(learner)]
-    return (self._bank_trace(slot, learner.n_states * self._n_actions[id(learner)]),
-            self.banks.gaussian.values[slot, :learner.n_states])
-
   def actor_critic_arrays(self, learner):
     """(the actor's weights, the critic's trace `eligibility.Trace`) of an ActorCritic."""
     slot = self._slot_of[id(learner)]
@@ -1030,19 +809,6 @@ class Machine:
              fixed, np.empty(4), np.empty((core.SAMPLES_PER_CONTROL + 1, 2)))
     return rows
 
-  def run_taxi(self, episodes, learn, sample, rng_state, first_episode=0, starts=None):
-    """Episodes fused with the taxi of the machine's `world`, the learning episodes'
-    index from `first_episode`; `starts` (None: drawn) as `run_taxi`'s; rows as it
-    writes them."""
-    jit.compile_first(run_taxi, self._bottom_up)
-    self.banks.stack.episode[E_INDEX] = int(first_episode)
-    rows = np.zeros((int(episodes), 4 + 3 * len(self.names)))
-    starts = (np.zeros((0, 5), dtype=np.int64) if starts is None else
-              np.asarray(starts, dtype=np.int64).reshape(-1, 5))
-    run_taxi(*self.banks, int(episodes), bool(learn), bool(sample), rng_state, rows, starts,
-             np.zeros(5, dtype=np.int64), np.zeros(5), np.zeros(3, dtype=np.int64))
-    return rows
-
   def begin(self, obs, learn, sample, rng_state):
     """Resumable: an episode starts at `obs`; returns the first action."""
     return begin(*self.banks, np.ascontiguousarray(obs, dtype=np.float64), bool(learn),
@@ -1074,23 +840,21 @@ def _tell_calls(machine, on_call):
                    k.origin[d].copy()))
 
 
-def run_stepwise(machine, env, episodes, learn, sample, rng_state, start, outcome,
-                 on_call=None, first_episode=0):
+def run_stepwise(machine, env, episodes, learn, sample, rng_state, start, passed,
+                 on_call=None):
   """The step-by-step path: `episodes` episodes of `machine` through `env` (any
   Gymnasium or dm_control environment), each from `start()` (None: the
   environment's own). Without learning the policies are greedy unless `sample`.
-  `outcome(step)` is row[0], from the episode's last `graph.Step` (the ship: whether
-  it passed the gate). `on_call(call)`, if given, is told of every subtask called
-  below the root (a `graph.Call`: its node, its arguments, the state where it was
-  called), as the executor tells it. The learning episodes' index (a step size's
-  warm-up, an epsilon's decay) starts at `first_episode`. Rows as `run_ship`'s."""
+  `passed(info)` says whether the last step succeeded. `on_call(call)`, if given, is
+  told of every subtask called below the root (a `graph.Call`: its node, its
+  arguments, the state where it was called), as the executor tells it. Rows as
+  `run_ship`'s."""
   from hpg_mj.hierarchy import executor     # the environments' adapters
   adapter = executor.adapter_for(env)
   sample = learn if sample is None else (sample or learn)
   rows = np.zeros((int(episodes), 3 + 3 * len(machine.names)))
   for i in range(int(episodes)):
     obs = adapter.reset(start())
-    machine.banks.stack.episode[E_INDEX] = first_episode + (i if learn else 0)
     action = machine.begin(obs, learn, sample, rng_state)
     if on_call is not None:
       _tell_calls(machine, on_call)
@@ -1101,7 +865,7 @@ def run_stepwise(machine, env, episodes, learn, sample, rng_state, start, outcom
                                      step_.truncated, step_.info, learn, sample, rng_state)
       if on_call is not None and not over:
         _tell_calls(machine, on_call)
-    rows[i, 0] = outcome(step_)
+    rows[i, 0] = passed(step_.info)
     rows[i, 1] = machine.banks.stack.episode[E_STEPS]
     rows[i, 2] = machine.banks.stack.total[0]
     rows[i, 3:] = machine.counters()

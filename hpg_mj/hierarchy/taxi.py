@@ -7,9 +7,9 @@ SPEC section 5), on the task-graph API:
     Refuel -> {Navigate(t = F), Fillup}
     Navigate(t) -> {South, North, East, West}
 
-`taxi_graph` builds it over given Python learners, one per subtask, for the
-Python executor: MAXQ-Q's nodes (`hpg_mj.agents.taxi_maxq`). HPG's graph is made
-of blocks (`hpg_mj.agents.taxi_hpg`), for the compiled machine.
+`taxi_graph` builds it over given learners, one per subtask: HPG's Gibbs
+policies (`hpg_mj.agents.taxi_hpg`) and MAXQ-Q's nodes (`hpg_mj.agents.taxi_maxq`)
+run on the same graph.
 """
 import numpy as np
 
@@ -25,7 +25,7 @@ def rules_state(obs, fuel_enabled, out):
 
 
 def taxi_graph(world, learners, state_of, view_of):
-  """The task graph above over `learners` (by subtask id), for MAXQ-Q:
+  """The task graph above over `learners` (by subtask id), for HPG and MAXQ-Q alike:
   `state_of(obs)` is taxi_rules' state of an observation, `view_of(subtask id)`
   the view function of that subtask."""
 

@@ -71,19 +71,16 @@ Termination (MAXQ's):
 import numba
 import numpy as np
 
-from hpg_mj.learners import rng
 from hpg_mj.worlds import taxi_core as core
 # The world's state layout and rules (`worlds.taxi_rules`) that the subtasks read.
 from hpg_mj.worlds.taxi_rules import (COL, DESTINATION, FUEL, N_SQUARES, N_STATIONS,
-    PASSENGER, ROW, W_CAPACITY, W_FUEL_COL, W_FUEL_ENABLED, W_FUEL_ROW, W_START_FUEL_MAX,
-    W_START_FUEL_MIN)
+    PASSENGER, ROW, W_CAPACITY, W_FUEL_COL, W_FUEL_ENABLED, W_FUEL_ROW)
 
 # Subtask ids: one policy table and one trace each (Navigate's table is shared by
 # its five targets).
 ROOT, GET, PUT, REFUEL, NAVIGATE = range(5)
 N_SUBTASKS = 5
 SUBTASK_NAMES = ("Root", "Get", "Put", "Refuel", "Navigate")
-FULL = 5            # not a subtask: a flat learner's view of the whole state (`view`)
 
 # Children, as the column of the subtask's policy table. Get, Put and Refuel
 # each have two: Navigate(t) with t bound to the passenger's station, the
@@ -229,61 +226,3 @@ def carry_done(subtask, state, world):
   if subtask == PUT:
     return state[PASSENGER] == state[DESTINATION]
   return tank_full_at_f(state, world)
-
-
-# --- the start, and each subtask's rule by its id (for `hierarchy.machine`) --------
-
-@numba.njit(cache=True)
-def sample_start(rng_state, world, state):
-  """A start state (SPEC section 5), drawn in the order square, passenger
-  station, destination among the other three, fuel (fuel task only).
-
-  The draws go into `state` first, from one call site of `rng.randint` in a loop:
-  four inlined copies of it made this function's first compile 0.4 s longer."""
-  fuel_min = world[W_START_FUEL_MIN]
-  sizes = (np.int64(N_SQUARES), np.int64(N_STATIONS),
-           np.int64(N_STATIONS - 1), world[W_START_FUEL_MAX] - fuel_min + 1)
-  n_draws = 4 if world[W_FUEL_ENABLED] != 0 else 3
-  for k in range(n_draws):
-    state[k] = rng.randint(rng_state, sizes[k])
-  fuel = fuel_min + state[3] if n_draws == 4 else core.CLASSIC_FUEL
-  row, col, passenger, destination, fuel = core.state_from_draws(state[0], state[1], state[2],
-                                                                 fuel)
-  state[ROW] = row
-  state[COL] = col
-  state[PASSENGER] = passenger
-  state[DESTINATION] = destination
-  state[FUEL] = fuel
-
-
-@numba.njit(cache=True, inline="always")
-def abstract_state(subtask, target, state, world):
-  """The abstract state of `subtask` (`FULL`: the whole state's index,
-  `taxi_core.encode_state`); Navigate's is of its `target`."""
-  if subtask == ROOT:
-    return root_state(state, world)
-  if subtask == NAVIGATE:
-    return navigate_state(target, state)
-  if subtask == FULL:
-    return core.encode_state(state[ROW], state[COL], state[PASSENGER], state[DESTINATION],
-                             state[FUEL], world[W_FUEL_ENABLED] != 0)
-  return carry_state(subtask, state)
-
-
-@numba.njit(cache=True, inline="always")
-def terminated(subtask, target, state, world):
-  """Whether `subtask` (Navigate: to `target`) has terminated in `state`."""
-  if subtask == NAVIGATE:
-    return navigate_done(target, state, world)
-  return carry_done(subtask, state, world)
-
-
-@numba.njit(cache=True, inline="always")
-def children_available(subtask, state, world, mask):
-  """The children of `subtask` available in `state`, into `mask`."""
-  if subtask == ROOT:
-    root_children(state, world, mask)
-  elif subtask == NAVIGATE:
-    navigate_children(mask)
-  else:
-    carry_children(subtask, state, world, mask)

@@ -177,47 +177,6 @@ def learn_baseline(values, tiles, beta, signal, gamma, next_value):
     values[tiles[k]] += beta * delta
 
 
-# The tabular Eq. 3 step of a subtask with a Gibbs policy and its baseline (SPEC
-# section 5): what a subtask does when it chooses, and when its child returns R.
-# Compiled without reference counting (they allocate nothing and return no array):
-# counting references to the arrays handed in took half the taxi's time.
-
-@numba.njit(cache=True, error_model="numpy", _nrt=False)
-def softmax_choose(t, values, s, n, mask, alpha, learn, sample, rng_state, probs, index, psi):
-  """Algorithm 1, choose a among the `mask`ed children in abstract state s: learning,
-  sampled with z <- z + psi (`softmax_act`) and, with a baseline b, theta <- theta -
-  alpha b(s) psi; not learning, sampled (`sample`) or the most probable. One uniform
-  per sampled choice, a forced one included."""
-  if not sample:
-    return softmax_greedy(t, s, n, mask)
-  if not learn:
-    softmax_probabilities(t, s, n, mask, probs)
-    return sample_index(probs[:n], rng.uniform(rng_state))
-  a = softmax_act(t, s, n, mask, rng_state, probs, index, psi)
-  amount = alpha * values[s]
-  if amount != 0.0:
-    k = 0
-    for b in range(n):
-      if mask[b]:
-        t.theta[index[k]] -= amount * psi[k]
-        k += 1
-  return a
-
-
-@numba.njit(cache=True, error_model="numpy", _nrt=False)
-def softmax_learn(t, values, s, s_next, alpha, gamma, beta, signal, done):
-  """Algorithm 1, the child chosen in s returned R = `signal` in s': Eq. 3 (theta <-
-  theta + alpha R z, then z <- gamma z) and the baseline's TD(0) step on the
-  subtask's own return, b(s) <- b(s) + beta (R + b(s') - b(s)), b(s') = 0 when the
-  call is `done`."""
-  el.learn(t, alpha, signal, gamma)
-  if beta != 0.0:
-    target = signal
-    if not done:
-      target += values[s_next]
-    values[s] += beta * (target - values[s])
-
-
 # The Eq. 3 step of a subtask over a CMAC, with its baseline (SPEC section 3): what a
 # subtask does when it chooses, and when its child returns R + G. Every path that
 # runs such a subtask calls these two.

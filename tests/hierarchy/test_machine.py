@@ -152,7 +152,7 @@ def test_random_graphs_give_the_oracles_numbers_on_every_path(seed):
   for learn, sample, episodes in ((True, True, 6), (False, True, 2), (False, False, 2)):
     a = fused.run(episodes, learn, sample, states[0], world)
     b = machine.run_stepwise(stepwise, env, episodes, learn, sample, states[1],
-                             start(states[1]), outcome=lambda step: step.info.get("event") == "gate",
+                             start(states[1]), passed=lambda info: info.get("event") == "gate",
                              on_call=told(0))
     c = o.run(env, episodes, learn, sample, start(states[2]), on_call=told(1))
     np.testing.assert_array_equal(a, c, err_msg=f"fused vs oracle, learn={learn}")
@@ -204,11 +204,11 @@ def _root(children=None, **kw):
 @pytest.mark.parametrize("nodes, schedule, message", [
     (lambda: [_root(), _leg(learner=stepwise.SoftmaxPolicyGradient(1, 1, 0.1)),
               Primitive("turn")], None,
-     "subtask 'leg': learner .* is not a machine learner; allowed: QTable, GibbsTable"),
+     "subtask 'leg': learner .* is not a machine learner; allowed: QTable, GaussianCMAC"),
     (lambda: [_root(), _leg(learner=object()), Primitive("turn")], None,
      "subtask 'leg': its learner object has no start, act, observe"),
     (lambda: [_root(view=blocks.LocalTiles(_coder())), _leg(), Primitive("turn")], None,
-     "subtask 'root': a QTable needs a GridCell, CellRule or TaxiCell view"),
+     "subtask 'root': a QTable needs a GridCell or CellRule view"),
     (lambda: [_root(), _leg(children=("turn", "turn2")), Primitive("turn"), Primitive("turn2")],
      None, "subtask 'leg': a GaussianCMAC's one child is a continuous primitive"),
     (lambda: [_root(), _leg(view=blocks.GridCell()), Primitive("turn")], None,
@@ -295,7 +295,7 @@ def test_a_subtask_alone_is_the_same_fused_and_through_its_environment(task, env
         ship_rules.sample_local_start(state, direction, out)
         return out
       rows = machine.run_stepwise(m, gymnasium.make(env_id, backend="analytic"), 60, True, True,
-                                  state, start, outcome=lambda step: step.info.get("event") == "goal")
+                                  state, start, passed=lambda info: info.get("event") == "goal")
     trace, values = m.gaussian_arrays(learner)
     runs.append((np.delete(rows, 2, axis=1), el.parameters(trace), values,
                  el.parameters(m.width_trace(learner))))

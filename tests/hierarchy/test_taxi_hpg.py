@@ -1,7 +1,7 @@
 """The taxi task graph (hpg_mj.hierarchy.taxi_subtasks) on hand-built states, and
-HPG (hpg_mj.agents.taxi_hpg) on the compiled machine: exact returns of a
-hand-set optimal policy, determinism under a seed, the warm-up and the baseline by
-hand, and (slow) learning to 95% of the optimal mean return."""
+HPG's compiled loop (hpg_mj.agents.taxi_hpg): exact returns of a
+hand-set optimal policy, determinism under a seed, and (slow) learning to 95%
+of the optimal mean return."""
 import collections
 
 import numpy as np
@@ -9,12 +9,10 @@ import pytest
 import compile_order
 from taxi_grid import moves_from
 
+from hpg_mj.agents import _taxi
 from hpg_mj.agents import taxi_hpg as tcp
 from hpg_mj.agents.taskfile import updated
-from hpg_mj.hierarchy import machine
 from hpg_mj.hierarchy import taxi_subtasks as tr
-from hpg_mj.learners import eligibility as el
-from hpg_mj.learners import policies
 from hpg_mj.learners import rng
 from hpg_mj.worlds import taxi_core as tc
 from hpg_mj.worlds import taxi_rules as world_rules
@@ -192,74 +190,60 @@ def optimal_tables():
   return tables
 
 
-def _run(agent, episodes, learn=False, sample=False, starts=None):
-  """The machine's rows, fused with the taxi, from the agent's generator."""
-  return agent.machine.run_taxi(episodes, learn, sample, agent.rng_state, agent.episodes,
-                                starts)
-
-
-RETURN, OUTCOME = 2, 0                          # the machine's row (`machine.run_taxi`)
-
-
 def test_optimal_hierarchy_earns_v_star_exactly():
   values = tv.taxi_values(True)
-  agent = tcp.TaxiHPG(seed=0)
-  for name, table in zip(tcp.NAMES, optimal_tables()):
-    agent.machine.table_arrays(agent.tables[name])[0].theta[:] = table.ravel()
+  agent = tcp.HPGEngine(0)
+  for trace, table in zip(agent.traces, optimal_tables()):
+    trace[0][:] = table.ravel()
   starts, expected = [], []
   for square in range(25):
     for destination in range(4):
       for fuel in range(13):
         starts.append((*divmod(square, 5), IN_TAXI, destination, fuel))
         expected.append(values.state_value(*starts[-1]))
-  greedy = _run(agent, len(starts), starts=starts)
-  np.testing.assert_array_equal(greedy[:, RETURN], expected)
+  greedy = agent.run(len(starts), learn=False, greedy=True, starts=starts)
+  np.testing.assert_array_equal(greedy[:, tcp.RETURN], expected)
   # Sampling from these tables is as good: a parameter gap of 50 leaves e^-50.
-  sampled = _run(agent, len(starts), sample=True, starts=starts)
-  np.testing.assert_array_equal(sampled[:, RETURN], expected)
+  sampled = agent.run(len(starts), learn=False, starts=starts)
+  np.testing.assert_array_equal(sampled[:, tcp.RETURN], expected)
 
 
-# --- learning on the machine ----------------------------------------------------------
+# --- the compiled loop: learning ------------------------------------------------------
 
 def tables_of(agent):
-  return [t.copy() for t in agent.policy_tables().values()]
+  return [t.copy() for t in agent.policy_tables()]
 
 
 def test_same_seed_same_run():
-  a, b, c = tcp.TaxiHPG(seed=3), tcp.TaxiHPG(seed=3), tcp.TaxiHPG(seed=4)
-  rec_a, rec_b, rec_c = a.train(3000), b.train(3000), c.train(3000)
+  a, b, c = tcp.HPGEngine(3), tcp.HPGEngine(3), tcp.HPGEngine(4)
+  rec_a, rec_b, rec_c = a.run(3000), b.run(3000), c.run(3000)
   np.testing.assert_array_equal(rec_a, rec_b)
   for ta, tb in zip(tables_of(a), tables_of(b)):
     np.testing.assert_array_equal(ta, tb)
   np.testing.assert_array_equal(a.rng_state, b.rng_state)
   assert not np.array_equal(rec_a, rec_c)
-  assert a.episodes == 3000
+  assert a.episodes == 3000 and a.primitive_steps == int(rec_a[:, tcp.STEPS].sum())
 
 
 def test_evaluation_leaves_the_policies_alone():
-  agent = tcp.TaxiHPG(seed=5)
-  agent.train(2000)
+  agent = tcp.HPGEngine(5)
+  agent.run(2000)
   before = tables_of(agent)
-  trace_before = {k: v.copy() for k, v in agent.state().items() if k != "rng_state"}
-  sampled = agent.evaluate(500, policy="sampled")
-  agent.evaluate(500, policy="greedy")
-  agent.run_stepwise(agent.make_env("gymnasium"), 20, learn=False)
+  sampled = agent.run(500, learn=False)
+  agent.run(500, learn=False, greedy=True)
   for t0, t1 in zip(before, tables_of(agent)):
     np.testing.assert_array_equal(t0, t1)
-  for key, value in trace_before.items():      # not even a pending update is folded in
-    np.testing.assert_array_equal(agent.state()[key], value, err_msg=key)
   assert agent.episodes == 2000
-  assert set(np.unique(sampled["outcome"])) <= {world_rules.DELIVERED, world_rules.OUT_OF_FUEL,
-                                               world_rules.TRUNCATED}
+  assert set(np.unique(sampled[:, tcp.OUTCOME])) <= {world_rules.DELIVERED, world_rules.OUT_OF_FUEL, world_rules.TRUNCATED}
 
 
 def test_greedy_runs_draw_only_the_starts():
-  agent = tcp.TaxiHPG(seed=6)
+  agent = tcp.HPGEngine(6)
   expected = agent.rng_state.copy()
   scratch = np.zeros(5, dtype=np.int64)
   for _ in range(50):
-    tr.sample_start(expected, agent.world, scratch)
-  _run(agent, 50)
+    _taxi.sample_start(expected, agent.world, scratch)
+  agent.run(50, learn=False, greedy=True)
   np.testing.assert_array_equal(agent.rng_state, expected)
 
 
@@ -268,7 +252,7 @@ def test_start_states_follow_the_spec_distribution():
   rs = rng.make_state(11)
   counts = collections.Counter()
   for _ in range(48_000):
-    tr.sample_start(rs, WORLD, state_)
+    _taxi.sample_start(rs, WORLD, state_)
     row, col, passenger, destination, fuel = state_
     assert passenger != destination and 5 <= fuel <= 12
     counts[(row, col, passenger, destination, fuel)] += 1
@@ -276,72 +260,61 @@ def test_start_states_follow_the_spec_distribution():
 
 
 def test_classic_task_never_refuels():
-  agent = tcp.TaxiHPG(updated(tcp.Config(), environment={"fuel": False}), seed=7)
-  record = agent.train(2000)
-  assert not np.any(record["outcome"] == world_rules.OUT_OF_FUEL)
-  assert not np.any(agent.policy_tables()["refuel"])
-
-
-def _alphas(agent, episode):
-  """The step sizes the machine uses in learning episode `episode`, by subtask."""
-  m = agent.machine
-  m.banks.stack.episode[machine.E_INDEX] = episode
-  m.begin(state(0, 0, R, G, 10).astype(float), False, False, rng.make_state(0))
-  return np.array([m.banks.stack.alphas[m.index[name]] for name in tcp.NAMES])
+  agent = tcp.HPGEngine(7, task=tc.TaxiRules(False))
+  record = agent.run(2000)
+  assert not np.any(record[:, tcp.OUTCOME] == world_rules.OUT_OF_FUEL)
+  assert not np.any(agent.policy_tables()[tr.REFUEL])
 
 
 def test_step_size_warm_up():
   config = tcp.Config()
-  agent = tcp.TaxiHPG(config, seed=0)
-  alphas = _alphas(agent, 0)
+  schedule = tcp.schedule(config)
+  alphas = np.zeros(5)
+  tcp.step_sizes(schedule, 0, alphas)
   assert alphas[tr.ROOT] == 0.0
   # The ramp starts at once for Navigate (no delay): 0.1 + 0.9 / 25,000 of alpha.
   assert alphas[tr.NAVIGATE] == pytest.approx((0.1 + 0.9 / 25_000) * config.navigate.alpha)
-  assert _alphas(agent, config.root.delay - 1)[tr.ROOT] == 0.0
-  np.testing.assert_allclose(_alphas(agent, config.root.delay + config.root.ramp),
-                             [config.root.alpha] + [config.carry.alpha] * 3
+  tcp.step_sizes(schedule, config.root.delay - 1, alphas)
+  assert alphas[tr.ROOT] == 0.0
+  tcp.step_sizes(schedule, config.root.delay + config.root.ramp, alphas)
+  np.testing.assert_allclose(alphas, [config.root.alpha] + [config.carry.alpha] * 3
                              + [config.navigate.alpha])
 
 
 def test_baseline_steps_by_hand():
-  # A choice among children 0 and 2 of a 3-child table in state 1, uniform: psi =
-  # 1{b = a} - 1/2, and theta <- theta - alpha b(s) psi on the allowed entries only.
-  mask = np.array([True, False, True, False])
+  # theta <- theta - alpha b(s) psi(s, a), on the allowed children's entries only.
+  w = np.zeros(9)
   values = np.array([0.0, 2.0, 0.0])
-  scratch = (np.zeros(4), np.zeros(4, dtype=np.int64), np.zeros(4))
-  t = el.new_trace(9)
-  a = policies.softmax_choose(t, values, 1, 3, mask, 0.5, True, True, rng.make_state(1),
-                              *scratch)
-  want = np.zeros(9)
-  want[3 + a], want[3 + 2 - a] = -0.5, 0.5
-  np.testing.assert_array_equal(t.theta, want)
-  for learn, b in ((False, 1), (True, 0)):           # not learning; b(s) = 0
-    t = el.new_trace(9)
-    policies.softmax_choose(t, values, b, 3, mask, 0.5, learn, True, rng.make_state(1),
-                            *scratch)
-    np.testing.assert_array_equal(t.theta, 0.0)
+  mask = np.array([True, False, True, False])
+  index = np.array([3, 5, 0, 0], dtype=np.int64)          # state 1 of a 3-child table
+  psi = np.array([0.25, -0.25, 0.0, 0.0])
+  tcp.subtract_baseline(w, values, 1, 3, mask, True, 0.5, index, psi)
+  np.testing.assert_array_equal(w, [0, 0, 0, -0.25, 0, 0.25, 0, 0, 0])
+  tcp.subtract_baseline(w, values, 1, 3, mask, False, 0.5, index, psi)   # not learning
+  tcp.subtract_baseline(w, values, 0, 3, mask, True, 0.5, index, psi)    # b(s) = 0
+  np.testing.assert_array_equal(w, [0, 0, 0, -0.25, 0, 0.25, 0, 0, 0])
   # b(s) <- b(s) + beta (R + b(s') - b(s)), with b(s') = 0 once the call is over.
   values = np.array([1.0, 3.0])
-  t = el.new_trace(4)
-  policies.softmax_learn(t, values, 0, 1, 0.1, 1.0, 0.5, -1.0, False)
+  tcp.learn_baseline(values, 0, True, 0.5, -1.0, False, 1)
   assert values[0] == 1.5                                  # target -1 + 3
-  policies.softmax_learn(t, values, 0, 1, 0.1, 1.0, 0.5, -1.0, True)
+  tcp.learn_baseline(values, 0, True, 0.5, -1.0, True, 1)
   assert values[0] == 0.25                                 # target -1
-  policies.softmax_learn(t, values, 0, 1, 0.1, 1.0, 0.0, -1.0, True)
+  tcp.learn_baseline(values, 0, False, 0.5, -1.0, True, 1)
+  tcp.learn_baseline(values, 0, True, 0.0, -1.0, True, 1)
   assert list(values) == [0.25, 3.0]
 
 
 def test_baseline_is_an_option():
   off = updated(tcp.Config(), root={"baseline": 0.0}, carry={"baseline": 0.0},
                 navigate={"baseline": 0.0})
-  plain, based = tcp.TaxiHPG(off, seed=2), tcp.TaxiHPG(seed=2)
-  plain.train(3000)
-  based.train(3000)
-  assert not any(np.any(v) for v in plain.baselines().values())    # b = 0: Eq. 3 exactly
-  assert all(np.any(v) for v in based.baselines().values())
+  plain, based = tcp.HPGEngine(2, off), tcp.HPGEngine(2)
+  plain.run(3000)
+  based.run(3000)
+  assert not any(np.any(v) for v in plain.values)          # b = 0: Eq. 3 exactly
+  assert all(np.any(v) for v in based.values)
   # A Navigate baseline estimates the (negative) moves left to the target: the
   # targets themselves are never a state of their own calls.
-  navigate = based.baselines()["navigate"].reshape(tr.N_TARGETS, 25)
+  navigate = based.values[tr.NAVIGATE].reshape(tr.N_TARGETS, 25)
   for t, (row, col) in AT.items():
     assert navigate[t, row * 5 + col] == 0.0
   assert np.all(navigate <= 0.0)
@@ -363,8 +336,13 @@ def test_bad_arguments():
     updated(config, carry={"ramp": 0})
   with pytest.raises(ValueError, match=r"\[carry\] unknown key\(s\) \['ramp_carry'\]"):
     updated(config, carry={"ramp_carry": 0})
-  with pytest.raises(ValueError, match="episodes must be a non-negative integer"):
-    tcp.TaxiHPG(seed=0).train(-1)
+  agent = tcp.HPGEngine(0)
+  with pytest.raises(ValueError, match="greedy"):
+    agent.run(1, learn=True, greedy=True)
+  with pytest.raises(ValueError, match="n_episodes"):
+    agent.run(-1)
+  with pytest.raises(ValueError, match="own destination"):
+    agent.run(1, starts=[0, 0, R, R, 5])
 
 
 @pytest.mark.slow
@@ -381,19 +359,18 @@ def test_hpg_reaches_95_percent_of_optimal():
   optimal = tv.optimal_mean_return(True)
   last = []
   for seed in range(5):
-    returns = tcp.TaxiHPG(seed=seed).train(100_000)["return"]
+    returns = tcp.HPGEngine(seed).run(100_000)[:, tcp.RETURN]
     last.append(returns[-1000:].mean())
   assert np.mean(last) >= tv.performance_threshold(optimal, 0.95)
   assert min(last) >= tv.performance_threshold(optimal, 0.90)
 
 
-def test_the_machines_functions_compiled_first_are_those_the_taxi_calls(tmp_path):
-  """The machine's functions are compiled leaves first (`learners.jit.compile_first`),
-  for the types `run_taxi` calls them with: with an empty numba cache each compiles
-  once."""
+def test_the_rules_compiled_first_are_those_train_calls(tmp_path):
+  """`train`'s rules are compiled leaves first (`learners.jit.compile_first`), for the
+  types `train` calls them with: with an empty numba cache each compiles once."""
   compile_order.assert_each_compiles_once(tmp_path, """
 from hpg_mj.agents import taxi_hpg
-agent = taxi_hpg.TaxiHPG(seed=0)
-agent.train(20)
-listed = agent.machine._bottom_up()
+agent = taxi_hpg.HPGEngine(seed=0)
+agent.run(20)
+listed = agent._rules_bottom_up(agent._train_scratch())
 """)
