@@ -1,7 +1,8 @@
 """An agent hpg_mj does not ship, defined outside the package, goes through all of
 hpg_mj: registered by an entry point, trained and evaluated by `hpg-mj`, saved and
 loaded, checkpointed and resumed after SIGKILL, drawn in an experiment's figure
-and REPORT.md. The README's blocks run exactly as printed."""
+and REPORT.md. The README's two blocks run exactly as printed (and the hierarchy
+tutorial's rule of the user's own)."""
 import json
 import os
 import pathlib
@@ -23,11 +24,10 @@ README = (REPO / "README.md").read_text()
 CLI = [sys.executable, "-c", "import sys; from hpg_mj import cli; sys.exit(cli.main(sys.argv[1:]))"]
 
 
-def _block(heading):
-  """The python blocks under a README heading, in order (a later one may use an
-  earlier one's names, as a reader runs them)."""
-  section = re.split(r"^## ", README.split(f"## {heading}\n", 1)[1], flags=re.M)[0]
-  return "\n".join(re.findall(r"```python\n(.*?)```", section, re.S))
+def _block(heading, text=README):
+  """The first python block under a heading of the README (or of `text`)."""
+  section = text.split(f"## {heading}\n", 1)[1]
+  return re.search(r"```python\n(.*?)```", section, re.S).group(1)
 
 
 def test_an_unknown_kind_lists_the_registered_ones(tmp_path):
@@ -50,10 +50,15 @@ def test_the_readme_blocks_run_as_printed(tmp_path, monkeypatch, capsys, heading
   else:
     assert "diagonal: 0" in printed                 # the four-way root never sails diagonally
     assert int(re.search(r"straight runs: (\d+)", printed).group(1)) > 0
-    # The second block: the user's @njit end rule ends the legs (100 m is 56 control
-    # steps; within the 200-step limit many succeed).
-    found = re.search(r"leg successes: (\d+) straight, (\d+) diagonal", printed)
-    assert int(found.group(1)) + int(found.group(2)) > 10
+
+
+def test_the_tutorials_user_rule_ends_the_legs(capsys):
+  """docs/tutorial_hierarchy.md's block, as printed: the user's @njit end rule ends
+  the legs (100 m is 56 control steps; within its 200-step limit many succeed)."""
+  text = (REPO / "docs" / "tutorial_hierarchy.md").read_text()
+  exec(compile(_block("A rule of your own", text), "tutorial_hierarchy.md", "exec"), {})
+  found = re.search(r"leg successes: (\d+) straight, (\d+) diagonal", capsys.readouterr().out)
+  assert int(found.group(1)) + int(found.group(2)) > 10
 
 
 TASK = """
