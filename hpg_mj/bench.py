@@ -188,7 +188,7 @@ def bench_train(min_seconds=2.0, tasks=None):
     return rows
 
   # The stand-alone subtasks with the learned exploration width (SPEC section 8).
-  from hpg_mj.agents import ship_subtask
+  from hpg_mj.hierarchy import ship_subtask
   for task in ship_subtask.TASKS:
     ship_subtask.train_subtask(task, 5, 0, width_alpha=0.003)         # compile, warm up
     steps, start = 0, time.perf_counter()

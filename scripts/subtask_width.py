@@ -16,7 +16,7 @@ import pathlib
 
 import numpy as np
 
-from hpg_mj.agents import ship_subtask
+from hpg_mj.hierarchy import ship_subtask
 from hpg_mj.experiments import beyond
 from hpg_mj.experiments import stats
 

@@ -100,3 +100,33 @@ def test_no_module_imports_itself_through_others():
     if name not in done:
       visit(name, [name])
   assert cycles == []
+
+
+def _agent_modules():
+  """The modules of the shipped agents (the registry's import paths)."""
+  from hpg_mj import agents
+  return {spec.split(":")[0].split(".")[-1] for spec in agents._SHIPPED.values()}
+
+
+def _imported_agent_modules(path):
+  """The `hpg_mj.agents` submodules a file imports (`from hpg_mj.agents import x`,
+  `import hpg_mj.agents.x`)."""
+  found = set()
+  for node in ast.walk(ast.parse(path.read_text())):
+    if isinstance(node, ast.ImportFrom) and node.module == "hpg_mj.agents":
+      found |= {a.name for a in node.names}
+    elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("hpg_mj.agents."):
+      found.add(node.module.split(".")[2])
+    elif isinstance(node, ast.Import):
+      found |= {a.name.split(".")[2] for a in node.names if a.name.startswith("hpg_mj.agents.")}
+  return found
+
+
+def test_experiments_reach_agents_only_through_the_registry():
+  """An experiment names its agents by task file: it may use the registry and the
+  agents' shared modules, never import a particular agent."""
+  particular = _agent_modules()
+  assert {"ship_hybrid", "taxi_hpg", "sb3"} <= particular
+  for path in sorted((PACKAGE / "experiments").glob("*.py")):
+    bad = _imported_agent_modules(path) & particular
+    assert not bad, f"{path.relative_to(PACKAGE.parent)} imports the agent module(s) {sorted(bad)}"

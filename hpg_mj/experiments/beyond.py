@@ -222,14 +222,14 @@ def _route(root, protocol, say, workers=1):
 def subtask_seed(task, seed, calls, options):
   """One seed of a stand-alone subtask: (online success per 1,000 calls, the final
   greedy success over 1,000 fixed local starts)."""
-  from hpg_mj.agents import ship_subtask
+  from hpg_mj.hierarchy import ship_subtask
   run = ship_subtask.train_subtask(task, calls, seed, greedy_every=calls,
                                    greedy_episodes=1000, **options)
   return run["success"].reshape(-1, 1000).mean(axis=1), float(run["greedy"][-1])
 
 
 def _subtasks(root, protocol, say, workers=1):
-  from hpg_mj.agents import ship_subtask
+  from hpg_mj.hierarchy import ship_subtask
   from hpg_mj.experiments import stats
   seeds, calls = protocol
   rows = ["subtask,policy,calls,mean,ci_low,ci_high"]
@@ -306,7 +306,7 @@ def draw_subtasks(root, curves, n_seeds, name="subtask_width.png"):
   import matplotlib
   matplotlib.use("Agg")
   import matplotlib.pyplot as plt
-  from hpg_mj.agents import ship_subtask
+  from hpg_mj.hierarchy import ship_subtask
   fig, axes = plt.subplots(1, 2, figsize=(10, 3.8), sharey=True)
   for ax, task in zip(axes, ship_subtask.TASKS):
     for policy in WIDTH_VARIANTS:

@@ -280,7 +280,7 @@ def test_a_subtask_alone_is_the_same_fused_and_through_its_environment(task, env
   the analytic ship and step by step through its Gymnasium environment: the same
   episodes, ends and learned parameters (its environment's reward holds G too,
   so only the return column differs)."""
-  from hpg_mj.agents import ship_subtask
+  from hpg_mj.hierarchy import ship_subtask
   direction = ship_subtask.TASKS[task]
   runs = []
   for fused in (True, False):

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from hpg_mj.agents import ship_subtask
+from hpg_mj.hierarchy import ship_subtask
 from hpg_mj.hierarchy import blocks
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import policies

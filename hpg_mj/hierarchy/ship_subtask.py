@@ -9,7 +9,8 @@ own (`hierarchy.machine`, `root_args`), as it runs it inside the hierarchy.
 
 This is the experiment of issue 12, item 3 (`hpg-mj`-free: `train_subtask` and
 `scripts/subtask_width.py`), not a task-file agent: the subtasks are parts of the
-hierarchy, and their stand-alone environments are the Gymnasium ids
+hierarchy (so this module lives in its layer, beside the blocks it is made of), and
+their stand-alone environments are the Gymnasium ids
 `hpg_mj/ShipSteeringDiagonal-v0` and `hpg_mj/ShipSteeringStraight-v0`.
 """
 import numpy as np
