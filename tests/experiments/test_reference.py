@@ -4,12 +4,14 @@ survive a resume, the experiment key that declares them, and `hpg-mj reproduce
 reference` drawn from whatever runs exist (a tabular learner and a real
 Stable-Baselines3 one, tiny budgets)."""
 import json
+import pathlib
+import runpy
 
 import numpy as np
 import pytest
 
 from hpg_mj import cli
-from hpg_mj.experiments import bounds, runs, stats
+from hpg_mj.experiments import bounds, runner, runs, stats
 from experiment_file import assert_refused
 
 
@@ -159,3 +161,20 @@ def test_reproduce_reference_draws_whatever_runs_exist(tmp_path, capsys):
 def test_existing_is_refused_for_the_papers_figures(tmp_path, capsys):
   assert cli.main(["reproduce", "fig6", "--existing", "--out", str(tmp_path)]) == 2
   assert "--existing draws `reproduce reference` from the runs found" in capsys.readouterr().err
+
+
+def test_tuning_runs_give_each_learner_its_grid_on_the_same_first_tuning_seeds(tmp_path):
+  """scripts/tuning_runs.py --seeds: the equal tuning budget of the reference runs."""
+  script = runpy.run_path(str(pathlib.Path(__file__).resolve().parents[2] / "scripts" /
+                              "tuning_runs.py"))
+  ppo, dqn = (runner.load_experiment(script["write"](name, tmp_path, 3))
+              for name in ("taxi_fuel_ppo", "taxi_fuel_dqn"))
+  for experiment in (ppo, dqn):
+    assert (experiment["runs"], experiment["first_seed"], experiment["episodes"]) == (3, 0, 200)
+    assert experiment["tuning"] and experiment["figures"][0]["kind"] == "greedy_curve"
+  assert sorted((t.config.dqn.learning_rate, t.config.dqn.exploration_steps)
+                for t in dqn["task_files"]) == [(1e-4, 20000), (1e-4, 40000), (5e-4, 20000),
+                                                (5e-4, 40000)]
+  assert len({(t.config.ppo.learning_rate, t.config.ppo.ent_coef) for t in ppo["task_files"]}) == 4
+  with pytest.raises(ValueError, match=r"--seeds 11: .* has 10 tuning seeds; allowed: 1\.\.10"):
+    script["write"]("taxi_fuel_ppo", tmp_path, 11)
