@@ -58,8 +58,11 @@ def test_greedy_points_leave_a_stable_baselines3_run_as_it_was(tmp_path):
   assert pointed["greedy"] == plain["greedy"]
   assert [(p["episodes"], p["steps"]) for p in pointed["greedy_curve"]] == [
       (1, 1000), (2, 2000), (4, 4000)]
-  # Its scores are over the task's episodes, so they are normalized (SPEC 7.1).
-  assert "mean_return_normalized" in plain["greedy"]
+  # Its greedy scores are over every fixed start, and normalized like every
+  # episodic agent's (SPEC 7, 7.1); its online ones over its last rows.
+  assert plain["greedy"]["episodes_measured"] == 1000
+  assert "mean_return_normalized" in plain["greedy"] and "mean_return_normalized" in plain
+  assert plain["rows_measured"] == 4
 
 
 EXPERIMENT = """
