@@ -157,7 +157,10 @@ def write(out, quick=False):
   for world, entries in found.items():
     spec = WORLDS[world]
     title = "Ship steering" if world == "ship" else "Taxi-fuel"
-    part = ["", *table(world, entries, quick), "", _bounds_line(world), ""]
+    part = ["", *table(world, entries, quick), "", _bounds_line(world), "",
+            "Each learner's tuning (its task file's `[tuning] result`, SPEC section 7):", "",
+            *[f"- {e['task'].name}: {(e['task'].tuning or {}).get('result', 'no [tuning]')}"
+              for e in entries], ""]
     tables += [f"### {title}", *part]
     lines += [f"## {title}", *part]
     drawn = [e for e in entries if e["runs"]]

@@ -159,6 +159,7 @@ def test_reproduce_reference_draws_whatever_runs_exist(tmp_path, capsys):
   assert len((root / "runs.jsonl").read_text().splitlines()) == 3
   assert "## reference: Reference scores" in (out / "REPORT.md").read_text()
   assert "QUICK protocol" in (root / "REPORT.md").read_text()
+  assert "- DQN (SB3): tuned by scripts/tuning_runs.py" in table
 
 
 def test_existing_is_refused_for_the_papers_figures(tmp_path, capsys):
