@@ -484,6 +484,12 @@ def _draw_and_report(args, experiment, results, root, wall, new_runs):
       drawn[fig["name"]] = figures.draw_curve(root, fig, experiment["task_files"], records,
                                               optimal, protocol)
       continue
+    if fig["kind"] == "greedy_curve":
+      drawn[fig["name"]] = figures.draw_greedy(
+          root, fig["name"], f"{fig['title']}\n{figures.protocol_line(protocol)}",
+          [(fig["metric"], fig["ylabel"])], experiment["task_files"], results,
+          optimal if fig.get("reference") == "optimal" else None)
+      continue
     agent, _, _ = agents.load(root / fig["task"] / f"seed{fig['seed']}" / "agent")
     drawn[fig["name"]] = figures.draw_trajectories(root, fig, agent, args.quick)
     for s in drawn[fig["name"]]:
@@ -507,13 +513,19 @@ def _cmd_reproduce(args):
   _paths.check_folder_out(args.out)
   if args.figure == "beyond":
     return _reproduce_beyond(args)
+  if args.figure == "reference":
+    return _reproduce_reference(args)
+  if args.existing:
+    raise ValueError("--existing draws `reproduce reference` from the runs found; the "
+                     "paper's figures rerun their experiments (allowed: reproduce reference "
+                     "--existing)")
   if args.figure == "all":
     names = list(dict.fromkeys(FIGURE_EXPERIMENTS.values()))
   elif args.figure in FIGURE_EXPERIMENTS:
     names = [FIGURE_EXPERIMENTS[args.figure]]
   else:
     raise ValueError(f"unknown figure {args.figure!r}; valid: all, "
-                     f"{', '.join(FIGURE_EXPERIMENTS)}, beyond")
+                     f"{', '.join(FIGURE_EXPERIMENTS)}, beyond, reference")
   rc = 0
   for name in names:
     rc |= _cmd_run(argparse.Namespace(**{**vars(args), "experiment_file": name}))
@@ -541,6 +553,27 @@ def _reproduce_beyond(args):
   combined = figures.write_combined_report(args.out, names + [report.parent.name])
   print(f"reproduce beyond: {report} and {combined}")
   return 0
+
+
+def _reproduce_reference(args):
+  """Issue 21's sample-efficiency figures and "Reference scores" table
+  (hpg_mj.experiments.reference): runs the reference experiments (resuming
+  unfinished runs; with --existing none), draws them from the runs finished, then
+  OUT/REPORT.md with a reference section beside the other reports there."""
+  import pathlib
+
+  from hpg_mj.experiments import figures, reference
+  rc = 0
+  if not args.existing:
+    for name in reference.EXPERIMENTS:
+      rc |= _cmd_run(argparse.Namespace(**{**vars(args), "experiment_file": name}))
+  report = reference.write(args.out, quick=args.quick)
+  suffix = "_quick" if args.quick else ""
+  names = [n + suffix for n in list(dict.fromkeys(FIGURE_EXPERIMENTS.values())) + ["beyond"]
+           if (pathlib.Path(args.out) / (n + suffix) / "REPORT.md").is_file()]
+  combined = figures.write_combined_report(args.out, names + [report.parent.name])
+  print(f"reproduce reference: {report}, {report.parent / 'table.md'} and {combined}")
+  return rc
 
 
 def _cmd_demo(args):
@@ -706,8 +739,12 @@ def build_parser():
 
   p = sub.add_parser("reproduce", help="the paper's figures from the shipped experiments")
   p.add_argument("figure", nargs="?", default="all",
-                 help="all, fig6, fig7, ..., fig12, or beyond (SPEC section 8)")
+                 help="all, fig6, fig7, ..., fig12, beyond (SPEC section 8), or reference "
+                      "(issue 21: the reference scores and sample-efficiency figures)")
   _add_run_options(p)
+  p.add_argument("--existing", action="store_true",
+                 help="reference only: draw from the runs already finished under --out, "
+                      "run nothing")
   p.set_defaults(func=_cmd_reproduce)
 
   p = sub.add_parser("evaluate", help="score a saved agent, or any policy (--policy), on "

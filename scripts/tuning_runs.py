@@ -11,7 +11,9 @@ trains them with checkpoints (a killed command resumes when run again), and
 
 prints each configuration's mean `[tuning] score` over the seeds finished so far.
 For long learners such as the SB3 reference agents (`hpg-mj tune` keeps its runs
-in memory, so a 10 M-step tuning could not survive a restart).
+in memory, so a 10 M-step tuning could not survive a restart). `--seeds N` runs
+the first N of the task's tuning seeds only (the same N for every learner compared,
+so that their tuning budgets stay equal); the experiment file says so.
 
     python scripts/tuning_runs.py ship_ppo taxi_fuel_dqn --out runs/tuning
 """
@@ -26,7 +28,7 @@ import numpy as np
 from hpg_mj import agents
 from hpg_mj.experiments import tuning
 
-FIGURE_METRICS = {"ship": "gate_fraction", "taxi": "return_per_episode"}
+FIGURE_METRICS = {"ship": "J", "taxi": "mean_return"}   # greedy, at the runs' end
 
 
 def with_changes(text, changes, path):
@@ -45,7 +47,9 @@ def with_changes(text, changes, path):
   return text
 
 
-def write(name, out):
+def write(name, out, n_seeds=None):
+  """Writes the task's configurations and their experiment file into `out`; runs
+  the first `n_seeds` tuning seeds (default all)."""
   task = agents.load_task(name)
   out = pathlib.Path(out).resolve()
   out.mkdir(parents=True, exist_ok=True)
@@ -61,6 +65,11 @@ def write(name, out):
   seeds = sorted(task.tuning_seeds)
   if seeds != list(range(seeds[0], seeds[0] + len(seeds))):
     raise ValueError(f"{task.path}: tuning seeds {seeds} are not consecutive")
+  if n_seeds is not None:
+    if not 1 <= n_seeds <= len(seeds):
+      raise ValueError(f"--seeds {n_seeds}: {task.path} has {len(seeds)} tuning seeds; "
+                       f"allowed: 1..{len(seeds)}")
+    seeds = seeds[:n_seeds]
   world = task.section("environment")["world"]
   experiment = out / f"tuning_{task.path.stem}.toml"
   experiment.write_text(f'''# The tuning of {task.path.name} ({len(paths)} configurations x seeds
@@ -78,11 +87,10 @@ tuning = true
 
 [[figure]]
 name = "tuning_{task.path.stem}"
-kind = "curve"
+kind = "greedy_curve"
 metric = "{FIGURE_METRICS[world]}"
-x = "steps"
 title = "tuning of {task.path.stem}"
-ylabel = "{FIGURE_METRICS[world]}"
+ylabel = "{FIGURE_METRICS[world]}, greedy"
 paper = "none: tuning"
 ''')
   return experiment
@@ -110,12 +118,14 @@ def main(argv=None):
   parser.add_argument("tasks", nargs="*", help="task files or shipped names")
   parser.add_argument("--out", default="runs/tuning")
   parser.add_argument("--summary", help="a tuning experiment's output folder")
+  parser.add_argument("--seeds", type=int, default=None,
+                      help="run the first N tuning seeds only (default: all)")
   args = parser.parse_args(argv)
   if args.summary:
     summary(args.summary)
     return 0
   for name in args.tasks:
-    print(write(name, args.out))
+    print(write(name, args.out, args.seeds))
   return 0
 
 

@@ -57,3 +57,15 @@ def assert_same_run(a, b):
   assert sorted(a[2]) == sorted(b[2])
   for name in a[2]:
     np.testing.assert_array_equal(a[2][name], b[2][name], err_msg=name)
+
+
+def assert_refused(tmp_path, text, message):
+  """An experiment file of this text is refused when loaded, before anything runs."""
+  import pytest
+
+  from hpg_mj.agents import taskfile
+  from hpg_mj.experiments import runner
+  path = tmp_path / "bad.toml"
+  path.write_text(text)
+  with pytest.raises(taskfile.TaskFileError, match=message):
+    runner.load_experiment(path)

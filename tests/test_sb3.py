@@ -33,7 +33,7 @@ TINY = {
                       "net_arch = [64, 64]": "net_arch = [8, 8]"},
     "taxi_fuel_dqn": {"learning_starts = 5000": "learning_starts = 300",
                       "buffer_size = 200000": "buffer_size = 5000",
-                      "exploration_steps = 400000": "exploration_steps = 1500",
+                      "exploration_steps = 20000": "exploration_steps = 1500",
                       "target_update_interval = 2000": "target_update_interval = 200",
                       "net_arch = [64, 64]": "net_arch = [8, 8]"},
 }

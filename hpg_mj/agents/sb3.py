@@ -151,6 +151,9 @@ class _SB3Agent:
   # The online metrics are over the last 100 rows (1,000 control steps each): the
   # episodes that ended in the last 100,000 control steps of training.
   metric_window = 100
+  # Rows of control steps, but scores over the benchmark task's episodes: they
+  # are normalized against its bounds (SPEC section 7.1) like every episodic agent's.
+  per_episode_scores = True
   CHUNK_PER_COPY = 1000          # control steps per copy in one off-policy `learn` call
   start_dtype = np.float64       # of the world's states
 
@@ -292,6 +295,14 @@ class _SB3Agent:
       _set_generators(saved)
     return self.as_record(np.array(rows, dtype=np.float64))
 
+  def _window(self, record):
+    """The rows `metrics` is over: a training record's last `metric_window` rows
+    (each `record_steps` control steps); an evaluation's record (`_sail`: a row per
+    episode, of its length) whole, so that the greedy measure is over every fixed
+    start (SPEC section 7), as every agent's is."""
+    evaluation = np.all(record["episodes"] == 1) and np.any(record["steps"] != self.record_steps)
+    return record if evaluation else record[-self.metric_window:]
+
   def graph(self):
     # A ValueError, so that `hpg-mj render --agent` refuses it in one line.
     raise ValueError(f"{self.name} is a flat Stable-Baselines3 policy with no task graph to "
@@ -402,7 +413,7 @@ class _SB3Ship(_SB3Agent, _ship.ShipAgent):
 
   def metrics(self, record):
     """ShipAgent's metrics, from the row sums."""
-    w = record[-self.metric_window:]
+    w = self._window(record)
     episodes, gates = w["episodes"].sum(), w["gates"].sum()
     return {
         "episodes_measured": int(episodes), "rows_measured": int(len(w)),
@@ -476,7 +487,7 @@ class _SB3Taxi(_SB3Agent, _taxi.TaxiAgent):
   def metrics(self, record):
     """TaxiAgent's metrics, from the row sums."""
     from hpg_mj.worlds import taxi_values
-    w = record[-self.metric_window:]
+    w = self._window(record)
     episodes = w["episodes"].sum()
     optimal = self.optimal_mean_return()
     mean = float(w["return_sum"].sum() / episodes) if episodes else None

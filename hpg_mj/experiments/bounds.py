@@ -26,8 +26,11 @@ def bounds():
 
 def task_name(agent):
   """The benchmark task an agent acts on ("ship", "taxi_fuel", "taxi"), or None
-  (a subtask, a continuing agent)."""
-  if getattr(agent, "record_steps", None) is not None:
+  (a subtask, a continuing agent). An agent whose record rows are control steps but
+  whose scores are over the task's episodes (`per_episode_scores`, the SB3 agents)
+  acts on the task."""
+  if getattr(agent, "record_steps", None) is not None and \
+      not getattr(agent, "per_episode_scores", False):
     return None
   env = getattr(getattr(agent, "config", None), "environment", None)
   world = getattr(env, "world", None)

@@ -6,9 +6,12 @@ episodes or against primitive/control steps: the mean over runs, with its 95%
 bootstrap confidence band (`hpg_mj.experiments.stats`), the paper's stated value
 drawn in when the file gives one, and the data beside the PNG as CSV; its title
 says the runs x episodes, the seeds, what the band is, and a quick protocol says
-it is quick. The legend names the learners as the paper does ([task] label). A "trajectories" figure (Figure
-12) sails a run's final agent from given starts on the MuJoCo ship
-(`experiments.fig12`).
+it is quick. The legend names the learners as the paper does ([task] label). A
+"greedy_curve" figure plots a greedy metric on the fixed starts at each of the
+experiment's `greedy_at` points against the control (primitive) steps trained, on a
+log axis (the sample-efficiency figures of `hpg_mj.experiments.reference`). A
+"trajectories" figure (Figure 12) sails a run's final agent from given starts on
+the MuJoCo ship (`experiments.fig12`).
 
 Records have named fields (`Agent.record_fields`): a metric is drawn for every
 task whose agent records the fields it needs; every record has "steps".
@@ -155,6 +158,90 @@ def draw_curve(root, fig, tasks, records_by_task, optimal=None, protocol=None):
   n = min(len(c) for c in columns)
   np.savetxt(root / f"{fig['name']}.csv", np.column_stack([c[:n] for c in columns]),
              delimiter=",", header=",".join(header), comments="", fmt="%.6g")
+  return summary
+
+
+# greedy_curve figures: the greedy metrics of each world (SPEC sections 7, 7.1) whose
+# value at each `greedy_at` point is drawn against the steps trained.
+GREEDY_METRICS = {"ship": ("gate_pass_rate", "steps_to_gate", "J", "J_normalized",
+                           "gate_pass_rate_normalized"),
+                  "taxi": ("mean_return", "mean_return_normalized")}
+STEPS_KEYS = ("control_steps", "primitive_steps")   # a run's steps trained (metrics.json)
+
+
+def check_greedy_curve(fig, tasks):
+  """Why a greedy_curve figure cannot be drawn from these tasks, or None."""
+  world = tasks[0].section("environment")["world"]
+  allowed = GREEDY_METRICS[world]
+  if fig["metric"] not in allowed:
+    return f"metric = {fig['metric']!r}; allowed for the {world}: {list(allowed)}"
+  if fig.get("reference", REFERENCES[0]) not in REFERENCES:
+    return f"reference = {fig['reference']!r}; allowed: {list(REFERENCES)}"
+  if "reference" in fig and fig["metric"] != "mean_return":
+    return "reference = 'optimal' needs metric = 'mean_return' (the taxi's exact optimum)"
+  return None
+
+
+def greedy_points(metrics):
+  """A finished run's greedy curve (`runs`: {"episodes", "steps", greedy metrics...}
+  per point); a run made without `greedy_at` has its end only."""
+  if "greedy_curve" in metrics:
+    return metrics["greedy_curve"]
+  steps = next(metrics[k] for k in STEPS_KEYS if k in metrics)
+  return [{"episodes": metrics["episodes"], "steps": steps, **metrics["greedy"]}]
+
+
+def greedy_series(runs_metrics, metric):
+  """(x: the mean over runs of the steps trained at each point, values: runs x points
+  of `metric`, NaN where a run has none, e.g. steps to the gate with no pass)."""
+  curves = [greedy_points(m) for m in runs_metrics]
+  n = min(len(c) for c in curves)
+  x = np.mean([[p["steps"] for p in c[:n]] for c in curves], axis=0)
+  values = np.array([[np.nan if p.get(metric) is None else float(p[metric]) for p in c[:n]]
+                     for c in curves])
+  return x, values
+
+
+def draw_greedy(root, name, title, panels, tasks, results, optimal=None):
+  """Writes <name>.png and <name>.csv: one panel per (metric, ylabel) of `panels`,
+  each task's greedy metric against the control (primitive) steps trained, log
+  axis; the mean over its runs with the 95% bootstrap band (`stats.band`). Returns
+  {task stem: {"label", "final" (each run's value at its end)}} of the first panel."""
+  import matplotlib
+  matplotlib.use("Agg")
+  import matplotlib.pyplot as plt
+  from hpg_mj.experiments import stats
+  root = pathlib.Path(root)
+  world = tasks[0].section("environment")["world"]
+  fig, axes = plt.subplots(1, len(panels), figsize=(6.4 * len(panels), 4.4), squeeze=False)
+  columns, header, summary = [], [], {}
+  for ax, (metric, ylabel) in zip(axes[0], panels):
+    for task in tasks:
+      stem = task.path.stem
+      if not results.get(stem):
+        continue
+      x, values = greedy_series(results[stem], metric)
+      mean, low, high = stats.band(values)
+      line, = ax.plot(x, mean, marker="o", markersize=3, label=f"{task.name} ({len(values)} runs)")
+      ax.fill_between(x, low, high, alpha=0.2, color=line.get_color(), linewidth=0)
+      columns += [x, mean, low, high]
+      header += [f"{stem}_{metric}_{k}" for k in ("steps", "mean", "ci_low", "ci_high")]
+      if metric == panels[0][0]:
+        summary[stem] = {"label": task.name, "final": values[:, -1]}
+    if optimal is not None and metric == "mean_return":
+      ax.axhline(optimal, color="k", linestyle="--", linewidth=1, label="optimal (exact)")
+    ax.set_xscale("log")
+    ax.set_xlabel("primitive steps trained" if world == "taxi" else "control steps trained")
+    ax.set_ylabel(ylabel)
+    ax.legend(fontsize=7)
+  fig.suptitle(title + "\ngreedy on the fixed 1,000 starts; " + BAND, fontsize=8)
+  fig.tight_layout()
+  fig.savefig(root / f"{name}.png", dpi=100)
+  plt.close(fig)
+  n = max(len(c) for c in columns)
+  padded = [np.concatenate([c, np.full(n - len(c), np.nan)]) for c in columns]
+  np.savetxt(root / f"{name}.csv", np.column_stack(padded), delimiter=",",
+             header=",".join(header), comments="", fmt="%.6g")
   return summary
 
 
@@ -336,7 +423,8 @@ def write_report(root, experiment, results, drawn, protocol=None):
       continue
     ours = ", ".join(f"{v['label']} {stats.format_summary(stats.summary(v['final']))}"
                      for v in summary.values())
-    line = head + f" Ours (last block of 1,000 episodes): {ours}."
+    line = head + (" Ours (greedy, the final agents): " if fig["kind"] == "greedy_curve" else
+                   " Ours (last block of 1,000 episodes): ") + f"{ours}."
     if fig["metric"] == "steps_to_gate":
       line += " These means are over the episodes that passed the gate, which were " + \
           ", ".join(f"{v['label']} {100 * np.mean(v['passed']):.1f}%" for v in summary.values()) \
@@ -355,12 +443,12 @@ def write_report(root, experiment, results, drawn, protocol=None):
         line += " (" + ", ".join(labels[t] for t in extra) + ": an extra curve, not in the " \
                 "paper's comparison.)"
     lines.append(line)
-  lines += _provenance_lines(results)
+  lines += provenance_lines(results)
   (root / "REPORT.md").write_text("\n".join(lines) + "\n")
   return root / "REPORT.md"
 
 
-def _provenance_lines(results):
+def provenance_lines(results):
   """REPORT.md's last section: what made each run (their metrics.json), and this report."""
   from hpg_mj import provenance
   lines = ["", "## Provenance", "",

@@ -14,6 +14,10 @@ An experiment file (tasks/experiments/*.toml):
     first_seed = 100           # optional (default 0): runs are seeds first_seed,
                                # first_seed + 1, ...; none may be a task's tuning seed
     tuning = false             # optional: true allows tuning seeds (not for publication)
+    greedy_at = [100, 1000]    # optional: also measure each run greedily on the fixed
+                               # starts after these many episodes (increasing, below
+                               # episodes; a quick run keeps those below its own), and
+                               # at its end: a "greedy_curve" figure's points
 
     [[figure]]                 # one table per figure; see tasks/experiments/*.toml
     name = "fig7"
@@ -27,6 +31,14 @@ An experiment file (tasks/experiments/*.toml):
     # or paper_best = "ship_hybrid" (its best only; paper_tasks = [...] the learners
     # the paper's statement covers, default all); better = "higher" or "lower"
     # optional: paper_value = 4.0 (drawn in), reference = "optimal" (taxi: the exact optimum)
+
+    [[figure]]
+    name = "efficiency"
+    kind = "greedy_curve"      # a greedy metric at each greedy_at point against the
+    metric = "gate_pass_rate"  # control (primitive) steps trained, log axis; mean over
+    title = "..."              # runs, 95% bootstrap band (figures.GREEDY_METRICS)
+    ylabel = "gate pass rate, greedy"
+    paper = "..."
 
     [[figure]]
     name = "fig12"
@@ -73,7 +85,8 @@ EXPERIMENT_SCHEMA = {"name": "str", "description": "str", "tasks": "str_list", "
                      "episodes": POSITIVE, "quick_runs": POSITIVE, "quick_episodes": POSITIVE}
 # first_seed: the runs' first seed; tuning = true: an experiment on tuning seeds
 # (for tuning or tests), whose reports say they are not for publication.
-EXPERIMENT_OPTIONAL = {"first_seed": ("int_min", 0), "tuning": "bool"}
+EXPERIMENT_OPTIONAL = {"first_seed": ("int_min", 0), "tuning": "bool",
+                       "greedy_at": "int_list_any"}
 
 # [[figure]] tables (taskfile's types): every figure needs the common keys and
 # those of its kind; the optional ones may be left out.
@@ -82,6 +95,7 @@ FIGURE_KINDS = {
     "curve": ({"metric": "str", "x": "str", "ylabel": "str"},
               {"paper_value": "float", "paper_order": "str_list", "paper_best": "str",
                "paper_tasks": "str_list", "better": "str", "reference": "str"}),
+    "greedy_curve": ({"metric": "str", "ylabel": "str"}, {"reference": "str"}),
     "trajectories": ({"task": "str", "seed": ("int_min", 0),
                       "starts": ("float_lists", 4, "[x, y, heading in degrees, turning rate "
                                                    "in deg/s]"),
@@ -123,8 +137,9 @@ def _check_figures(path, section, tasks, figures_):
       if task not in names:
         raise taskfile.TaskFileError(f"{path}: {where} names task {task!r}, which is not in "
                                      f"[experiment] tasks {names}")
-    if kind == "curve":
-      problem = figures.check_curve(fig, tasks)
+    if kind in ("curve", "greedy_curve"):
+      problem = (figures.check_curve if kind == "curve" else figures.check_greedy_curve)(
+          fig, tasks)
       if problem:
         raise taskfile.TaskFileError(f"{path}: {where} {problem}")
     else:
@@ -162,6 +177,12 @@ def load_experiment(path):
                                  EXPERIMENT_OPTIONAL)
   section.setdefault("first_seed", 0)
   section.setdefault("tuning", False)
+  points = section.setdefault("greedy_at", [])
+  if points and (points[0] < 1 or any(b <= a for a, b in zip(points, points[1:]))
+                 or points[-1] >= section["episodes"]):
+    raise taskfile.TaskFileError(f"{path}: [experiment] greedy_at = {points}; allowed: "
+                                 f"increasing episode counts in 1..{section['episodes'] - 1} "
+                                 f"(the end of each run is a point already)")
   _paths.check_name(section["name"], f"{path}: [experiment] name",   # OUT/<name>/
                     taskfile.TaskFileError)
   last_seed = section["first_seed"] + max(section["runs"], section["quick_runs"]) - 1
@@ -371,8 +392,10 @@ def run_experiment(experiment, out, quick=False, workers=None, progress=None, on
                             f"for it)")
     if holder is not None and executor == "ray":     # a Ray worker's stderr is not shown
       on_wait(f"run {job[3]} is held by {holder}; waiting for it")
+  episodes = experiment["quick_episodes"] if quick else experiment["episodes"]
   options = {"checkpoint_every": checkpoint_every, "wait": wait,
-             "command": command or locks.command_line()}
+             "command": command or locks.command_line(),
+             "greedy_at": tuple(p for p in experiment.get("greedy_at", ()) if p < episodes)}
   workers = workers or os.cpu_count() or 1
   poll = _Poller(all_jobs, progress)
   on_finished = on_finished or (lambda job: None)

@@ -21,8 +21,14 @@ A run folder (`OUT/<experiment>/<task>/seed<k>/`) holds:
                           set (`Agent.evaluate_fixed`)
     metrics.json          metrics over the last 1,000   } it is never run again
                           episodes (online), "greedy":
-                          the same over greedy.npy, and
+                          the same over greedy.npy,
+                          "greedy_curve" (below), and
                           what made them (`hpg_mj.provenance`)
+    greedy_curve.jsonl    with `greedy_at` (an experiment's sample-efficiency
+                          curve): one line per point, the greedy metrics on the
+                          fixed starts after that many episodes (record rows),
+                          with the control (primitive) steps trained so far; the
+                          last line is the finished run's "greedy"
 
 A checkpoint is written to `checkpoints/.tmp-ep<N>` and renamed into place, so a
 run killed at any moment leaves either the new checkpoint whole or none of it.
@@ -31,6 +37,9 @@ archive does not check out) is reported in events.log and on stderr, renamed to
 `damaged-ep<N>`, and the run resumes from the one before it (or from the start).
 The saved state is the agent's whole training state (parameters, traces, the
 generator, counters), so a resumed run ends bit-identical to one never stopped.
+A greedy point neither learns nor draws from the agent's generator
+(`Agent.evaluate_fixed`), so a run with points ends as one without them; a resumed
+run keeps the points up to its checkpoint and measures the later ones again.
 """
 import json
 import os
@@ -90,6 +99,11 @@ def _checkpoints(run_dir):
   folder = pathlib.Path(run_dir) / "checkpoints"
   found = [p for p in folder.glob("ep*") if p.is_dir() and p.name[2:].isdigit()]
   return sorted(found, key=lambda p: int(p.name[2:]), reverse=True)
+
+
+def _steps(records):
+  """Control (primitive) steps trained so far: every record has "steps"."""
+  return int(sum(float(r["steps"].sum()) for r in records))
 
 
 def _write_checkpoint(agent, record, run_dir, done, wall, compiled):
@@ -160,6 +174,38 @@ class _ProgressFile:
     self.file.close()
 
 
+class _GreedyCurve:
+  """greedy_curve.jsonl, cut back to the points a resumed run really has."""
+
+  def __init__(self, run_dir, done):
+    self.path = pathlib.Path(run_dir) / "greedy_curve.jsonl"
+    self.points = []
+    if done and self.path.is_file():
+      for line in self.path.read_text().splitlines():
+        try:
+          point = json.loads(line)
+        except json.JSONDecodeError:        # a line cut short by a kill
+          continue
+        if isinstance(point, dict) and isinstance(point.get("episodes"), int) and \
+            point["episodes"] <= done:
+          self.points.append(point)
+    tmp = self.path.with_name("greedy_curve.jsonl.tmp")
+    tmp.write_text("".join(json.dumps(p) + "\n" for p in self.points))
+    os.replace(tmp, self.path)
+
+  def add(self, point):
+    self.points.append(point)
+    with open(self.path, "a") as f:
+      f.write(json.dumps(point) + "\n")
+
+
+def _greedy_scores(agent, greedy):
+  """The greedy metrics on the fixed starts (SPEC section 7), normalized too (7.1)."""
+  scores = dict(agent.metrics(greedy), starts=GREEDY_STARTS, start_seed=base.GREEDY_SEED)
+  scores.update(bounds.normalized(bounds.task_name(agent), scores))
+  return scores
+
+
 def read_progress(run_dir):
   """(episodes done, latest figure) from a run's progress.csv; (0, None) if none yet."""
   path = pathlib.Path(run_dir) / "progress.csv"
@@ -178,9 +224,11 @@ def read_progress(run_dir):
 
 
 def run(task_path, seed, episodes, run_dir, checkpoint_every=CHECKPOINT_EVERY, stop_after=None,
-        wait=True, command=None):
+        wait=True, command=None, greedy_at=()):
   """Trains one (task, seed) run to `episodes`, resuming from its checkpoints;
-  returns its metrics. A finished run is not run again.
+  returns its metrics. A finished run is not run again. `greedy_at`: episode
+  counts (below `episodes`) after which the agent is also measured greedily on
+  the fixed starts (greedy_curve.jsonl).
 
   The run folder is locked meanwhile (`locks`): a run that another process holds
   is waited for (its metrics returned once it has finished them), or, with
@@ -196,10 +244,11 @@ def run(task_path, seed, episodes, run_dir, checkpoint_every=CHECKPOINT_EVERY, s
   with locks.hold(run_dir, wait=wait, command=command):
     if is_finished(run_dir):            # finished by the process we waited for
       return read_metrics(run_dir)
-    return _run_locked(task_path, seed, episodes, run_dir, checkpoint_every, stop_after)
+    return _run_locked(task_path, seed, episodes, run_dir, checkpoint_every, stop_after,
+                       greedy_at)
 
 
-def _run_locked(task_path, seed, episodes, run_dir, checkpoint_every, stop_after):
+def _run_locked(task_path, seed, episodes, run_dir, checkpoint_every, stop_after, greedy_at):
   task = agents.load_task(task_path)
   (run_dir / "checkpoints").mkdir(parents=True, exist_ok=True)
   agent, records, done, wall, compiled = _resume(task, seed, run_dir)
@@ -208,35 +257,43 @@ def _run_locked(task_path, seed, episodes, run_dir, checkpoint_every, stop_after
     raise ValueError(f"{run_dir}: its checkpoint is at episode {done}, past the {episodes} "
                      f"episodes asked for; use another output folder")
   progress = _ProgressFile(run_dir, agent.figure, done)
+  curve = _GreedyCurve(run_dir, done) if greedy_at else None
   # An agent whose rows are dear (e.g. hpg_mj.agents.sb3's) asks for checkpoints at
   # least every `checkpoint_rows` rows.
   checkpoint_every = min(checkpoint_every, agent.checkpoint_rows or checkpoint_every)
+  # Training stops at each greedy point still to come (chunks never cross one).
+  stops = sorted({p for p in greedy_at if done < p < episodes} | {episodes})
   try:
     with event.install_timer("numba:compile", compiling.append):
-      for now, record, seconds in agents.chunks(agent, episodes, done=done,
-                                                every=checkpoint_every):
-        n, done = now - done, now
-        records.append(record)
-        wall += seconds
-        progress.write(done, wall, n / max(seconds, 1e-9),
-                       next(iter(agent.progress(record).values())))
-        if done % checkpoint_every == 0 and done < episodes:
-          records = [np.concatenate(records)]
-          _write_checkpoint(agent, records[0], run_dir, done, wall, compiled + sum(compiling))
-        if stop_after is not None and done >= stop_after and done < episodes:
-          raise RunInterrupted(f"stopped at episode {done}")
+      for stop in stops:
+        for now, record, seconds in agents.chunks(agent, stop, done=done,
+                                                  every=checkpoint_every):
+          n, done = now - done, now
+          records.append(record)
+          wall += seconds
+          progress.write(done, wall, n / max(seconds, 1e-9),
+                         next(iter(agent.progress(record).values())))
+          if curve is not None and done == stop < episodes:   # before its checkpoint
+            curve.add({"episodes": done, "steps": _steps(records),
+                       **_greedy_scores(agent, agent.evaluate_fixed(GREEDY_STARTS))})
+          if done % checkpoint_every == 0 and done < episodes:
+            records = [np.concatenate(records)]
+            _write_checkpoint(agent, records[0], run_dir, done, wall, compiled + sum(compiling))
+          if stop_after is not None and done >= stop_after and done < episodes:
+            raise RunInterrupted(f"stopped at episode {done}")
   finally:
     progress.close()
   compiled += sum(compiling)
   record = np.concatenate(records)
   metrics = agent.metrics(record)
-  # SPEC section 7: the final agent, greedy, without learning, on the fixed starts.
+  # SPEC section 7: the final agent, greedy, without learning, on the fixed starts;
+  # 7.1: every score also normalized (0 = random, 100 = best known).
   greedy = agent.evaluate_fixed(GREEDY_STARTS)
-  metrics["greedy"] = dict(agent.metrics(greedy), starts=GREEDY_STARTS,
-                           start_seed=base.GREEDY_SEED)
-  # SPEC section 7.1: every score also normalized (0 = random, 100 = best known).
-  for scores in (metrics, metrics["greedy"]):
-    scores.update(bounds.normalized(bounds.task_name(agent), scores))
+  metrics["greedy"] = _greedy_scores(agent, greedy)
+  metrics.update(bounds.normalized(bounds.task_name(agent), metrics))
+  if curve is not None:
+    curve.add({"episodes": episodes, "steps": _steps(records), **metrics["greedy"]})
+    metrics["greedy_curve"] = curve.points
   metrics.update({"task": task.path.stem, "seed": seed, "episodes": episodes,
                   # wall = compile + train: numba's compiling apart (0 once cached), so
                   # that a speed is computed from train_seconds

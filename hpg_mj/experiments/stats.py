@@ -64,9 +64,10 @@ def separated(a, b):
   return a["high"] < b["low"] or b["high"] < a["low"]
 
 
-def format_summary(s, digits=None):
-  """'mean [low, high], IQM iqm' (or '-' when there is no value); `digits` after
-  the point (default: 3 below 10, 2 below 100, else 1)."""
+def format_summary(s, digits=None, iqm=True):
+  """'mean [low, high], IQM iqm' (or '-' when there is no value; without the IQM
+  with `iqm=False`); `digits` after the point (default: 3 below 10, 2 below 100,
+  else 1)."""
   if s is None or np.isnan(s["mean"]):
     return "-"
   if digits is None:
@@ -74,4 +75,4 @@ def format_summary(s, digits=None):
     digits = 3 if size < 10 else 2 if size < 100 else 1
   f = f"{{:.{digits}f}}"
   text = f"{f.format(s['mean'])} [{f.format(s['low'])}, {f.format(s['high'])}]"
-  return text + f", IQM {f.format(s['iqm'])}"
+  return text + (f", IQM {f.format(s['iqm'])}" if iqm else "")

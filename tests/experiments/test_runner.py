@@ -8,6 +8,7 @@ from hpg_mj import cli
 from hpg_mj.agents import _ship
 from hpg_mj.agents import taskfile
 from hpg_mj.experiments import runner
+from experiment_file import assert_refused
 
 EXPERIMENT = """
 [experiment]
@@ -121,10 +122,7 @@ def test_finished_runs_are_skipped_and_figures_written(tmp_path, capsys):
     ('paper_best = "ship_hybrid"', 'paper_best = "hybrid"', "names task 'hybrid', which is not in"),
 ])
 def test_malformed_experiment_files_are_refused_before_running(tmp_path, old, new, message):
-  path = tmp_path / "bad.toml"
-  path.write_text(EXPERIMENT.replace(old, new, 1))
-  with pytest.raises(taskfile.TaskFileError, match=message):
-    runner.load_experiment(path)
+  assert_refused(tmp_path, EXPERIMENT.replace(old, new, 1), message)
 
 
 def test_taxi_experiment_draws_figure_6(tmp_path, capsys):
@@ -201,10 +199,8 @@ def test_figure_12_marks_the_root_decisions(tmp_path, capsys):
     ("video = true", "video = 1", "video must be true or false"),
 ])
 def test_malformed_figure_12_is_refused(tmp_path, old, new, message):
-  path = tmp_path / "f12.toml"
-  path.write_text(runner.shipped_experiments()["fig12"].read_text().replace(old, new, 1))
-  with pytest.raises(taskfile.TaskFileError, match=message):
-    runner.load_experiment(path)
+  assert_refused(tmp_path, runner.shipped_experiments()["fig12"].read_text().replace(old, new, 1),
+                 message)
 
 
 def test_every_shipped_experiment_loads():
