@@ -17,6 +17,7 @@ Records have named fields (`Agent.record_fields`): a metric is drawn for every
 task whose agent records the fields it needs; every record has "steps".
 """
 import pathlib
+import re
 
 import numpy as np
 
@@ -480,7 +481,9 @@ def write_combined_report(out, names):
   for name in names:
     report = out / name / "REPORT.md"
     if report.is_file():
-      text = report.read_text().splitlines()
+      # Its pictures are in its folder: their links gain the folder's name.
+      text = re.sub(r"(!\[[^\]]*\]\()(?![a-z]+://|/)", rf"\g<1>{name}/",
+                    report.read_text()).splitlines()
       lines += ["#" + line if line.startswith("#") else line for line in text] + [""]
   (out / "REPORT.md").write_text("\n".join(lines))
   return out / "REPORT.md"

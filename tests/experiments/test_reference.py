@@ -182,3 +182,15 @@ def test_tuning_runs_give_each_learner_its_grid_on_the_same_first_tuning_seeds(t
   assert len({(t.config.ppo.learning_rate, t.config.ppo.ent_coef) for t in ppo["task_files"]}) == 4
   with pytest.raises(ValueError, match=r"--seeds 11: .* has 10 tuning seeds; allowed: 1\.\.10"):
     script["write"]("taxi_fuel_ppo", tmp_path, 11)
+
+
+def test_the_combined_report_links_each_sections_pictures_in_its_folder(tmp_path):
+  from hpg_mj.experiments import figures
+  (tmp_path / "reference").mkdir()
+  (tmp_path / "reference" / "reference_ship.png").write_bytes(b"png")
+  (tmp_path / "reference" / "REPORT.md").write_text(
+      "# Reference\n\n![Ship](reference_ship.png) and ![web](https://example.org/a.png)\n")
+  text = figures.write_combined_report(tmp_path, ["reference"]).read_text()
+  assert "![Ship](reference/reference_ship.png)" in text
+  assert "![web](https://example.org/a.png)" in text
+  assert (tmp_path / "reference" / "reference_ship.png").is_file()
