@@ -69,16 +69,24 @@ def check(node, kind, rule):
                      "a rule returns one number")
 
 
+_compiled = {}      # (kind, rule) of each, in order -> their function, for this process
+
+
 def compile_rules(rules):
   """The first-class function of `rules`, a list of (node, kind, rule), numbered by
-  their place in it."""
+  their place in it; compiled once a process for the same rules in the same order
+  (an experiment builds its agents' graphs again and again)."""
   if not rules:
     return nothing()
-  chain = numba.njit(_nothing)
-  for which, (node, kind, rule) in enumerate(rules):
+  for node, kind, rule in rules:
     check(node, kind, rule)
-    chain = _link(chain, which, kind, rule)
+  key = tuple((kind, rule) for _, kind, rule in rules)
+  if key not in _compiled:
+    chain = numba.njit(_nothing)
+    for which, (kind, rule) in enumerate(key):
+      chain = _link(chain, which, kind, rule)
 
-  def entry(which, obs, origin, arg, steps, event):
-    return chain(which, obs, origin, arg, steps, event)
-  return numba.cfunc(SIGNATURE)(entry)
+    def entry(which, obs, origin, arg, steps, event):
+      return chain(which, obs, origin, arg, steps, event)
+    _compiled[key] = numba.cfunc(SIGNATURE)(entry)
+  return _compiled[key]
