@@ -132,9 +132,7 @@ def _width_typed(G, row):
     return lambda G, row: None
 
   def width(G, row):
-    w, i = G.widths, max(row[WIDTH_SLOT], 0)
-    return el.Trace(w.theta[i], w.zs[i], w.y[i], w.touched[i], w.marked[i], w.count[i],
-                    w.acc[i])
+    return _trace(G.widths, max(row[WIDTH_SLOT], 0))     # the widths hold a Trace's fields
   return width
 
 
