@@ -57,8 +57,8 @@ def write(name, out, n_seeds=None):
   paths = []
   for k, changes in enumerate(tuning.candidates(task, task.tuning["budget"])):
     path = out / f"{task.path.stem}_tune{k}.toml"
-    variant = with_changes(text, changes, task.path).replace(
-        "[tuning]", f"# candidate {k}: {tuning.describe(changes)}\n[tuning]", 1)
+    variant = re.sub(r"^\[tuning\]", f"# candidate {k}: {tuning.describe(changes)}\n[tuning]",
+                     with_changes(text, changes, task.path), count=1, flags=re.M)
     agents.taskfile.loads(variant, path, agents._Registry)    # refused here if malformed
     path.write_text(variant)
     paths.append(path)
