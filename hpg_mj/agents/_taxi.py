@@ -3,46 +3,21 @@ starts (drawn by the compiled rules, as the fused loops draw them), the episode'
 outcome, and the metrics against the exact optimum."""
 import dataclasses
 
-import numba
 import numpy as np
 
 from hpg_mj.agents import base
 from hpg_mj.agents import taskfile
 from hpg_mj.agents.taskfile import param
-from hpg_mj.learners import rng
+from hpg_mj.hierarchy import taxi_subtasks
 from hpg_mj.worlds import taxi_core
-from hpg_mj.worlds import taxi_core as core
 from hpg_mj.worlds import taxi_rules as world_rules
 
 
-@numba.njit(cache=True)
-def sample_start(rng_state, world, state):
-  """A start state (SPEC section 5), drawn in the order square, passenger
-  station, destination among the other three, fuel (fuel task only).
-
-  The draws go into `state` first, from one call site of `rng.randint` in a loop:
-  four inlined copies of it made this function's first compile 0.4 s longer."""
-  fuel_min = world[world_rules.W_START_FUEL_MIN]
-  sizes = (np.int64(world_rules.N_SQUARES), np.int64(world_rules.N_STATIONS),
-           np.int64(world_rules.N_STATIONS - 1), world[world_rules.W_START_FUEL_MAX] - fuel_min + 1)
-  n_draws = 4 if world[world_rules.W_FUEL_ENABLED] != 0 else 3
-  for k in range(n_draws):
-    state[k] = rng.randint(rng_state, sizes[k])
-  fuel = fuel_min + state[3] if n_draws == 4 else core.CLASSIC_FUEL
-  row, col, passenger, destination, fuel = core.state_from_draws(state[0], state[1], state[2],
-                                                                 fuel)
-  state[world_rules.ROW] = row
-  state[world_rules.COL] = col
-  state[world_rules.PASSENGER] = passenger
-  state[world_rules.DESTINATION] = destination
-  state[world_rules.FUEL] = fuel
-
-
 def draw_start(rng_state, world):
-  """A start drawn from `rng_state` (`sample_start`) as a new array: (row, col,
+  """A start drawn from `rng_state` (`taxi_subtasks.sample_start`) as a new array: (row, col,
   passenger, destination, fuel), the fuel left out in the classic task."""
   state = np.empty(5, dtype=np.int64)
-  sample_start(rng_state, world, state)
+  taxi_subtasks.sample_start(rng_state, world, state)
   return state if world[world_rules.W_FUEL_ENABLED] != 0 else state[:4].copy()
 
 

@@ -33,7 +33,7 @@ def train(n_episodes, first_episode, learn, sample, rng_state, world, q, tr_inde
   state = np.empty(5, dtype=np.int64)
   episode_info = np.zeros(3, dtype=np.int64)
   for e in range(n_episodes):
-    _taxi.sample_start(rng_state, world, state)
+    rules.sample_start(rng_state, world, state)
     episode_info[:] = 0
     qlambda.clear(tr_count)
     epsilon = schedules.linear(first_episode + e, epsilon_start, epsilon_end, epsilon_episodes) \

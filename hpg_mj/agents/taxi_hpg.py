@@ -328,7 +328,7 @@ def train(n_episodes, learn, greedy, rng_state, world, traces, values, settings,
       for i in range(5):
         state[i] = starts[e % starts.shape[0], i]
     else:
-      _taxi.sample_start(rng_state, world, state)
+      rules.sample_start(rng_state, world, state)
     for i in range(3):
       episode[i] = 0
     step_sizes(schedule, first_episode + e, alphas)
@@ -407,7 +407,7 @@ class HPGEngine:
 
   def _rules_bottom_up(self, scratch):
     """The rules `train` calls, callees first, with arguments of the types it calls
-    them with (`learners.jit.compile_first`; see `taxi_maxq.MAXQEngine`)."""
+    them with (`learners.jit.compile_first`; see `hierarchy.maxq.MAXQEngine`)."""
     scratch_int, scratch_float, mask = scratch
     state, episode, index = scratch_int[0:5], scratch_int[5:8], scratch_int[8:12]
     probs, psi, alphas = scratch_float[0:4], scratch_float[4:8], scratch_float[8:13]

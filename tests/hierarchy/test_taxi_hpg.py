@@ -9,7 +9,6 @@ import pytest
 import compile_order
 from taxi_grid import moves_from
 
-from hpg_mj.agents import _taxi
 from hpg_mj.agents import taxi_hpg as tcp
 from hpg_mj.agents.taskfile import updated
 from hpg_mj.hierarchy import taxi_subtasks as tr
@@ -242,7 +241,7 @@ def test_greedy_runs_draw_only_the_starts():
   expected = agent.rng_state.copy()
   scratch = np.zeros(5, dtype=np.int64)
   for _ in range(50):
-    _taxi.sample_start(expected, agent.world, scratch)
+    tr.sample_start(expected, agent.world, scratch)
   agent.run(50, learn=False, greedy=True)
   np.testing.assert_array_equal(agent.rng_state, expected)
 
@@ -252,7 +251,7 @@ def test_start_states_follow_the_spec_distribution():
   rs = rng.make_state(11)
   counts = collections.Counter()
   for _ in range(48_000):
-    _taxi.sample_start(rs, WORLD, state_)
+    tr.sample_start(rs, WORLD, state_)
     row, col, passenger, destination, fuel = state_
     assert passenger != destination and 5 <= fuel <= 12
     counts[(row, col, passenger, destination, fuel)] += 1

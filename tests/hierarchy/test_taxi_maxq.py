@@ -9,6 +9,7 @@ import hpg_mj  # noqa: F401
 from hpg_mj import suite
 from hpg_mj.agents import taxi_maxq as mq
 from hpg_mj.agents.taskfile import updated
+from hpg_mj.hierarchy import maxq
 from hpg_mj.hierarchy import taxi_subtasks as rules
 from hpg_mj.worlds import taxi_core, taxi_values
 from hpg_mj.worlds import taxi_rules as world_rules
@@ -22,19 +23,19 @@ SHORT = updated(mq.Config(), root={"epsilon_episodes": 20_000},
 def _update(agent, subtask, target, child, before, after, ended=False):
   """One completion update of `agent`'s tables, from `before` to `after`."""
   path = np.array([before], dtype=np.int64)
-  mq.update_completion(subtask, target, child, path, 0, 1, np.array(after, dtype=np.int64), ended,
-                       agent.world, agent.tables, agent.settings, True, mq.new_scratch())
+  maxq.update_completion(subtask, target, child, path, 0, 1, np.array(after, dtype=np.int64), ended,
+                       agent.world, agent.tables, agent.settings, True, maxq.new_scratch())
 
 
 def _entry(agent, subtask, target, state, child):
-  row = mq.abstract_state(subtask, target, np.array(state, dtype=np.int64), agent.world)
+  row = maxq.abstract_state(subtask, target, np.array(state, dtype=np.int64), agent.world)
   return agent.offsets[subtask] + row * rules.N_CHILDREN[subtask] + child
 
 
 def test_completion_updates_match_hand_worked_steps():
   config = updated(mq.Config(), navigate={"alpha": 0.5, "pseudo_reward": -3.0},
                    carry={"alpha": 0.25}, root={"initial": 0.0})
-  agent = mq.MAXQEngine(config=config)
+  agent = maxq.MAXQEngine(config=config)
   # Navigate(G = (0, 4)) moves East from (0, 3) onto G: it terminated there, so C~
   # gets the pseudo-reward and C gets 0: C~ = 0.5 * -3, C = 0.5 * 0.
   before, after = [0, 3, 2, 1, 9], [0, 4, 2, 1, 8]
@@ -45,8 +46,8 @@ def test_completion_updates_match_hand_worked_steps():
   # Put chose Navigate(destination = G) in (2, 4) and it returned at G: the
   # target is the best child there, Dropoff: V(Dropoff, s') + C(Put, s', Dropoff).
   ride_before, ride_after = [2, 4, 4, 1, 9], [0, 4, 4, 1, 7]
-  s_after = mq.primitive_state(np.array(ride_after), agent.world)
-  agent.values[s_after * mq.N_PRIMITIVES + taxi_core.DROPOFF] = 20.0
+  s_after = maxq.primitive_state(np.array(ride_after), agent.world)
+  agent.values[s_after * maxq.N_PRIMITIVES + taxi_core.DROPOFF] = 20.0
   agent.c[_entry(agent, rules.PUT, 0, ride_after, rules.CARRY_PRIMITIVE)] = 2.0    # made up
   agent.c_tilde[_entry(agent, rules.PUT, 0, ride_after, rules.CARRY_PRIMITIVE)] = 4.0
   _update(agent, rules.PUT, 0, rules.CARRY_NAVIGATE, ride_before, ride_after)
@@ -58,19 +59,19 @@ def test_completion_updates_match_hand_worked_steps():
   assert agent.c_tilde[j] == 6.0 and agent.c[j] == 6.0
   # A primitive's value: V(a, s) <- (1 - alpha) V + alpha r.
   values = np.array([2.0])
-  mq.update_primitive(values, 0, -10.0, 0.25)
+  maxq.update_primitive(values, 0, -10.0, 0.25)
   assert values[0] == 0.25 * -10.0 + 0.75 * 2.0
 
 
 def test_all_states_updating_updates_every_state_of_the_childs_run():
-  agent = mq.MAXQEngine(config=updated(mq.Config(), root={"initial": 0.0}))
+  agent = maxq.MAXQEngine(config=updated(mq.Config(), root={"initial": 0.0}))
   # Get's Navigate(R) ran (2, 0) -> (1, 0) -> (0, 0): both states where it was
   # running get the target of the state it returned in.
   path = np.array([[2, 0, 0, 3, 9], [1, 0, 0, 3, 8], [0, 0, 0, 3, 7]], dtype=np.int64)
-  pickup = mq.primitive_state(path[2], agent.world) * mq.N_PRIMITIVES + taxi_core.PICKUP
+  pickup = maxq.primitive_state(path[2], agent.world) * maxq.N_PRIMITIVES + taxi_core.PICKUP
   agent.values[pickup] = -1.0
-  mq.update_completion(rules.GET, 0, rules.CARRY_NAVIGATE, path, 0, 2, path[2], False,
-                      agent.world, agent.tables, agent.settings, True, mq.new_scratch())
+  maxq.update_completion(rules.GET, 0, rules.CARRY_NAVIGATE, path, 0, 2, path[2], False,
+                      agent.world, agent.tables, agent.settings, True, maxq.new_scratch())
   for k in (0, 1):
     assert agent.c[_entry(agent, rules.GET, 0, path[k], rules.CARRY_NAVIGATE)] == -1.0
   assert np.count_nonzero(agent.c) == 2
@@ -80,7 +81,7 @@ def test_exact_values_are_the_flat_optimum():
   """The MAXQ abstraction is safe and the recursively optimal policy optimal:
   V(Root, s) of the exact hierarchical solution is V*(s) on every start."""
   for task in (CLASSIC, taxi_core.TaxiRules()):
-    _, known, v = mq.exact_values(task)
+    _, known, v = maxq.exact_values(task)
     model = taxi_values.taxi_values(task.fuel_enabled)
     starts = model.start_states()
     np.testing.assert_array_equal(v[rules.ROOT, starts], model.v[starts])
@@ -90,14 +91,14 @@ def test_exact_values_are_the_flat_optimum():
 def _greedy_visits(agent):
   """Every (subtask, target, state, child) of greedy episodes from all the
   classic taxi's starts, and the returns."""
-  q, v, mask = mq.new_scratch()
+  q, v, mask = maxq.new_scratch()
   visits = []
 
   def run(subtask, target, state, episode):
     total = 0.0
-    while not world_rules.episode_over(episode) and not mq.terminated(subtask, target, state,
+    while not world_rules.episode_over(episode) and not maxq.terminated(subtask, target, state,
                                                                 agent.world):
-      a = mq.choose(subtask, target, state, agent.world, agent.tables, 0.0, False,
+      a = maxq.choose(subtask, target, state, agent.world, agent.tables, 0.0, False,
                     agent.rng_state, (q, v, mask))
       visits.append((subtask, target, state.copy(), a))
       if subtask == rules.NAVIGATE:
@@ -119,10 +120,10 @@ def _greedy_visits(agent):
 
 
 def test_converged_completions_match_the_exact_values_on_the_classic_taxi():
-  agent = mq.MAXQEngine(seed=0, config=SHORT, task=CLASSIC)
+  agent = maxq.MAXQEngine(seed=0, config=SHORT, task=CLASSIC)
   record = agent.run(30_000)
-  assert record[-1000:, mq.RETURN].mean() >= 0.98 * taxi_values.optimal_mean_return(False)
-  exact, known, _ = mq.exact_values(CLASSIC)
+  assert record[-1000:, maxq.RETURN].mean() >= 0.98 * taxi_values.optimal_mean_return(False)
+  exact, known, _ = maxq.exact_values(CLASSIC)
   visits, returns = _greedy_visits(agent)
   model = taxi_values.taxi_values(False)
   # The greedy policy is optimal from every start ...
@@ -138,19 +139,19 @@ def test_converged_completions_match_the_exact_values_on_the_classic_taxi():
     seen.add(subtask)
   assert seen == {rules.ROOT, rules.GET, rules.PUT, rules.NAVIGATE}
   # The learned V(Root, s) at each start is the optimal return.
-  q, v, mask = mq.new_scratch()
+  q, v, mask = maxq.new_scratch()
   for s in list(returns)[::7]:
     state = np.array(taxi_core.decode_state(s, False), dtype=np.int64)
-    base = mq.root_scores(state, agent.world, agent.tables, (q, v, mask))
-    a = mq.greedy(q[2], mask[2], rules.N_CHILDREN[rules.ROOT])
+    base = maxq.root_scores(state, agent.world, agent.tables, (q, v, mask))
+    a = maxq.greedy(q[2], mask[2], rules.N_CHILDREN[rules.ROOT])
     assert v[2, a] + agent.c[base + a] == model.v[s]
 
 
 def test_a_greedy_policy_delivers_every_passenger():
-  agent = mq.MAXQEngine(seed=2, config=SHORT, task=CLASSIC)
+  agent = maxq.MAXQEngine(seed=2, config=SHORT, task=CLASSIC)
   agent.run(25_000)
   greedy = agent.run(500, learn=False)
-  assert np.all(greedy[:, mq.OUTCOME] == world_rules.DELIVERED)
+  assert np.all(greedy[:, maxq.OUTCOME] == world_rules.DELIVERED)
   assert agent.episodes == 25_000
 
 
@@ -210,7 +211,8 @@ def test_the_rules_compiled_first_are_those_train_calls(tmp_path):
   types `train` calls them with: with an empty numba cache each compiles once."""
   compile_order.assert_each_compiles_once(tmp_path, """
 from hpg_mj.agents import taxi_maxq
-agent = taxi_maxq.MAXQEngine(seed=0)
+from hpg_mj.hierarchy import maxq
+agent = maxq.MAXQEngine(taxi_maxq.Config(), seed=0)
 agent.run(20)
 listed = agent._rules_bottom_up(*agent._train_scratch())
 """)
