@@ -51,9 +51,9 @@ import numpy as np
 from hpg_mj.agents import _ship
 from hpg_mj.agents import _taxi
 from hpg_mj.agents import base
-from hpg_mj.agents import ship_beyond
 from hpg_mj.experiments import bounds as bounds_mod
 from hpg_mj.experiments.bounds import SCORES, TASKS, bounds  # noqa: F401  (public here)
+from hpg_mj.hierarchy import route
 from hpg_mj.worlds import ship_core
 from hpg_mj.worlds import taxi_core
 from hpg_mj.worlds import taxi_rules
@@ -464,21 +464,21 @@ class RandomPolicy:
 
 
 def helmsman_settings():
-  """The gate target's settings: the shipped route's (`ship_beyond`'s default
-  [root] inset_m: the posts moved in by 2 m)."""
-  return ship_beyond.settings(ship_beyond.Config())
+  """The gate target's settings: the shipped route's (`hierarchy.route`'s
+  SHIPPED_TARGETS: the posts moved in by 2 m)."""
+  return route.SHIPPED_TARGETS
 
 
 @numba.njit(cache=True)
 def _helmsman_batch(obs, s, out):
   for i in range(obs.shape[0]):
-    tx, ty = ship_beyond.target_of(0, obs[i], 1.0, s)
+    tx, ty = route.target_of(0, obs[i], 1.0, s)
     out[i] = ship_core.pilot_turn_rate(obs[i], tx, ty)
 
 
 def helmsman(obs):
   """The scripted helmsman (`ship_core.pilot_turn_rate`) steering at the point of
-  the gate nearest the ship (`ship_beyond.target_of`'s gate target, the posts
+  the gate nearest the ship (`route.target_of`'s gate target, the posts
   moved in by 2 m), for a batch of observations (n, 4): n turning rates."""
   obs = np.ascontiguousarray(obs, dtype=np.float64).reshape(-1, 4)
   out = np.empty(len(obs))
@@ -515,7 +515,7 @@ class OptimalTaxiPolicy:
 FIRST_TURN_STEPS = 35       # full rudder one way for 0..34 control steps,
 BACK_TURN_STEPS = 12        # then the other way for 0..11,
 GATE_POINTS = 5             # then the helmsman to the gate's nearest point, one of 5
-APPROACH_POINTS = 3         # points across it, or one of ship_beyond's 3 approach points
+APPROACH_POINTS = 3         # points across it, or one of the route's 3 approach points
 N_TARGETS = 1 + GATE_POINTS + APPROACH_POINTS
 
 
@@ -525,7 +525,7 @@ def _sail_turns(state, rate, first, back, target, s, max_steps, gate_reward,
   """One episode from `state` (changed in place): r = `rate` for `first` control
   steps, -`rate` for `back`, then the helmsman to `target`: 0, the gate's nearest
   point (followed); j = 1..GATE_POINTS, the j-th of equally spaced points across
-  the gate; then ship_beyond's approach points before the gate line on the ship's
+  the gate; then the route's approach points before the gate line on the ship's
   side (its root's choices 1..3), until within its `radius_m`, then the gate's
   nearest point. Stops at the gate, off the field, at `max_steps` or at `cap`
   steps. Returns (event, control steps, return)."""
@@ -539,13 +539,13 @@ def _sail_turns(state, rate, first, back, target, s, max_steps, gate_reward,
       r = -rate
     else:
       if steps == first + back:
-        side = ship_beyond.side_of(state[1])
+        side = route.side_of(state[1])
       if target > GATE_POINTS:
-        tx, ty = ship_beyond.target_of(target - GATE_POINTS, state, side, s)
+        tx, ty = route.target_of(target - GATE_POINTS, state, side, s)
         if math.hypot(state[0] - tx, state[1] - ty) <= s.radius_m:
           target = 0                        # reached: on through the gate
       if target == 0:
-        tx, ty = ship_beyond.target_of(0, state, side, s)
+        tx, ty = route.target_of(0, state, side, s)
       elif target <= GATE_POINTS:
         tx, ty = ship_core.GATE[0, 0] + width * (target - 0.5) / GATE_POINTS, ship_core.GATE[0, 1]
       r = ship_core.pilot_turn_rate(state, tx, ty)

@@ -22,7 +22,7 @@ import numpy as np
 from scipy import stats
 
 from hpg_mj import agents
-from hpg_mj.agents import ship_beyond
+from hpg_mj.hierarchy import route
 from hpg_mj.experiments import beyond
 from hpg_mj.learners import qlambda
 from hpg_mj.worlds import ship_core as core
@@ -36,21 +36,21 @@ def helmsman_episode(state, q, root_tiling, rng_state, s):
   to its target; returns (passed, control steps)."""
   steps = 0
   samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
-  n_actions = ship_beyond.n_targets(s)
+  n_actions = route.n_targets(s)
   view, tiles = np.empty(3), np.empty(root_tiling.offsets.shape[0], dtype=np.int64)
   while True:
-    ship_beyond.root_tiles(state, root_tiling, view, tiles)
-    a = qlambda.tiled_greedy(q, tiles, n_actions, ship_beyond.offered(state, s), rng_state)
-    side = ship_beyond.side_of(state[1])
-    tx, ty = ship_beyond.target_of(a, state, side, s)
+    route.root_tiles(state, root_tiling, view, tiles)
+    a = qlambda.tiled_greedy(q, tiles, n_actions, route.offered(state, s), rng_state)
+    side = route.side_of(state[1])
+    tx, ty = route.target_of(a, state, side, s)
     k = 0
     while True:
       core.euler_control(state, core.pilot_turn_rate(state, tx, ty), samples)
       k += 1
       g_event, _ = core.global_outcome(samples, s.environment_gate_reward,
                                        s.environment_out_of_bounds_reward)
-      tx, ty = ship_beyond.target_of(a, state, side, s)
-      l_event, _ = ship_beyond.aim_outcome(samples, state, a, tx, ty, k, g_event, s)
+      tx, ty = route.target_of(a, state, side, s)
+      l_event, _ = route.aim_outcome(samples, state, a, tx, ty, k, g_event, s)
       if (g_event != core.NO_EVENT or l_event != core.NO_EVENT
           or steps + k >= s.environment_max_steps):
         break
@@ -66,16 +66,16 @@ def forced_return(state, first, q, root_tiling, rng_state, s, trace, width, valu
   root), the aim subtask's steering sampled, without learning."""
   steps, total, a = 0, 0.0, first
   view, tiles = np.empty(3), np.empty(root_tiling.offsets.shape[0], dtype=np.int64)
-  n_actions = ship_beyond.n_targets(s)
+  n_actions = route.n_targets(s)
   while True:
-    g_event, _, reward, k = ship_beyond.run_aim(state, a, trace, width, values, tiling, s,
+    g_event, _, reward, k = route.run_aim(state, a, trace, width, values, tiling, s,
                                                 False, True, rng_state, steps, scratch)
     steps += k
     total += reward
     if g_event != core.NO_EVENT or steps >= s.environment_max_steps:
       return total
-    ship_beyond.root_tiles(state, root_tiling, view, tiles)
-    a = qlambda.tiled_greedy(q, tiles, n_actions, ship_beyond.offered(state, s), rng_state)
+    route.root_tiles(state, root_tiling, view, tiles)
+    a = qlambda.tiled_greedy(q, tiles, n_actions, route.offered(state, s), rng_state)
 
 
 def rollout_report(agent, per):
@@ -86,7 +86,7 @@ def rollout_report(agent, per):
              np.empty(n), np.empty((core.SAMPLES_PER_CONTROL + 1, 2)), np.empty(3))
   rs = np.random.default_rng(1)
   saved = agent.rng_state.copy()
-  n_actions = ship_beyond.n_targets(s)
+  n_actions = route.n_targets(s)
   grid = int(np.ceil(core.FIELD_SIZE / root.cell_m))
   q_mean, mc = [], []
   for i in range(grid):
@@ -122,11 +122,11 @@ def initial_error(agent, start):
   """|heading error| (deg) from a start to its first greedy call's target (ties: the
   first of the best)."""
   s = agent.s
-  n = ship_beyond.n_targets(s)
+  n = route.n_targets(s)
   tiles = agent.root_coder.active(start[:3])
   a = int(np.argmax([qlambda.tiled_value(agent.root.q, tiles, n, b)
-                     for b in range(ship_beyond.offered(start, s))]))
-  tx, ty = ship_beyond.target_of(a, start, ship_beyond.side_of(start[1]), s)
+                     for b in range(route.offered(start, s))]))
+  tx, ty = route.target_of(a, start, route.side_of(start[1]), s)
   return abs(core.wrap_deg(start[2] - core.bearing_deg(start[0], start[1], tx, ty)))
 
 

@@ -8,32 +8,33 @@ import pytest
 
 from hpg_mj import agents
 from hpg_mj.agents import ship_beyond as sb
+from hpg_mj.hierarchy import route
 from hpg_mj.worlds import ship_core as core
 
-S = sb.settings(sb.Config())
+S = route.settings(sb.Config())
 
 
 def test_the_gate_target_follows_the_ship_and_approach_points_are_fixed():
-  assert sb.n_targets(S) == 4
+  assert route.n_targets(S) == 4
   at = lambda x, y: np.array([x, y, 0.0, 0.0])
-  assert sb.target_of(0, at(100.0, 900.0), 1.0, S) == (352.0, 400.0)   # posts moved in 2 m
-  assert sb.target_of(0, at(401.5, 10.0), -1.0, S) == (401.5, 400.0)
-  assert sb.target_of(0, at(999.0, 400.0), 1.0, S) == (448.0, 400.0)
-  assert sb.target_of(1, at(0.0, 0.0), -1.0, S) == (300.0, 320.0)      # the call's side
-  assert sb.target_of(3, at(0.0, 0.0), 1.0, S) == (500.0, 480.0)
-  assert sb.side_of(400.0) == 1.0 and sb.side_of(399.9) == -1.0
+  assert route.target_of(0, at(100.0, 900.0), 1.0, S) == (352.0, 400.0)   # posts moved in 2 m
+  assert route.target_of(0, at(401.5, 10.0), -1.0, S) == (401.5, 400.0)
+  assert route.target_of(0, at(999.0, 400.0), 1.0, S) == (448.0, 400.0)
+  assert route.target_of(1, at(0.0, 0.0), -1.0, S) == (300.0, 320.0)      # the call's side
+  assert route.target_of(3, at(0.0, 0.0), 1.0, S) == (500.0, 480.0)
+  assert route.side_of(400.0) == 1.0 and route.side_of(399.9) == -1.0
 
 
 def test_root_tiles_cells_and_heading_sectors():
   # One tiling is the table: 50 m cells, 8 sectors centred on N, NE, ...: (x, y) =
   # (125, 980) is cell (2, 19).
-  coder = sb.root_coder(sb.Root())
+  coder = route.root_coder(sb.Root())
   tiling = coder.arrays()
   assert coder.size == 20 * 20 * 8
   view, out = np.empty(3), np.empty(1, dtype=np.int64)
 
   def tile(x, y, heading):
-    sb.root_tiles(np.array([x, y, heading, 0.0]), tiling, view, out)
+    route.root_tiles(np.array([x, y, heading, 0.0]), tiling, view, out)
     return int(out[0])
   assert tile(125.0, 980.0, 0.0) == (2 * 20 + 19) * 8 + 0
   assert tile(125.0, 980.0, 22.4) % 8 == 0
@@ -43,7 +44,7 @@ def test_root_tiles_cells_and_heading_sectors():
   assert tile(1000.0, 1000.0, 179.0) == (19 * 20 + 19) * 8 + 4
   # The shipped root: 16 tilings of 100 m cells and 90 degree sectors, one tile each;
   # a neighbour 10 m away shares most of them.
-  coder = sb.root_coder(agents.build(agents.load_task("ship_hybrid_beyond"), seed=0).config.root)
+  coder = route.root_coder(agents.build(agents.load_task("ship_hybrid_beyond"), seed=0).config.root)
   here, there = coder.active([420.0, 610.0, 30.0]), coder.active([430.0, 610.0, 30.0])
   assert len(set(here)) == 16 and 8 <= np.sum(here == there) < 16
 
@@ -58,32 +59,32 @@ def test_the_aim_state_is_an_isometry_of_the_dynamics():
     d = state[:2] - target
     moved = np.array([target[0] + d[1] + 7.0, target[1] - d[0] - 3.0,
                       core.wrap_deg(state[2] + 90.0), state[3]])
-    sb.aim_view(state, target[0], target[1], view)
-    sb.aim_view(moved, target[0] + 7.0, target[1] - 3.0, moved_view)
+    route.aim_view(state, target[0], target[1], view)
+    route.aim_view(moved, target[0] + 7.0, target[1] - 3.0, moved_view)
     np.testing.assert_allclose(view, moved_view, atol=1e-9)
-  sb.aim_view(np.array([0.0, 0.0, 45.0, 2.0]), 300.0, 300.0, view)
-  np.testing.assert_allclose(view, [0.0, 2.0, sb.DISTANCE_CLIP], atol=1e-9)
-  sb.aim_view(np.array([0.0, 0.0, 0.0, -1.0]), 100.0, 0.0, view)     # target due east
+  route.aim_view(np.array([0.0, 0.0, 45.0, 2.0]), 300.0, 300.0, view)
+  np.testing.assert_allclose(view, [0.0, 2.0, route.DISTANCE_CLIP], atol=1e-9)
+  route.aim_view(np.array([0.0, 0.0, 0.0, -1.0]), 100.0, 0.0, view)     # target due east
   np.testing.assert_allclose(view, [-90.0, -1.0, 100.0], atol=1e-9)
-  sb.aim_view(np.array([0.0, 0.0, 0.0, -1.0]), 100.0, 0.0, view, True)   # the sqrt scale
+  route.aim_view(np.array([0.0, 0.0, 0.0, -1.0]), 100.0, 0.0, view, True)   # the sqrt scale
   np.testing.assert_allclose(view, [-180.0 * math.sqrt(0.5), -1.0, 100.0], atol=1e-9)
-  sb.aim_view(np.array([0.0, 0.0, 45.0, 0.0]), 0.0, 100.0, view, True)   # 45 deg off: 90
+  route.aim_view(np.array([0.0, 0.0, 45.0, 0.0]), 0.0, 100.0, view, True)   # 45 deg off: 90
   np.testing.assert_allclose(view[0], 90.0, atol=1e-9)
 
 
 def test_large_errors_on_the_negative_side_are_reflected():
   view = np.empty(3)
-  reflect_at = sb.error_coordinate(45.0, "sqrt")
+  reflect_at = route.error_coordinate(45.0, "sqrt")
   assert reflect_at == pytest.approx(90.0)                 # 180 sqrt(45 / 180)
   # Target due north; heading -90 (error -90, coordinate -127.3): reflected.
-  side = sb.aim_view(np.array([0.0, 0.0, -90.0, 4.0]), 0.0, 100.0, view, True, reflect_at)
+  side = route.aim_view(np.array([0.0, 0.0, -90.0, 4.0]), 0.0, 100.0, view, True, reflect_at)
   assert side == -1.0
   np.testing.assert_allclose(view, [180.0 * math.sqrt(0.5), -4.0, 100.0], atol=1e-9)
   # Error -30 (coordinate -73.5), +90 and +170: as they are.
   for heading in (-30.0, 90.0, 170.0):
     plain = np.empty(3)
-    sb.aim_view(np.array([0.0, 0.0, heading, 4.0]), 0.0, 100.0, plain, True)
-    assert sb.aim_view(np.array([0.0, 0.0, heading, 4.0]), 0.0, 100.0, view, True,
+    route.aim_view(np.array([0.0, 0.0, heading, 4.0]), 0.0, 100.0, plain, True)
+    assert route.aim_view(np.array([0.0, 0.0, heading, 4.0]), 0.0, 100.0, view, True,
                        reflect_at) == 1.0
     np.testing.assert_allclose(view, plain, atol=1e-12)
   # The mirror image of a state in the world (x about the target's line, heading and
@@ -94,15 +95,15 @@ def test_large_errors_on_the_negative_side_are_reflected():
     state = np.array([*rs.uniform(100, 900, 2), rs.uniform(-180, 180), rs.uniform(-15, 15)])
     tx, ty = rs.uniform(100, 900, 2)
     image = np.array([2.0 * tx - state[0], state[1], -state[2], -state[3]])
-    a = sb.aim_view(state, tx, ty, view, True, reflect_at)
-    b = sb.aim_view(image, tx, ty, mirrored, True, reflect_at)
+    a = route.aim_view(state, tx, ty, view, True, reflect_at)
+    b = route.aim_view(image, tx, ty, mirrored, True, reflect_at)
     if abs(view[0]) < reflect_at - 1e-6 or abs(mirrored[0]) < reflect_at - 1e-6:
       continue                                              # near e = 0: no fold
     assert a == -b
     np.testing.assert_allclose(view, mirrored, atol=1e-9)
   # The tiles then span [-90, 180] on the sqrt scale, not wrapping.
   low = dataclasses.replace(sb.Config().low_level, reflect_deg=45.0, tiles=(27, 6, 4))
-  coder = sb.aim_coder(low)
+  coder = route.aim_coder(low)
   assert coder.low[0] == pytest.approx(-90.0) and coder.high[0] == 180.0
   assert not coder.wrap[0]
 
@@ -110,23 +111,23 @@ def test_large_errors_on_the_negative_side_are_reflected():
 def test_aim_outcome_success_failure_and_shaping():
   samples = np.array([[0.0, 0.0], [5.0, 0.0], [10.0, 0.0], [15.0, 0.0]])
   state = np.array([15.0, 0.0, 90.0, 0.0])                   # heading straight at the target
-  event, g = sb.aim_outcome(samples, state, 1, 29.0, 0.0, 1, core.NO_EVENT, S)
+  event, g = route.aim_outcome(samples, state, 1, 29.0, 0.0, 1, core.NO_EVENT, S)
   assert event == core.SUCCESS and g == 100.0               # 14 m <= radius 15, G = 0
-  event, g = sb.aim_outcome(samples, state, 1, 31.0, 0.0, 1, core.NO_EVENT, S)
+  event, g = route.aim_outcome(samples, state, 1, 31.0, 0.0, 1, core.NO_EVENT, S)
   assert event == core.NO_EVENT and g == 0.0
-  event, g = sb.aim_outcome(samples, state, 1, 31.0, 0.0, S.max_steps, core.NO_EVENT, S)
+  event, g = route.aim_outcome(samples, state, 1, 31.0, 0.0, S.max_steps, core.NO_EVENT, S)
   assert event == core.FAILURE and g == -100.0
   # The gate action ends only at the gate, off the field, or across the line beside it.
-  event, _ = sb.aim_outcome(samples, state, 0, 29.0, 0.0, 1, core.NO_EVENT, S)
+  event, _ = route.aim_outcome(samples, state, 0, 29.0, 0.0, 1, core.NO_EVENT, S)
   assert event == core.NO_EVENT
-  event, _ = sb.aim_outcome(samples, state, 0, 500.0, 0.0, 1, core.SUCCESS, S)
+  event, _ = route.aim_outcome(samples, state, 0, 500.0, 0.0, 1, core.SUCCESS, S)
   assert event == core.SUCCESS
   beside = np.array([[100.0, 401.0], [100.0, 400.5], [100.0, 399.9], [100.0, 399.0]])
-  event, g = sb.aim_outcome(beside, np.array([100.0, 399.0, 180.0, 0.0]), 0, 352.0, 400.0, 1,
+  event, g = route.aim_outcome(beside, np.array([100.0, 399.0, 180.0, 0.0]), 0, 352.0, 400.0, 1,
                             core.NO_EVENT, S)
   assert event == core.FAILURE
   state[2] = 0.0                                            # 90 degrees off: G = exp(-9) - 1
-  _, g = sb.aim_outcome(samples, state, 1, 500.0, 0.0, 1, core.FAILURE, S)
+  _, g = route.aim_outcome(samples, state, 1, 500.0, 0.0, 1, core.FAILURE, S)
   assert g == pytest.approx(math.exp(-9.0) - 1.0 - 100.0)
 
 
