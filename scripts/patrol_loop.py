@@ -43,8 +43,8 @@ import numpy as np
 
 from hpg_mj import agents
 from hpg_mj.agents import _ship
-from hpg_mj.agents import ship_hybrid as hybrid
 from hpg_mj.agents import ship_patrol as sp
+from hpg_mj.hierarchy import patrol
 from hpg_mj.hierarchy import ship_rules as rules
 from hpg_mj.learners import qlambda
 from hpg_mj.learners import rng
@@ -71,7 +71,7 @@ def sail_calls(ship, q, low, tiling, s, view, sample_low, rng_state, first, max_
   steps = 0
   i = 0
   while steps < max_steps and i < out.shape[0]:
-    state = sp.root_state(ship, sectors, near_m, near_cell_m)
+    state = patrol.root_state(ship, sectors, near_m, near_cell_m)
     # epsilon 0 through epsilon_greedy: the generator's draws are the evaluation's.
     a = first if (i == 0 and first >= 0) else qlambda.epsilon_greedy(
         q, state, rules.N_DIRECTIONS, 0.0, rng_state)
@@ -79,7 +79,7 @@ def sail_calls(ship, q, low, tiling, s, view, sample_low, rng_state, first, max_
     row[0], row[1], row[2], row[9] = ship[0], ship[1], ship[2], ship[3]
     trace, values = ((diagonal, diagonal_values) if rules.subtask_of(a) == rules.DIAGONAL
                      else (straight, straight_values))
-    g, l, reward, k = hybrid.run_low_level(ship, a, trace, values, tiling, s, False, sample_low,
+    g, l, reward, k = patrol.run_low_level(ship, a, trace, values, tiling, s, False, sample_low,
                                            rng_state, 0, scratch)
     row[3], row[4], row[5], row[6], row[7], row[8] = state, a, k, reward, g, l
     if g == core.FAILURE:
@@ -99,7 +99,7 @@ def period(pairs):
 
 
 def describe(state, view):
-  """(cell, sector) of a root state in words (`ship_patrol.root_state`)."""
+  """(cell, sector) of a root state in words (`hierarchy.patrol.root_state`)."""
   sectors, near_m, near_cell_m = view
   cell, sector = divmod(int(state), sectors)
   if cell < rules.ROOT_GRID ** 2:

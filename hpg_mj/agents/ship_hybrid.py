@@ -6,12 +6,8 @@ with a Gaussian-with-sigmoid CMAC policy learned by Eq. 3.
 The agent is its Config, Figure 3's graph of blocks (`graph`) and its metrics:
 `hierarchy.machine` runs the graph on both paths, fused with the analytic ship and
 step by step through any ship environment, with the same compiled functions.
-`run_low_level` is the patrol's (`ship_patrol`) until it moves onto the machine.
 """
-import collections
 import dataclasses
-
-import numba
 
 from hpg_mj.agents import _ship
 from hpg_mj.agents import taskfile
@@ -20,75 +16,10 @@ from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy import ship_rules as rules
 from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
 from hpg_mj.learners import stepwise as learners
-from hpg_mj.learners import arrays
 from hpg_mj.learners import eligibility as el
-from hpg_mj.learners import policies
 from hpg_mj.learners import schedules
 from hpg_mj.learners import tiles
 from hpg_mj.worlds import ship_core as core
-
-
-# The hyper-parameters `run_low_level` takes (the patrol's), each named [section] key
-# as in the task file (`settings` fills them from a Config).
-Settings = collections.namedtuple("Settings", (
-    "root_alpha", "root_trace_decay", "root_epsilon_threshold", "root_epsilon_every",
-    "root_epsilon_divisor", "low_level_alpha", "low_level_trace_gamma", "low_level_baseline",
-    "low_level_max_steps",
-    "environment_max_steps", "environment_gate_reward", "environment_out_of_bounds_reward"))
-
-
-def settings(config):
-  root, low, env = config.root, config.low_level, config.environment
-  return Settings(float(root.alpha), float(root.trace_decay), float(root.epsilon_threshold),
-                  int(root.epsilon_every), float(root.epsilon_divisor), float(low.alpha),
-                  float(low.trace_gamma), float(low.baseline), int(low.max_steps),
-                  int(env.max_steps),
-                  float(env.gate_reward), float(env.out_of_bounds_reward))
-
-
-# error_model="numpy": no raising branch on division, less reference counting (learners.policies).
-# Only compiled code calls it: no Python entry point to compile (a first compile 0.15 s shorter).
-@numba.njit(cache=True, error_model="numpy", no_cpython_wrapper=True)
-def run_low_level(state, direction, low, low_values, tiling, s, learn, sample, rng_state,
-                  steps_before, scratch):
-  """One call of a low-level subtask (trace `low`, baseline `low_values`) from
-  `state` (modified in place). The baseline b (`policies.subtract_baseline`) is
-  learned with step size s.low_level_baseline; 0 leaves it out (Eq. 3 exactly).
-
-  Returns (global event, local event, reward to the root, control steps).
-  """
-  scratch_tiles, scratch_psi, scratch_next, samples, local_samples, local_state, origin = scratch
-  beta = s.low_level_baseline
-  origin[0] = state[0]
-  origin[1] = state[1]
-  el.reset(low)                                        # Eq. 3: z <- 0
-  reward_root = 0.0
-  k = 0
-  global_event = core.NO_EVENT
-  local_event = core.NO_EVENT
-  core.global_to_local(state, origin, direction, local_state)
-  tiles.active_tiles(local_state, tiling, scratch_tiles)
-  while True:
-    r = policies.gaussian_choose(low, low_values, scratch_tiles, scratch_psi, s.low_level_alpha,
-                                 beta, core.MAX_TURN_RATE, learn, sample, rng_state)
-    core.euler_control(state, r, samples)
-    k += 1
-    global_event, reward = core.global_outcome(samples, s.environment_gate_reward,
-                                               s.environment_out_of_bounds_reward)
-    reward_root += reward
-    local_event, internal = core.low_level_outcome(samples, state, origin, direction, k,
-                                                   local_samples, local_state,
-                                                   s.low_level_max_steps)
-    ended = (global_event != core.NO_EVENT or local_event != core.NO_EVENT
-             or steps_before + k >= s.environment_max_steps)
-    if not ended:       # the next state, already local (`low_level_outcome`), and its tiles
-      tiles.active_tiles(local_state, tiling, scratch_next)
-    if learn:                                          # Eq. 3 with R + G
-      policies.gaussian_learn(low, low_values, scratch_tiles, scratch_next, s.low_level_alpha,
-                              s.low_level_trace_gamma, beta, core.STEP_REWARD + internal, ended)
-    if ended:
-      return global_event, local_event, reward_root, k
-    arrays.copy_into(scratch_tiles, scratch_next)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from hpg_mj import agents, cli
-from hpg_mj.agents import ship_patrol
+from hpg_mj.hierarchy import patrol
 from hpg_mj.agents.taskfile import TaskFileError
 from hpg_mj.render import video
 from hpg_mj.worlds import ship_core as core
@@ -96,10 +96,10 @@ def test_the_compiled_helmsman_sails_as_the_gymnasium_patrol_does():
   for _ in range(3000):
     obs, _, _, _, info = env.step(pilot(obs))
     gates += info["event"] == "gate"
-  rows = np.zeros((1, ship_patrol.N_RECORD))
+  rows = np.zeros((1, patrol.N_RECORD))
   ship = start.copy()
-  ship_patrol.scripted(1, 3000, np.zeros(4, dtype=np.uint64), ship, 100.0, -100.0, rows)
-  assert rows[0, ship_patrol.GATES] == gates and gates >= 50        # half an hour
+  patrol.scripted(1, 3000, np.zeros(4, dtype=np.uint64), ship, 100.0, -100.0, rows)
+  assert rows[0, patrol.GATES] == gates and gates >= 50        # half an hour
   np.testing.assert_allclose(ship, obs, atol=1e-9)
 
 
@@ -183,8 +183,8 @@ def test_a_truncating_environment_is_refused(tmp_path):
                                           (-22.6, 3), (90.0, 6)])
 def test_the_root_state_is_the_cell_and_the_heading_sector(theta, sector):
   state = np.array([425.0, 375.0, theta, 0.0])              # cell (8, 7): 8 * 20 + 7
-  assert ship_patrol.root_state(state, 1) == 167
-  assert ship_patrol.root_state(state, 8) == 167 * 8 + sector
+  assert patrol.root_state(state, 1) == 167
+  assert patrol.root_state(state, 8) == 167 * 8 + sector
 
 
 def test_the_shipped_root_sees_the_heading():
@@ -199,12 +199,12 @@ def test_finer_cells_about_the_gate_are_numbered_after_the_grid():
   # x0 = y0 = 300, (425, 375) is its cell (5, 3): 400 + 5 * 8 + 3; (250, 375) is
   # outside it, in the 50 m cell (5, 7).
   inside, outside = np.array([425.0, 375.0, 0.0, 0.0]), np.array([250.0, 375.0, 0.0, 0.0])
-  assert ship_patrol.n_root_cells(100.0, 25.0) == 400 + 64
-  assert ship_patrol.n_root_cells(0.0, 25.0) == 400
-  assert ship_patrol.root_state(inside, 1, 100.0, 25.0) == 443
-  assert ship_patrol.root_state(inside, 8, 100.0, 25.0) == 443 * 8 + 4
-  assert ship_patrol.root_state(outside, 1, 100.0, 25.0) == 107
-  assert ship_patrol.root_state(inside, 1, 0.0, 25.0) == 167     # off: the 50 m grid
+  assert patrol.n_root_cells(100.0, 25.0) == 400 + 64
+  assert patrol.n_root_cells(0.0, 25.0) == 400
+  assert patrol.root_state(inside, 1, 100.0, 25.0) == 443
+  assert patrol.root_state(inside, 8, 100.0, 25.0) == 443 * 8 + 4
+  assert patrol.root_state(outside, 1, 100.0, 25.0) == 107
+  assert patrol.root_state(inside, 1, 0.0, 25.0) == 167     # off: the 50 m grid
 
 
 @pytest.mark.parametrize("line,match", [
