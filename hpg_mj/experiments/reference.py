@@ -143,7 +143,7 @@ def write(out, quick=False):
   root.mkdir(parents=True, exist_ok=True)
   found = collect(out, quick)
   lines = ["# reference: Reference scores for the methods people bring (issue 21)", "",
-           "Each learner trained on held-out seeds (from 100; never a tuning seed), then "
+           "Each learner trained on held-out seeds (those its row names; never a tuning seed), then "
            "measured greedily (no exploration, no learning) on the fixed seeded set of "
            "1,000 starts of every report (SPEC section 7). Each cell: the mean over runs "
            "[95% bootstrap confidence interval of the mean]. Wall-clock: training seconds "
