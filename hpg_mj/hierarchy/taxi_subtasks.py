@@ -14,7 +14,7 @@ t/destination), so Get, Put and Refuel each choose between two children.
 For each subtask this module gives its abstract state (MAXQ-style state
 abstraction: the index of its row in the subtask's policy table), the children
 available in a state (initiation) and its termination. Shared by the fused
-compiled loops (`hpg_mj.agents.taxi_hpg`, `taxi_maxq`) and any step-by-step executor, so both see the
+compiled loops (`hpg_mj.hierarchy.taxi_hpg`, `maxq`) and any step-by-step executor, so both see the
 same numbers.
 
 A world state is an int64[5] array `(row, col, passenger, destination, fuel)`

@@ -150,7 +150,7 @@ def gaussian_greedy(t, tiles, r_max):
 
 
 # REINFORCE's baseline for the CMAC policy (Williams 1992; a declared departure from
-# Eq. 3, as the taxi's in hpg_mj.agents.taxi_hpg): with the trace discounted by
+# Eq. 3, as the taxi's in hpg_mj.hierarchy.taxi_hpg): with the trace discounted by
 # gamma, Eq. 3 moves theta along psi_j times the discounted reward-to-go G_j of each
 # choice j; the baseline makes that G_j - b(s_j), one extra step at the choice,
 # theta <- theta - alpha b(s_j) psi_j. b is linear over the policy's tiles, b(s) = the

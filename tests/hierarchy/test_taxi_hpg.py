@@ -1,5 +1,5 @@
 """The taxi task graph (hpg_mj.hierarchy.taxi_subtasks) on hand-built states, and
-HPG's compiled loop (hpg_mj.agents.taxi_hpg): exact returns of a
+HPG's compiled loop (hpg_mj.hierarchy.taxi_hpg): exact returns of a
 hand-set optimal policy, determinism under a seed, and (slow) learning to 95%
 of the optimal mean return."""
 import collections
@@ -11,6 +11,7 @@ from taxi_grid import moves_from
 
 from hpg_mj.agents import taxi_hpg as tcp
 from hpg_mj.agents.taskfile import updated
+from hpg_mj.hierarchy import taxi_hpg as hpg
 from hpg_mj.hierarchy import taxi_subtasks as tr
 from hpg_mj.learners import rng
 from hpg_mj.worlds import taxi_core as tc
@@ -201,10 +202,10 @@ def test_optimal_hierarchy_earns_v_star_exactly():
         starts.append((*divmod(square, 5), IN_TAXI, destination, fuel))
         expected.append(values.state_value(*starts[-1]))
   greedy = agent.run(len(starts), learn=False, greedy=True, starts=starts)
-  np.testing.assert_array_equal(greedy[:, tcp.RETURN], expected)
+  np.testing.assert_array_equal(greedy[:, hpg.RETURN], expected)
   # Sampling from these tables is as good: a parameter gap of 50 leaves e^-50.
   sampled = agent.run(len(starts), learn=False, starts=starts)
-  np.testing.assert_array_equal(sampled[:, tcp.RETURN], expected)
+  np.testing.assert_array_equal(sampled[:, hpg.RETURN], expected)
 
 
 # --- the compiled loop: learning ------------------------------------------------------
@@ -221,7 +222,7 @@ def test_same_seed_same_run():
     np.testing.assert_array_equal(ta, tb)
   np.testing.assert_array_equal(a.rng_state, b.rng_state)
   assert not np.array_equal(rec_a, rec_c)
-  assert a.episodes == 3000 and a.primitive_steps == int(rec_a[:, tcp.STEPS].sum())
+  assert a.episodes == 3000 and a.primitive_steps == int(rec_a[:, hpg.STEPS].sum())
 
 
 def test_evaluation_leaves_the_policies_alone():
@@ -233,7 +234,7 @@ def test_evaluation_leaves_the_policies_alone():
   for t0, t1 in zip(before, tables_of(agent)):
     np.testing.assert_array_equal(t0, t1)
   assert agent.episodes == 2000
-  assert set(np.unique(sampled[:, tcp.OUTCOME])) <= {world_rules.DELIVERED, world_rules.OUT_OF_FUEL, world_rules.TRUNCATED}
+  assert set(np.unique(sampled[:, hpg.OUTCOME])) <= {world_rules.DELIVERED, world_rules.OUT_OF_FUEL, world_rules.TRUNCATED}
 
 
 def test_greedy_runs_draw_only_the_starts():
@@ -261,21 +262,21 @@ def test_start_states_follow_the_spec_distribution():
 def test_classic_task_never_refuels():
   agent = tcp.HPGEngine(7, task=tc.TaxiRules(False))
   record = agent.run(2000)
-  assert not np.any(record[:, tcp.OUTCOME] == world_rules.OUT_OF_FUEL)
+  assert not np.any(record[:, hpg.OUTCOME] == world_rules.OUT_OF_FUEL)
   assert not np.any(agent.policy_tables()[tr.REFUEL])
 
 
 def test_step_size_warm_up():
   config = tcp.Config()
-  schedule = tcp.schedule(config)
+  schedule = hpg.schedule(config)
   alphas = np.zeros(5)
-  tcp.step_sizes(schedule, 0, alphas)
+  hpg.step_sizes(schedule, 0, alphas)
   assert alphas[tr.ROOT] == 0.0
   # The ramp starts at once for Navigate (no delay): 0.1 + 0.9 / 25,000 of alpha.
   assert alphas[tr.NAVIGATE] == pytest.approx((0.1 + 0.9 / 25_000) * config.navigate.alpha)
-  tcp.step_sizes(schedule, config.root.delay - 1, alphas)
+  hpg.step_sizes(schedule, config.root.delay - 1, alphas)
   assert alphas[tr.ROOT] == 0.0
-  tcp.step_sizes(schedule, config.root.delay + config.root.ramp, alphas)
+  hpg.step_sizes(schedule, config.root.delay + config.root.ramp, alphas)
   np.testing.assert_allclose(alphas, [config.root.alpha] + [config.carry.alpha] * 3
                              + [config.navigate.alpha])
 
@@ -287,19 +288,19 @@ def test_baseline_steps_by_hand():
   mask = np.array([True, False, True, False])
   index = np.array([3, 5, 0, 0], dtype=np.int64)          # state 1 of a 3-child table
   psi = np.array([0.25, -0.25, 0.0, 0.0])
-  tcp.subtract_baseline(w, values, 1, 3, mask, True, 0.5, index, psi)
+  hpg.subtract_baseline(w, values, 1, 3, mask, True, 0.5, index, psi)
   np.testing.assert_array_equal(w, [0, 0, 0, -0.25, 0, 0.25, 0, 0, 0])
-  tcp.subtract_baseline(w, values, 1, 3, mask, False, 0.5, index, psi)   # not learning
-  tcp.subtract_baseline(w, values, 0, 3, mask, True, 0.5, index, psi)    # b(s) = 0
+  hpg.subtract_baseline(w, values, 1, 3, mask, False, 0.5, index, psi)   # not learning
+  hpg.subtract_baseline(w, values, 0, 3, mask, True, 0.5, index, psi)    # b(s) = 0
   np.testing.assert_array_equal(w, [0, 0, 0, -0.25, 0, 0.25, 0, 0, 0])
   # b(s) <- b(s) + beta (R + b(s') - b(s)), with b(s') = 0 once the call is over.
   values = np.array([1.0, 3.0])
-  tcp.learn_baseline(values, 0, True, 0.5, -1.0, False, 1)
+  hpg.learn_baseline(values, 0, True, 0.5, -1.0, False, 1)
   assert values[0] == 1.5                                  # target -1 + 3
-  tcp.learn_baseline(values, 0, True, 0.5, -1.0, True, 1)
+  hpg.learn_baseline(values, 0, True, 0.5, -1.0, True, 1)
   assert values[0] == 0.25                                 # target -1
-  tcp.learn_baseline(values, 0, False, 0.5, -1.0, True, 1)
-  tcp.learn_baseline(values, 0, True, 0.0, -1.0, True, 1)
+  hpg.learn_baseline(values, 0, False, 0.5, -1.0, True, 1)
+  hpg.learn_baseline(values, 0, True, 0.0, -1.0, True, 1)
   assert list(values) == [0.25, 3.0]
 
 
@@ -358,7 +359,7 @@ def test_hpg_reaches_95_percent_of_optimal():
   optimal = tv.optimal_mean_return(True)
   last = []
   for seed in range(5):
-    returns = tcp.HPGEngine(seed).run(100_000)[:, tcp.RETURN]
+    returns = tcp.HPGEngine(seed).run(100_000)[:, hpg.RETURN]
     last.append(returns[-1000:].mean())
   assert np.mean(last) >= tv.performance_threshold(optimal, 0.95)
   assert min(last) >= tv.performance_threshold(optimal, 0.90)
