@@ -302,3 +302,21 @@ def test_a_subtask_alone_is_the_same_fused_and_through_its_environment(task, env
   for a, b in zip(*runs):
     np.testing.assert_array_equal(a, b)
   assert runs[0][0][:, 0].sum() > 0                                 # some calls succeeded
+
+
+def test_an_argument_of_another_kind_goes_through_the_dispatcher():
+  """`Machine._compiled` calls numba's entry point for the argument kinds it has seen,
+  which checks no types: a generator state of another layout (a strided view) must
+  go through the dispatcher, not be read as the contiguous one. Both draws, from the
+  same state, give the same action and leave the same state."""
+  from hpg_mj import agents
+  m = agents.build(agents.load_task("ship_flat_pg"), seed=0).machine
+  obs = np.array([400.0, 300.0, 10.0, 0.0])
+  state = rng.make_state(7)
+  strided = np.zeros(8, dtype=np.uint64)
+  strided[::2] = state
+  first = m.begin(obs, False, True, state)
+  second = m.begin(obs, False, True, strided[::2])
+  assert first == second
+  np.testing.assert_array_equal(strided[::2], state)
+  assert strided[1::2].sum() == 0
