@@ -99,15 +99,19 @@ Schedule = collections.namedtuple("Schedule", ("epsilon", "outcomes", "counts", 
 # its tiles (current, next; an actor-critic's critic tiles: current, next), score and
 # a learned width's score; an actor-critic's mean m and draw u; the episode's [depth,
 # steps, the root's argument, the root's event when it ended], [return], per-node
-# counters; scratch of the local frame and of (state, action).
+# counters; scratch of the local frame and of (state, action); the fused loop's ship
+# state and the positions sampled in its step.
 (S_NODE, S_CHOICE, S_ARG, S_STEPS, S_CHILD_STEPS, S_STATE, S_NEXT_STATE) = range(7)
 F_REWARD, F_ACTION, F_MEAN, F_U = range(4)
 Stack = collections.namedtuple("Stack", ("ints", "floats", "origin", "tiles", "psi",
                                          "psi_width", "episode", "total", "counters", "local",
-                                         "local_samples", "sa"))
+                                         "local_samples", "sa", "ship", "samples"))
 E_DEPTH, E_STEPS, E_ROOT_ARG, E_EVENT = range(4)
+# `extras`: None in a machine whose graph has neither an ActorCritic nor a user rule
+# (else 1). numba prunes a branch on `x is None` of an argument before typing it, so
+# such a machine compiles without their code (a sixth of the hybrid's first compile).
 Banks = collections.namedtuple("Banks", ("program", "q", "gaussian", "tiling", "schedule",
-                                         "stack"))
+                                         "stack", "extras"))
 
 
 # ---- the compiled machine -------------------------------------------------------
@@ -167,7 +171,7 @@ def grid_cell(x, y, cell_m, grid):
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _view(P, Q, G, T, S, K, d, obs, which):
+def _view(P, Q, G, T, S, K, X, d, obs, which):
   """The node at depth d views `obs`: a table's state into S_STATE (which = 0) or
   S_NEXT_STATE (1); tiles into its tiles[d, which]."""
   node = K.ints[d, S_NODE]
@@ -177,11 +181,12 @@ def _view(P, Q, G, T, S, K, d, obs, which):
     p = P.params[node]
     K.ints[d, S_STATE + which] = grid_cell(obs[0], obs[1], p[CELL_M], np.int64(p[GRID]))
   elif kind == VIEW_RULE:
-    state = np.int64(P.rules(row[VIEW_SLOT], obs, K.origin[d], K.ints[d, S_ARG],
-                             K.ints[d, S_STEPS], np.int64(0)))
-    if state < 0 or state >= row[N_STATES]:
-      raise IndexError("a CellRule's rule gave a state outside its QTable's states")
-    K.ints[d, S_STATE + which] = state
+    if X is not None:
+      state = np.int64(P.rules(row[VIEW_SLOT], obs, K.origin[d], K.ints[d, S_ARG],
+                               K.ints[d, S_STEPS], np.int64(0)))
+      if state < 0 or state >= row[N_STATES]:
+        raise IndexError("a CellRule's rule gave a state outside its QTable's states")
+      K.ints[d, S_STATE + which] = state
   elif kind == VIEW_LOCAL_TILES:
     tiling = _tiling(T, row[VIEW_SLOT])
     local = K.local
@@ -219,7 +224,7 @@ def _gaussian_choose(P, G, T, K, d, learn, sample, rng_state):
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _choose(P, Q, G, T, S, K, d, obs, learn, sample, rng_state):
+def _choose(P, Q, G, T, S, K, X, d, obs, learn, sample, rng_state):
   """Algorithm 1: choose a with mu^i(s, theta^i); sets the stack's choice and action."""
   node = K.ints[d, S_NODE]
   row = P.nodes[node]
@@ -234,18 +239,19 @@ def _choose(P, Q, G, T, S, K, d, obs, learn, sample, rng_state):
   elif row[LEARNER] == GAUSSIAN_CMAC:
     _gaussian_choose(P, G, T, K, d, learn, sample, rng_state)
   elif row[LEARNER] == ACTOR_CRITIC:
-    k = T.n_tilings[row[VIEW_SLOT]]
-    m, u, r = actor_critic.choose(G.values[slot], K.tiles[d, 0, :k], p[R_MAX], sample,
-                                  rng_state)
-    K.floats[d, F_MEAN] = m
-    K.floats[d, F_U] = u
-    K.floats[d, F_ACTION] = r
-    _critic_tiles(P, T, K, d, obs, r, np.int64(0))
-    K.ints[d, S_CHOICE] = 0
+    if X is not None:
+      k = T.n_tilings[row[VIEW_SLOT]]
+      m, u, r = actor_critic.choose(G.values[slot], K.tiles[d, 0, :k], p[R_MAX], sample,
+                                    rng_state)
+      K.floats[d, F_MEAN] = m
+      K.floats[d, F_U] = u
+      K.floats[d, F_ACTION] = r
+      _critic_tiles(P, T, K, d, obs, r, np.int64(0))
+      K.ints[d, S_CHOICE] = 0
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
-def _call(P, Q, G, T, S, K, d, node, arg, obs, learn, sample, rng_state):
+def _call(P, Q, G, T, S, K, X, d, node, arg, obs, learn, sample, rng_state):
   """Task `node` is called at depth d with `arg` from `obs`: z <- 0, its view, its
   first choice."""
   ints = K.ints
@@ -263,11 +269,12 @@ def _call(P, Q, G, T, S, K, d, node, arg, obs, learn, sample, rng_state):
     el.reset(_trace(G, row[SLOT]))                  # Eq. 3: z <- 0
     _reset_width(G, row)
   elif row[LEARNER] == ACTOR_CRITIC:
-    el.reset(_trace(G, row[SLOT]))                  # the critic's e <- 0
-    for i in range(K.psi.shape[1]):
-      K.psi[d, i] = 1.0                             # phi(s, a) of the critic's tiles
-  _view(P, Q, G, T, S, K, d, obs, np.int64(0))
-  _choose(P, Q, G, T, S, K, d, obs, learn, sample, rng_state)
+    if X is not None:
+      el.reset(_trace(G, row[SLOT]))                # the critic's e <- 0
+      for i in range(K.psi.shape[1]):
+        K.psi[d, i] = 1.0                           # phi(s, a) of the critic's tiles
+  _view(P, Q, G, T, S, K, X, d, obs, np.int64(0))
+  _choose(P, Q, G, T, S, K, X, d, obs, learn, sample, rng_state)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -283,7 +290,7 @@ def _primitive_action(P, K, d):
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
-def _descend(P, Q, G, T, S, K, d, obs, learn, sample, rng_state):
+def _descend(P, Q, G, T, S, K, X, d, obs, learn, sample, rng_state):
   """From depth d, calls the chosen children down to a primitive; returns the
   primitive's action."""
   while True:
@@ -292,11 +299,11 @@ def _descend(P, Q, G, T, S, K, d, obs, learn, sample, rng_state):
       return action
     child = P.children[P.nodes[K.ints[d, S_NODE], FIRST_CHILD] + K.ints[d, S_CHOICE]]
     d += 1
-    _call(P, Q, G, T, S, K, d, child[0], child[1], obs, learn, sample, rng_state)
+    _call(P, Q, G, T, S, K, X, d, child[0], child[1], obs, learn, sample, rng_state)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False)
-def begin(P, Q, G, T, S, K, obs, learn, sample, rng_state):
+def begin(P, Q, G, T, S, K, X, obs, learn, sample, rng_state):
   """An episode starts at `obs`: the root is called; returns the first action."""
   c = K.counters
   for i in range(c.shape[0]):
@@ -305,13 +312,13 @@ def begin(P, Q, G, T, S, K, obs, learn, sample, rng_state):
   K.episode[E_STEPS] = 0
   K.episode[E_EVENT] = core.NO_EVENT
   K.total[0] = 0.0
-  _call(P, Q, G, T, S, K, np.int64(0), P.nodes.shape[0] - 1, K.episode[E_ROOT_ARG], obs, learn,
-        sample, rng_state)
-  return _descend(P, Q, G, T, S, K, np.int64(0), obs, learn, sample, rng_state)
+  _call(P, Q, G, T, S, K, X, np.int64(0), P.nodes.shape[0] - 1, K.episode[E_ROOT_ARG], obs,
+        learn, sample, rng_state)
+  return _descend(P, Q, G, T, S, K, X, np.int64(0), obs, learn, sample, rng_state)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _end_of(P, K, d, obs, samples):
+def _end_of(P, K, X, d, obs, samples):
   """After a child of the node at depth d returned: (its own event, G)."""
   node = K.ints[d, S_NODE]
   row = P.nodes[node]
@@ -324,19 +331,21 @@ def _end_of(P, K, d, obs, samples):
     if row[INTERNAL] != G_SHAPING:
       internal = 0.0
   elif row[END] == END_RULE:
-    said = P.rules(row[END_AT], obs, K.origin[d], K.ints[d, S_ARG], K.ints[d, S_STEPS],
-                   np.int64(0))
-    if said != 0.0 and said != 1.0 and said != -1.0:
-      raise ValueError("an EndRule's rule gave an event other than 0, 1 or -1")
-    event = np.int64(said)
+    if X is not None:
+      said = P.rules(row[END_AT], obs, K.origin[d], K.ints[d, S_ARG], K.ints[d, S_STEPS],
+                     np.int64(0))
+      if said != 0.0 and said != 1.0 and said != -1.0:
+        raise ValueError("an EndRule's rule gave an event other than 0, 1 or -1")
+      event = np.int64(said)
   if row[INTERNAL] == G_RULE:
-    internal = P.rules(row[G_AT], obs, K.origin[d], K.ints[d, S_ARG], K.ints[d, S_STEPS],
-                       np.int64(event))
+    if X is not None:
+      internal = P.rules(row[G_AT], obs, K.origin[d], K.ints[d, S_ARG], K.ints[d, S_STEPS],
+                         np.int64(event))
   return event, internal
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _observe(P, Q, G, T, S, K, d, obs, signal, done, terminal, learn, sample, rng_state):
+def _observe(P, Q, G, T, S, K, X, d, obs, signal, done, terminal, learn, sample, rng_state):
   """Algorithm 1: the learner of the node at depth d takes R + G of its child's run;
   unless done, it makes its next choice."""
   node = K.ints[d, S_NODE]
@@ -350,7 +359,7 @@ def _observe(P, Q, G, T, S, K, d, obs, signal, done, terminal, learn, sample, rn
   # is terminal.
   if kind == Q_TABLE or (kind == GAUSSIAN_CMAC and not done) or (
       kind == ACTOR_CRITIC and not terminal):
-    _view(P, Q, G, T, S, K, d, obs, np.int64(1))
+    _view(P, Q, G, T, S, K, X, d, obs, np.int64(1))
   if kind == Q_TABLE:
     epsilon = 0.0
     if sample:
@@ -372,31 +381,32 @@ def _observe(P, Q, G, T, S, K, d, obs, signal, done, terminal, learn, sample, rn
   elif kind == ACTOR_CRITIC:
     # delta = R + Q(s', a') - Q(s, a), with a' drawn in s' unless s' is terminal (also
     # when the call is cut, to bootstrap from it); the next step's a is that a'.
-    k = T.n_tilings[row[VIEW_SLOT]]
-    kc = T.n_tilings[row[CRITIC_SLOT]]
-    critic = _trace(G, slot)
-    q = actor_critic.critic_value(critic, K.tiles[d, 2, :kc])
-    target = signal
-    m, u, r = 0.0, 0.0, 0.0
-    if not terminal:
-      m, u, r = actor_critic.choose(G.values[slot], K.tiles[d, 1, :k], p[R_MAX], sample,
-                                    rng_state)
-      _critic_tiles(P, T, K, d, obs, r, np.int64(1))
-      target += actor_critic.critic_value(critic, K.tiles[d, 3, :kc])
-    if learn:
-      actor_critic.learn(critic, K.tiles[d, 2, :kc], K.psi[d, :kc], p[ALPHA], target - q,
-                         p[DECAY], G.values[slot], K.tiles[d, 0, :k], p[ALPHA_ACTOR], q,
-                         K.floats[d, F_U], K.floats[d, F_MEAN])
-    if not done:
-      arrays.copy_into(K.tiles[d, 0, :k], K.tiles[d, 1, :k])
-      arrays.copy_into(K.tiles[d, 2, :kc], K.tiles[d, 3, :kc])
-      K.floats[d, F_MEAN] = m
-      K.floats[d, F_U] = u
-      K.floats[d, F_ACTION] = r
+    if X is not None:
+      k = T.n_tilings[row[VIEW_SLOT]]
+      kc = T.n_tilings[row[CRITIC_SLOT]]
+      critic = _trace(G, slot)
+      q = actor_critic.critic_value(critic, K.tiles[d, 2, :kc])
+      target = signal
+      m, u, r = 0.0, 0.0, 0.0
+      if not terminal:
+        m, u, r = actor_critic.choose(G.values[slot], K.tiles[d, 1, :k], p[R_MAX], sample,
+                                      rng_state)
+        _critic_tiles(P, T, K, d, obs, r, np.int64(1))
+        target += actor_critic.critic_value(critic, K.tiles[d, 3, :kc])
+      if learn:
+        actor_critic.learn(critic, K.tiles[d, 2, :kc], K.psi[d, :kc], p[ALPHA], target - q,
+                           p[DECAY], G.values[slot], K.tiles[d, 0, :k], p[ALPHA_ACTOR], q,
+                           K.floats[d, F_U], K.floats[d, F_MEAN])
+      if not done:
+        arrays.copy_into(K.tiles[d, 0, :k], K.tiles[d, 1, :k])
+        arrays.copy_into(K.tiles[d, 2, :kc], K.tiles[d, 3, :kc])
+        K.floats[d, F_MEAN] = m
+        K.floats[d, F_U] = u
+        K.floats[d, F_ACTION] = r
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def step(P, Q, G, T, S, K, obs, samples, reward, terminated, truncated, learn, sample,
+def step(P, Q, G, T, S, K, X, obs, samples, reward, terminated, truncated, learn, sample,
          rng_state):
   """A primitive step ended in `obs` with `reward` (`samples`: the positions
   sampled inside it, for the ship's local ends). Returns (episode over, the next
@@ -415,7 +425,7 @@ def step(P, Q, G, T, S, K, obs, samples, reward, terminated, truncated, learn, s
   while True:
     node = ints[d, S_NODE]
     row = P.nodes[node]
-    event, internal = _end_of(P, K, d, obs, samples)
+    event, internal = _end_of(P, K, X, d, obs, samples)
     done = event != core.NO_EVENT or over
     if row[SEEN] == SEEN_STEP:
       seen = core.STEP_REWARD * ints[d, S_CHILD_STEPS]
@@ -423,12 +433,12 @@ def step(P, Q, G, T, S, K, obs, samples, reward, terminated, truncated, learn, s
       seen = floats[d, F_REWARD]
     floats[d, F_REWARD] = 0.0
     ints[d, S_CHILD_STEPS] = 0
-    _observe(P, Q, G, T, S, K, d, obs, seen + internal, done,
+    _observe(P, Q, G, T, S, K, X, d, obs, seen + internal, done,
              terminated or event != core.NO_EVENT, learn, sample, rng_state)
     if not done:
       action = _primitive_action(P, K, d)        # the common case: no call to make
       if action != action:
-        action = _descend(P, Q, G, T, S, K, d, obs, learn, sample, rng_state)
+        action = _descend(P, Q, G, T, S, K, X, d, obs, learn, sample, rng_state)
       return False, action
     # The call returns (Algorithm 1: return to the parent).
     c = K.counters[node]
@@ -452,19 +462,20 @@ def step(P, Q, G, T, S, K, obs, samples, reward, terminated, truncated, learn, s
 # ---- fused with the analytic ship --------------------------------------------------
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False)
-def run_ship(P, Q, G, T, S, K, n_episodes, learn, sample, rng_state, world, record,
-             fixed_start, state, samples):
+def run_ship(P, Q, G, T, S, K, X, n_episodes, learn, sample, rng_state, world, record,
+             fixed_start):
   """`n_episodes` episodes on Equation 1, of the full ship task (SPEC section 2):
   `world` = [gate reward, out-of-bounds reward, max steps, 0], or of the root alone
   as a stand-alone subtask (`world[3]` = 1, SPEC section 8): each episode a call at
   the local start of the root's argument (`sample_local_start`), -1 a step, ended by
   the root's own termination. Record row: [passed (the gate, or the root's success),
-  steps, return, then calls, runs, successes of each node]. `state` (4) and
-  `samples` are scratch. Compiled without reference counting, as everything it
-  inlines: the machine reads its banks through views, and counting references
-  to them cost 70% of its time."""
+  steps, return, then calls, runs, successes of each node]; the ship's state and the
+  positions sampled in a step are the stack's `ship` and `samples`. Compiled without
+  reference counting, as everything it inlines: the machine reads its banks through
+  views, and counting references to them cost 70% of its time."""
   max_steps = np.int64(world[2])
   alone = world[3] != 0.0
+  state, samples = K.ship, K.samples
   n_nodes = K.counters.shape[0]
   event = core.NO_EVENT
   reward = core.STEP_REWARD
@@ -475,7 +486,7 @@ def run_ship(P, Q, G, T, S, K, n_episodes, learn, sample, rng_state, world, reco
       ship_rules.sample_local_start(rng_state, K.episode[E_ROOT_ARG], state)
     else:
       ship_rules.sample_start(rng_state, state)
-    action = begin(P, Q, G, T, S, K, state, learn, sample, rng_state)
+    action = begin(P, Q, G, T, S, K, X, state, learn, sample, rng_state)
     while True:
       core.euler_control(state, action, samples)
       terminated, truncated = False, False
@@ -483,7 +494,7 @@ def run_ship(P, Q, G, T, S, K, n_episodes, learn, sample, rng_state, world, reco
         event, reward = core.global_outcome(samples, world[0], world[1])
         terminated = event != core.NO_EVENT
         truncated = (not terminated) and K.episode[E_STEPS] + 1 >= max_steps
-      over, action = step(P, Q, G, T, S, K, state, samples, reward, terminated, truncated,
+      over, action = step(P, Q, G, T, S, K, X, state, samples, reward, terminated, truncated,
                           learn, sample, rng_state)
       if over:
         break
@@ -607,13 +618,15 @@ class Machine:
                   np.zeros(1),
                   np.zeros((len(order), 3)), np.zeros(4),
                   np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)),
-                  np.zeros(len(critics[0].low) if critics else 1))
+                  np.zeros(len(critics[0].low) if critics else 1), np.zeros(4),
+                  np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)))
     if len({len(c.low) for c in critics}) > 1:
       raise GraphError("the graph's actor-critics' critics code (state, action) of "
                        f"different sizes: {sorted({len(c.low) for c in critics})}")
     program = Program(nodes, params, np.array(children, dtype=np.int64).reshape(-1, 2),
                       rules_mod.compile_rules(self.rules))
-    self.banks = Banks(program, qbank, gbank, self.tile_bank, schedule, stack)
+    self.banks = Banks(program, qbank, gbank, self.tile_bank, schedule, stack,
+                       1 if critics or self.rules else None)
     self._entries = {}                  # (function, argument kinds) -> entry point
 
   # -- what each block puts in the node's row --
@@ -805,7 +818,7 @@ class Machine:
     fixed = np.empty(0) if start is None else np.asarray(start, dtype=np.float64)
     world = np.concatenate([np.asarray(world, dtype=np.float64), np.zeros(4)])[:4]
     run_ship(*self.banks, int(episodes), bool(learn), bool(sample), rng_state, world, rows,
-             fixed, np.empty(4), np.empty((core.SAMPLES_PER_CONTROL + 1, 2)))
+             fixed)
     return rows
 
   def begin(self, obs, learn, sample, rng_state):
