@@ -6,7 +6,7 @@ experiment's name, a figure's name, a task file's name in an experiment) are one
 path component of a small alphabet, so that a file from elsewhere writes only
 inside the output folder. Output paths are checked before any work: a file where
 a folder is wanted, a folder where a file is, a place that cannot be written
-(`hpg_mj.agents.storage.check_out` adds what an agent's folder may hold).
+(`hpg_mj.storage.check_out` adds what an agent's folder may hold).
 """
 import pathlib
 import re

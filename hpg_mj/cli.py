@@ -268,7 +268,7 @@ def _cmd_train(args):
   import time
 
   from hpg_mj import agents
-  from hpg_mj.agents import storage
+  from hpg_mj import storage
   from hpg_mj.agents import window
   from hpg_mj.experiments import bounds
   task = agents.load_task(args.task_file)

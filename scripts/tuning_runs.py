@@ -26,6 +26,7 @@ import sys
 import numpy as np
 
 from hpg_mj import agents
+from hpg_mj import taskfile
 from hpg_mj.experiments import tuning
 
 FIGURE_METRICS = {"ship": "J", "taxi": "mean_return"}   # greedy, at the runs' end
@@ -59,7 +60,7 @@ def write(name, out, n_seeds=None):
     path = out / f"{task.path.stem}_tune{k}.toml"
     variant = re.sub(r"^\[tuning\]", f"# candidate {k}: {tuning.describe(changes)}\n[tuning]",
                      with_changes(text, changes, task.path), count=1, flags=re.M)
-    agents.taskfile.loads(variant, path, agents._Registry)    # refused here if malformed
+    taskfile.loads(variant, path, agents._Registry)    # refused here if malformed
     path.write_text(variant)
     paths.append(path)
   seeds = sorted(task.tuning_seeds)

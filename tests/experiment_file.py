@@ -6,7 +6,7 @@ import pathlib
 
 import numpy as np
 
-from hpg_mj.agents import storage
+from hpg_mj import storage
 
 TEMPLATE = """
 [experiment]
@@ -63,7 +63,7 @@ def assert_refused(tmp_path, text, message):
   """An experiment file of this text is refused when loaded, before anything runs."""
   import pytest
 
-  from hpg_mj.agents import taskfile
+  from hpg_mj import taskfile
   from hpg_mj.experiments import runner
   path = tmp_path / "bad.toml"
   path.write_text(text)

@@ -10,7 +10,7 @@ import pathlib
 import pytest
 
 from hpg_mj import cli
-from hpg_mj.agents import storage
+from hpg_mj import storage
 from hpg_mj.experiments import runner
 from hpg_mj.learners import rng
 

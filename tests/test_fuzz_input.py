@@ -25,7 +25,7 @@ from hypothesis import strategies as st  # noqa: E402
 
 from hpg_mj import agents  # noqa: E402
 from hpg_mj import cli  # noqa: E402
-from hpg_mj.agents import taskfile  # noqa: E402
+from hpg_mj import taskfile  # noqa: E402
 from hpg_mj.experiments import runner  # noqa: E402
 
 TASK_NAME = "taxi_fuel_flat_q"

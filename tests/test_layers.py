@@ -17,9 +17,9 @@ ALLOWED = {
     "render": {"worlds", "_assets", "_validation", "_headless", "_render_worker"},
     "hierarchy": {"learners", "worlds"},
     "agents": {"hierarchy", "learners", "worlds", "envs", "suite", "render", "provenance",
-               "_paths"},
+               "_paths", "taskfile", "storage"},
     "experiments": {"agents", "hierarchy", "learners", "worlds", "envs", "suite", "render",
-                    "provenance", "_paths"},
+                    "provenance", "_paths", "taskfile", "storage"},
 }
 
 
@@ -87,6 +87,9 @@ def test_no_module_imports_itself_through_others():
   graph = _module_graph()
   assert graph["hpg_mj.render.drawing"] >= {"hpg_mj.worlds.ship_model"}
   assert "hpg_mj._render_worker" not in graph["hpg_mj.worlds.ship_model"]
+  # the task-file format and an agent's folder sit below the agents that use them
+  for below in ("hpg_mj.taskfile", "hpg_mj.storage"):
+    assert not {m for m in graph[below] if m.startswith(("hpg_mj.agents", "hpg_mj.experiments"))}
   done, cycles = set(), []
 
   def visit(name, path):

@@ -29,10 +29,10 @@ import time
 
 import numpy as np
 
-from hpg_mj.agents import storage
-from hpg_mj.agents import taskfile
+from hpg_mj import storage
+from hpg_mj import taskfile
 from hpg_mj.agents.base import BACKENDS, POLICIES, Agent  # noqa: F401  (the interface)
-from hpg_mj.agents.taskfile import Section, TaskFileError, param, updated  # noqa: F401
+from hpg_mj.taskfile import Section, TaskFileError, param, updated  # noqa: F401
 
 def __getattr__(name):
   # The worlds' base classes, for agents of one's own (imported when first asked for).

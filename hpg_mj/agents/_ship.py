@@ -6,8 +6,8 @@ import dataclasses
 import numpy as np
 
 from hpg_mj.agents import base
-from hpg_mj.agents import taskfile
-from hpg_mj.agents.taskfile import param
+from hpg_mj import taskfile
+from hpg_mj.taskfile import param
 from hpg_mj.hierarchy import machine as machine_mod
 from hpg_mj.hierarchy import ship_rules as rules
 from hpg_mj.worlds import ship_core as core

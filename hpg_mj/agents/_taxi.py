@@ -6,8 +6,8 @@ import dataclasses
 import numpy as np
 
 from hpg_mj.agents import base
-from hpg_mj.agents import taskfile
-from hpg_mj.agents.taskfile import param
+from hpg_mj import taskfile
+from hpg_mj.taskfile import param
 from hpg_mj.hierarchy import taxi_subtasks
 from hpg_mj.worlds import taxi_core
 from hpg_mj.worlds import taxi_rules as world_rules

@@ -6,7 +6,7 @@ An agent is one class with:
 
   name            the task files' `[task] kind`
   Config          a dataclass of section dataclasses: the task file's schema
-                  (`hpg_mj.agents.taskfile.param` fields: default, meaning, range)
+                  (`hpg_mj.taskfile.param` fields: default, meaning, range)
   record_fields   the names of its per-episode record's fields (float64 each)
   figure          the metric its progress reports, by name (a key of `metrics`)
   tags            e.g. ("baseline",): what it is, for listings
@@ -14,7 +14,7 @@ An agent is one class with:
                   continuing one (SPEC section 8) the control steps of one record
                   row, an "episode" of its record: then its task file's
                   [protocol] may give `control_steps` or `hours` instead of
-                  `episodes` (hpg_mj.agents.taskfile)
+                  `episodes` (hpg_mj.taskfile)
   checkpoint_rows None, or the record rows between a run's checkpoints at the
                   most (`hpg-mj run` checkpoints at least that often)
 
@@ -109,7 +109,7 @@ class Agent:
     """Puts saved arrays (name -> array, as `state()` gave them) back into the agent;
     by default copied into the live arrays of `state()`. An agent whose state is not
     a fixed set of arrays (e.g. an outside library's, hpg_mj.agents.sb3) overrides it."""
-    from hpg_mj.agents import storage
+    from hpg_mj import storage
     storage.restore_into(self.state(), arrays, where)
 
   def make_env(self, api="gymnasium", backend="analytic", **kwargs):

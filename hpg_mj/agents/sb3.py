@@ -9,7 +9,7 @@ Each learns through `hpg_mj.envs.sb3.NativeVecEnv`, SB3's VecEnv over the native
 vector environment (all copies stepped in one compiled call), on the analytic
 world with the task file's rewards. Deep RL budgets are control steps, so a run's
 length is too: [protocol] control_steps, in record rows of `record_steps` = 1,000
-control steps each (the mechanism of the continuing agents, hpg_mj.agents.taskfile).
+control steps each (the mechanism of the continuing agents, hpg_mj.taskfile).
 Row k sums the episodes that ended within control steps (1,000 k, 1,000 (k+1)]
 of training, all copies together: `steps` (1,000), `episodes`, and per world
 (ship: gates, gate_steps, return_sum, j_sum; taxi: return_sum, episode_steps,
@@ -45,9 +45,9 @@ import numpy as np
 
 from hpg_mj.agents import _ship
 from hpg_mj.agents import _taxi
-from hpg_mj.agents import storage
-from hpg_mj.agents import taskfile
-from hpg_mj.agents.taskfile import param
+from hpg_mj import storage
+from hpg_mj import taskfile
+from hpg_mj.taskfile import param
 from hpg_mj.worlds import taxi_rules as world_rules
 
 EXTRA = "pip install 'hpg_mj[sb3]'"

@@ -13,8 +13,8 @@ terminal state), then `learners.actor_critic.learn`.
 import dataclasses
 
 from hpg_mj.agents import _ship
-from hpg_mj.agents import taskfile
-from hpg_mj.agents.taskfile import param
+from hpg_mj import taskfile
+from hpg_mj.taskfile import param
 from hpg_mj.agents.ship_flat_pg import actor_coder
 from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy.graph import Primitive, Subtask, TaskGraph

@@ -37,7 +37,7 @@ import dataclasses
 import numpy as np
 
 from hpg_mj.agents import _ship
-from hpg_mj.agents.taskfile import param
+from hpg_mj.taskfile import param
 from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy import route
 from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph

@@ -11,8 +11,8 @@ number of weights. The agent is its Config and a one-node graph of blocks, which
 import dataclasses
 
 from hpg_mj.agents import _ship
-from hpg_mj.agents import taskfile
-from hpg_mj.agents.taskfile import param
+from hpg_mj import taskfile
+from hpg_mj.taskfile import param
 from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy.graph import Primitive, Subtask, TaskGraph
 from hpg_mj.learners import eligibility as el

@@ -10,8 +10,8 @@ step by step through any ship environment, with the same compiled functions.
 import dataclasses
 
 from hpg_mj.agents import _ship
-from hpg_mj.agents import taskfile
-from hpg_mj.agents.taskfile import param
+from hpg_mj import taskfile
+from hpg_mj.taskfile import param
 from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy import ship_rules as rules
 from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph

@@ -37,7 +37,7 @@ import numpy as np
 
 from hpg_mj.agents import _ship
 from hpg_mj.agents import ship_hybrid as hybrid
-from hpg_mj.agents.taskfile import param
+from hpg_mj.taskfile import param
 from hpg_mj.hierarchy import executor as executor_mod
 from hpg_mj.hierarchy import ship_rules as rules
 from hpg_mj.hierarchy.patrol import (CALLS, DEPARTURES, GAIN, GATES, N_RECORD, NEVER, RETURN, STEPS,

@@ -9,8 +9,8 @@ import numba
 import numpy as np
 
 from hpg_mj.agents import _taxi
-from hpg_mj.agents import taskfile
-from hpg_mj.agents.taskfile import param
+from hpg_mj import taskfile
+from hpg_mj.taskfile import param
 from hpg_mj.hierarchy import flat as flat_graph
 from hpg_mj.hierarchy import taxi_subtasks as rules
 from hpg_mj.learners import qlambda

@@ -31,8 +31,8 @@ import dataclasses
 import numpy as np
 
 from hpg_mj.agents import _taxi
-from hpg_mj.agents import taskfile
-from hpg_mj.agents.taskfile import param
+from hpg_mj import taskfile
+from hpg_mj.taskfile import param
 from hpg_mj.hierarchy import taxi as taxi_hierarchy
 from hpg_mj.hierarchy import taxi_subtasks as rules
 from hpg_mj.hierarchy.taxi_hpg import (N_RECORD, betas, choose, gammas, learn_baseline,

@@ -9,8 +9,8 @@ import dataclasses
 import numpy as np
 
 from hpg_mj.agents import _taxi
-from hpg_mj.agents import taskfile
-from hpg_mj.agents.taskfile import param
+from hpg_mj import taskfile
+from hpg_mj.taskfile import param
 from hpg_mj.hierarchy import taxi
 from hpg_mj.hierarchy import taxi_subtasks as rules
 from hpg_mj.hierarchy.maxq import (N_PRIMITIVES, MAXQEngine, choose, completion_table,

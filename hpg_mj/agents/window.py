@@ -2,7 +2,7 @@
 `metrics(record)` measures its last `metric_window` record rows (an episodic
 agent: the last 1,000 episodes; ship_patrol, continuing: the last 125 hours), and
 `hpg-mj train --json` says which beside the numbers."""
-from hpg_mj.agents import taskfile
+from hpg_mj import taskfile
 
 
 def unit(agent):

@@ -77,7 +77,7 @@ from hpg_mj import _paths
 from hpg_mj import agents
 from hpg_mj.experiments import locks
 from hpg_mj.experiments import runs
-from hpg_mj.agents import taskfile
+from hpg_mj import taskfile
 from hpg_mj.learners import rng
 
 POSITIVE = ("int_min", 1)

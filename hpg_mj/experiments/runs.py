@@ -54,7 +54,7 @@ from numba.core import event
 from hpg_mj import agents
 from hpg_mj import provenance
 from hpg_mj.agents import base
-from hpg_mj.agents import storage
+from hpg_mj import storage
 from hpg_mj.experiments import bounds
 from hpg_mj.experiments import locks
 

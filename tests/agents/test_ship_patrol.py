@@ -9,7 +9,7 @@ import pytest
 
 from hpg_mj import agents, cli
 from hpg_mj.hierarchy import patrol
-from hpg_mj.agents.taskfile import TaskFileError
+from hpg_mj.taskfile import TaskFileError
 from hpg_mj.render import video
 from hpg_mj.worlds import ship_core as core
 

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from hpg_mj import agents
-from hpg_mj.agents import storage
+from hpg_mj import storage
 from hpg_mj.experiments import runs
 
 REPO = pathlib.Path(__file__).resolve().parents[2]

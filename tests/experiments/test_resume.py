@@ -13,7 +13,7 @@ import pytest
 
 import hpg_mj
 from hpg_mj import agents
-from hpg_mj.agents import storage
+from hpg_mj import storage
 from hpg_mj.experiments import runner, runs
 from experiment_file import assert_same_run, experiment_text, final_run
 

@@ -6,7 +6,7 @@ import pytest
 
 from hpg_mj import cli
 from hpg_mj.agents import _ship
-from hpg_mj.agents import taskfile
+from hpg_mj import taskfile
 from hpg_mj.experiments import runner
 from experiment_file import assert_refused
 

@@ -166,7 +166,7 @@ def test_tune_trains_each_candidate_on_the_tuning_seeds(tmp_path):
     ("budget = 4\n", "", r"\[tuning\] budget is missing"),
 ])
 def test_bad_tuning_sections_are_refused(tmp_path, old, new, message):
-  from hpg_mj.agents import taskfile
+  from hpg_mj import taskfile
   text = agents.shipped_tasks()["taxi_fuel_flat_q"].read_text()
   assert old in text
   path = tmp_path / "q.toml"

@@ -8,7 +8,7 @@ import pytest
 
 from hpg_mj import cli
 from hpg_mj import agents
-from hpg_mj.agents import storage, taskfile
+from hpg_mj import storage, taskfile
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
 SHIP = REPO / "tasks" / "ship_hybrid.toml"

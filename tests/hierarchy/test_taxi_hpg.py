@@ -10,7 +10,7 @@ import compile_order
 from taxi_grid import moves_from
 
 from hpg_mj.agents import taxi_hpg as tcp
-from hpg_mj.agents.taskfile import updated
+from hpg_mj.taskfile import updated
 from hpg_mj.hierarchy import taxi_hpg as hpg
 from hpg_mj.hierarchy import taxi_subtasks as tr
 from hpg_mj.learners import rng

@@ -8,7 +8,7 @@ import compile_order
 import hpg_mj  # noqa: F401
 from hpg_mj import suite
 from hpg_mj.agents import taxi_maxq as mq
-from hpg_mj.agents.taskfile import updated
+from hpg_mj.taskfile import updated
 from hpg_mj.hierarchy import maxq
 from hpg_mj.hierarchy import taxi_subtasks as rules
 from hpg_mj.worlds import taxi_core, taxi_values
