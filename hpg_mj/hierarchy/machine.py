@@ -48,6 +48,7 @@ from hpg_mj.hierarchy import ship_rules
 from hpg_mj.hierarchy.graph import Child, GraphError, Primitive, Subtask
 from hpg_mj.learners import actor_critic
 from hpg_mj.learners import arrays
+from hpg_mj.learners import banks as banks_mod
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import jit
 from hpg_mj.learners import policies
@@ -132,7 +133,7 @@ def _width(G, row):
 
 @overload(_width, inline="always")
 def _width_typed(G, row):
-  if isinstance(dict(zip(G.fields, G.types))["widths"], types.NoneType):
+  if isinstance(banks_mod.field_type(G, "widths"), types.NoneType):
     return lambda G, row: None
 
   def width(G, row):
@@ -146,7 +147,7 @@ def _reset_width(G, row):
 
 @overload(_reset_width, inline="always")
 def _reset_width_typed(G, row):
-  if isinstance(dict(zip(G.fields, G.types))["widths"], types.NoneType):
+  if isinstance(banks_mod.field_type(G, "widths"), types.NoneType):
     return lambda G, row: None
 
   def reset(G, row):
@@ -289,7 +290,7 @@ def _primitive_action(P, K, d):
   return K.floats[d, F_ACTION] if action != action else action       # NaN: continuous
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _descend(P, Q, G, T, S, K, X, d, obs, learn, sample, rng_state):
   """From depth d, calls the chosen children down to a primitive; returns the
   primitive's action."""
@@ -302,8 +303,8 @@ def _descend(P, Q, G, T, S, K, X, d, obs, learn, sample, rng_state):
     _call(P, Q, G, T, S, K, X, d, child[0], child[1], obs, learn, sample, rng_state)
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False)
-def begin(P, Q, G, T, S, K, X, obs, learn, sample, rng_state):
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _begin(P, Q, G, T, S, K, X, obs, learn, sample, rng_state):
   """An episode starts at `obs`: the root is called; returns the first action."""
   c = K.counters
   for i in range(c.shape[0]):
@@ -315,6 +316,15 @@ def begin(P, Q, G, T, S, K, X, obs, learn, sample, rng_state):
   _call(P, Q, G, T, S, K, X, np.int64(0), P.nodes.shape[0] - 1, K.episode[E_ROOT_ARG], obs,
         learn, sample, rng_state)
   return _descend(P, Q, G, T, S, K, X, np.int64(0), obs, learn, sample, rng_state)
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False)
+def begin(P, Q, G, T, S, K, X, obs, learn, sample, rng_state):
+  """`_begin` for the step-by-step path. The fused loops inline `_begin` and
+  `_descend` (numba copies their small bodies), so that a first train compiles
+  neither as a function of its own (each a separate LLVM module, optimized again
+  inside every caller's)."""
+  return _begin(P, Q, G, T, S, K, X, obs, learn, sample, rng_state)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -405,12 +415,14 @@ def _observe(P, Q, G, T, S, K, X, d, obs, signal, done, terminal, learn, sample,
         K.floats[d, F_ACTION] = r
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@numba.njit(cache=True, error_model="numpy", _nrt=False)
 def step(P, Q, G, T, S, K, X, obs, samples, reward, terminated, truncated, learn, sample,
          rng_state):
   """A primitive step ended in `obs` with `reward` (`samples`: the positions
   sampled inside it, for the ship's local ends). Returns (episode over, the next
-  action)."""
+  action). One compiled function for both paths: the fused loops call it (seven
+  pointers, the banks being structs) rather than inline it, which numba did by
+  copying its whole body, the largest part of a fused loop's first compile."""
   ints = K.ints
   floats = K.floats
   depth = K.episode[E_DEPTH]
@@ -486,7 +498,7 @@ def run_ship(P, Q, G, T, S, K, X, n_episodes, learn, sample, rng_state, world, r
       ship_rules.sample_local_start(rng_state, K.episode[E_ROOT_ARG], state)
     else:
       ship_rules.sample_start(rng_state, state)
-    action = begin(P, Q, G, T, S, K, X, state, learn, sample, rng_state)
+    action = _begin(P, Q, G, T, S, K, X, state, learn, sample, rng_state)
     while True:
       core.euler_control(state, action, samples)
       terminated, truncated = False, False
@@ -627,6 +639,10 @@ class Machine:
                       rules_mod.compile_rules(self.rules))
     self.banks = Banks(program, qbank, gbank, self.tile_bank, schedule, stack,
                        1 if critics or self.rules else None)
+    # What the compiled functions take: each bank as a struct of the same arrays,
+    # passed by reference (`learners.banks`: numba copied the namedtuples' ~45
+    # arrays at every call and inlined call, at a high price in compile time).
+    self.refs = (*(banks_mod.as_struct(b) for b in self.banks[:-1]), self.banks.extras)
     self._entries = {}                  # (function, argument kinds) -> entry point
 
   # -- what each block puts in the node's row --
@@ -804,11 +820,10 @@ class Machine:
     """The machine's functions, callees first, with arguments of the types its
     callers pass (`learners.jit.compile_first`: each then compiles near the top of
     the Python stack). One list for every graph: their types do not depend on it."""
-    b = self.banks
+    b = self.refs
     d, obs, rng_state = np.int64(0), np.zeros(4), np.zeros(4, dtype=np.uint64)
     return [(_call, (*b, d, d, d, obs, False, False, rng_state)),
-            (_descend, (*b, d, obs, False, False, rng_state)),
-            (begin, (*b, obs, False, False, rng_state))]
+            (step, (*b, obs, _NO_SAMPLES, 0.0, False, False, False, False, rng_state))]
 
   def run(self, episodes, learn, sample, rng_state, world, start=None):
     """Episodes fused with the analytic ship; `world` as `run_ship`'s (its last
@@ -817,7 +832,7 @@ class Machine:
     rows = np.zeros((int(episodes), 3 + 3 * len(self.names)))
     fixed = np.empty(0) if start is None else np.asarray(start, dtype=np.float64)
     world = np.concatenate([np.asarray(world, dtype=np.float64), np.zeros(4)])[:4]
-    run_ship(*self.banks, int(episodes), bool(learn), bool(sample), rng_state, world, rows,
+    run_ship(*self.refs, int(episodes), bool(learn), bool(sample), rng_state, world, rows,
              fixed)
     return rows
 
@@ -836,20 +851,20 @@ class Machine:
 
   def _compiled(self, fn, *args):
     """fn(*banks, *args) through the entry point numba compiled for these types. numba's
-    dispatcher types every argument on each call, and typing the banks cost three
-    quarters of a step-by-step step (the hybrid through the MuJoCo ship: 12,000 control
-    steps a second, 41,000 this way). An entry point checks no types (a float32 array
+    dispatcher types every argument on each call, and typing the banks, when they were
+    namedtuples of arrays, cost three quarters of a step-by-step step (the hybrid through
+    the MuJoCo ship: 12,000 control steps a second, 41,000 this way). An entry point checks no types (a float32 array
     would be read as float64), so it is kept for the kind of each per-call argument
     (its dtype, dimensions and flags; a scalar's type): another kind goes through the
     dispatcher first."""
     key = (fn, *(_kind(a) for a in args))
     entry = self._entries.get(key)
     if entry is None:
-      out = fn(*self.banks, *args)
-      found = fn.overloads.get(tuple(numba.typeof(a) for a in (*self.banks, *args)))
+      out = fn(*self.refs, *args)
+      found = fn.overloads.get(tuple(numba.typeof(a) for a in (*self.refs, *args)))
       self._entries[key] = fn if found is None else found.entry_point
       return out
-    return entry(*self.banks, *args)
+    return entry(*self.refs, *args)
 
   def counters(self):
     """This episode's per-node counters (calls, runs, successes), flattened."""

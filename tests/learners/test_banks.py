@@ -1,0 +1,72 @@
+"""A namedtuple of arrays as a struct passed by reference (`learners.banks`)."""
+import collections
+import gc
+import weakref
+
+import numba
+import numpy as np
+from numba.core import types
+
+from hpg_mj.learners import banks
+
+Pair = collections.namedtuple("Pair", ("ints", "floats", "extra"))
+
+
+@numba.njit(error_model="numpy", _nrt=False)
+def _bump(p, i):
+  """Writes through the struct's fields and reads them back after the write."""
+  p.ints[i] += 1
+  p.floats[i, 0] = p.ints[i] * 0.5
+  total = 0.0
+  for k in range(p.floats.shape[0]):
+    total += p.floats[k, 0]
+  return total
+
+
+def test_a_struct_holds_the_bank_arrays_themselves_not_copies():
+  bank = Pair(np.zeros(3, dtype=np.int64), np.zeros((3, 2)), None)
+  ref = banks.as_struct(bank)
+  assert _bump(ref, 1) == 0.5
+  assert _bump(ref, 1) == 1.0
+  assert bank.ints.tolist() == [0, 2, 0] and bank.floats[1, 0] == 1.0
+  bank.floats[2, 0] = 10.0                  # a write from Python is seen by compiled code
+  assert _bump(ref, 0) == 11.5
+
+
+def test_a_struct_keeps_its_arrays_alive_and_lets_them_go_with_it():
+  ints, floats = np.zeros(3, dtype=np.int64), np.zeros((3, 2))
+  ref = banks.as_struct(Pair(ints, floats, None))
+  alive = weakref.ref(ints)
+  del ints, floats
+  gc.collect()
+  assert alive() is not None               # only the struct refers to it now
+  assert _bump(ref, 2) == 0.5
+  del ref
+  gc.collect()
+  assert alive() is None                   # released with the struct
+
+
+@numba.njit
+def _read(p, i):
+  """The same through a function compiled with numba's reference counting."""
+  return p.floats[i, 0]
+
+
+def test_calls_neither_keep_nor_drop_a_reference_to_the_struct():
+  ints = np.zeros(3, dtype=np.int64)
+  ref = banks.as_struct(Pair(ints, np.zeros((3, 2)), None))
+  alive = weakref.ref(ints)
+  for _ in range(5):
+    _bump(ref, 0)
+    _read(ref, 0)
+  assert ref._meminfo.refcount == 1
+  del ints, ref
+  gc.collect()
+  assert alive() is None
+
+
+def test_field_types_read_alike_from_a_namedtuple_and_its_struct():
+  bank = Pair(np.zeros(3, dtype=np.int64), np.zeros((3, 2)), None)
+  for typ in (numba.typeof(bank), numba.typeof(banks.as_struct(bank))):
+    assert banks.field_type(typ, "ints") == types.int64[::1]
+    assert isinstance(banks.field_type(typ, "extra"), types.NoneType)
