@@ -41,9 +41,9 @@ from hpg_mj.taskfile import param
 from hpg_mj.hierarchy import executor as executor_mod
 from hpg_mj.hierarchy import ship_rules as rules
 from hpg_mj.hierarchy.patrol import (CALLS, DEPARTURES, GAIN, GATES, N_RECORD, NEVER, RETURN, STEPS,
-                                     Settings, count_run, n_root_cells, patrol, root_state,
-                                     scripted)
-from hpg_mj.hierarchy.graph import Child, Primitive, Step, Subtask, TaskGraph
+                                     AgentRestarts, Settings, count_run, n_root_cells, patrol,
+                                     root_state, scripted)
+from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
 from hpg_mj.learners import average_reward
 from hpg_mj.learners import rng
 from hpg_mj.learners import schedules
@@ -62,36 +62,6 @@ def settings(config):
                          int(root.epsilon_every), float(root.epsilon_divisor), float(low.alpha),
                          float(low.trace_gamma), float(low.baseline), int(low.max_steps),
                          NEVER, float(env.gate_reward), float(env.out_of_bounds_reward))
-
-
-class _AgentRestarts(executor_mod.GymAdapter):
-  """The step-by-step path's adapter (the executor's `reset` / `step`) over a
-  Gymnasium patrol: after a departure the ship is put at a start drawn from the
-  agent's generator, as the compiled loop draws it, in place of the
-  environment's own; the step's `info["state_before_restart"]` keeps where it
-  left. A truncated step is refused: a row is the agent's hour, not the
-  environment's."""
-
-  def __init__(self, inner, rng_state):
-    self.inner, self.env, self.rng_state = inner, inner.env, rng_state
-
-  def reset(self, start=None):
-    return self.inner.reset(start)
-
-  def step(self, action):
-    step = self.inner.step(action)
-    if step.truncated:
-      raise ValueError("ship_patrol's step-by-step rows end between calls; make the patrol "
-                       f"environment with max_steps={NEVER} (ShipPatrol.stepwise_env does)")
-    if step.info.get("event") == "out_of_bounds":
-      if "state_before_restart" not in step.info:
-        raise ValueError("ship_patrol's step-by-step path needs the Gymnasium patrol "
-                         "(hpg_mj/ShipPatrol-v0), whose info holds state_before_restart")
-      start = np.empty(4)
-      _ship.sample_start(self.rng_state, start)
-      step = Step(self.inner.reset(start), step.reward, step.terminated, step.truncated,
-                  step.info)
-    return step
 
 
 @dataclasses.dataclass(frozen=True)
@@ -224,7 +194,7 @@ class ShipPatrol(_ship.ShipAgent):
     without learning the rows sail on from a fresh start drawn from the agent's
     generator; after leaving the field the ship restarts at a start drawn from
     the agent's generator too (the environment's own draw is replaced)."""
-    adapter = _AgentRestarts(executor_mod.adapter_for(env), self.rng_state)
+    adapter = AgentRestarts(executor_mod.adapter_for(env), self.rng_state)
     if learn:
       if start is not None:
         self.ship[:] = start

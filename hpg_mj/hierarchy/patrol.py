@@ -9,7 +9,9 @@ import collections
 import numba
 import numpy as np
 
+from hpg_mj.hierarchy import executor
 from hpg_mj.hierarchy import ship_rules as rules
+from hpg_mj.hierarchy.graph import Step
 from hpg_mj.learners import arrays
 from hpg_mj.learners import average_reward
 from hpg_mj.learners import eligibility as el
@@ -218,3 +220,33 @@ def scripted(n_rows, record_steps, rng_state, ship, gate_reward, out_of_bounds_r
         row[DEPARTURES] += 1
         rules.sample_start(rng_state, ship)
         phase = 0
+
+
+class AgentRestarts(executor.GymAdapter):
+  """The patrol's step-by-step path's adapter (the executor's `reset` / `step`) over a
+  Gymnasium patrol: after a departure the ship is put at a start drawn from the
+  agent's generator, as the compiled loop draws it, in place of the
+  environment's own; the step's `info["state_before_restart"]` keeps where it
+  left. A truncated step is refused: a row is the agent's hour, not the
+  environment's."""
+
+  def __init__(self, inner, rng_state):
+    self.inner, self.env, self.rng_state = inner, inner.env, rng_state
+
+  def reset(self, start=None):
+    return self.inner.reset(start)
+
+  def step(self, action):
+    step = self.inner.step(action)
+    if step.truncated:
+      raise ValueError("ship_patrol's step-by-step rows end between calls; make the patrol "
+                       f"environment with max_steps={NEVER} (ShipPatrol.stepwise_env does)")
+    if step.info.get("event") == "out_of_bounds":
+      if "state_before_restart" not in step.info:
+        raise ValueError("ship_patrol's step-by-step path needs the Gymnasium patrol "
+                         "(hpg_mj/ShipPatrol-v0), whose info holds state_before_restart")
+      start = np.empty(4)
+      rules.sample_start(self.rng_state, start)
+      step = Step(self.inner.reset(start), step.reward, step.terminated, step.truncated,
+                  step.info)
+    return step

@@ -192,7 +192,7 @@ def optimal_tables():
 
 def test_optimal_hierarchy_earns_v_star_exactly():
   values = tv.taxi_values(True)
-  agent = tcp.HPGEngine(0)
+  agent = hpg.HPGEngine(tcp.Config(), 0)
   for trace, table in zip(agent.traces, optimal_tables()):
     trace[0][:] = table.ravel()
   starts, expected = [], []
@@ -215,7 +215,7 @@ def tables_of(agent):
 
 
 def test_same_seed_same_run():
-  a, b, c = tcp.HPGEngine(3), tcp.HPGEngine(3), tcp.HPGEngine(4)
+  a, b, c = (hpg.HPGEngine(tcp.Config(), seed) for seed in (3, 3, 4))
   rec_a, rec_b, rec_c = a.run(3000), b.run(3000), c.run(3000)
   np.testing.assert_array_equal(rec_a, rec_b)
   for ta, tb in zip(tables_of(a), tables_of(b)):
@@ -226,7 +226,7 @@ def test_same_seed_same_run():
 
 
 def test_evaluation_leaves_the_policies_alone():
-  agent = tcp.HPGEngine(5)
+  agent = hpg.HPGEngine(tcp.Config(), 5)
   agent.run(2000)
   before = tables_of(agent)
   sampled = agent.run(500, learn=False)
@@ -238,7 +238,7 @@ def test_evaluation_leaves_the_policies_alone():
 
 
 def test_greedy_runs_draw_only_the_starts():
-  agent = tcp.HPGEngine(6)
+  agent = hpg.HPGEngine(tcp.Config(), 6)
   expected = agent.rng_state.copy()
   scratch = np.zeros(5, dtype=np.int64)
   for _ in range(50):
@@ -260,7 +260,7 @@ def test_start_states_follow_the_spec_distribution():
 
 
 def test_classic_task_never_refuels():
-  agent = tcp.HPGEngine(7, task=tc.TaxiRules(False))
+  agent = hpg.HPGEngine(tcp.Config(), 7, task=tc.TaxiRules(False))
   record = agent.run(2000)
   assert not np.any(record[:, hpg.OUTCOME] == world_rules.OUT_OF_FUEL)
   assert not np.any(agent.policy_tables()[tr.REFUEL])
@@ -307,7 +307,7 @@ def test_baseline_steps_by_hand():
 def test_baseline_is_an_option():
   off = updated(tcp.Config(), root={"baseline": 0.0}, carry={"baseline": 0.0},
                 navigate={"baseline": 0.0})
-  plain, based = tcp.HPGEngine(2, off), tcp.HPGEngine(2)
+  plain, based = hpg.HPGEngine(off, 2), hpg.HPGEngine(tcp.Config(), 2)
   plain.run(3000)
   based.run(3000)
   assert not any(np.any(v) for v in plain.values)          # b = 0: Eq. 3 exactly
@@ -336,7 +336,7 @@ def test_bad_arguments():
     updated(config, carry={"ramp": 0})
   with pytest.raises(ValueError, match=r"\[carry\] unknown key\(s\) \['ramp_carry'\]"):
     updated(config, carry={"ramp_carry": 0})
-  agent = tcp.HPGEngine(0)
+  agent = hpg.HPGEngine(tcp.Config(), 0)
   with pytest.raises(ValueError, match="greedy"):
     agent.run(1, learn=True, greedy=True)
   with pytest.raises(ValueError, match="n_episodes"):
@@ -359,7 +359,7 @@ def test_hpg_reaches_95_percent_of_optimal():
   optimal = tv.optimal_mean_return(True)
   last = []
   for seed in range(5):
-    returns = tcp.HPGEngine(seed).run(100_000)[:, hpg.RETURN]
+    returns = hpg.HPGEngine(tcp.Config(), seed).run(100_000)[:, hpg.RETURN]
     last.append(returns[-1000:].mean())
   assert np.mean(last) >= tv.performance_threshold(optimal, 0.95)
   assert min(last) >= tv.performance_threshold(optimal, 0.90)
@@ -370,7 +370,8 @@ def test_the_rules_compiled_first_are_those_train_calls(tmp_path):
   types `train` calls them with: with an empty numba cache each compiles once."""
   compile_order.assert_each_compiles_once(tmp_path, """
 from hpg_mj.agents import taxi_hpg
-agent = taxi_hpg.HPGEngine(seed=0)
+from hpg_mj.hierarchy import taxi_hpg as engine
+agent = engine.HPGEngine(taxi_hpg.Config(), seed=0)
 agent.run(20)
 listed = agent._rules_bottom_up(agent._train_scratch())
 """)
