@@ -642,7 +642,7 @@ class Machine:
     # What the compiled functions take: each bank as a struct of the same arrays,
     # passed by reference (`learners.banks`: numba copied the namedtuples' ~45
     # arrays at every call and inlined call, at a high price in compile time).
-    self.refs = (*(banks_mod.as_struct(b) for b in self.banks[:-1]), self.banks.extras)
+    self.refs = (*banks_mod.as_structs(*self.banks[:-1]), self.banks.extras)
     self._entries = {}                  # (function, argument kinds) -> entry point
 
   # -- what each block puts in the node's row --

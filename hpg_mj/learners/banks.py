@@ -5,8 +5,8 @@ takes one carries all its arrays as one aggregate (seven numbers and pointers an
 array), and numba's typing and lowering, then LLVM, pay for each copy. A machine
 whose banks hold ~45 arrays compiled four to five times slower than the same code
 over a namedtuple of five (a scratch benchmark of twelve inlined calls: 5.5 s
-against 1.0 s). `as_struct(bank)` makes a struct of the bank's fields (the same
-arrays, not copies) that compiled code takes as one pointer; `bank.field` reads
+against 1.0 s). `as_structs(*banks)` makes a struct of each bank's fields (the
+same arrays, not copies) that compiled code takes as one pointer; `bank.field` reads
 the field through it. The banks keep their namedtuples for Python.
 
 The fields are read without reference counting (the machine compiles without it)
@@ -119,40 +119,56 @@ def _field(context, builder, typ, value, attr):
   return imputils.impl_ret_borrowed(context, builder, field_type, value)
 
 
+def _struct_type(bank):
+  return BankType(list(zip(bank.fields, bank.types)))
+
+
 @intrinsic
-def _new_bank(typingctx, bank):
-  """A struct of the namedtuple `bank`'s fields (each referenced once more)."""
-  if not isinstance(bank, types.BaseNamedTuple):
+def _new_banks(typingctx, banks):
+  """A struct of each namedtuple of `banks`, of its fields (each referenced once
+  more), made in one compiled function whatever their number."""
+  if not (isinstance(banks, types.BaseTuple) and
+          all(isinstance(b, types.BaseNamedTuple) for b in banks)):
     return None
-  struct_type = BankType(list(zip(bank.fields, bank.types)))
+  struct_types = [_struct_type(b) for b in banks]
 
   def codegen(context, builder, signature, args):
-    model = context.data_model_manager[struct_type.get_data_type()]
-    alloc_type = model.get_value_type()
-    meminfo = context.nrt.meminfo_alloc_dtor(
-        builder, context.get_constant(types.uintp, context.get_abi_sizeof(alloc_type)),
-        imp_dtor(context, builder.module, struct_type))
-    data = builder.bitcast(context.nrt.meminfo_data(builder, meminfo), alloc_type.as_pointer())
-    payload = cgutils.create_struct_proxy(struct_type.get_data_type())(context, builder,
-                                                                       ref=data)
-    for i, (name, field_type) in enumerate(zip(bank.fields, bank.types)):
-      value = builder.extract_value(args[0], i)
-      context.nrt.incref(builder, field_type, value)
-      setattr(payload, name, value)
-    out = cgutils.create_struct_proxy(struct_type)(context, builder)
-    out.meminfo = meminfo
-    return out._getvalue()
-  return struct_type(bank), codegen
+    out = []
+    for k, (bank, struct_type) in enumerate(zip(banks, struct_types)):
+      model = context.data_model_manager[struct_type.get_data_type()]
+      alloc_type = model.get_value_type()
+      meminfo = context.nrt.meminfo_alloc_dtor(
+          builder, context.get_constant(types.uintp, context.get_abi_sizeof(alloc_type)),
+          imp_dtor(context, builder.module, struct_type))
+      data = builder.bitcast(context.nrt.meminfo_data(builder, meminfo),
+                             alloc_type.as_pointer())
+      payload = cgutils.create_struct_proxy(struct_type.get_data_type())(context, builder,
+                                                                         ref=data)
+      values = builder.extract_value(args[0], k)
+      for i, (name, field_type) in enumerate(zip(bank.fields, bank.types)):
+        value = builder.extract_value(values, i)
+        context.nrt.incref(builder, field_type, value)
+        setattr(payload, name, value)
+      struct = cgutils.create_struct_proxy(struct_type)(context, builder)
+      struct.meminfo = meminfo
+      out.append(struct._getvalue())
+    return context.make_tuple(builder, signature.return_type, out)
+  return types.Tuple(struct_types)(banks), codegen
 
 
 @numba.njit(cache=True)
-def _as_struct(bank):
-  return _new_bank(bank)
+def _as_structs(banks):
+  return _new_banks(banks)
+
+
+def as_structs(*banks):
+  """The struct of each namedtuple of arrays of `banks` (their arrays, not copies)."""
+  return _as_structs(banks)
 
 
 def as_struct(bank):
-  """The struct of the namedtuple of arrays `bank` (its arrays, not copies)."""
-  return _as_struct(bank)
+  """The struct of the namedtuple of arrays `bank`."""
+  return as_structs(bank)[0]
 
 
 def field_type(bank_type, name):

@@ -31,6 +31,10 @@ def test_a_struct_holds_the_bank_arrays_themselves_not_copies():
   assert bank.ints.tolist() == [0, 2, 0] and bank.floats[1, 0] == 1.0
   bank.floats[2, 0] = 10.0                  # a write from Python is seen by compiled code
   assert _bump(ref, 0) == 11.5
+  other = Pair(np.zeros(2, dtype=np.int64), np.ones((2, 1)), None)
+  first, second = banks.as_structs(bank, other)   # several at once, each its own arrays
+  assert _bump(second, 1) == 1.5 and _bump(first, 0) == 12.0
+  assert other.ints.tolist() == [0, 1] and bank.ints.tolist() == [2, 2, 0]
 
 
 def test_a_struct_keeps_its_arrays_alive_and_lets_them_go_with_it():
