@@ -41,6 +41,7 @@ class BankType(types.StructRef):
   """The numba type of a bank's struct: its fields' names and types."""
 
   def preprocess_fields(self, fields):
+    """The fields' types without literal values (a field holds any value of its type)."""
     return tuple((name, types.unliteral(t)) for name, t in fields)
 
 
