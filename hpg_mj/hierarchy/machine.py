@@ -171,10 +171,13 @@ def grid_cell(x, y, cell_m, grid):
   return i * grid + j
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
 def _view(P, Q, G, T, S, K, X, d, obs, which):
   """The node at depth d views `obs`: a table's state into S_STATE (which = 0) or
-  S_NEXT_STATE (1); tiles into its tiles[d, which]."""
+  S_NEXT_STATE (1); tiles into its tiles[d, which]. `_view` and `_observe` are
+  compiled once and called, not inlined (numba copied an inlined body into each
+  caller, at a high price in compile time; with the banks passed as pointers a call
+  costs little)."""
   node = K.ints[d, S_NODE]
   row = P.nodes[node]
   kind = row[VIEW]
@@ -354,7 +357,7 @@ def _end_of(P, K, X, d, obs, samples):
   return event, internal
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
 def _observe(P, Q, G, T, S, K, X, d, obs, signal, done, terminal, learn, sample, rng_state):
   """Algorithm 1: the learner of the node at depth d takes R + G of its child's run;
   unless done, it makes its next choice."""
@@ -364,9 +367,8 @@ def _observe(P, Q, G, T, S, K, X, d, obs, signal, done, terminal, learn, sample,
   slot = row[SLOT]
   ints = K.ints
   kind = row[LEARNER]
-  # The view of s' (one call site: numba copies an inlined body at each): a table's
-  # state always, a policy's tiles unless the call is over, an actor-critic's unless s'
-  # is terminal.
+  # The view of s': a table's state always, a policy's tiles unless the call is over,
+  # an actor-critic's unless s' is terminal.
   if kind == Q_TABLE or (kind == GAUSSIAN_CMAC and not done) or (
       kind == ACTOR_CRITIC and not terminal):
     _view(P, Q, G, T, S, K, X, d, obs, np.int64(1))
