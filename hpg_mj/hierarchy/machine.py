@@ -824,7 +824,9 @@ class Machine:
     the Python stack). One list for every graph: their types do not depend on it."""
     b = self.refs
     d, obs, rng_state = np.int64(0), np.zeros(4), np.zeros(4, dtype=np.uint64)
-    return [(_call, (*b, d, d, d, obs, False, False, rng_state)),
+    return [(_view, (*b, d, obs, d)),
+            (_call, (*b, d, d, d, obs, False, False, rng_state)),
+            (_observe, (*b, d, obs, 0.0, False, False, False, False, rng_state)),
             (step, (*b, obs, _NO_SAMPLES, 0.0, False, False, False, False, rng_state))]
 
   def run(self, episodes, learn, sample, rng_state, world, start=None):

@@ -4,6 +4,7 @@ learned parameter is the same bit for bit; and what the machine refuses."""
 import numba
 import numpy as np
 import pytest
+import compile_order
 
 import hpg_mj  # noqa: F401
 import gymnasium
@@ -320,3 +321,14 @@ def test_an_argument_of_another_kind_goes_through_the_dispatcher():
   assert first == second
   np.testing.assert_array_equal(strided[::2], state)
   assert strided[1::2].sum() == 0
+
+
+def test_the_machine_compiles_its_functions_once_leaves_first(tmp_path):
+  """The functions `Machine._bottom_up` compiles before the fused loop are those the
+  loop calls, for the types it calls them with: each compiles once."""
+  compile_order.assert_each_compiles_once(tmp_path, """
+from hpg_mj import agents
+agent = agents.build(agents.load_task("ship_hybrid"), 0)
+agent.train(2)
+listed = agent.machine._bottom_up()
+""")
