@@ -167,11 +167,6 @@ def as_structs(*banks):
   return _as_structs(banks)
 
 
-def as_struct(bank):
-  """The struct of the namedtuple of arrays `bank`."""
-  return as_structs(bank)[0]
-
-
 def field_type(bank_type, name):
   """The numba type of field `name` of a bank, given as a namedtuple or a struct."""
   if isinstance(bank_type, BankType):

@@ -25,7 +25,7 @@ def _bump(p, i):
 
 def test_a_struct_holds_the_bank_arrays_themselves_not_copies():
   bank = Pair(np.zeros(3, dtype=np.int64), np.zeros((3, 2)), None)
-  ref = banks.as_struct(bank)
+  (ref,) = banks.as_structs(bank)
   assert _bump(ref, 1) == 0.5
   assert _bump(ref, 1) == 1.0
   assert bank.ints.tolist() == [0, 2, 0] and bank.floats[1, 0] == 1.0
@@ -39,7 +39,7 @@ def test_a_struct_holds_the_bank_arrays_themselves_not_copies():
 
 def test_a_struct_keeps_its_arrays_alive_and_lets_them_go_with_it():
   ints, floats = np.zeros(3, dtype=np.int64), np.zeros((3, 2))
-  ref = banks.as_struct(Pair(ints, floats, None))
+  (ref,) = banks.as_structs(Pair(ints, floats, None))
   alive = weakref.ref(ints)
   del ints, floats
   gc.collect()
@@ -58,7 +58,7 @@ def _read(p, i):
 
 def test_calls_neither_keep_nor_drop_a_reference_to_the_struct():
   ints = np.zeros(3, dtype=np.int64)
-  ref = banks.as_struct(Pair(ints, np.zeros((3, 2)), None))
+  (ref,) = banks.as_structs(Pair(ints, np.zeros((3, 2)), None))
   alive = weakref.ref(ints)
   for _ in range(5):
     _bump(ref, 0)
@@ -71,6 +71,6 @@ def test_calls_neither_keep_nor_drop_a_reference_to_the_struct():
 
 def test_field_types_read_alike_from_a_namedtuple_and_its_struct():
   bank = Pair(np.zeros(3, dtype=np.int64), np.zeros((3, 2)), None)
-  for typ in (numba.typeof(bank), numba.typeof(banks.as_struct(bank))):
+  for typ in (numba.typeof(bank), numba.typeof(banks.as_structs(bank)[0])):
     assert banks.field_type(typ, "ints") == types.int64[::1]
     assert isinstance(banks.field_type(typ, "extra"), types.NoneType)
