@@ -235,11 +235,12 @@ def _choose(P, Q, G, T, S, K, X, d, obs, learn, sample, rng_state):
   p = P.params[node]
   slot = row[SLOT]
   if row[LEARNER] == Q_TABLE:
-    epsilon = 0.0
-    if sample:
-      epsilon = S.epsilon[0] if row[EPS_SCHEDULE] else p[EPSILON]
-    K.ints[d, S_CHOICE] = qlambda.epsilon_greedy(Q.q[slot], K.ints[d, S_STATE],
-                                                       row[N_CHILDREN], epsilon, rng_state)
+    if Q is not None:
+      epsilon = 0.0
+      if sample:
+        epsilon = S.epsilon[0] if row[EPS_SCHEDULE] else p[EPSILON]
+      K.ints[d, S_CHOICE] = qlambda.epsilon_greedy(Q.q[slot], K.ints[d, S_STATE],
+                                                   row[N_CHILDREN], epsilon, rng_state)
   elif row[LEARNER] == GAUSSIAN_CMAC:
     _gaussian_choose(P, G, T, K, d, learn, sample, rng_state)
   elif row[LEARNER] == ACTOR_CRITIC:
@@ -268,7 +269,8 @@ def _call(P, Q, G, T, S, K, X, d, node, arg, obs, learn, sample, rng_state):
   K.origin[d, 1] = obs[1]
   row = P.nodes[node]
   if row[LEARNER] == Q_TABLE:
-    qlambda.clear(Q.count[row[SLOT]])
+    if Q is not None:
+      qlambda.clear(Q.count[row[SLOT]])
   elif row[LEARNER] == GAUSSIAN_CMAC:
     el.reset(_trace(G, row[SLOT]))                  # Eq. 3: z <- 0
     _reset_width(G, row)
@@ -373,14 +375,15 @@ def _observe(P, Q, G, T, S, K, X, d, obs, signal, done, terminal, learn, sample,
       kind == ACTOR_CRITIC and not terminal):
     _view(P, Q, G, T, S, K, X, d, obs, np.int64(1))
   if kind == Q_TABLE:
-    epsilon = 0.0
-    if sample:
-      epsilon = S.epsilon[0] if row[EPS_SCHEDULE] else p[EPSILON]
-    ints[d, S_CHOICE] = qlambda.smdp_step(
-        (Q.q[slot], Q.index[slot], Q.value[slot], Q.count[slot]), row[N_CHILDREN],
-        ints[d, S_STATE], ints[d, S_CHOICE], signal, ints[d, S_NEXT_STATE], done, terminal,
-        epsilon, p[ALPHA], p[GAMMA], p[DECAY], learn, rng_state)
-    ints[d, S_STATE] = ints[d, S_NEXT_STATE]
+    if Q is not None:
+      epsilon = 0.0
+      if sample:
+        epsilon = S.epsilon[0] if row[EPS_SCHEDULE] else p[EPSILON]
+      ints[d, S_CHOICE] = qlambda.smdp_step(
+          (Q.q[slot], Q.index[slot], Q.value[slot], Q.count[slot]), row[N_CHILDREN],
+          ints[d, S_STATE], ints[d, S_CHOICE], signal, ints[d, S_NEXT_STATE], done,
+          terminal, epsilon, p[ALPHA], p[GAMMA], p[DECAY], learn, rng_state)
+      ints[d, S_STATE] = ints[d, S_NEXT_STATE]
   elif kind == GAUSSIAN_CMAC:
     k = T.n_tilings[row[VIEW_SLOT]]
     if learn:                                          # Eq. 3 with R + G
@@ -605,10 +608,11 @@ class Machine:
       learner = getattr(graph.nodes[order[i]], "learner", None)
       nodes[i, WIDTH_SLOT] = self._width_slot_of.get(id(learner), -1)
     n_q = [b.n_states * self._n_actions[id(b)] for b in q]
+    # None in a machine without a QTable, whose code then holds no Q-learning (as extras)
     qbank = QBank(_stack_rows([np.zeros(n) for n in n_q], np.float64),
                   _stack_rows([np.zeros(b.trace_capacity) for b in q], np.int64),
                   _stack_rows([np.zeros(b.trace_capacity) for b in q], np.float64),
-                  np.zeros((max(len(q), 1), 1), dtype=np.int64))
+                  np.zeros((max(len(q), 1), 1), dtype=np.int64)) if q else None
     gbank = GaussianBank(*_trace_rows([_trace_size(b) for b in g]),
                          _stack_rows([np.zeros(_values_size(b)) for b in g], np.float64),
                          el.Trace(*_trace_rows([b.coder.size for b in widths]))

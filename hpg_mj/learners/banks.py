@@ -127,15 +127,18 @@ def _struct_type(bank):
 @intrinsic
 def _new_banks(typingctx, banks):
   """A struct of each namedtuple of `banks`, of its fields (each referenced once
-  more), made in one compiled function whatever their number."""
+  more), made in one compiled function whatever their number; None stays None."""
   if not (isinstance(banks, types.BaseTuple) and
-          all(isinstance(b, types.BaseNamedTuple) for b in banks)):
+          all(isinstance(b, (types.BaseNamedTuple, types.NoneType)) for b in banks)):
     return None
-  struct_types = [_struct_type(b) for b in banks]
+  struct_types = [b if isinstance(b, types.NoneType) else _struct_type(b) for b in banks]
 
   def codegen(context, builder, signature, args):
     out = []
     for k, (bank, struct_type) in enumerate(zip(banks, struct_types)):
+      if isinstance(bank, types.NoneType):
+        out.append(context.get_dummy_value())
+        continue
       model = context.data_model_manager[struct_type.get_data_type()]
       alloc_type = model.get_value_type()
       meminfo = context.nrt.meminfo_alloc_dtor(
@@ -163,7 +166,8 @@ def _as_structs(banks):
 
 
 def as_structs(*banks):
-  """The struct of each namedtuple of arrays of `banks` (their arrays, not copies)."""
+  """The struct of each namedtuple of arrays of `banks` (their arrays, not copies);
+  a None among them stays None."""
   return _as_structs(banks)
 
 

@@ -35,6 +35,7 @@ def test_a_struct_holds_the_bank_arrays_themselves_not_copies():
   first, second = banks.as_structs(bank, other)   # several at once, each its own arrays
   assert _bump(second, 1) == 1.5 and _bump(first, 0) == 12.0
   assert other.ints.tolist() == [0, 1] and bank.ints.tolist() == [2, 2, 0]
+  assert banks.as_structs(bank, None)[1] is None      # a machine's absent bank stays None
 
 
 def test_a_struct_keeps_its_arrays_alive_and_lets_them_go_with_it():
