@@ -140,14 +140,14 @@ class Oracle:
       schedules.end_episode(*self.schedule, self.sb.threshold, self.sb.every, self.sb.divisor)
 
   def run(self, env, episodes, learn, sample, start, on_call=None):
-    """Rows as the machine's: passed, steps, return, per node calls, runs, successes."""
+    """Rows as the machine's: passed, steps, return, 0, per node calls, runs, successes."""
     run = executor.Executor(self.graph, executor.adapter_for(env), self.rng_state,
                             on_call=on_call)
-    rows = np.zeros((episodes, 3 + self.counters.size))
+    rows = np.zeros((episodes, 4 + self.counters.size))
     self.learn = learn
     for i in range(episodes):
       self.counters[:] = 0.0
       total, steps, last = run.run_episode(start(), learn=learn, sample=sample)
       rows[i, :3] = last.info.get("event") == "gate", steps, total
-      rows[i, 3:] = self.counters.reshape(-1)
+      rows[i, 4:] = self.counters.reshape(-1)          # column 3: the taxi's illegal actions
     return rows

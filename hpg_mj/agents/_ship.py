@@ -8,7 +8,6 @@ import numpy as np
 from hpg_mj.agents import base
 from hpg_mj import taskfile
 from hpg_mj.taskfile import param
-from hpg_mj.hierarchy import machine as machine_mod
 from hpg_mj.hierarchy import ship_rules as rules
 from hpg_mj.worlds import ship_core as core
 
@@ -141,51 +140,16 @@ class ShipAgent(base.Agent):
             **gate_metrics(w, env.max_steps, env.out_of_bounds_reward),
             "control_steps": int(record["steps"].sum())}
 
-class ShipMachineAgent(ShipAgent):
-  """A ship agent whose `graph()` is made of blocks: `hierarchy.machine` runs it on
-  both paths (fused with the analytic ship; step by step through any ship
-  environment). Its record fields may be passed, steps, return, calls (the calls
-  below the root) and, per subtask, `{node}_runs` and `{node}_successes` (a run: a
-  call that ended by the subtask's own termination, not by the episode's end)."""
-
-  _machine = None
-
-  @property
-  def machine(self):
-    """The compiled machine over `graph()` (built when first needed, so that a
-    subclass's graph is the one it runs)."""
-    if self._machine is None:
-      self._machine = machine_mod.Machine(self.graph())
-    return self._machine
+class ShipMachineAgent(base.MachineAgent, ShipAgent):
+  """A ship agent whose `graph()` is made of blocks (`base.MachineAgent`), fused with
+  the analytic ship."""
 
   def compiled(self, episodes, learn, sample, start=None):
     env = self.config.environment
+    self.machine.start_schedule(self.episodes)
     rows = self.machine.run(episodes, learn, sample, self.rng_state,
                             (env.gate_reward, env.out_of_bounds_reward, env.max_steps), start)
     return self._record_rows(rows)
 
-  def run_stepwise(self, env, episodes, learn=True, sample=None, start=None, on_call=None):
-    rows = machine_mod.run_stepwise(self.machine, env, episodes, learn, sample, self.rng_state,
-                                    lambda: self.start_state() if start is None else start,
-                                    passed=lambda info: info.get("event") == "gate",
-                                    on_call=on_call)
-    if learn:
-      self.episodes += int(episodes)
-    return self.as_record(self._record_rows(rows))
-
-  def _record_rows(self, rows):
-    """The machine's rows (passed, steps, return, per node calls, runs, successes) as
-    this agent's record."""
-    m = self.machine
-    fields = self.record_fields
-    out = np.zeros((rows.shape[0], len(fields)))
-    for k, name in enumerate(("passed", "steps", "return")):
-      out[:, fields.index(name)] = rows[:, k]
-    for name in m.names[:-1]:
-      col = 3 + 3 * m.index[name]
-      if "calls" in fields:
-        out[:, fields.index("calls")] += rows[:, col + machine_mod.CALLS]
-      for what, k in (("runs", machine_mod.RUNS), ("successes", machine_mod.SUCCESSES)):
-        if f"{name}_{what}" in fields:
-          out[:, fields.index(f"{name}_{what}")] = rows[:, col + k]
-    return out
+  def _ended(self, last):
+    return last.info.get("event") == "gate"

@@ -115,3 +115,21 @@ class TaxiAgent(base.Agent):
             "reaches_95_percent": bool(mean is not None and mean >=
                                        taxi_values.performance_threshold(optimal, 0.95)),
             "primitive_steps": int(record["steps"].sum())}
+
+
+class TaxiMachineAgent(base.MachineAgent, TaxiAgent):
+  """A taxi agent whose `graph()` is made of blocks (`base.MachineAgent`), fused with
+  the taxi's rules; its record's first field is the outcome."""
+
+  end_field = "outcome"
+
+  @property
+  def machine_world(self):
+    return self.world
+
+  def compiled(self, episodes, learn, sample):
+    self.machine.start_schedule(self.episodes)
+    return self._record_rows(self.machine.run_taxi(episodes, learn, sample, self.rng_state))
+
+  def _ended(self, last):
+    return world_rules.outcome_of(last)

@@ -47,6 +47,7 @@ environment.
 import numpy as np
 
 from hpg_mj.hierarchy import executor as executor_mod
+from hpg_mj.hierarchy import machine as machine_mod
 from hpg_mj.learners import rng
 
 BACKENDS = ("analytic", "mujoco")
@@ -267,3 +268,52 @@ class Agent:
     """{short name: value} of the figure's metric over `record`, for progress bars."""
     value = self.metrics(record)[self.figure]
     return {self.figure: float("nan") if value is None else float(value)}
+
+
+class MachineAgent(Agent):
+  """An agent whose `graph()` is made of blocks: `hierarchy.machine` runs it on both
+  paths (fused with the compiled world in the subclass's `compiled`; step by step
+  through any environment of its task). Its record fields may be the row's end
+  (`end_field`: the ship's passed, the taxi's outcome), steps, return, illegal, calls
+  (the calls below the root) and, per subtask, `{node}_runs` and `{node}_successes`
+  (a run: a call that ended by the subtask's own termination, not by the episode's
+  end). A subclass gives `_ended(last step)`, the row's end on the step-by-step path."""
+
+  _machine = None
+  end_field = "passed"
+  machine_world = None               # the machine's `world` (the taxi's), if any
+
+  @property
+  def machine(self):
+    """The compiled machine over `graph()` (built when first needed, so that a
+    subclass's graph is the one it runs)."""
+    if self._machine is None:
+      self._machine = machine_mod.Machine(self.graph(), world=self.machine_world)
+    return self._machine
+
+  def run_stepwise(self, env, episodes, learn=True, sample=None, start=None, on_call=None):
+    self.machine.start_schedule(self.episodes)
+    rows = machine_mod.run_stepwise(self.machine, env, episodes, learn, sample, self.rng_state,
+                                    lambda: self.start_state() if start is None else start,
+                                    self._ended, on_call=on_call)
+    if learn:
+      self.episodes += int(episodes)
+    return self.as_record(self._record_rows(rows))
+
+  def _record_rows(self, rows):
+    """The machine's rows (`machine.ROW_END` ...) as this agent's record."""
+    m = self.machine
+    fields = self.record_fields
+    out = np.zeros((rows.shape[0], len(fields)))
+    for name, k in ((self.end_field, machine_mod.ROW_END), ("steps", machine_mod.ROW_STEPS),
+                    ("return", machine_mod.ROW_RETURN), ("illegal", machine_mod.ROW_ILLEGAL)):
+      if name in fields:
+        out[:, fields.index(name)] = rows[:, k]
+    for name in m.names[:-1]:
+      col = machine_mod.ROW_COUNTERS + 3 * m.index[name]
+      if "calls" in fields:
+        out[:, fields.index("calls")] += rows[:, col + machine_mod.CALLS]
+      for what, k in (("runs", machine_mod.RUNS), ("successes", machine_mod.SUCCESSES)):
+        if f"{name}_{what}" in fields:
+          out[:, fields.index(f"{name}_{what}")] = rows[:, col + k]
+    return out

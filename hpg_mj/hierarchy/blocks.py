@@ -32,6 +32,7 @@ Views (what a node's learner sees of the world's state):
                                (origin: where it was called; rotation: the
                                `direction` argument of its `Child`), as CMAC tiles
   StateTiles(coder)            the world's state itself, as CMAC tiles (a flat learner)
+  TaxiState()                  the taxi's full state, as its index (a flat QTable)
 
 Terminations and internal rewards:
 
@@ -62,6 +63,7 @@ SPEC section 3).
 The graph-wide epsilon schedule: `HeldEpsilon(epsilon, watch, threshold, window,
 every, divisor)` (`learners.schedules`): held until every watched node succeeds in
 `threshold` of its last `window` runs, then divided by `divisor` every `every`
+episodes; or `LinearEpsilon(start, end, episodes)`, a linear decay over learning
 episodes.
 """
 import dataclasses
@@ -152,6 +154,12 @@ class CellRule:
 
 
 @dataclasses.dataclass(frozen=True)
+class TaxiState:
+  """A QTable's view of the taxi: the full state's index (`taxi_core.encode_state`),
+  in a machine built with the taxi's world."""
+
+
+@dataclasses.dataclass(frozen=True)
 class Never:
   """Ends only with the episode."""
 
@@ -190,3 +198,12 @@ class HeldEpsilon:
   window: int = 1000
   every: int = 50
   divisor: float = 1.01
+
+
+@dataclasses.dataclass(frozen=True)
+class LinearEpsilon:
+  """Epsilon decayed linearly from `start` to `end` over the first `episodes` learning
+  episodes (`end` from then on), for the QTables with `epsilon_schedule=True`."""
+  start: float = 0.1
+  end: float = 0.0
+  episodes: int = 50_000

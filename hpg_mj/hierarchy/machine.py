@@ -55,14 +55,17 @@ from hpg_mj.learners import policies
 from hpg_mj.learners import qlambda
 from hpg_mj.learners import schedules
 from hpg_mj.learners import tiles as tiles_mod
+from hpg_mj.hierarchy import taxi_subtasks
 from hpg_mj.worlds import ship_core as core
+from hpg_mj.worlds import taxi_core
+from hpg_mj.worlds import taxi_rules
 
 # ---- the graph as arrays --------------------------------------------------------
 
 # Node kinds, learner kinds, views, ends, internal rewards, rewards seen.
 PRIMITIVE, SUBTASK = 0, 1
 NO_LEARNER, Q_TABLE, GAUSSIAN_CMAC, ACTOR_CRITIC = 0, 1, 2, 3
-NO_VIEW, VIEW_GRID_CELL, VIEW_LOCAL_TILES, VIEW_STATE_TILES, VIEW_RULE = 0, 1, 2, 3, 4
+NO_VIEW, VIEW_GRID_CELL, VIEW_LOCAL_TILES, VIEW_STATE_TILES, VIEW_RULE, VIEW_TAXI_STATE = range(6)
 END_NEVER, END_LOCAL_GOAL, END_RULE = 0, 1, 2
 G_NONE, G_SHAPING, G_RULE = 0, 1, 2
 SEEN_SUMMED, SEEN_STEP = 0, 1
@@ -80,6 +83,11 @@ N_INT = 18
 N_FLOAT = 13
 # Columns of the per-node counters of an episode (float64[n_nodes, 3]).
 CALLS, RUNS, SUCCESSES = range(3)
+# Columns of a row of the machine's record (`run_ship`, `run_taxi`, `run_stepwise`): how
+# the episode ended (the ship: passed the gate; the taxi: `taxi_rules`' outcome), its
+# primitive steps, its return, the taxi's illegal Pickups and Dropoffs (0 on the ship),
+# then calls, runs and successes of each node.
+ROW_END, ROW_STEPS, ROW_RETURN, ROW_ILLEGAL, ROW_COUNTERS = range(5)
 
 # `rules`: the graph's user rules as one first-class function (`hierarchy.rules`).
 Program = collections.namedtuple("Program", ("nodes", "params", "children", "rules"))
@@ -92,8 +100,11 @@ GaussianBank = collections.namedtuple("GaussianBank", ("theta", "zs", "y", "touc
                                                        "count", "acc", "values", "widths"))
 TileBank = collections.namedtuple("TileBank", ("low", "width", "n_tiles", "wrap", "offsets",
                                                "n_tilings"))
-# The epsilon schedule (`learners.schedules`): its arrays and [threshold, every, divisor].
+# The epsilon schedule (`learners.schedules`): its arrays and its settings, [threshold,
+# every, divisor] of a held one, [start, end, episodes] of a linear one, after its kind.
 Schedule = collections.namedtuple("Schedule", ("epsilon", "outcomes", "counts", "settings"))
+HELD, LINEAR = 0, 1
+SCHEDULE_KIND, LINEAR_START, LINEAR_END, LINEAR_EPISODES = 3, 4, 5, 6
 # The call stack and the episode: per depth d the node, its choice, its argument, its
 # steps, the steps of its current child's run, its state (a table's) and the next;
 # the reward of the current child's run, the action value chosen; the call's origin;
@@ -101,18 +112,21 @@ Schedule = collections.namedtuple("Schedule", ("epsilon", "outcomes", "counts", 
 # a learned width's score; an actor-critic's mean m and draw u; the episode's [depth,
 # steps, the root's argument, the root's event when it ended], [return], per-node
 # counters; scratch of the local frame and of (state, action); the fused loop's ship
-# state and the positions sampled in its step.
+# state and the positions sampled in its step; the taxi's fused loop's state and
+# episode (`taxi_rules`' int64[5] and [3]) and the state as the machine's float64 obs.
 (S_NODE, S_CHOICE, S_ARG, S_STEPS, S_CHILD_STEPS, S_STATE, S_NEXT_STATE) = range(7)
 F_REWARD, F_ACTION, F_MEAN, F_U = range(4)
 Stack = collections.namedtuple("Stack", ("ints", "floats", "origin", "tiles", "psi",
                                          "psi_width", "episode", "total", "counters", "local",
-                                         "local_samples", "sa", "ship", "samples"))
+                                         "local_samples", "sa", "ship", "samples", "taxi", "taxi_obs"))
 E_DEPTH, E_STEPS, E_ROOT_ARG, E_EVENT = range(4)
 # `extras`: None in a machine whose graph has neither an ActorCritic nor a user rule
 # (else 1). numba prunes a branch on `x is None` of an argument before typing it, so
 # such a machine compiles without their code (a sixth of the hybrid's first compile).
+# `world`: the taxi's world array (`taxi_rules.world_config`) in a machine with taxi
+# blocks, else None (the same pruning: a ship graph holds no taxi code).
 Banks = collections.namedtuple("Banks", ("program", "q", "gaussian", "tiling", "schedule",
-                                         "stack", "extras"))
+                                         "stack", "extras", "world"))
 
 
 # ---- the compiled machine -------------------------------------------------------
@@ -172,7 +186,7 @@ def grid_cell(x, y, cell_m, grid):
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
-def _view(P, Q, G, T, S, K, X, d, obs, which):
+def _view(P, Q, G, T, S, K, X, W, d, obs, which):
   """The node at depth d views `obs`: a table's state into S_STATE (which = 0) or
   S_NEXT_STATE (1); tiles into its tiles[d, which]. `_view` and `_observe` are
   compiled once and called, not inlined (numba copied an inlined body into each
@@ -199,6 +213,9 @@ def _view(P, Q, G, T, S, K, X, d, obs, which):
   elif kind == VIEW_STATE_TILES:
     tiling = _tiling(T, row[VIEW_SLOT])
     tiles_mod.active_tiles(obs, tiling, K.tiles[d, which, :tiling.offsets.shape[0]])
+  elif kind == VIEW_TAXI_STATE:
+    if W is not None:
+      K.ints[d, S_STATE + which] = taxi_rules.encoded(obs, W)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -228,7 +245,7 @@ def _gaussian_choose(P, G, T, K, d, learn, sample, rng_state):
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _choose(P, Q, G, T, S, K, X, d, obs, learn, sample, rng_state):
+def _choose(P, Q, G, T, S, K, X, W, d, obs, learn, sample, rng_state):
   """Algorithm 1: choose a with mu^i(s, theta^i); sets the stack's choice and action."""
   node = K.ints[d, S_NODE]
   row = P.nodes[node]
@@ -256,7 +273,7 @@ def _choose(P, Q, G, T, S, K, X, d, obs, learn, sample, rng_state):
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
-def _call(P, Q, G, T, S, K, X, d, node, arg, obs, learn, sample, rng_state):
+def _call(P, Q, G, T, S, K, X, W, d, node, arg, obs, learn, sample, rng_state):
   """Task `node` is called at depth d with `arg` from `obs`: z <- 0, its view, its
   first choice."""
   ints = K.ints
@@ -279,8 +296,8 @@ def _call(P, Q, G, T, S, K, X, d, node, arg, obs, learn, sample, rng_state):
       el.reset(_trace(G, row[SLOT]))                # the critic's e <- 0
       for i in range(K.psi.shape[1]):
         K.psi[d, i] = 1.0                           # phi(s, a) of the critic's tiles
-  _view(P, Q, G, T, S, K, X, d, obs, np.int64(0))
-  _choose(P, Q, G, T, S, K, X, d, obs, learn, sample, rng_state)
+  _view(P, Q, G, T, S, K, X, W, d, obs, np.int64(0))
+  _choose(P, Q, G, T, S, K, X, W, d, obs, learn, sample, rng_state)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -296,7 +313,7 @@ def _primitive_action(P, K, d):
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _descend(P, Q, G, T, S, K, X, d, obs, learn, sample, rng_state):
+def _descend(P, Q, G, T, S, K, X, W, d, obs, learn, sample, rng_state):
   """From depth d, calls the chosen children down to a primitive; returns the
   primitive's action."""
   while True:
@@ -305,11 +322,11 @@ def _descend(P, Q, G, T, S, K, X, d, obs, learn, sample, rng_state):
       return action
     child = P.children[P.nodes[K.ints[d, S_NODE], FIRST_CHILD] + K.ints[d, S_CHOICE]]
     d += 1
-    _call(P, Q, G, T, S, K, X, d, child[0], child[1], obs, learn, sample, rng_state)
+    _call(P, Q, G, T, S, K, X, W, d, child[0], child[1], obs, learn, sample, rng_state)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _begin(P, Q, G, T, S, K, X, obs, learn, sample, rng_state):
+def _begin(P, Q, G, T, S, K, X, W, obs, learn, sample, rng_state):
   """An episode starts at `obs`: the root is called; returns the first action."""
   c = K.counters
   for i in range(c.shape[0]):
@@ -318,22 +335,22 @@ def _begin(P, Q, G, T, S, K, X, obs, learn, sample, rng_state):
   K.episode[E_STEPS] = 0
   K.episode[E_EVENT] = core.NO_EVENT
   K.total[0] = 0.0
-  _call(P, Q, G, T, S, K, X, np.int64(0), P.nodes.shape[0] - 1, K.episode[E_ROOT_ARG], obs,
+  _call(P, Q, G, T, S, K, X, W, np.int64(0), P.nodes.shape[0] - 1, K.episode[E_ROOT_ARG], obs,
         learn, sample, rng_state)
-  return _descend(P, Q, G, T, S, K, X, np.int64(0), obs, learn, sample, rng_state)
+  return _descend(P, Q, G, T, S, K, X, W, np.int64(0), obs, learn, sample, rng_state)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False)
-def begin(P, Q, G, T, S, K, X, obs, learn, sample, rng_state):
+def begin(P, Q, G, T, S, K, X, W, obs, learn, sample, rng_state):
   """`_begin` for the step-by-step path. The fused loops inline `_begin` and
   `_descend` (numba copies their small bodies), so that a first train compiles
   neither as a function of its own (each a separate LLVM module, optimized again
   inside every caller's)."""
-  return _begin(P, Q, G, T, S, K, X, obs, learn, sample, rng_state)
+  return _begin(P, Q, G, T, S, K, X, W, obs, learn, sample, rng_state)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _end_of(P, K, X, d, obs, samples):
+def _end_of(P, K, X, W, d, obs, samples):
   """After a child of the node at depth d returned: (its own event, G)."""
   node = K.ints[d, S_NODE]
   row = P.nodes[node]
@@ -360,7 +377,7 @@ def _end_of(P, K, X, d, obs, samples):
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
-def _observe(P, Q, G, T, S, K, X, d, obs, signal, done, terminal, learn, sample, rng_state):
+def _observe(P, Q, G, T, S, K, X, W, d, obs, signal, done, terminal, learn, sample, rng_state):
   """Algorithm 1: the learner of the node at depth d takes R + G of its child's run;
   unless done, it makes its next choice."""
   node = K.ints[d, S_NODE]
@@ -373,7 +390,7 @@ def _observe(P, Q, G, T, S, K, X, d, obs, signal, done, terminal, learn, sample,
   # an actor-critic's unless s' is terminal.
   if kind == Q_TABLE or (kind == GAUSSIAN_CMAC and not done) or (
       kind == ACTOR_CRITIC and not terminal):
-    _view(P, Q, G, T, S, K, X, d, obs, np.int64(1))
+    _view(P, Q, G, T, S, K, X, W, d, obs, np.int64(1))
   if kind == Q_TABLE:
     if Q is not None:
       epsilon = 0.0
@@ -421,7 +438,7 @@ def _observe(P, Q, G, T, S, K, X, d, obs, signal, done, terminal, learn, sample,
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False)
-def step(P, Q, G, T, S, K, X, obs, samples, reward, terminated, truncated, learn, sample,
+def step(P, Q, G, T, S, K, X, W, obs, samples, reward, terminated, truncated, learn, sample,
          rng_state):
   """A primitive step ended in `obs` with `reward` (`samples`: the positions
   sampled inside it, for the ship's local ends). Returns (episode over, the next
@@ -442,7 +459,7 @@ def step(P, Q, G, T, S, K, X, obs, samples, reward, terminated, truncated, learn
   while True:
     node = ints[d, S_NODE]
     row = P.nodes[node]
-    event, internal = _end_of(P, K, X, d, obs, samples)
+    event, internal = _end_of(P, K, X, W, d, obs, samples)
     done = event != core.NO_EVENT or over
     if row[SEEN] == SEEN_STEP:
       seen = core.STEP_REWARD * ints[d, S_CHILD_STEPS]
@@ -450,12 +467,12 @@ def step(P, Q, G, T, S, K, X, obs, samples, reward, terminated, truncated, learn
       seen = floats[d, F_REWARD]
     floats[d, F_REWARD] = 0.0
     ints[d, S_CHILD_STEPS] = 0
-    _observe(P, Q, G, T, S, K, X, d, obs, seen + internal, done,
+    _observe(P, Q, G, T, S, K, X, W, d, obs, seen + internal, done,
              terminated or event != core.NO_EVENT, learn, sample, rng_state)
     if not done:
       action = _primitive_action(P, K, d)        # the common case: no call to make
       if action != action:
-        action = _descend(P, Q, G, T, S, K, X, d, obs, learn, sample, rng_state)
+        action = _descend(P, Q, G, T, S, K, X, W, d, obs, learn, sample, rng_state)
       return False, action
     # The call returns (Algorithm 1: return to the parent).
     c = K.counters[node]
@@ -463,8 +480,12 @@ def step(P, Q, G, T, S, K, X, obs, samples, reward, terminated, truncated, learn
       K.episode[E_EVENT] = event
       if learn:
         sch = S
-        schedules.end_episode(sch.epsilon, sch.outcomes, sch.counts, sch.settings[0],
-                              np.int64(sch.settings[1]), sch.settings[2])
+        if sch.settings[SCHEDULE_KIND] == LINEAR:
+          schedules.end_linear(sch.epsilon, sch.settings[LINEAR_START], sch.settings[LINEAR_END],
+                               sch.settings[LINEAR_EPISODES])
+        else:
+          schedules.end_episode(sch.epsilon, sch.outcomes, sch.counts, sch.settings[0],
+                                np.int64(sch.settings[1]), sch.settings[2])
       return True, 0.0
     c[CALLS] += 1
     if not over:
@@ -479,21 +500,20 @@ def step(P, Q, G, T, S, K, X, obs, samples, reward, terminated, truncated, learn
 # ---- fused with the analytic ship --------------------------------------------------
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False)
-def run_ship(P, Q, G, T, S, K, X, n_episodes, learn, sample, rng_state, world, record,
+def run_ship(P, Q, G, T, S, K, X, W, n_episodes, learn, sample, rng_state, world, record,
              fixed_start):
   """`n_episodes` episodes on Equation 1, of the full ship task (SPEC section 2):
   `world` = [gate reward, out-of-bounds reward, max steps, 0], or of the root alone
   as a stand-alone subtask (`world[3]` = 1, SPEC section 8): each episode a call at
   the local start of the root's argument (`sample_local_start`), -1 a step, ended by
-  the root's own termination. Record row: [passed (the gate, or the root's success),
-  steps, return, then calls, runs, successes of each node]; the ship's state and the
+  the root's own termination. Record row (ROW_END ...): passed (the gate, or the root's
+  success), steps, return, 0, then calls, runs, successes of each node; the ship's state and the
   positions sampled in a step are the stack's `ship` and `samples`. Compiled without
   reference counting, as everything it inlines: the machine reads its banks through
   views, and counting references to them cost 70% of its time."""
   max_steps = np.int64(world[2])
   alone = world[3] != 0.0
   state, samples = K.ship, K.samples
-  n_nodes = K.counters.shape[0]
   event = core.NO_EVENT
   reward = core.STEP_REWARD
   for episode in range(n_episodes):
@@ -503,7 +523,7 @@ def run_ship(P, Q, G, T, S, K, X, n_episodes, learn, sample, rng_state, world, r
       ship_rules.sample_local_start(rng_state, K.episode[E_ROOT_ARG], state)
     else:
       ship_rules.sample_start(rng_state, state)
-    action = _begin(P, Q, G, T, S, K, X, state, learn, sample, rng_state)
+    action = _begin(P, Q, G, T, S, K, X, W, state, learn, sample, rng_state)
     while True:
       core.euler_control(state, action, samples)
       terminated, truncated = False, False
@@ -511,19 +531,63 @@ def run_ship(P, Q, G, T, S, K, X, n_episodes, learn, sample, rng_state, world, r
         event, reward = core.global_outcome(samples, world[0], world[1])
         terminated = event != core.NO_EVENT
         truncated = (not terminated) and K.episode[E_STEPS] + 1 >= max_steps
-      over, action = step(P, Q, G, T, S, K, X, state, samples, reward, terminated, truncated,
+      over, action = step(P, Q, G, T, S, K, X, W, state, samples, reward, terminated, truncated,
                           learn, sample, rng_state)
       if over:
         break
     if alone:
       event = K.episode[E_EVENT]
-    row = record[episode]
-    row[0] = event == core.SUCCESS
-    row[1] = K.episode[E_STEPS]
-    row[2] = K.total[0]
-    for i in range(n_nodes):
-      for j in range(3):
-        row[3 + 3 * i + j] = K.counters[i, j]
+    _write_row(K, record[episode], event == core.SUCCESS, 0.0)
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _write_row(K, row, end, illegal):
+  """The record row of the episode just ended (ROW_END ... ROW_COUNTERS)."""
+  row[ROW_END] = end
+  row[ROW_STEPS] = K.episode[E_STEPS]
+  row[ROW_RETURN] = K.total[0]
+  row[ROW_ILLEGAL] = illegal
+  for i in range(K.counters.shape[0]):
+    for j in range(3):
+      row[ROW_COUNTERS + 3 * i + j] = K.counters[i, j]
+
+
+# ---- fused with the taxi ------------------------------------------------------------
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False)
+def run_taxi(P, Q, G, T, S, K, X, W, n_episodes, learn, sample, rng_state, record, starts):
+  """`n_episodes` episodes of the taxi task `W` (`taxi_rules.world_config`; SPEC
+  section 5), each from a start drawn from `rng_state` (`taxi_subtasks.sample_start`)
+  or, with starts int64[k, 5] (k > 0), from starts[e % k]. The machine sees the
+  state as float64 numbers; the world steps it as taxi_rules' int64 state. Record
+  rows as `run_ship`'s, with the episode's outcome (`taxi_rules`: DELIVERED,
+  OUT_OF_FUEL, TRUNCATED) and its illegal Pickups and Dropoffs."""
+  state = K.taxi[0:5]
+  episode = K.taxi[5:8]
+  obs = K.taxi_obs
+  for e in range(n_episodes):
+    if starts.shape[0] > 0:
+      for i in range(5):
+        state[i] = starts[e % starts.shape[0], i]
+    else:
+      taxi_subtasks.sample_start(rng_state, W, state)
+    for i in range(3):
+      episode[i] = 0
+    for i in range(5):
+      obs[i] = state[i]
+    action = _begin(P, Q, G, T, S, K, X, W, obs, learn, sample, rng_state)
+    while True:
+      reward = taxi_rules.primitive_step(state, episode, np.int64(action), W)
+      for i in range(5):
+        obs[i] = state[i]
+      outcome = episode[taxi_rules.E_OUTCOME]
+      truncated = outcome == taxi_rules.TRUNCATED
+      terminated = outcome != taxi_rules.RUNNING and not truncated
+      over, action = step(P, Q, G, T, S, K, X, W, obs, K.samples, reward, terminated, truncated,
+                          learn, sample, rng_state)
+      if over:
+        break
+    _write_row(K, record[e], episode[taxi_rules.E_OUTCOME], episode[taxi_rules.E_ILLEGAL])
 
 
 # ---- building the arrays from a graph of blocks ---------------------------------------
@@ -561,13 +625,15 @@ class Machine:
   """A task graph of blocks as arrays, and the compiled machine over them.
 
   `root_args` are the root call's arguments (as a `Child`'s: {"direction": d} runs
-  a subtask on its own). `q_arrays`, `gaussian_arrays`, `width_trace` and
+  a subtask on its own). `world`: the taxi's world array (`taxi_rules.world_config`)
+  for a graph with taxi blocks (`blocks.TaxiState`), which `run_taxi` runs. `q_arrays`, `gaussian_arrays`, `width_trace` and
   `actor_critic_arrays` give a learner's arrays (views of the banks: writing into
   them restores a checkpoint). Nodes are numbered so that the root is last.
   """
 
-  def __init__(self, graph, root_args=None):
+  def __init__(self, graph, root_args=None, world=None):
     self.graph = graph
+    self.world = None if world is None else np.array(world, dtype=np.int64)
     root_args = root_args or {}
     self.schedule_block = graph.schedule or blocks.HeldEpsilon()
     order = [n for n in graph.nodes if n != graph.root] + [graph.root]
@@ -581,7 +647,7 @@ class Machine:
     self.codings = []
     self.rules = []                     # (node, kind, rule) of its CellRules, EndRules, RewardRules
     self._slot_of = {}
-    watch = {name: i for i, name in enumerate(self.schedule_block.watch)}
+    watch = {name: i for i, name in enumerate(getattr(self.schedule_block, "watch", ()))}
     for name, node in graph.nodes.items():
       i = index[name]
       if isinstance(node, Primitive):
@@ -621,13 +687,18 @@ class Machine:
     k = int(self.tile_bank.n_tilings.max())
     depth = self._depth(graph.root)
     sb = self.schedule_block
-    for name in sb.watch:
+    for name in getattr(sb, "watch", ()):
       if name not in index or isinstance(graph.nodes[name], Primitive):
         raise GraphError(f"the epsilon schedule watches {name!r}, which is not a subtask of "
                          f"the graph; subtasks: {sorted(n.name for n in graph.subtasks())}")
-    eps, outcomes, counts = schedules.new_schedule(sb.epsilon, sb.window, max(len(sb.watch), 1))
-    schedule = Schedule(eps, outcomes, counts,
-                        np.array([sb.threshold, sb.every, sb.divisor], dtype=np.float64))
+    if isinstance(sb, blocks.LinearEpsilon):
+      eps, outcomes, counts = schedules.new_schedule(sb.start, 1, 1)
+      settings = [0.0, 1.0, 1.0, LINEAR, sb.start, sb.end, sb.episodes]
+    else:
+      eps, outcomes, counts = schedules.new_schedule(sb.epsilon, sb.window,
+                                                     max(len(sb.watch), 1))
+      settings = [sb.threshold, sb.every, sb.divisor, HELD, 0.0, 0.0, 0.0]
+    schedule = Schedule(eps, outcomes, counts, np.array(settings, dtype=np.float64))
     critics = [b.critic_coder for b in g if isinstance(b, blocks.ActorCritic)]
     stack = Stack(np.zeros((depth, 7), dtype=np.int64), np.zeros((depth, 4)),
                   np.zeros((depth, 2)), np.zeros((depth, 4, k), dtype=np.int64),
@@ -637,18 +708,19 @@ class Machine:
                   np.zeros((len(order), 3)), np.zeros(4),
                   np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)),
                   np.zeros(len(critics[0].low) if critics else 1), np.zeros(4),
-                  np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)))
+                  np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)), np.zeros(8, dtype=np.int64),
+                  np.zeros(5))
     if len({len(c.low) for c in critics}) > 1:
       raise GraphError("the graph's actor-critics' critics code (state, action) of "
                        f"different sizes: {sorted({len(c.low) for c in critics})}")
     program = Program(nodes, params, np.array(children, dtype=np.int64).reshape(-1, 2),
                       rules_mod.compile_rules(self.rules))
     self.banks = Banks(program, qbank, gbank, self.tile_bank, schedule, stack,
-                       1 if critics or self.rules else None)
+                       1 if critics or self.rules else None, self.world)
     # What the compiled functions take: each bank as a struct of the same arrays,
     # passed by reference (`learners.banks`: numba copied the namedtuples' ~45
     # arrays at every call and inlined call, at a high price in compile time).
-    self.refs = (*banks_mod.as_structs(*self.banks[:-1]), self.banks.extras)
+    self.refs = (*banks_mod.as_structs(*self.banks[:-2]), self.banks.extras, self.banks.world)
     self._entries = {}                  # (function, argument kinds) -> entry point
 
   # -- what each block puts in the node's row --
@@ -673,9 +745,9 @@ class Machine:
                                                   learner.gamma, learner.epsilon)
       row[EPS_SCHEDULE] = int(bool(learner.epsilon_schedule))
       row[N_STATES] = int(learner.n_states)
-      if not isinstance(node.view, (blocks.GridCell, blocks.CellRule)):
-        raise GraphError(f"subtask {name!r}: a QTable needs a GridCell or CellRule view, got "
-                         f"{type(node.view).__name__}")
+      if not isinstance(node.view, (blocks.GridCell, blocks.CellRule, blocks.TaxiState)):
+        raise GraphError(f"subtask {name!r}: a QTable needs a GridCell, CellRule or TaxiState "
+                         f"view, got {type(node.view).__name__}")
     elif isinstance(learner, blocks.ActorCritic):
       row[LEARNER] = ACTOR_CRITIC
       row[SLOT] = self._slot(GAUSSIAN_CMAC, learner)
@@ -720,9 +792,20 @@ class Machine:
       row[VIEW] = VIEW_LOCAL_TILES if isinstance(view, blocks.LocalTiles) else VIEW_STATE_TILES
       row[VIEW_SLOT] = len(self.codings)
       self.codings.append(view.coder)
+    elif isinstance(view, blocks.TaxiState):
+      if self.world is None:
+        raise GraphError(f"subtask {name!r}: a TaxiState view needs the machine's taxi world "
+                         "(Machine(graph, world=taxi_rules.world_config(rules)))")
+      row[VIEW] = VIEW_TAXI_STATE
+      n = taxi_core.num_states(bool(self.world[taxi_rules.W_FUEL_ENABLED]),
+                               int(self.world[taxi_rules.W_CAPACITY]))
+      if isinstance(node.learner, blocks.QTable) and node.learner.n_states != n:
+        raise GraphError(f"subtask {name!r}: its TaxiState view has {n} states, its QTable "
+                         f"{node.learner.n_states}")
     else:
       raise GraphError(f"subtask {name!r}: view {view!r} is not a machine view; allowed: "
-                       "GridCell, LocalTiles, StateTiles, CellRule (hpg_mj.hierarchy.blocks)")
+                       "GridCell, LocalTiles, StateTiles, CellRule, TaxiState "
+                       "(hpg_mj.hierarchy.blocks)")
 
   def _rule(self, name, kind, rule):
     """The rule's number among the graph's rules."""
@@ -827,7 +910,8 @@ class Machine:
     callers pass (`learners.jit.compile_first`: each then compiles near the top of
     the Python stack). One list for every graph: their types do not depend on it."""
     b = self.refs
-    d, obs, rng_state = np.int64(0), np.zeros(4), np.zeros(4, dtype=np.uint64)
+    d, obs, rng_state = np.int64(0), np.zeros(4 if b[-1] is None else 5), \
+        np.zeros(4, dtype=np.uint64)
     return [(_view, (*b, d, obs, d)),
             (_call, (*b, d, d, d, obs, False, False, rng_state)),
             (_observe, (*b, d, obs, 0.0, False, False, False, False, rng_state)),
@@ -837,12 +921,36 @@ class Machine:
     """Episodes fused with the analytic ship; `world` as `run_ship`'s (its last
     entry may be left out: the full task); rows as `run_ship` writes them."""
     jit.compile_first(run_ship, self._bottom_up)
-    rows = np.zeros((int(episodes), 3 + 3 * len(self.names)))
+    rows = self._rows(episodes)
     fixed = np.empty(0) if start is None else np.asarray(start, dtype=np.float64)
     world = np.concatenate([np.asarray(world, dtype=np.float64), np.zeros(4)])[:4]
     run_ship(*self.refs, int(episodes), bool(learn), bool(sample), rng_state, world, rows,
              fixed)
     return rows
+
+  def run_taxi(self, episodes, learn, sample, rng_state, starts=None):
+    """Episodes fused with the taxi of the machine's `world`, from `starts` (rows of
+    taxi_rules' state, used in turn; None: drawn); rows as `run_taxi` writes them."""
+    if self.banks.world is None:
+      raise GraphError("run_taxi: this machine was built without a taxi world "
+                       "(Machine(graph, world=taxi_rules.world_config(...)))")
+    jit.compile_first(run_taxi, self._bottom_up)
+    rows = self._rows(episodes)
+    starts = np.zeros((0, 5), dtype=np.int64) if starts is None else \
+        np.ascontiguousarray(starts, dtype=np.int64).reshape(-1, 5)
+    run_taxi(*self.refs, int(episodes), bool(learn), bool(sample), rng_state, rows, starts)
+    return rows
+
+  def _rows(self, episodes):
+    return np.zeros((int(episodes), ROW_COUNTERS + 3 * len(self.names)))
+
+  def start_schedule(self, learned_episodes):
+    """A linear epsilon schedule at learning episode `learned_episodes` (the agent's
+    count, which a run resumes from); a held schedule keeps its own state."""
+    sb, s = self.schedule_block, self.banks.schedule
+    if isinstance(sb, blocks.LinearEpsilon):
+      s.epsilon[3] = float(learned_episodes)
+      s.epsilon[0] = schedules.linear(float(learned_episodes), sb.start, sb.end, sb.episodes)
 
   def begin(self, obs, learn, sample, rng_state):
     """Resumable: an episode starts at `obs`; returns the first action."""
@@ -901,19 +1009,20 @@ def _tell_calls(machine, on_call):
                    k.origin[d].copy()))
 
 
-def run_stepwise(machine, env, episodes, learn, sample, rng_state, start, passed,
+def run_stepwise(machine, env, episodes, learn, sample, rng_state, start, ended,
                  on_call=None):
   """The step-by-step path: `episodes` episodes of `machine` through `env` (any
   Gymnasium or dm_control environment), each from `start()` (None: the
   environment's own). Without learning the policies are greedy unless `sample`.
-  `passed(info)` says whether the last step succeeded. `on_call(call)`, if given, is
+  `ended(last)` gives the row's end (ROW_END) from the episode's last step (an
+  `executor.Step`: the ship's gate passed, the taxi's outcome). `on_call(call)`, if given, is
   told of every subtask called below the root (a `graph.Call`: its node, its
   arguments, the state where it was called), as the executor tells it. Rows as
-  `run_ship`'s."""
+  `run_ship`'s (ROW_ILLEGAL stays 0)."""
   from hpg_mj.hierarchy import executor     # the environments' adapters
   adapter = executor.adapter_for(env)
   sample = learn if sample is None else (sample or learn)
-  rows = np.zeros((int(episodes), 3 + 3 * len(machine.names)))
+  rows = machine._rows(episodes)
   for i in range(int(episodes)):
     obs = adapter.reset(start())
     action = machine.begin(obs, learn, sample, rng_state)
@@ -926,10 +1035,10 @@ def run_stepwise(machine, env, episodes, learn, sample, rng_state, start, passed
                                      step_.truncated, step_.info, learn, sample, rng_state)
       if on_call is not None and not over:
         _tell_calls(machine, on_call)
-    rows[i, 0] = passed(step_.info)
-    rows[i, 1] = machine.banks.stack.episode[E_STEPS]
-    rows[i, 2] = machine.banks.stack.total[0]
-    rows[i, 3:] = machine.counters()
+    rows[i, ROW_END] = ended(step_)
+    rows[i, ROW_STEPS] = machine.banks.stack.episode[E_STEPS]
+    rows[i, ROW_RETURN] = machine.banks.stack.total[0]
+    rows[i, ROW_COUNTERS:] = machine.counters()
   return rows
 
 

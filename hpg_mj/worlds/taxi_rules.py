@@ -37,6 +37,16 @@ def world_config(rules: core.TaxiRules = None) -> np.ndarray:
 
 
 @numba.njit(cache=True, inline="always")
+def encoded(obs, world):
+  """The state index (`taxi_core.encode_state`) of an observation given as numbers
+  (row, col, passenger, destination[, fuel]; the fuel is not read in the classic task)."""
+  fuel_enabled = world[W_FUEL_ENABLED] != 0
+  fuel = np.int64(obs[FUEL]) if fuel_enabled else core.CLASSIC_FUEL
+  return core.encode_state(np.int64(obs[ROW]), np.int64(obs[COL]), np.int64(obs[PASSENGER]),
+                           np.int64(obs[DESTINATION]), fuel, fuel_enabled)
+
+
+@numba.njit(cache=True, inline="always")
 def episode_over(episode):
   return episode[E_OUTCOME] != RUNNING
 

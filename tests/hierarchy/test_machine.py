@@ -153,14 +153,14 @@ def test_random_graphs_give_the_oracles_numbers_on_every_path(seed):
   for learn, sample, episodes in ((True, True, 6), (False, True, 2), (False, False, 2)):
     a = fused.run(episodes, learn, sample, states[0], world)
     b = machine.run_stepwise(stepwise, env, episodes, learn, sample, states[1],
-                             start(states[1]), passed=lambda info: info.get("event") == "gate",
+                             start(states[1]), lambda last: last.info.get("event") == "gate",
                              on_call=told(0))
     c = o.run(env, episodes, learn, sample, start(states[2]), on_call=told(1))
     np.testing.assert_array_equal(a, c, err_msg=f"fused vs oracle, learn={learn}")
     np.testing.assert_array_equal(b, c, err_msg=f"stepwise vs oracle, learn={learn}")
     if learn:
       assert a[:, 1].sum() >= 400                                 # real episodes
-  assert a.shape[1] == 3 + 3 * len(graph.nodes)
+  assert a.shape[1] == machine.ROW_COUNTERS + 3 * len(graph.nodes)
   assert calls[0] == calls[1]                      # on_call: the same calls, in order
   np.testing.assert_array_equal(states[0], states[2])
   np.testing.assert_array_equal(states[1], states[2])
@@ -209,7 +209,7 @@ def _root(children=None, **kw):
     (lambda: [_root(), _leg(learner=object()), Primitive("turn")], None,
      "subtask 'leg': its learner object has no start, act, observe"),
     (lambda: [_root(view=blocks.LocalTiles(_coder())), _leg(), Primitive("turn")], None,
-     "subtask 'root': a QTable needs a GridCell or CellRule view"),
+     "subtask 'root': a QTable needs a GridCell, CellRule or TaxiState view"),
     (lambda: [_root(), _leg(children=("turn", "turn2")), Primitive("turn"), Primitive("turn2")],
      None, "subtask 'leg': a GaussianCMAC's one child is a continuous primitive"),
     (lambda: [_root(), _leg(view=blocks.GridCell()), Primitive("turn")], None,
@@ -296,7 +296,7 @@ def test_a_subtask_alone_is_the_same_fused_and_through_its_environment(task, env
         ship_rules.sample_local_start(state, direction, out)
         return out
       rows = machine.run_stepwise(m, gymnasium.make(env_id, backend="analytic"), 60, True, True,
-                                  state, start, passed=lambda info: info.get("event") == "goal")
+                                  state, start, lambda last: last.info.get("event") == "goal")
     trace, values = m.gaussian_arrays(learner)
     runs.append((np.delete(rows, 2, axis=1), el.parameters(trace), values,
                  el.parameters(m.width_trace(learner))))
