@@ -127,9 +127,15 @@ class TaxiMachineAgent(base.MachineAgent, TaxiAgent):
   def machine_world(self):
     return self.world
 
-  def compiled(self, episodes, learn, sample):
+  def compiled(self, episodes, learn, sample, starts=None):
+    """The fused loop; `starts`: rows (row, col, passenger, destination, fuel) used
+    in turn, checked against the task, or None to draw each start."""
+    if starts is not None:
+      rows = np.asarray(starts)
+      starts = [self.rules.check_state(row) for row in (rows[None] if rows.ndim == 1 else rows)]
     self.machine.start_schedule(self.episodes)
-    return self._record_rows(self.machine.run_taxi(episodes, learn, sample, self.rng_state))
+    return self._record_rows(self.machine.run_taxi(episodes, learn, sample, self.rng_state,
+                                                   starts))
 
   def _ended(self, last):
     return world_rules.outcome_of(last)

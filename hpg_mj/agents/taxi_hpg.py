@@ -1,7 +1,7 @@
 """Tabular HPG (Algorithm 1) on taxi-fuel (SPEC section 5, paper section 5.1): its
-configuration and its agent; its engine (the fused loop, its learners' arrays and
-the step-by-step learners on the task graph of `hierarchy.taxi` over them) is
-`hpg_mj.hierarchy.taxi_hpg`.
+configuration and its graph of blocks (`hierarchy.blocks`: a `GibbsTable` per
+subtask over the taxi's abstractions, children, terminations and Navigate's
+binding, `hierarchy.taxi_subtasks`), which `hierarchy.machine` runs on both paths.
 
 Every non-primitive subtask of the task graph (`taxi_rules`) holds one policy
 parameter per (abstract state, child) and acts with a softmax (Gibbs) policy;
@@ -28,12 +28,14 @@ its reward-to-go (REINFORCE's baseline), which adds to the rule above
 """
 import dataclasses
 
-import numpy as np
-
 from hpg_mj.agents import _taxi
 from hpg_mj import taskfile
 from hpg_mj.taskfile import param
-from hpg_mj.hierarchy.taxi_hpg import HPGEngine, TaxiHierarchy, schedule, step_sizes
+from hpg_mj.hierarchy import blocks
+from hpg_mj.hierarchy import taxi_subtasks
+from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
+from hpg_mj.learners import eligibility as el
+from hpg_mj.worlds import taxi_core as core
 
 
 def _level(alpha, start_fraction, delay, ramp, doc):
@@ -82,10 +84,10 @@ class Config:
   Eq. 3 has none): a choice a made in state s then moves theta_i along
   psi(s, a) times (the rewards of the rest of the call - b_i(s)) instead of the
   rewards alone. In Eq. 3's online form that is one extra step at the choice,
-  theta_i <- theta_i - alpha_i b_i(s) psi(s, a) (`subtract_baseline`), next to the
+  theta_i <- theta_i - alpha_i b_i(s) psi(s, a) (`policies.softmax_choose`), next to the
   unchanged z and theta updates. b_i is a table over subtask i's abstract states,
   learned by TD(0) on the subtask's own rewards with step size baseline_i
-  (`learn_baseline`; 0 keeps b_i = 0, Eq. 3 exactly). Any b(s) that does not
+  (`policies.softmax_learn`; 0 keeps b_i = 0, Eq. 3 exactly). Any b(s) that does not
   depend on the choice made in s leaves the gradient estimate unbiased
   (E[psi(s, a)] = 0 under the policy); it only removes variance. Why it is
   needed: without it every call's reward-to-go is of one sign (Navigate's only
@@ -106,8 +108,8 @@ class Config:
   navigate: Navigate = dataclasses.field(default_factory=Navigate)
 
 
-class TaxiHPG(_taxi.TaxiAgent):
-  """HPG's tables, baselines and generator, trained step by step or compiled."""
+class TaxiHPG(_taxi.TaxiMachineAgent):
+  """HPG's Gibbs tables and baselines: the taxi hierarchy as a graph of blocks."""
 
   name = "taxi_hpg"
   Config = Config
@@ -115,30 +117,49 @@ class TaxiHPG(_taxi.TaxiAgent):
 
   def __init__(self, config=None, seed=0, task=None):
     super().__init__(config, seed, task)
-    self._adopt(HPGEngine(self.config, seed=seed, task=self.rules))
-    self.hierarchy = TaxiHierarchy(self.engine)
-    self._schedule = schedule(self.config)
-    self._alphas = np.zeros(len(self.hierarchy.learners))
+    sizes = taxi_subtasks.n_abstract_states(self.rules.fuel_enabled, self.rules.capacity)
+    levels = (self.config.root, self.config.carry, self.config.carry, self.config.carry,
+              self.config.navigate)
+    self.tables = tuple(blocks.GibbsTable(n, level.alpha, level.trace_gamma, level.baseline,
+                                          level.start_fraction, level.delay, level.ramp)
+                        for n, level in zip(sizes, levels))
 
   def state(self):
     out = {"rng_state": self.rng_state}
-    names = ("root", "get", "put", "refuel", "navigate")
-    for name, trace, values in zip(names, self.engine.traces, self.engine.values):
+    for name, table in zip(blocks.TAXI_SUBTASKS, self.tables):
+      trace, values = self.machine.gibbs_arrays(table)
       out.update({f"{name}_{k}": v for k, v in trace._asdict().items()})
       out[f"{name}_baseline"] = values
     return out
 
-  def compiled(self, episodes, learn, sample):
-    # (The engine counts its own episodes; the base class must not count them again.)
-    before = self.engine.episodes
-    rows = self.engine.run(episodes, learn=learn, greedy=not learn and not sample)
-    self.engine.episodes = before
-    return rows
+  def policy_tables(self):
+    """Each subtask's current parameters, an (abstract states, children) table."""
+    return tuple(el.parameters(self.machine.gibbs_arrays(t)[0]).reshape(t.n_states, -1)
+                 for t in self.tables)
+
+  def baselines(self):
+    """Each subtask's baseline b(s), by abstract state (views)."""
+    return tuple(self.machine.gibbs_arrays(t)[1] for t in self.tables)
 
   def graph(self):
-    return self.hierarchy.graph()
+    """Root -> {Get, Put, Refuel}; each of those -> {Navigate(t), its primitive};
+    Navigate(t) -> the four moves (`hierarchy.taxi_subtasks`)."""
+    root, get, put, refuel, navigate = self.tables
 
-  def begin_episode(self, learn):
-    step_sizes(self._schedule, self.engine.episodes, self._alphas)
-    for learner, alpha in zip(self.hierarchy.learners, self._alphas):
-      learner.alpha = float(alpha)
+    def carry(name, table, primitive):
+      return Subtask(name, children=[Child("navigate", bind=blocks.TaxiTarget(name)), primitive],
+                     learner=table, view=blocks.TaxiAbstraction(name),
+                     available=blocks.TaxiChildren(name), termination=blocks.TaxiEnd(name))
+    moves = [name.lower() for name in core.ACTION_NAMES[:4]]
+    return TaskGraph("root", [
+        Subtask("root", children=["get", "put", "refuel"], learner=root,
+                view=blocks.TaxiAbstraction("root"), available=blocks.TaxiChildren("root"),
+                termination=blocks.Never()),
+        carry("get", get, "pickup"), carry("put", put, "dropoff"),
+        carry("refuel", refuel, "fillup"),
+        Subtask("navigate", children=moves, learner=navigate,
+                view=blocks.TaxiAbstraction("navigate"), termination=blocks.TaxiEnd("navigate")),
+        *(Primitive(name, action=i) for i, name in enumerate(moves)),
+        Primitive("pickup", action=core.PICKUP), Primitive("dropoff", action=core.DROPOFF),
+        Primitive("fillup", action=core.FILLUP),
+    ])

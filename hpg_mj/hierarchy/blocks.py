@@ -19,6 +19,11 @@ share its parameters):
       exploration width (SPEC section 8); its node's only child is a continuous
       primitive (the value it draws is the action).
 
+  GibbsTable(n_states, alpha, trace_gamma, baseline, start_fraction, delay, ramp)
+      Eq. 3 with a Gibbs (softmax) policy over a table (paper section 5.1), optionally
+      with a baseline b(s) and a warm-up of its step size (the taxi's HPG); it
+      chooses among the children its node's `available` allows.
+
   ActorCritic(actor_coder, critic_coder, alpha_actor, alpha_critic, trace_decay, r_max)
       Konda's actor-critic (SPEC section 4): a Gaussian-with-sigmoid actor over its
       view's tiles (a StateTiles view over `actor_coder`), a critic linear over
@@ -33,6 +38,11 @@ Views (what a node's learner sees of the world's state):
                                `direction` argument of its `Child`), as CMAC tiles
   StateTiles(coder)            the world's state itself, as CMAC tiles (a flat learner)
   TaxiState()                  the taxi's full state, as its index (a flat QTable)
+  TaxiAbstraction(subtask)     the taxi hierarchy's abstract state of `subtask`
+
+The taxi hierarchy's rules (`hierarchy.taxi_subtasks`), for a machine built with the
+taxi's world: `TaxiChildren(subtask)` (a node's `available`), `TaxiEnd(subtask)`
+(its termination), `TaxiTarget(subtask)` (a `Child`'s `bind`: Navigate's target).
 
 Terminations and internal rewards:
 
@@ -128,6 +138,22 @@ class ActorCritic:
   r_max: float = 15.0
 
 
+@dataclasses.dataclass(eq=False)
+class GibbsTable:
+  """Eq. 3 with a Gibbs (softmax) policy over a table of `n_states` states x the
+  node's children (paper section 5.1), optionally with a baseline b(s) learned by
+  TD(0) with step size `baseline` (0: none, Eq. 3 exactly); its step size is alpha
+  times a warm-up: `start_fraction` for the first `delay` learning episodes, then a
+  linear rise to 1 over `ramp` episodes."""
+  n_states: int
+  alpha: float = 0.1
+  trace_gamma: float = 1.0
+  baseline: float = 0.0
+  start_fraction: float = 1.0
+  delay: int = 0
+  ramp: int = 1
+
+
 @dataclasses.dataclass(frozen=True)
 class GridCell:
   """The cell i * grid + j of (x, y) on a grid of `cell_m` cells, clamped to it."""
@@ -157,6 +183,45 @@ class CellRule:
 class TaxiState:
   """A QTable's view of the taxi: the full state's index (`taxi_core.encode_state`),
   in a machine built with the taxi's world."""
+
+
+TAXI_SUBTASKS = ("root", "get", "put", "refuel", "navigate")
+
+
+def _taxi_subtask(block):
+  if block.subtask not in TAXI_SUBTASKS:
+    raise ValueError(f"{type(block).__name__}: subtask {block.subtask!r} is not a taxi "
+                     f"subtask; allowed: {list(TAXI_SUBTASKS)}")
+
+
+@dataclasses.dataclass(frozen=True)
+class TaxiAbstraction:
+  """A table's view of the taxi: the abstract state of one of the taxi hierarchy's
+  subtasks (`hierarchy.taxi_subtasks`; Navigate's includes its target)."""
+  subtask: str
+  __post_init__ = _taxi_subtask
+
+
+@dataclasses.dataclass(frozen=True)
+class TaxiChildren:
+  """The children available to a taxi subtask in a state (its `available`)."""
+  subtask: str
+  __post_init__ = _taxi_subtask
+
+
+@dataclasses.dataclass(frozen=True)
+class TaxiEnd:
+  """A taxi subtask's termination (a success when it ends by it)."""
+  subtask: str
+  __post_init__ = _taxi_subtask
+
+
+@dataclasses.dataclass(frozen=True)
+class TaxiTarget:
+  """A `Child`'s binding: Navigate's target t, the station that Get, Put or Refuel
+  (`subtask`) goes to: the passenger's, the destination, or F."""
+  subtask: str
+  __post_init__ = _taxi_subtask
 
 
 @dataclasses.dataclass(frozen=True)

@@ -5,8 +5,9 @@ are blocks is data: `Machine(graph)` turns it into arrays (the node table, each
 learner kind's parameters stacked in one bank, the call stack) and the compiled
 functions below run it. The same functions serve both paths:
 
-* fused with a compiled world (`Machine.run`, the analytic ship): the world's
-  step and the machine's `step` alternate inside one compiled loop;
+* fused with a compiled world (`Machine.run`, the analytic ship; `Machine.run_taxi`,
+  the taxi): the world's step and the machine's `step` alternate inside one
+  compiled loop;
 * resumable under any environment (`Machine.run_stepwise`, `Machine.begin` and
   `Machine.advance(obs, reward, terminated, truncated, info) -> action`): the
   environment steps in Python and the machine takes each outcome,
@@ -64,23 +65,31 @@ from hpg_mj.worlds import taxi_rules
 
 # Node kinds, learner kinds, views, ends, internal rewards, rewards seen.
 PRIMITIVE, SUBTASK = 0, 1
-NO_LEARNER, Q_TABLE, GAUSSIAN_CMAC, ACTOR_CRITIC = 0, 1, 2, 3
-NO_VIEW, VIEW_GRID_CELL, VIEW_LOCAL_TILES, VIEW_STATE_TILES, VIEW_RULE, VIEW_TAXI_STATE = range(6)
-END_NEVER, END_LOCAL_GOAL, END_RULE = 0, 1, 2
+NO_LEARNER, Q_TABLE, GAUSSIAN_CMAC, ACTOR_CRITIC, GIBBS_TABLE = range(5)
+(NO_VIEW, VIEW_GRID_CELL, VIEW_LOCAL_TILES, VIEW_STATE_TILES, VIEW_RULE, VIEW_TAXI_STATE,
+ VIEW_TAXI_ABSTRACT) = range(7)
+END_NEVER, END_LOCAL_GOAL, END_RULE, END_TAXI = range(4)
 G_NONE, G_SHAPING, G_RULE = 0, 1, 2
 SEEN_SUMMED, SEEN_STEP = 0, 1
 
 # Columns of the node table (int64[n_nodes, N_INT]).
-# VIEW_SLOT: a tiles view's coder, or a CellRule's number among the graph's rules;
-# END_AT and G_AT: an EndRule's and a RewardRule's number; N_STATES: a QTable's states.
+# VIEW_SLOT: a tiles view's coder, a CellRule's number among the graph's rules, or a
+# TaxiAbstraction's subtask id (`taxi_subtasks`); END_AT and G_AT: an EndRule's and a
+# RewardRule's number, or a TaxiEnd's subtask id; N_STATES: a table's states.
 # WIDTH_SLOT: the row of a GaussianCMAC's learned width in GaussianBank.widths (-1: none).
+# AVAILABLE_AT: the subtask id of a TaxiChildren (-1: every child is available).
 (KIND, LEARNER, SLOT, VIEW, VIEW_SLOT, END, INTERNAL, SEEN, MAX_STEPS, FIRST_CHILD,
- N_CHILDREN, WATCH, EPS_SCHEDULE, CRITIC_SLOT, END_AT, G_AT, N_STATES, WIDTH_SLOT) = range(18)
-N_INT = 18
-# Columns of the node parameters (float64[n_nodes, N_FLOAT]).
+ N_CHILDREN, WATCH, EPS_SCHEDULE, CRITIC_SLOT, END_AT, G_AT, N_STATES, WIDTH_SLOT,
+ AVAILABLE_AT) = range(19)
+N_INT = 19
+# Columns of the node parameters (float64[n_nodes, N_FLOAT]); START_FRACTION, DELAY and
+# RAMP: a GibbsTable's warm-up.
 (ALPHA, DECAY, GAMMA, BETA, R_MAX, EPSILON, CELL_M, GRID, ACTION, ALPHA_ACTOR, WIDTH_ALPHA,
- LOG_SIGMA_LOW, LOG_SIGMA_HIGH) = range(13)
-N_FLOAT = 13
+ LOG_SIGMA_LOW, LOG_SIGMA_HIGH, START_FRACTION, DELAY, RAMP) = range(16)
+N_FLOAT = 16
+# Columns of the children table (int64[n_children, 3]): the child's node, its
+# `direction` argument (-1: none), the subtask id of its TaxiTarget binding (-1: none).
+C_NODE, C_ARG, C_BIND = range(3)
 # Columns of the per-node counters of an episode (float64[n_nodes, 3]).
 CALLS, RUNS, SUCCESSES = range(3)
 # Columns of a row of the machine's record (`run_ship`, `run_taxi`, `run_stepwise`): how
@@ -94,6 +103,10 @@ Program = collections.namedtuple("Program", ("nodes", "params", "children", "rul
 # Each learner kind's parameters, one row per learner (slot). An actor-critic keeps its
 # critic's trace in a GaussianBank row and its actor's weights in that row's values.
 QBank = collections.namedtuple("QBank", ("q", "index", "value", "count"))
+# The GibbsTables: a Trace's fields and the baseline's values per row, and each row's
+# step size in this episode (alpha after its warm-up).
+GibbsBank = collections.namedtuple("GibbsBank", ("theta", "zs", "y", "touched", "marked", "count",
+                                                 "acc", "values", "alpha"))
 # `widths`: the learned widths' traces, one row each (a Trace's fields), or None in a
 # machine without any, whose code then does not hold the width's rule (`_width`).
 GaussianBank = collections.namedtuple("GaussianBank", ("theta", "zs", "y", "touched", "marked",
@@ -110,23 +123,30 @@ SCHEDULE_KIND, LINEAR_START, LINEAR_END, LINEAR_EPISODES = 3, 4, 5, 6
 # the reward of the current child's run, the action value chosen; the call's origin;
 # its tiles (current, next; an actor-critic's critic tiles: current, next), score and
 # a learned width's score; an actor-critic's mean m and draw u; the episode's [depth,
-# steps, the root's argument, the root's event when it ended], [return], per-node
+# steps, the root's argument, the root's event when it ended, the learning episodes
+# before it], [return], per-node
 # counters; scratch of the local frame and of (state, action); the fused loop's ship
 # state and the positions sampled in its step; the taxi's fused loop's state and
-# episode (`taxi_rules`' int64[5] and [3]) and the state as the machine's float64 obs.
+# episode (`taxi_rules`' int64[5], the state the taxi blocks read, and [3]), the state as
+# the machine's float64 obs; a GibbsTable's mask of available children
+# and scratch (probabilities, score indices, scores); the run's flags (RUN_LEARN ...).
 (S_NODE, S_CHOICE, S_ARG, S_STEPS, S_CHILD_STEPS, S_STATE, S_NEXT_STATE) = range(7)
 F_REWARD, F_ACTION, F_MEAN, F_U = range(4)
 Stack = collections.namedtuple("Stack", ("ints", "floats", "origin", "tiles", "psi",
                                          "psi_width", "episode", "total", "counters", "local",
-                                         "local_samples", "sa", "ship", "samples", "taxi", "taxi_obs"))
-E_DEPTH, E_STEPS, E_ROOT_ARG, E_EVENT = range(4)
+                                         "local_samples", "sa", "ship", "samples", "taxi", "taxi_obs",
+                                         "mask", "probs", "index", "scores", "flags"))
+E_DEPTH, E_STEPS, E_ROOT_ARG, E_EVENT, E_LEARNED = range(5)
+# The run's flags (the stack's `flags`): whether it learns, whether it samples its
+# policies (else greedy); set by the Python side before each compiled call.
+RUN_LEARN, RUN_SAMPLE = range(2)
 # `extras`: None in a machine whose graph has neither an ActorCritic nor a user rule
 # (else 1). numba prunes a branch on `x is None` of an argument before typing it, so
 # such a machine compiles without their code (a sixth of the hybrid's first compile).
 # `world`: the taxi's world array (`taxi_rules.world_config`) in a machine with taxi
 # blocks, else None (the same pruning: a ship graph holds no taxi code).
-Banks = collections.namedtuple("Banks", ("program", "q", "gaussian", "tiling", "schedule",
-                                         "stack", "extras", "world"))
+Banks = collections.namedtuple("Banks", ("program", "q", "gibbs", "gaussian", "tiling",
+                                         "schedule", "stack", "extras", "world"))
 
 
 # ---- the compiled machine -------------------------------------------------------
@@ -178,6 +198,39 @@ def _tiling(t, slot):
 
 
 @numba.njit(cache=True, inline="always")
+def _gibbs_trace(B, slot):
+  """The Eq. 3 trace of GibbsTable `slot` (views of its bank's rows)."""
+  return el.Trace(B.theta[slot], B.zs[slot], B.y[slot], B.touched[slot], B.marked[slot],
+                  B.count[slot], B.acc[slot])
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _taxi_seen(K, W, obs):
+  """The state the taxi blocks read (`taxi_rules`' int64[5], K.taxi[0:5]) from `obs`,
+  on the step-by-step path; the fused loop steps that state itself."""
+  s = K.taxi[0:5]
+  for i in range(4):
+    s[i] = np.int64(obs[i])
+  s[4] = np.int64(obs[4]) if W[taxi_rules.W_FUEL_ENABLED] != 0 else taxi_core.CLASSIC_FUEL
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _step_sizes(P, B, K):
+  """Each GibbsTable's step size in this episode: alpha times its warm-up at the
+  learning episodes so far."""
+  e = K.episode[E_LEARNED]
+  for node in range(P.nodes.shape[0]):
+    row = P.nodes[node]
+    if row[LEARNER] == GIBBS_TABLE:
+      p = P.params[node]
+      fraction = p[START_FRACTION]
+      if e >= p[DELAY]:
+        rise = min(1.0, (e - p[DELAY] + 1.0) / p[RAMP])
+        fraction += (1.0 - fraction) * rise
+      B.alpha[row[SLOT]] = p[ALPHA] * fraction
+
+
+@numba.njit(cache=True, inline="always")
 def grid_cell(x, y, cell_m, grid):
   """The cell i * grid + j of (x, y) on a grid of `cell_m` cells, clamped to it."""
   i = min(max(int(x // cell_m), 0), grid - 1)
@@ -186,7 +239,7 @@ def grid_cell(x, y, cell_m, grid):
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
-def _view(P, Q, G, T, S, K, X, W, d, obs, which):
+def _view(P, Q, B, G, T, S, K, X, W, d, obs, which):
   """The node at depth d views `obs`: a table's state into S_STATE (which = 0) or
   S_NEXT_STATE (1); tiles into its tiles[d, which]. `_view` and `_observe` are
   compiled once and called, not inlined (numba copied an inlined body into each
@@ -216,6 +269,10 @@ def _view(P, Q, G, T, S, K, X, W, d, obs, which):
   elif kind == VIEW_TAXI_STATE:
     if W is not None:
       K.ints[d, S_STATE + which] = taxi_rules.encoded(obs, W)
+  elif kind == VIEW_TAXI_ABSTRACT:
+    if W is not None:
+      K.ints[d, S_STATE + which] = taxi_subtasks.abstract_state(row[VIEW_SLOT], K.ints[d, S_ARG],
+                                                                K.taxi[0:5], W)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -231,8 +288,9 @@ def _critic_tiles(P, T, K, d, obs, r, which):
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _gaussian_choose(P, G, T, K, d, learn, sample, rng_state):
+def _gaussian_choose(P, G, T, K, d, rng_state):
   """A GaussianCMAC node's choice (`policies.gaussian_choose`) into the stack."""
+  learn, sample = K.flags[RUN_LEARN], K.flags[RUN_SAMPLE]
   node = K.ints[d, S_NODE]
   row = P.nodes[node]
   p = P.params[node]
@@ -244,9 +302,33 @@ def _gaussian_choose(P, G, T, K, d, learn, sample, rng_state):
       p[WIDTH_ALPHA], p[LOG_SIGMA_LOW], p[LOG_SIGMA_HIGH])
 
 
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
+def _gibbs_choose(P, B, K, W, d, rng_state):
+  """A GibbsTable node's choice among its available children into the stack. Called,
+  not inlined: inlined into `_choose`, beside the other learners' inlined code, numba
+  compiled the baseline's theta <- theta - alpha b(s) psi to a store that never reached
+  the bank (numba 0.68; a stand-alone call of the same code wrote it)."""
+  learn, sample = K.flags[RUN_LEARN], K.flags[RUN_SAMPLE]
+  row = P.nodes[K.ints[d, S_NODE]]
+  slot = row[SLOT]
+  n_children = row[N_CHILDREN]
+  mask = K.mask[:n_children]
+  if row[AVAILABLE_AT] >= 0:
+    if W is not None:
+      taxi_subtasks.children_of(row[AVAILABLE_AT], K.taxi[0:5], W, mask)
+  else:
+    for i in range(n_children):
+      mask[i] = True
+  K.ints[d, S_CHOICE] = policies.softmax_choose(
+      _gibbs_trace(B, slot), B.values[slot], K.ints[d, S_STATE], n_children, mask, B.alpha[slot],
+      learn, sample, rng_state, K.probs[:n_children], K.index[:n_children],
+      K.scores[:n_children])
+
+
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _choose(P, Q, G, T, S, K, X, W, d, obs, learn, sample, rng_state):
+def _choose(P, Q, B, G, T, S, K, X, W, d, obs, rng_state):
   """Algorithm 1: choose a with mu^i(s, theta^i); sets the stack's choice and action."""
+  sample = K.flags[RUN_SAMPLE]
   node = K.ints[d, S_NODE]
   row = P.nodes[node]
   p = P.params[node]
@@ -259,7 +341,10 @@ def _choose(P, Q, G, T, S, K, X, W, d, obs, learn, sample, rng_state):
       K.ints[d, S_CHOICE] = qlambda.epsilon_greedy(Q.q[slot], K.ints[d, S_STATE],
                                                    row[N_CHILDREN], epsilon, rng_state)
   elif row[LEARNER] == GAUSSIAN_CMAC:
-    _gaussian_choose(P, G, T, K, d, learn, sample, rng_state)
+    _gaussian_choose(P, G, T, K, d, rng_state)
+  elif row[LEARNER] == GIBBS_TABLE:
+    if B is not None:
+      _gibbs_choose(P, B, K, W, d, rng_state)
   elif row[LEARNER] == ACTOR_CRITIC:
     if X is not None:
       k = T.n_tilings[row[VIEW_SLOT]]
@@ -273,7 +358,7 @@ def _choose(P, Q, G, T, S, K, X, W, d, obs, learn, sample, rng_state):
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
-def _call(P, Q, G, T, S, K, X, W, d, node, arg, obs, learn, sample, rng_state):
+def _call(P, Q, B, G, T, S, K, X, W, d, node, arg, obs, rng_state):
   """Task `node` is called at depth d with `arg` from `obs`: z <- 0, its view, its
   first choice."""
   ints = K.ints
@@ -291,20 +376,23 @@ def _call(P, Q, G, T, S, K, X, W, d, node, arg, obs, learn, sample, rng_state):
   elif row[LEARNER] == GAUSSIAN_CMAC:
     el.reset(_trace(G, row[SLOT]))                  # Eq. 3: z <- 0
     _reset_width(G, row)
+  elif row[LEARNER] == GIBBS_TABLE:
+    if B is not None:
+      el.reset(_gibbs_trace(B, row[SLOT]))          # Eq. 3: z <- 0
   elif row[LEARNER] == ACTOR_CRITIC:
     if X is not None:
       el.reset(_trace(G, row[SLOT]))                # the critic's e <- 0
       for i in range(K.psi.shape[1]):
         K.psi[d, i] = 1.0                           # phi(s, a) of the critic's tiles
-  _view(P, Q, G, T, S, K, X, W, d, obs, np.int64(0))
-  _choose(P, Q, G, T, S, K, X, W, d, obs, learn, sample, rng_state)
+  _view(P, Q, B, G, T, S, K, X, W, d, obs, np.int64(0))
+  _choose(P, Q, B, G, T, S, K, X, W, d, obs, rng_state)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _primitive_action(P, K, d):
   """The action of the child chosen at depth d if it is a primitive (a continuous
   one: the value its parent drew), else NaN."""
-  child = P.children[P.nodes[K.ints[d, S_NODE], FIRST_CHILD] + K.ints[d, S_CHOICE], 0]
+  child = P.children[P.nodes[K.ints[d, S_NODE], FIRST_CHILD] + K.ints[d, S_CHOICE], C_NODE]
   if P.nodes[child, KIND] != PRIMITIVE:
     return np.nan
   K.episode[E_DEPTH] = d
@@ -313,7 +401,7 @@ def _primitive_action(P, K, d):
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _descend(P, Q, G, T, S, K, X, W, d, obs, learn, sample, rng_state):
+def _descend(P, Q, B, G, T, S, K, X, W, d, obs, rng_state):
   """From depth d, calls the chosen children down to a primitive; returns the
   primitive's action."""
   while True:
@@ -321,12 +409,16 @@ def _descend(P, Q, G, T, S, K, X, W, d, obs, learn, sample, rng_state):
     if action == action:
       return action
     child = P.children[P.nodes[K.ints[d, S_NODE], FIRST_CHILD] + K.ints[d, S_CHOICE]]
+    arg = child[C_ARG]
+    if child[C_BIND] >= 0:
+      if W is not None:
+        arg = taxi_subtasks.carry_target(child[C_BIND], K.taxi[0:5])
     d += 1
-    _call(P, Q, G, T, S, K, X, W, d, child[0], child[1], obs, learn, sample, rng_state)
+    _call(P, Q, B, G, T, S, K, X, W, d, child[C_NODE], arg, obs, rng_state)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _begin(P, Q, G, T, S, K, X, W, obs, learn, sample, rng_state):
+def _begin(P, Q, B, G, T, S, K, X, W, obs, rng_state):
   """An episode starts at `obs`: the root is called; returns the first action."""
   c = K.counters
   for i in range(c.shape[0]):
@@ -335,18 +427,33 @@ def _begin(P, Q, G, T, S, K, X, W, obs, learn, sample, rng_state):
   K.episode[E_STEPS] = 0
   K.episode[E_EVENT] = core.NO_EVENT
   K.total[0] = 0.0
-  _call(P, Q, G, T, S, K, X, W, np.int64(0), P.nodes.shape[0] - 1, K.episode[E_ROOT_ARG], obs,
-        learn, sample, rng_state)
-  return _descend(P, Q, G, T, S, K, X, W, np.int64(0), obs, learn, sample, rng_state)
+  if B is not None:
+    _step_sizes(P, B, K)
+  _call(P, Q, B, G, T, S, K, X, W, np.int64(0), P.nodes.shape[0] - 1, K.episode[E_ROOT_ARG], obs,
+        rng_state)
+  return _descend(P, Q, B, G, T, S, K, X, W, np.int64(0), obs, rng_state)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False)
-def begin(P, Q, G, T, S, K, X, W, obs, learn, sample, rng_state):
+def begin(P, Q, B, G, T, S, K, X, W, obs, rng_state):
   """`_begin` for the step-by-step path. The fused loops inline `_begin` and
   `_descend` (numba copies their small bodies), so that a first train compiles
   neither as a function of its own (each a separate LLVM module, optimized again
   inside every caller's)."""
-  return _begin(P, Q, G, T, S, K, X, W, obs, learn, sample, rng_state)
+  if W is not None:
+    _taxi_seen(K, W, obs)
+  return _begin(P, Q, B, G, T, S, K, X, W, obs, rng_state)
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False)
+def advance(P, Q, B, G, T, S, K, X, W, obs, samples, reward, terminated, truncated,
+            rng_state):
+  """`step` for the step-by-step path: the taxi's blocks read the observation as
+  taxi_rules' state (the fused loop steps that state itself)."""
+  if W is not None:
+    _taxi_seen(K, W, obs)
+  return step(P, Q, B, G, T, S, K, X, W, obs, samples, reward, terminated, truncated,
+              rng_state)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -362,6 +469,10 @@ def _end_of(P, K, X, W, d, obs, samples):
                                              row[MAX_STEPS])
     if row[INTERNAL] != G_SHAPING:
       internal = 0.0
+  elif row[END] == END_TAXI:
+    if W is not None:
+      if taxi_subtasks.done_of(row[END_AT], K.ints[d, S_ARG], K.taxi[0:5], W):
+        event = core.SUCCESS
   elif row[END] == END_RULE:
     if X is not None:
       said = P.rules(row[END_AT], obs, K.origin[d], K.ints[d, S_ARG], K.ints[d, S_STEPS],
@@ -377,9 +488,10 @@ def _end_of(P, K, X, W, d, obs, samples):
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
-def _observe(P, Q, G, T, S, K, X, W, d, obs, signal, done, terminal, learn, sample, rng_state):
+def _observe(P, Q, B, G, T, S, K, X, W, d, obs, signal, done, terminal, rng_state):
   """Algorithm 1: the learner of the node at depth d takes R + G of its child's run;
   unless done, it makes its next choice."""
+  learn, sample = K.flags[RUN_LEARN], K.flags[RUN_SAMPLE]
   node = K.ints[d, S_NODE]
   row = P.nodes[node]
   p = P.params[node]
@@ -388,9 +500,13 @@ def _observe(P, Q, G, T, S, K, X, W, d, obs, signal, done, terminal, learn, samp
   kind = row[LEARNER]
   # The view of s': a table's state always, a policy's tiles unless the call is over,
   # an actor-critic's unless s' is terminal.
-  if kind == Q_TABLE or (kind == GAUSSIAN_CMAC and not done) or (
+  if kind == GIBBS_TABLE and row[VIEW] == VIEW_TAXI_ABSTRACT:
+    if W is not None:                       # inline: the taxi's every step comes here
+      ints[d, S_NEXT_STATE] = taxi_subtasks.abstract_state(row[VIEW_SLOT], ints[d, S_ARG],
+                                                           K.taxi[0:5], W)
+  elif kind == Q_TABLE or kind == GIBBS_TABLE or (kind == GAUSSIAN_CMAC and not done) or (
       kind == ACTOR_CRITIC and not terminal):
-    _view(P, Q, G, T, S, K, X, W, d, obs, np.int64(1))
+    _view(P, Q, B, G, T, S, K, X, W, d, obs, np.int64(1))
   if kind == Q_TABLE:
     if Q is not None:
       epsilon = 0.0
@@ -401,6 +517,15 @@ def _observe(P, Q, G, T, S, K, X, W, d, obs, signal, done, terminal, learn, samp
           ints[d, S_STATE], ints[d, S_CHOICE], signal, ints[d, S_NEXT_STATE], done,
           terminal, epsilon, p[ALPHA], p[GAMMA], p[DECAY], learn, rng_state)
       ints[d, S_STATE] = ints[d, S_NEXT_STATE]
+  elif kind == GIBBS_TABLE:
+    if B is not None:
+      if learn:                                        # Eq. 3 with R + G, and b(s)
+        policies.softmax_learn(_gibbs_trace(B, slot), B.values[slot], ints[d, S_STATE],
+                               ints[d, S_NEXT_STATE], B.alpha[slot], p[DECAY], p[BETA], signal,
+                               done)
+      ints[d, S_STATE] = ints[d, S_NEXT_STATE]
+      if not done:
+        _gibbs_choose(P, B, K, W, d, rng_state)
   elif kind == GAUSSIAN_CMAC:
     k = T.n_tilings[row[VIEW_SLOT]]
     if learn:                                          # Eq. 3 with R + G
@@ -409,7 +534,7 @@ def _observe(P, Q, G, T, S, K, X, W, d, obs, signal, done, terminal, learn, samp
                               _width(G, row), p[WIDTH_ALPHA])
     if not done:
       arrays.copy_into(K.tiles[d, 0, :k], K.tiles[d, 1, :k])
-      _gaussian_choose(P, G, T, K, d, learn, sample, rng_state)
+      _gaussian_choose(P, G, T, K, d, rng_state)
   elif kind == ACTOR_CRITIC:
     # delta = R + Q(s', a') - Q(s, a), with a' drawn in s' unless s' is terminal (also
     # when the call is cut, to bootstrap from it); the next step's a is that a'.
@@ -438,13 +563,14 @@ def _observe(P, Q, G, T, S, K, X, W, d, obs, signal, done, terminal, learn, samp
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False)
-def step(P, Q, G, T, S, K, X, W, obs, samples, reward, terminated, truncated, learn, sample,
+def step(P, Q, B, G, T, S, K, X, W, obs, samples, reward, terminated, truncated,
          rng_state):
   """A primitive step ended in `obs` with `reward` (`samples`: the positions
   sampled inside it, for the ship's local ends). Returns (episode over, the next
   action). One compiled function for both paths: the fused loops call it (seven
   pointers, the banks being structs) rather than inline it, which numba did by
   copying its whole body, the largest part of a fused loop's first compile."""
+  learn = K.flags[RUN_LEARN]
   ints = K.ints
   floats = K.floats
   depth = K.episode[E_DEPTH]
@@ -467,22 +593,23 @@ def step(P, Q, G, T, S, K, X, W, obs, samples, reward, terminated, truncated, le
       seen = floats[d, F_REWARD]
     floats[d, F_REWARD] = 0.0
     ints[d, S_CHILD_STEPS] = 0
-    _observe(P, Q, G, T, S, K, X, W, d, obs, seen + internal, done,
-             terminated or event != core.NO_EVENT, learn, sample, rng_state)
+    _observe(P, Q, B, G, T, S, K, X, W, d, obs, seen + internal, done,
+             terminated or event != core.NO_EVENT, rng_state)
     if not done:
       action = _primitive_action(P, K, d)        # the common case: no call to make
       if action != action:
-        action = _descend(P, Q, G, T, S, K, X, W, d, obs, learn, sample, rng_state)
+        action = _descend(P, Q, B, G, T, S, K, X, W, d, obs, rng_state)
       return False, action
     # The call returns (Algorithm 1: return to the parent).
     c = K.counters[node]
     if d == 0:
       K.episode[E_EVENT] = event
       if learn:
+        K.episode[E_LEARNED] += 1
         sch = S
         if sch.settings[SCHEDULE_KIND] == LINEAR:
-          schedules.end_linear(sch.epsilon, sch.settings[LINEAR_START], sch.settings[LINEAR_END],
-                               sch.settings[LINEAR_EPISODES])
+          sch.epsilon[0] = schedules.linear(K.episode[E_LEARNED], sch.settings[LINEAR_START],
+                                            sch.settings[LINEAR_END], sch.settings[LINEAR_EPISODES])
         else:
           schedules.end_episode(sch.epsilon, sch.outcomes, sch.counts, sch.settings[0],
                                 np.int64(sch.settings[1]), sch.settings[2])
@@ -500,7 +627,7 @@ def step(P, Q, G, T, S, K, X, W, obs, samples, reward, terminated, truncated, le
 # ---- fused with the analytic ship --------------------------------------------------
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False)
-def run_ship(P, Q, G, T, S, K, X, W, n_episodes, learn, sample, rng_state, world, record,
+def run_ship(P, Q, B, G, T, S, K, X, W, n_episodes, rng_state, world, record,
              fixed_start):
   """`n_episodes` episodes on Equation 1, of the full ship task (SPEC section 2):
   `world` = [gate reward, out-of-bounds reward, max steps, 0], or of the root alone
@@ -523,7 +650,7 @@ def run_ship(P, Q, G, T, S, K, X, W, n_episodes, learn, sample, rng_state, world
       ship_rules.sample_local_start(rng_state, K.episode[E_ROOT_ARG], state)
     else:
       ship_rules.sample_start(rng_state, state)
-    action = _begin(P, Q, G, T, S, K, X, W, state, learn, sample, rng_state)
+    action = _begin(P, Q, B, G, T, S, K, X, W, state, rng_state)
     while True:
       core.euler_control(state, action, samples)
       terminated, truncated = False, False
@@ -531,8 +658,8 @@ def run_ship(P, Q, G, T, S, K, X, W, n_episodes, learn, sample, rng_state, world
         event, reward = core.global_outcome(samples, world[0], world[1])
         terminated = event != core.NO_EVENT
         truncated = (not terminated) and K.episode[E_STEPS] + 1 >= max_steps
-      over, action = step(P, Q, G, T, S, K, X, W, state, samples, reward, terminated, truncated,
-                          learn, sample, rng_state)
+      over, action = step(P, Q, B, G, T, S, K, X, W, state, samples, reward, terminated, truncated,
+                          rng_state)
       if over:
         break
     if alone:
@@ -555,14 +682,14 @@ def _write_row(K, row, end, illegal):
 # ---- fused with the taxi ------------------------------------------------------------
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False)
-def run_taxi(P, Q, G, T, S, K, X, W, n_episodes, learn, sample, rng_state, record, starts):
+def run_taxi(P, Q, B, G, T, S, K, X, W, n_episodes, rng_state, record, starts):
   """`n_episodes` episodes of the taxi task `W` (`taxi_rules.world_config`; SPEC
   section 5), each from a start drawn from `rng_state` (`taxi_subtasks.sample_start`)
   or, with starts int64[k, 5] (k > 0), from starts[e % k]. The machine sees the
   state as float64 numbers; the world steps it as taxi_rules' int64 state. Record
   rows as `run_ship`'s, with the episode's outcome (`taxi_rules`: DELIVERED,
   OUT_OF_FUEL, TRUNCATED) and its illegal Pickups and Dropoffs."""
-  state = K.taxi[0:5]
+  state = K.taxi[0:5]                # the state the taxi blocks read
   episode = K.taxi[5:8]
   obs = K.taxi_obs
   for e in range(n_episodes):
@@ -575,7 +702,7 @@ def run_taxi(P, Q, G, T, S, K, X, W, n_episodes, learn, sample, rng_state, recor
       episode[i] = 0
     for i in range(5):
       obs[i] = state[i]
-    action = _begin(P, Q, G, T, S, K, X, W, obs, learn, sample, rng_state)
+    action = _begin(P, Q, B, G, T, S, K, X, W, obs, rng_state)
     while True:
       reward = taxi_rules.primitive_step(state, episode, np.int64(action), W)
       for i in range(5):
@@ -583,8 +710,8 @@ def run_taxi(P, Q, G, T, S, K, X, W, n_episodes, learn, sample, rng_state, recor
       outcome = episode[taxi_rules.E_OUTCOME]
       truncated = outcome == taxi_rules.TRUNCATED
       terminated = outcome != taxi_rules.RUNNING and not truncated
-      over, action = step(P, Q, G, T, S, K, X, W, obs, K.samples, reward, terminated, truncated,
-                          learn, sample, rng_state)
+      over, action = step(P, Q, B, G, T, S, K, X, W, obs, K.samples, reward, terminated, truncated,
+                          rng_state)
       if over:
         break
     _write_row(K, record[e], episode[taxi_rules.E_OUTCOME], episode[taxi_rules.E_ILLEGAL])
@@ -643,7 +770,7 @@ class Machine:
     params = np.zeros((len(order), N_FLOAT))
     params[:, ACTION] = np.nan
     children = []
-    self.learners = {Q_TABLE: [], GAUSSIAN_CMAC: []}
+    self.learners = {Q_TABLE: [], GAUSSIAN_CMAC: [], GIBBS_TABLE: []}
     self.codings = []
     self.rules = []                     # (node, kind, rule) of its CellRules, EndRules, RewardRules
     self._slot_of = {}
@@ -660,8 +787,10 @@ class Machine:
       nodes[i, FIRST_CHILD] = len(children)
       nodes[i, N_CHILDREN] = len(refs)
       for ref in refs:
-        children.append((index[ref.node], int(ref.args.get("direction", -1))))
+        children.append((index[ref.node], int(ref.args.get("direction", -1)),
+                         self._binding(name, ref)))
       nodes[i, WATCH] = watch.get(name, -1)
+      nodes[i, AVAILABLE_AT] = self._available(name, node)
       self._learner(name, node, nodes[i], params[i], refs)
       self._view(name, node, nodes[i], params[i])
       self._end(name, node, nodes[i])
@@ -700,22 +829,24 @@ class Machine:
       settings = [sb.threshold, sb.every, sb.divisor, HELD, 0.0, 0.0, 0.0]
     schedule = Schedule(eps, outcomes, counts, np.array(settings, dtype=np.float64))
     critics = [b.critic_coder for b in g if isinstance(b, blocks.ActorCritic)]
+    n_max = max([int(nodes[i, N_CHILDREN]) for i in range(len(order))] + [1])
     stack = Stack(np.zeros((depth, 7), dtype=np.int64), np.zeros((depth, 4)),
                   np.zeros((depth, 2)), np.zeros((depth, 4, k), dtype=np.int64),
                   np.zeros((depth, k)), np.zeros((depth, k)),
-                  np.array([0, 0, int(root_args.get("direction", -1)), 0], dtype=np.int64),
+                  np.array([0, 0, int(root_args.get("direction", -1)), 0, 0], dtype=np.int64),
                   np.zeros(1),
                   np.zeros((len(order), 3)), np.zeros(4),
                   np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)),
                   np.zeros(len(critics[0].low) if critics else 1), np.zeros(4),
                   np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)), np.zeros(8, dtype=np.int64),
-                  np.zeros(5))
+                  np.zeros(5), np.zeros(n_max, dtype=np.bool_), np.zeros(n_max),
+                  np.zeros(n_max, dtype=np.int64), np.zeros(n_max), np.zeros(2, dtype=np.bool_))
     if len({len(c.low) for c in critics}) > 1:
       raise GraphError("the graph's actor-critics' critics code (state, action) of "
                        f"different sizes: {sorted({len(c.low) for c in critics})}")
-    program = Program(nodes, params, np.array(children, dtype=np.int64).reshape(-1, 2),
+    program = Program(nodes, params, np.array(children, dtype=np.int64).reshape(-1, 3),
                       rules_mod.compile_rules(self.rules))
-    self.banks = Banks(program, qbank, gbank, self.tile_bank, schedule, stack,
+    self.banks = Banks(program, qbank, self._gibbs_bank(), gbank, self.tile_bank, schedule, stack,
                        1 if critics or self.rules else None, self.world)
     # What the compiled functions take: each bank as a struct of the same arrays,
     # passed by reference (`learners.banks`: numba copied the namedtuples' ~45
@@ -737,10 +868,7 @@ class Machine:
     if isinstance(learner, blocks.QTable):
       row[LEARNER] = Q_TABLE
       row[SLOT] = self._slot(Q_TABLE, learner)
-      known = self._n_actions.setdefault(id(learner), len(refs))
-      if known != len(refs):
-        raise GraphError(f"subtask {name!r}: its QTable is shared with a node of {known} "
-                         f"children, it has {len(refs)}")
+      self._same_children(name, learner, refs)
       p[ALPHA], p[DECAY], p[GAMMA], p[EPSILON] = (learner.alpha, learner.trace_decay,
                                                   learner.gamma, learner.epsilon)
       row[EPS_SCHEDULE] = int(bool(learner.epsilon_schedule))
@@ -748,6 +876,18 @@ class Machine:
       if not isinstance(node.view, (blocks.GridCell, blocks.CellRule, blocks.TaxiState)):
         raise GraphError(f"subtask {name!r}: a QTable needs a GridCell, CellRule or TaxiState "
                          f"view, got {type(node.view).__name__}")
+    elif isinstance(learner, blocks.GibbsTable):
+      row[LEARNER] = GIBBS_TABLE
+      row[SLOT] = self._slot(GIBBS_TABLE, learner)
+      self._same_children(name, learner, refs)
+      p[ALPHA], p[DECAY], p[BETA] = learner.alpha, learner.trace_gamma, learner.baseline
+      p[START_FRACTION], p[DELAY], p[RAMP] = (learner.start_fraction, learner.delay,
+                                              learner.ramp)
+      row[N_STATES] = int(learner.n_states)
+      if not isinstance(node.view, (blocks.GridCell, blocks.CellRule, blocks.TaxiState,
+                                    blocks.TaxiAbstraction)):
+        raise GraphError(f"subtask {name!r}: a GibbsTable needs a GridCell, CellRule, "
+                         f"TaxiState or TaxiAbstraction view, got {type(node.view).__name__}")
     elif isinstance(learner, blocks.ActorCritic):
       row[LEARNER] = ACTOR_CRITIC
       row[SLOT] = self._slot(GAUSSIAN_CMAC, learner)
@@ -773,7 +913,43 @@ class Machine:
                          "view over its own coder")
     else:
       raise GraphError(f"subtask {name!r}: learner {learner!r} is not a machine learner; "
-                       "allowed: QTable, GaussianCMAC, ActorCritic (hpg_mj.hierarchy.blocks)")
+                       "allowed: QTable, GibbsTable, GaussianCMAC, ActorCritic "
+                       "(hpg_mj.hierarchy.blocks)")
+
+  def _same_children(self, name, learner, refs):
+    """A table's children: the same number at every node that shares it."""
+    known = self._n_actions.setdefault(id(learner), len(refs))
+    if known != len(refs):
+      raise GraphError(f"subtask {name!r}: its {type(learner).__name__} is shared with a node of "
+                       f"{known} children, it has {len(refs)}")
+
+  def _taxi_id(self, name, block):
+    if self.world is None:
+      raise GraphError(f"subtask {name!r}: a {type(block).__name__} needs the machine's taxi "
+                       "world (Machine(graph, world=taxi_rules.world_config(rules)))")
+    return blocks.TAXI_SUBTASKS.index(block.subtask)
+
+  def _available(self, name, node):
+    """The node's AVAILABLE_AT: a TaxiChildren's subtask id, -1 without one."""
+    available = node.available
+    if available is None:
+      return -1
+    if not isinstance(available, blocks.TaxiChildren):
+      raise GraphError(f"subtask {name!r}: available {available!r} is not a machine block; "
+                       "allowed: None, TaxiChildren (hpg_mj.hierarchy.blocks)")
+    if not isinstance(node.learner, blocks.GibbsTable):
+      raise GraphError(f"subtask {name!r}: only a GibbsTable chooses among available children; "
+                       f"its learner is a {type(node.learner).__name__}")
+    return self._taxi_id(name, available)
+
+  def _binding(self, name, ref):
+    """A child's C_BIND: a TaxiTarget's subtask id, -1 without one."""
+    if ref.bind is None:
+      return -1
+    if not isinstance(ref.bind, blocks.TaxiTarget):
+      raise GraphError(f"subtask {name!r}: its child {ref.node!r} binds by {ref.bind!r}, not a "
+                       "machine block; allowed: None, TaxiTarget (hpg_mj.hierarchy.blocks)")
+    return self._taxi_id(name, ref.bind)
 
   def _one_continuous_child(self, name, kind, refs):
     if len(refs) != 1 or self.graph.nodes[refs[0].node].action is not None:
@@ -793,19 +969,26 @@ class Machine:
       row[VIEW_SLOT] = len(self.codings)
       self.codings.append(view.coder)
     elif isinstance(view, blocks.TaxiState):
-      if self.world is None:
-        raise GraphError(f"subtask {name!r}: a TaxiState view needs the machine's taxi world "
-                         "(Machine(graph, world=taxi_rules.world_config(rules)))")
+      self._taxi_id(name, blocks.TaxiAbstraction("root"))      # needs the world
       row[VIEW] = VIEW_TAXI_STATE
-      n = taxi_core.num_states(bool(self.world[taxi_rules.W_FUEL_ENABLED]),
-                               int(self.world[taxi_rules.W_CAPACITY]))
-      if isinstance(node.learner, blocks.QTable) and node.learner.n_states != n:
-        raise GraphError(f"subtask {name!r}: its TaxiState view has {n} states, its QTable "
-                         f"{node.learner.n_states}")
+      self._states(name, node, "TaxiState", taxi_core.num_states(
+          bool(self.world[taxi_rules.W_FUEL_ENABLED]), int(self.world[taxi_rules.W_CAPACITY])))
+    elif isinstance(view, blocks.TaxiAbstraction):
+      row[VIEW] = VIEW_TAXI_ABSTRACT
+      row[VIEW_SLOT] = self._taxi_id(name, view)
+      self._states(name, node, "TaxiAbstraction", taxi_subtasks.n_abstract_states(
+          bool(self.world[taxi_rules.W_FUEL_ENABLED]),
+          int(self.world[taxi_rules.W_CAPACITY]))[row[VIEW_SLOT]])
     else:
       raise GraphError(f"subtask {name!r}: view {view!r} is not a machine view; allowed: "
-                       "GridCell, LocalTiles, StateTiles, CellRule, TaxiState "
+                       "GridCell, LocalTiles, StateTiles, CellRule, TaxiState, TaxiAbstraction "
                        "(hpg_mj.hierarchy.blocks)")
+
+  def _states(self, name, node, view, n):
+    """A table over a taxi view has its states."""
+    if node.learner.n_states != n:
+      raise GraphError(f"subtask {name!r}: its {view} view has {n} states, its "
+                       f"{type(node.learner).__name__} {node.learner.n_states}")
 
   def _rule(self, name, kind, rule):
     """The rule's number among the graph's rules."""
@@ -822,9 +1005,13 @@ class Machine:
     elif isinstance(end, blocks.EndRule):
       row[END] = END_RULE
       row[END_AT] = self._rule(name, rules_mod.END, end.rule)
+    elif isinstance(end, blocks.TaxiEnd):
+      row[END] = END_TAXI
+      row[END_AT] = self._taxi_id(name, end)
     else:
       raise GraphError(f"subtask {name!r}: termination {end!r} is not a machine "
-                       "termination; allowed: Never, LocalGoal, EndRule (hpg_mj.hierarchy.blocks)")
+                       "termination; allowed: Never, LocalGoal, EndRule, TaxiEnd "
+                       "(hpg_mj.hierarchy.blocks)")
     if internal is None:
       row[INTERNAL] = G_NONE
     elif isinstance(internal, blocks.Shaping) and row[END] == END_LOCAL_GOAL:
@@ -864,7 +1051,23 @@ class Machine:
       return 0
     return 1 + max(self._depth(ref.node) for ref in self.graph.children(name))
 
+  def _gibbs_bank(self):
+    """The GibbsTables' bank, or None in a machine without one (whose code then holds
+    no Gibbs policy: the Q bank's pruning)."""
+    tables = self.learners[GIBBS_TABLE]
+    if not tables:
+      return None
+    return GibbsBank(*_trace_rows([b.n_states * self._n_actions[id(b)] for b in tables]),
+                     _stack_rows([np.zeros(b.n_states) for b in tables], np.float64),
+                     np.zeros(len(tables)))
+
   # -- the learners' arrays, by name --
+
+  def gibbs_arrays(self, learner):
+    """The Eq. 3 trace (`eligibility.Trace`) and baseline values of a GibbsTable."""
+    slot = self._slot_of[id(learner)]
+    return (self._bank_trace(slot, learner.n_states * self._n_actions[id(learner)],
+                             self.banks.gibbs), self.banks.gibbs.values[slot, :learner.n_states])
 
   def q_arrays(self, learner):
     """(q, trace index, trace value, trace count) of a QTable (views of the bank)."""
@@ -912,10 +1115,17 @@ class Machine:
     b = self.refs
     d, obs, rng_state = np.int64(0), np.zeros(4 if b[-1] is None else 5), \
         np.zeros(4, dtype=np.uint64)
-    return [(_view, (*b, d, obs, d)),
-            (_call, (*b, d, d, d, obs, False, False, rng_state)),
-            (_observe, (*b, d, obs, 0.0, False, False, False, False, rng_state)),
-            (step, (*b, obs, _NO_SAMPLES, 0.0, False, False, False, False, rng_state))]
+    gibbs = [] if b[2] is None else [(_gibbs_choose, (b[0], b[2], b[6], b[8], d, rng_state))]
+    return [*gibbs, (_view, (*b, d, obs, d)),
+            (_call, (*b, d, d, d, obs, rng_state)),
+            (_observe, (*b, d, obs, 0.0, False, False, rng_state)),
+            (step, (*b, obs, _NO_SAMPLES, 0.0, False, False, rng_state))]
+
+  def _flags(self, learn, sample):
+    """The run's flags (RUN_LEARN, RUN_SAMPLE) for the compiled calls that follow."""
+    flags = self.banks.stack.flags
+    flags[RUN_LEARN] = bool(learn)
+    flags[RUN_SAMPLE] = bool(sample)
 
   def run(self, episodes, learn, sample, rng_state, world, start=None):
     """Episodes fused with the analytic ship; `world` as `run_ship`'s (its last
@@ -924,8 +1134,8 @@ class Machine:
     rows = self._rows(episodes)
     fixed = np.empty(0) if start is None else np.asarray(start, dtype=np.float64)
     world = np.concatenate([np.asarray(world, dtype=np.float64), np.zeros(4)])[:4]
-    run_ship(*self.refs, int(episodes), bool(learn), bool(sample), rng_state, world, rows,
-             fixed)
+    self._flags(learn, sample)
+    run_ship(*self.refs, int(episodes), rng_state, world, rows, fixed)
     return rows
 
   def run_taxi(self, episodes, learn, sample, rng_state, starts=None):
@@ -938,15 +1148,18 @@ class Machine:
     rows = self._rows(episodes)
     starts = np.zeros((0, 5), dtype=np.int64) if starts is None else \
         np.ascontiguousarray(starts, dtype=np.int64).reshape(-1, 5)
-    run_taxi(*self.refs, int(episodes), bool(learn), bool(sample), rng_state, rows, starts)
+    self._flags(learn, sample)
+    run_taxi(*self.refs, int(episodes), rng_state, rows, starts)
     return rows
 
   def _rows(self, episodes):
     return np.zeros((int(episodes), ROW_COUNTERS + 3 * len(self.names)))
 
   def start_schedule(self, learned_episodes):
-    """A linear epsilon schedule at learning episode `learned_episodes` (the agent's
-    count, which a run resumes from); a held schedule keeps its own state."""
+    """The schedules that follow the learning episodes (a linear epsilon, the
+    GibbsTables' step sizes) at `learned_episodes`, the agent's count, which a run
+    resumes from; a held epsilon keeps its own state."""
+    self.banks.stack.episode[E_LEARNED] = int(learned_episodes)
     sb, s = self.schedule_block, self.banks.schedule
     if isinstance(sb, blocks.LinearEpsilon):
       s.epsilon[3] = float(learned_episodes)
@@ -954,16 +1167,16 @@ class Machine:
 
   def begin(self, obs, learn, sample, rng_state):
     """Resumable: an episode starts at `obs`; returns the first action."""
-    return self._compiled(begin, np.ascontiguousarray(obs, dtype=np.float64), bool(learn),
-                          bool(sample), rng_state)
+    self._flags(learn, sample)
+    return self._compiled(begin, np.ascontiguousarray(obs, dtype=np.float64), rng_state)
 
   def advance(self, obs, reward, terminated, truncated, info, learn, sample, rng_state):
     """Resumable: the environment stepped; returns (episode over, next action)."""
     samples = info.get("positions") if info else None
     samples = _NO_SAMPLES if samples is None else np.ascontiguousarray(samples, dtype=np.float64)
-    return self._compiled(step, np.ascontiguousarray(obs, dtype=np.float64), samples,
-                          float(reward), bool(terminated), bool(truncated), bool(learn),
-                          bool(sample), rng_state)
+    self._flags(learn, sample)
+    return self._compiled(advance, np.ascontiguousarray(obs, dtype=np.float64), samples,
+                          float(reward), bool(terminated), bool(truncated), rng_state)
 
   def _compiled(self, fn, *args):
     """fn(*banks, *args) through the entry point numba compiled for these types. numba's
@@ -1042,4 +1255,5 @@ def run_stepwise(machine, env, episodes, learn, sample, rng_state, start, ended,
   return rows
 
 
-__all__ = ["Machine", "Child", "Primitive", "Subtask", "begin", "step", "run_ship", "run_stepwise"]
+__all__ = ["Machine", "Child", "Primitive", "Subtask", "begin", "step", "advance", "run_ship",
+           "run_taxi", "run_stepwise"]

@@ -7,9 +7,10 @@ SPEC section 5), on the task-graph API:
     Refuel -> {Navigate(t = F), Fillup}
     Navigate(t) -> {South, North, East, West}
 
-`taxi_graph` builds it over given learners, one per subtask: HPG's Gibbs
-policies (`hpg_mj.agents.taxi_hpg`) and MAXQ-Q's nodes (`hpg_mj.agents.taxi_maxq`)
-run on the same graph.
+`taxi_graph` builds it over given learners, one per subtask, with Python callables
+for the executor: MAXQ-Q's nodes (`hpg_mj.agents.taxi_maxq`) run on it step by step.
+Taxi HPG's graph is the same one made of blocks (`hpg_mj.agents.taxi_hpg.graph`:
+the same `taxi_subtasks` rules), which the task-graph machine runs.
 """
 import numpy as np
 

@@ -13,9 +13,10 @@ t/destination), so Get, Put and Refuel each choose between two children.
 
 For each subtask this module gives its abstract state (MAXQ-style state
 abstraction: the index of its row in the subtask's policy table), the children
-available in a state (initiation) and its termination. Shared by the fused
-compiled loops (`hpg_mj.hierarchy.taxi_hpg`, `maxq`) and any step-by-step executor, so both see the
-same numbers.
+available in a state (initiation) and its termination, and the same by subtask id
+for the task-graph machine's taxi blocks (`abstract_state`, `children_of`,
+`done_of`). Shared by the machine (taxi HPG), MAXQ-Q's fused loop (`maxq`) and its
+step-by-step graph (`hierarchy.taxi`), so every path sees the same numbers.
 
 A world state is an int64[5] array `(row, col, passenger, destination, fuel)`
 (`taxi_core`'s layout); `world` is the int64 array of `world_config`.
@@ -228,6 +229,39 @@ def carry_done(subtask, state, world):
   if subtask == PUT:
     return state[PASSENGER] == state[DESTINATION]
   return tank_full_at_f(state, world)
+
+
+# --- by subtask id (the task-graph machine's taxi blocks) ---------------------------
+
+@numba.njit(cache=True, inline="always")
+def abstract_state(subtask, target, state, world):
+  """The abstract state of subtask `subtask` (Navigate's: of its target)."""
+  if subtask == ROOT:
+    return root_state(state, world)
+  if subtask == NAVIGATE:
+    return navigate_state(target, state)
+  return carry_state(subtask, state)
+
+
+@numba.njit(cache=True, inline="always")
+def children_of(subtask, state, world, mask):
+  """The children available to subtask `subtask` in `state`, into `mask`."""
+  if subtask == ROOT:
+    root_children(state, world, mask)
+  elif subtask == NAVIGATE:
+    navigate_children(mask)
+  else:
+    carry_children(subtask, state, world, mask)
+
+
+@numba.njit(cache=True, inline="always")
+def done_of(subtask, target, state, world):
+  """Has subtask `subtask` (Navigate: to `target`) terminated? Root never does."""
+  if subtask == ROOT:
+    return False
+  if subtask == NAVIGATE:
+    return navigate_done(target, state, world)
+  return carry_done(subtask, state, world)
 
 
 @numba.njit(cache=True)

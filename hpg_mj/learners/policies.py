@@ -100,6 +100,47 @@ def softmax_greedy(t, state, n_actions, mask):
   return best
 
 
+# The Eq. 3 step of a Gibbs table with its baseline b(s), one value per state (the
+# taxi's HPG): what a subtask does when it chooses, and when its child returns R.
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def softmax_choose(t, values, state, n_actions, mask, alpha, learn, sample, rng_state, probs,
+                   index, psi):
+  """A child in `state` among those `mask` allows: learning, drawn with its score
+  added to the trace (`softmax_act`), then theta <- theta - alpha b(s) psi(s, a), the
+  baseline's part of the update (nothing when b(s) = 0); sampling, drawn; else the
+  most probable. `probs`, `index`, `psi`: scratch of n_actions. (Its locals are named
+  apart from its callers': numba's inlining once bound a local `n` here to a caller's
+  `n` passed as n_actions, and the baseline's loop ran over nothing.)"""
+  if learn:
+    a = softmax_act(t, state, n_actions, mask, rng_state, probs, index, psi)
+    amount = alpha * values[state]
+    if amount != 0.0:
+      k = 0
+      for b in range(n_actions):
+        if mask[b]:
+          t.theta[index[k]] -= amount * psi[k]
+          k += 1
+    return a
+  if sample:
+    softmax_probabilities(t, state, n_actions, mask, probs)
+    return sample_index(probs, rng.uniform(rng_state))
+  return softmax_greedy(t, state, n_actions, mask)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def softmax_learn(t, values, state, next_state, alpha, gamma, beta, signal, done):
+  """The child chosen in `state` returned R = `signal`: Eq. 3's theta <- theta +
+  alpha R z, z <- gamma z, and the baseline's TD(0) step b(s) <- b(s) + beta (R +
+  b(s') - b(s)), b(s') = 0 when the call ended."""
+  el.learn(t, alpha, signal, gamma)
+  if beta != 0.0:
+    target = signal
+    if not done:
+      target += values[next_state]
+    values[state] += beta * (target - values[state])
+
+
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def gaussian_mean(t, tiles):
   """m = sum(theta_i phi_i) / sum(phi_i) over the active tiles (phi binary)."""
@@ -150,7 +191,7 @@ def gaussian_greedy(t, tiles, r_max):
 
 
 # REINFORCE's baseline for the CMAC policy (Williams 1992; a declared departure from
-# Eq. 3, as the taxi's in hpg_mj.hierarchy.taxi_hpg): with the trace discounted by
+# Eq. 3, as the taxi's, `softmax_choose`): with the trace discounted by
 # gamma, Eq. 3 moves theta along psi_j times the discounted reward-to-go G_j of each
 # choice j; the baseline makes that G_j - b(s_j), one extra step at the choice,
 # theta <- theta - alpha b(s_j) psi_j. b is linear over the policy's tiles, b(s) = the

@@ -5,7 +5,7 @@ The ship root's epsilon (SPEC section 3; `new_schedule`, `record_run`,
 `end_episode`): held until both watched subtasks succeed in at least `threshold`
 of their last `window` runs, then divided by `divisor` every `every` episodes.
 `linear`: a linear decay from `start` to `end` over `episodes` episodes (flat
-Q-learning, MAXQ-Q's levels); `end_linear` advances one held in a schedule array.
+Q-learning, MAXQ-Q's levels).
 """
 import numba
 import numpy as np
@@ -53,14 +53,6 @@ def end_episode(schedule, outcomes, counts, threshold, every, divisor):
     if schedule[2] >= every:
       schedule[2] = 0.0
       schedule[0] /= divisor
-
-
-@numba.njit(cache=True)
-def end_linear(schedule, start, end, episodes):
-  """Advances a linear schedule held as [epsilon, unused, unused, learning episodes]
-  at the end of a learning episode (`linear`)."""
-  schedule[3] += 1.0
-  schedule[0] = linear(schedule[3], start, end, episodes)
 
 
 @numba.njit(cache=True, inline="always")

@@ -205,7 +205,7 @@ def _root(children=None, **kw):
 @pytest.mark.parametrize("nodes, schedule, message", [
     (lambda: [_root(), _leg(learner=stepwise.SoftmaxPolicyGradient(1, 1, 0.1)),
               Primitive("turn")], None,
-     "subtask 'leg': learner .* is not a machine learner; allowed: QTable, GaussianCMAC"),
+     "subtask 'leg': learner .* is not a machine learner; allowed: QTable, GibbsTable, GaussianCMAC"),
     (lambda: [_root(), _leg(learner=object()), Primitive("turn")], None,
      "subtask 'leg': its learner object has no start, act, observe"),
     (lambda: [_root(view=blocks.LocalTiles(_coder())), _leg(), Primitive("turn")], None,

@@ -1,7 +1,8 @@
 """The taxi task graph (hpg_mj.hierarchy.taxi_subtasks) on hand-built states, and
-HPG's compiled loop (hpg_mj.hierarchy.taxi_hpg): exact returns of a
-hand-set optimal policy, determinism under a seed, and (slow) learning to 95%
-of the optimal mean return."""
+HPG on the task-graph machine (hpg_mj.agents.taxi_hpg: GibbsTables over the taxi
+blocks): exact returns of a hand-set optimal policy, determinism under a seed, the
+step sizes' warm-up and the baseline, and (slow) learning to 95% of the optimal
+mean return."""
 import collections
 
 import numpy as np
@@ -11,8 +12,10 @@ from taxi_grid import moves_from
 
 from hpg_mj.agents import taxi_hpg as tcp
 from hpg_mj.taskfile import updated
-from hpg_mj.hierarchy import taxi_hpg as hpg
+from hpg_mj.hierarchy import machine
 from hpg_mj.hierarchy import taxi_subtasks as tr
+from hpg_mj.learners import eligibility as el
+from hpg_mj.learners import policies
 from hpg_mj.learners import rng
 from hpg_mj.worlds import taxi_core as tc
 from hpg_mj.worlds import taxi_rules as world_rules
@@ -190,60 +193,68 @@ def optimal_tables():
   return tables
 
 
+def _agent(seed, config=None):
+  return tcp.TaxiHPG(config or tcp.Config(), seed=seed)
+
+
 def test_optimal_hierarchy_earns_v_star_exactly():
   values = tv.taxi_values(True)
-  agent = hpg.HPGEngine(tcp.Config(), 0)
-  for trace, table in zip(agent.traces, optimal_tables()):
-    trace[0][:] = table.ravel()
+  agent = _agent(0)
+  for table, optimal in zip(agent.tables, optimal_tables()):
+    trace, _ = agent.machine.gibbs_arrays(table)
+    trace.theta[:] = optimal.ravel()
   starts, expected = [], []
   for square in range(25):
     for destination in range(4):
       for fuel in range(13):
         starts.append((*divmod(square, 5), IN_TAXI, destination, fuel))
         expected.append(values.state_value(*starts[-1]))
-  greedy = agent.run(len(starts), learn=False, greedy=True, starts=starts)
-  np.testing.assert_array_equal(greedy[:, hpg.RETURN], expected)
+  greedy = agent.as_record(agent.compiled(len(starts), False, False, starts=starts))
+  np.testing.assert_array_equal(greedy["return"], expected)
   # Sampling from these tables is as good: a parameter gap of 50 leaves e^-50.
-  sampled = agent.run(len(starts), learn=False, starts=starts)
-  np.testing.assert_array_equal(sampled[:, hpg.RETURN], expected)
+  sampled = agent.as_record(agent.compiled(len(starts), False, True, starts=starts))
+  np.testing.assert_array_equal(sampled["return"], expected)
 
 
-# --- the compiled loop: learning ------------------------------------------------------
+# --- learning ----------------------------------------------------------------------
 
 def tables_of(agent):
   return [t.copy() for t in agent.policy_tables()]
 
 
 def test_same_seed_same_run():
-  a, b, c = (hpg.HPGEngine(tcp.Config(), seed) for seed in (3, 3, 4))
-  rec_a, rec_b, rec_c = a.run(3000), b.run(3000), c.run(3000)
+  a, b, c = (_agent(seed) for seed in (3, 3, 4))
+  rec_a, rec_b, rec_c = a.train(3000), b.train(3000), c.train(3000)
   np.testing.assert_array_equal(rec_a, rec_b)
   for ta, tb in zip(tables_of(a), tables_of(b)):
     np.testing.assert_array_equal(ta, tb)
   np.testing.assert_array_equal(a.rng_state, b.rng_state)
   assert not np.array_equal(rec_a, rec_c)
-  assert a.episodes == 3000 and a.primitive_steps == int(rec_a[:, hpg.STEPS].sum())
+  assert a.episodes == 3000
 
 
 def test_evaluation_leaves_the_policies_alone():
-  agent = hpg.HPGEngine(tcp.Config(), 5)
-  agent.run(2000)
+  agent = _agent(5)
+  agent.train(2000)
   before = tables_of(agent)
-  sampled = agent.run(500, learn=False)
-  agent.run(500, learn=False, greedy=True)
+  sampled = agent.evaluate(500, policy="sampled")
+  agent.evaluate(500)
+  # Each call still folds its pending Eq. 3 updates into theta (z <- 0), as every
+  # path's calls do: the same parameters, but for the rounding of that sum.
   for t0, t1 in zip(before, tables_of(agent)):
-    np.testing.assert_array_equal(t0, t1)
+    np.testing.assert_allclose(t0, t1, rtol=1e-12, atol=1e-12)
   assert agent.episodes == 2000
-  assert set(np.unique(sampled[:, hpg.OUTCOME])) <= {world_rules.DELIVERED, world_rules.OUT_OF_FUEL, world_rules.TRUNCATED}
+  assert set(np.unique(sampled["outcome"])) <= {world_rules.DELIVERED, world_rules.OUT_OF_FUEL,
+                                                world_rules.TRUNCATED}
 
 
 def test_greedy_runs_draw_only_the_starts():
-  agent = hpg.HPGEngine(tcp.Config(), 6)
+  agent = _agent(6)
   expected = agent.rng_state.copy()
   scratch = np.zeros(5, dtype=np.int64)
   for _ in range(50):
     tr.sample_start(expected, agent.world, scratch)
-  agent.run(50, learn=False, greedy=True)
+  agent.evaluate(50)
   np.testing.assert_array_equal(agent.rng_state, expected)
 
 
@@ -260,61 +271,71 @@ def test_start_states_follow_the_spec_distribution():
 
 
 def test_classic_task_never_refuels():
-  agent = hpg.HPGEngine(tcp.Config(), 7, task=tc.TaxiRules(False))
-  record = agent.run(2000)
-  assert not np.any(record[:, hpg.OUTCOME] == world_rules.OUT_OF_FUEL)
+  agent = _agent(7, updated(tcp.Config(), environment={"fuel": False}))
+  record = agent.train(2000)
+  assert not np.any(record["outcome"] == world_rules.OUT_OF_FUEL)
   assert not np.any(agent.policy_tables()[tr.REFUEL])
+
+
+def _step_sizes(agent, learned_episodes):
+  """The GibbsTables' step sizes in an episode after `learned_episodes` learning ones."""
+  agent.episodes = learned_episodes
+  agent.evaluate(1)
+  return agent.machine.banks.gibbs.alpha.copy()
 
 
 def test_step_size_warm_up():
   config = tcp.Config()
-  schedule = hpg.schedule(config)
-  alphas = np.zeros(5)
-  hpg.step_sizes(schedule, 0, alphas)
+  agent = _agent(0)
+  alphas = _step_sizes(agent, 0)                   # by table: root, get, put, refuel, navigate
   assert alphas[tr.ROOT] == 0.0
   # The ramp starts at once for Navigate (no delay): 0.1 + 0.9 / 25,000 of alpha.
   assert alphas[tr.NAVIGATE] == pytest.approx((0.1 + 0.9 / 25_000) * config.navigate.alpha)
-  hpg.step_sizes(schedule, config.root.delay - 1, alphas)
-  assert alphas[tr.ROOT] == 0.0
-  hpg.step_sizes(schedule, config.root.delay + config.root.ramp, alphas)
-  np.testing.assert_allclose(alphas, [config.root.alpha] + [config.carry.alpha] * 3
+  assert _step_sizes(agent, config.root.delay - 1)[tr.ROOT] == 0.0
+  np.testing.assert_allclose(_step_sizes(agent, config.root.delay + config.root.ramp),
+                             [config.root.alpha] + [config.carry.alpha] * 3
                              + [config.navigate.alpha])
 
 
 def test_baseline_steps_by_hand():
   # theta <- theta - alpha b(s) psi(s, a), on the allowed children's entries only.
-  w = np.zeros(9)
+  t = el.new_trace(9)
   values = np.array([0.0, 2.0, 0.0])
-  mask = np.array([True, False, True, False])
-  index = np.array([3, 5, 0, 0], dtype=np.int64)          # state 1 of a 3-child table
-  psi = np.array([0.25, -0.25, 0.0, 0.0])
-  hpg.subtract_baseline(w, values, 1, 3, mask, True, 0.5, index, psi)
-  np.testing.assert_array_equal(w, [0, 0, 0, -0.25, 0, 0.25, 0, 0, 0])
-  hpg.subtract_baseline(w, values, 1, 3, mask, False, 0.5, index, psi)   # not learning
-  hpg.subtract_baseline(w, values, 0, 3, mask, True, 0.5, index, psi)    # b(s) = 0
-  np.testing.assert_array_equal(w, [0, 0, 0, -0.25, 0, 0.25, 0, 0, 0])
+  mask = np.array([True, False, True])
+  probs, index, psi = np.zeros(3), np.zeros(3, dtype=np.int64), np.zeros(3)
+  a = policies.softmax_choose(t, values, 1, 3, mask, 0.5, True, True, rng.make_state(0), probs,
+                              index, psi)
+  assert a in (0, 2) and list(index[:2]) == [3, 5]
+  np.testing.assert_array_equal(psi[:2], [0.5, -0.5] if a == 0 else [-0.5, 0.5])
+  np.testing.assert_array_equal(t.theta, [0, 0, 0, -psi[0], 0, -psi[1], 0, 0, 0])
+  np.testing.assert_array_equal(t.zs[[3, 5]], psi[:2])                # z <- z + psi
+  before = t.theta.copy()
+  policies.softmax_choose(t, values, 0, 3, mask, 0.5, True, True, rng.make_state(0), probs,
+                          index, psi)                                  # b(s) = 0
+  policies.softmax_choose(t, values, 1, 3, mask, 0.5, False, True, rng.make_state(0), probs,
+                          index, psi)                                  # not learning
+  np.testing.assert_array_equal(t.theta, before)
   # b(s) <- b(s) + beta (R + b(s') - b(s)), with b(s') = 0 once the call is over.
   values = np.array([1.0, 3.0])
-  hpg.learn_baseline(values, 0, True, 0.5, -1.0, False, 1)
+  policies.softmax_learn(el.new_trace(4), values, 0, 1, 0.1, 1.0, 0.5, -1.0, False)
   assert values[0] == 1.5                                  # target -1 + 3
-  hpg.learn_baseline(values, 0, True, 0.5, -1.0, True, 1)
+  policies.softmax_learn(el.new_trace(4), values, 0, 1, 0.1, 1.0, 0.5, -1.0, True)
   assert values[0] == 0.25                                 # target -1
-  hpg.learn_baseline(values, 0, False, 0.5, -1.0, True, 1)
-  hpg.learn_baseline(values, 0, True, 0.0, -1.0, True, 1)
+  policies.softmax_learn(el.new_trace(4), values, 0, 1, 0.1, 1.0, 0.0, -1.0, True)
   assert list(values) == [0.25, 3.0]
 
 
 def test_baseline_is_an_option():
   off = updated(tcp.Config(), root={"baseline": 0.0}, carry={"baseline": 0.0},
                 navigate={"baseline": 0.0})
-  plain, based = hpg.HPGEngine(off, 2), hpg.HPGEngine(tcp.Config(), 2)
-  plain.run(3000)
-  based.run(3000)
-  assert not any(np.any(v) for v in plain.values)          # b = 0: Eq. 3 exactly
-  assert all(np.any(v) for v in based.values)
+  plain, based = _agent(2, off), _agent(2)
+  plain.train(3000)
+  based.train(3000)
+  assert not any(np.any(v) for v in plain.baselines())     # b = 0: Eq. 3 exactly
+  assert all(np.any(v) for v in based.baselines())
   # A Navigate baseline estimates the (negative) moves left to the target: the
   # targets themselves are never a state of their own calls.
-  navigate = based.values[tr.NAVIGATE].reshape(tr.N_TARGETS, 25)
+  navigate = based.baselines()[tr.NAVIGATE].reshape(tr.N_TARGETS, 25)
   for t, (row, col) in AT.items():
     assert navigate[t, row * 5 + col] == 0.0
   assert np.all(navigate <= 0.0)
@@ -336,13 +357,11 @@ def test_bad_arguments():
     updated(config, carry={"ramp": 0})
   with pytest.raises(ValueError, match=r"\[carry\] unknown key\(s\) \['ramp_carry'\]"):
     updated(config, carry={"ramp_carry": 0})
-  agent = hpg.HPGEngine(tcp.Config(), 0)
-  with pytest.raises(ValueError, match="greedy"):
-    agent.run(1, learn=True, greedy=True)
-  with pytest.raises(ValueError, match="n_episodes"):
-    agent.run(-1)
+  agent = _agent(0)
+  with pytest.raises(ValueError, match="episodes must be a non-negative integer"):
+    agent.train(-1)
   with pytest.raises(ValueError, match="own destination"):
-    agent.run(1, starts=[0, 0, R, R, 5])
+    agent.compiled(1, False, False, starts=[0, 0, R, R, 5])
 
 
 @pytest.mark.slow
@@ -359,19 +378,26 @@ def test_hpg_reaches_95_percent_of_optimal():
   optimal = tv.optimal_mean_return(True)
   last = []
   for seed in range(5):
-    returns = hpg.HPGEngine(tcp.Config(), seed).run(100_000)[:, hpg.RETURN]
+    returns = _agent(seed).train(100_000)["return"]
     last.append(returns[-1000:].mean())
   assert np.mean(last) >= tv.performance_threshold(optimal, 0.95)
   assert min(last) >= tv.performance_threshold(optimal, 0.90)
 
 
-def test_the_rules_compiled_first_are_those_train_calls(tmp_path):
-  """`train`'s rules are compiled leaves first (`learners.jit.compile_first`), for the
-  types `train` calls them with: with an empty numba cache each compiles once."""
+def test_the_machines_functions_compile_first_for_the_taxi(tmp_path):
+  """`Machine._bottom_up` for a taxi graph (its GibbsTables' choice too) lists the
+  functions the fused loop calls, for the types it calls them with: with an empty
+  numba cache each compiles once."""
   compile_order.assert_each_compiles_once(tmp_path, """
 from hpg_mj.agents import taxi_hpg
-from hpg_mj.hierarchy import taxi_hpg as engine
-agent = engine.HPGEngine(taxi_hpg.Config(), seed=0)
-agent.run(20)
-listed = agent._rules_bottom_up(agent._train_scratch())
+agent = taxi_hpg.TaxiHPG(seed=0)
+agent.train(20)
+listed = agent.machine._bottom_up()
 """)
+
+
+def test_taxi_blocks_need_the_taxi_world():
+  agent = _agent(0)
+  with pytest.raises(machine.GraphError, match="subtask 'root': a Taxi[A-Za-z]+ needs the "
+                     r"machine's taxi world \(Machine\(graph, world="):
+    machine.Machine(agent.graph())

@@ -36,12 +36,12 @@ def test_stepwise_and_compiled_hpg_agree_bit_for_bit(fuel, env_id):
   for field in ("return", "steps", "outcome"):
     np.testing.assert_array_equal(ra[field], rb[field])
   _same(a, b)
-  tables = a.engine.policy_tables()
+  tables = a.policy_tables()
   # Get, Put and Navigate always learn; Root only where it has a real choice (with fuel).
   assert all(np.any(tables[i] != 0) for i in (1, 2, 4))
   assert np.any(tables[0] != 0) == fuel
   # So do their baselines, the same on both paths.
-  assert all(np.any(a.engine.values[i] != 0) for i in (0, 1, 2, 4))
+  assert all(np.any(a.baselines()[i] != 0) for i in (0, 1, 2, 4))
 
 
 def test_hpg_through_dm_control_matches_the_compiled_loop():
