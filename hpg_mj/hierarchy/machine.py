@@ -37,6 +37,7 @@ by the end of the episode is counted as a call but no run (`counters`).
 """
 import collections
 import math
+import types as pytypes
 
 import numba
 import numpy as np
@@ -681,6 +682,21 @@ def _write_row(K, row, end, illegal):
 
 # ---- fused with the taxi ------------------------------------------------------------
 
+def _inlined(fn, **callees):
+  """A copy of compiled function `fn` that numba inlines, calling `callees` (name ->
+  function) in place of the functions of those names. The taxi's fused loop inlines
+  `step` and its `_observe`: a primitive step of the taxi is a few hundred
+  instructions, and the two calls (some 60 words of arguments) cost it about a tenth
+  of its speed; the ship's loop calls them (its step is longer, and the hybrid's
+  first compile is what it saves)."""
+  code = fn.py_func
+  copy = pytypes.FunctionType(code.__code__, dict(code.__globals__, **callees),
+                              code.__name__ + "_inlined")
+  return numba.njit(error_model="numpy", _nrt=False, inline="always")(copy)
+
+
+_step_inlined = _inlined(step, _observe=_inlined(_observe))
+
 @numba.njit(cache=True, error_model="numpy", _nrt=False)
 def run_taxi(P, Q, B, G, T, S, K, X, W, n_episodes, rng_state, record, starts):
   """`n_episodes` episodes of the taxi task `W` (`taxi_rules.world_config`; SPEC
@@ -710,7 +726,7 @@ def run_taxi(P, Q, B, G, T, S, K, X, W, n_episodes, rng_state, record, starts):
       outcome = episode[taxi_rules.E_OUTCOME]
       truncated = outcome == taxi_rules.TRUNCATED
       terminated = outcome != taxi_rules.RUNNING and not truncated
-      over, action = step(P, Q, B, G, T, S, K, X, W, obs, K.samples, reward, terminated, truncated,
+      over, action = _step_inlined(P, Q, B, G, T, S, K, X, W, obs, K.samples, reward, terminated, truncated,
                           rng_state)
       if over:
         break
