@@ -160,15 +160,23 @@ def _new_banks(typingctx, banks):
   return types.Tuple(struct_types)(banks), codegen
 
 
-@numba.njit(cache=True)
-def _as_structs(banks):
+def _make(banks):
   return _new_banks(banks)
+
+
+# numba's cache keeps one index per function, with every signature compiled, pickled:
+# a namedtuple class of another package's (a test's, a user's) in it made every later
+# process that could not import that package fail to load the index. hpg_mj's own
+# banks are cached; anyone else's compile in their process.
+_as_structs = numba.njit(cache=True)(_make)
+_as_foreign_structs = numba.njit(_make)
 
 
 def as_structs(*banks):
   """The struct of each namedtuple of arrays of `banks` (their arrays, not copies);
   a None among them stays None."""
-  return _as_structs(banks)
+  ours = all(b is None or type(b).__module__.startswith("hpg_mj.") for b in banks)
+  return (_as_structs if ours else _as_foreign_structs)(banks)
 
 
 def field_type(bank_type, name):

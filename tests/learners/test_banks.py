@@ -1,6 +1,9 @@
 """A namedtuple of arrays as a struct passed by reference (`learners.banks`)."""
 import collections
 import gc
+import os
+import subprocess
+import sys
 import weakref
 
 import numba
@@ -75,3 +78,21 @@ def test_field_types_read_alike_from_a_namedtuple_and_its_struct():
   for typ in (numba.typeof(bank), numba.typeof(banks.as_structs(bank)[0])):
     assert banks.field_type(typ, "ints") == types.int64[::1]
     assert isinstance(banks.field_type(typ, "extra"), types.NoneType)
+
+
+def test_a_foreign_namedtuple_leaves_the_shared_cache_alone(tmp_path):
+  """numba pickles every signature of a cached function into one index: a namedtuple
+  class of another module's in `as_structs`'s made each later process that could not
+  import that module fail to load it (a taxi agent's machine, in the experiment
+  runner's workers). A foreign bank compiles in its own process only."""
+  env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+  (tmp_path / "user").mkdir()
+  (tmp_path / "user" / "mine.py").write_text(
+      "import collections\nMine = collections.namedtuple('Mine', ('a',))\n")
+  foreign = ("import numpy as np, mine\nfrom hpg_mj.learners import banks\n"
+             "banks.as_structs(mine.Mine(np.zeros(2)))\n")
+  ours = "from hpg_mj.agents import taxi_flat_q\ntaxi_flat_q.TaxiFlatQ()\n"   # its banks
+  for code, where in ((ours, tmp_path), (foreign, tmp_path / "user"), (ours, tmp_path)):
+    done = subprocess.run([sys.executable, "-c", code], env=env, cwd=where,
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
