@@ -216,6 +216,13 @@ def _taxi_seen(K, W, obs):
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _taxi_abstract(K, W, row, d):
+  """The abstract state that the node at depth d (`row`) sees of the taxi
+  (a TaxiAbstraction view)."""
+  return taxi_subtasks.abstract_state(row[VIEW_SLOT], K.ints[d, S_ARG], K.taxi[0:5], W)
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _step_sizes(P, B, K):
   """Each GibbsTable's step size in this episode: alpha times its warm-up at the
   learning episodes so far."""
@@ -272,8 +279,7 @@ def _view(P, Q, B, G, T, S, K, X, W, d, obs, which):
       K.ints[d, S_STATE + which] = taxi_rules.encoded(obs, W)
   elif kind == VIEW_TAXI_ABSTRACT:
     if W is not None:
-      K.ints[d, S_STATE + which] = taxi_subtasks.abstract_state(row[VIEW_SLOT], K.ints[d, S_ARG],
-                                                                K.taxi[0:5], W)
+      K.ints[d, S_STATE + which] = _taxi_abstract(K, W, row, d)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -502,9 +508,8 @@ def _observe(P, Q, B, G, T, S, K, X, W, d, obs, signal, done, terminal, rng_stat
   # The view of s': a table's state always, a policy's tiles unless the call is over,
   # an actor-critic's unless s' is terminal.
   if kind == GIBBS_TABLE and row[VIEW] == VIEW_TAXI_ABSTRACT:
-    if W is not None:                       # inline: the taxi's every step comes here
-      ints[d, S_NEXT_STATE] = taxi_subtasks.abstract_state(row[VIEW_SLOT], ints[d, S_ARG],
-                                                           K.taxi[0:5], W)
+    if W is not None:              # without the call to `_view`: the taxi's every step
+      ints[d, S_NEXT_STATE] = _taxi_abstract(K, W, row, d)
   elif kind == Q_TABLE or kind == GIBBS_TABLE or (kind == GAUSSIAN_CMAC and not done) or (
       kind == ACTOR_CRITIC and not terminal):
     _view(P, Q, B, G, T, S, K, X, W, d, obs, np.int64(1))
