@@ -348,12 +348,13 @@ def _choose(P, Q, B, G, T, S, K, X, W, d, obs, rng_state):
       K.ints[d, S_CHOICE] = qlambda.epsilon_greedy(Q.q[slot], K.ints[d, S_STATE],
                                                    row[N_CHILDREN], epsilon, rng_state)
   elif row[LEARNER] == GAUSSIAN_CMAC:
-    _gaussian_choose(P, G, T, K, d, rng_state)
+    if G is not None:
+      _gaussian_choose(P, G, T, K, d, rng_state)
   elif row[LEARNER] == GIBBS_TABLE:
     if B is not None:
       _gibbs_choose(P, B, K, W, d, rng_state)
   elif row[LEARNER] == ACTOR_CRITIC:
-    if X is not None:
+    if X is not None and G is not None:
       k = T.n_tilings[row[VIEW_SLOT]]
       m, u, r = actor_critic.choose(G.values[slot], K.tiles[d, 0, :k], p[R_MAX], sample,
                                     rng_state)
@@ -381,13 +382,14 @@ def _call(P, Q, B, G, T, S, K, X, W, d, node, arg, obs, rng_state):
     if Q is not None:
       qlambda.clear(Q.count[row[SLOT]])
   elif row[LEARNER] == GAUSSIAN_CMAC:
-    el.reset(_trace(G, row[SLOT]))                  # Eq. 3: z <- 0
-    _reset_width(G, row)
+    if G is not None:
+      el.reset(_trace(G, row[SLOT]))                # Eq. 3: z <- 0
+      _reset_width(G, row)
   elif row[LEARNER] == GIBBS_TABLE:
     if B is not None:
       el.reset(_gibbs_trace(B, row[SLOT]))          # Eq. 3: z <- 0
   elif row[LEARNER] == ACTOR_CRITIC:
-    if X is not None:
+    if X is not None and G is not None:
       el.reset(_trace(G, row[SLOT]))                # the critic's e <- 0
       for i in range(K.psi.shape[1]):
         K.psi[d, i] = 1.0                           # phi(s, a) of the critic's tiles
@@ -533,18 +535,19 @@ def _observe(P, Q, B, G, T, S, K, X, W, d, obs, signal, done, terminal, rng_stat
       if not done:
         _gibbs_choose(P, B, K, W, d, rng_state)
   elif kind == GAUSSIAN_CMAC:
-    k = T.n_tilings[row[VIEW_SLOT]]
-    if learn:                                          # Eq. 3 with R + G
-      policies.gaussian_learn(_trace(G, slot), G.values[slot], K.tiles[d, 0, :k],
-                              K.tiles[d, 1, :k], p[ALPHA], p[DECAY], p[BETA], signal, done,
-                              _width(G, row), p[WIDTH_ALPHA])
-    if not done:
-      arrays.copy_into(K.tiles[d, 0, :k], K.tiles[d, 1, :k])
-      _gaussian_choose(P, G, T, K, d, rng_state)
+    if G is not None:
+      k = T.n_tilings[row[VIEW_SLOT]]
+      if learn:                                        # Eq. 3 with R + G
+        policies.gaussian_learn(_trace(G, slot), G.values[slot], K.tiles[d, 0, :k],
+                                K.tiles[d, 1, :k], p[ALPHA], p[DECAY], p[BETA], signal, done,
+                                _width(G, row), p[WIDTH_ALPHA])
+      if not done:
+        arrays.copy_into(K.tiles[d, 0, :k], K.tiles[d, 1, :k])
+        _gaussian_choose(P, G, T, K, d, rng_state)
   elif kind == ACTOR_CRITIC:
     # delta = R + Q(s', a') - Q(s, a), with a' drawn in s' unless s' is terminal (also
     # when the call is cut, to bootstrap from it); the next step's a is that a'.
-    if X is not None:
+    if X is not None and G is not None:
       k = T.n_tilings[row[VIEW_SLOT]]
       kc = T.n_tilings[row[CRITIC_SLOT]]
       critic = _trace(G, slot)
@@ -829,10 +832,12 @@ class Machine:
                   _stack_rows([np.zeros(b.trace_capacity) for b in q], np.int64),
                   _stack_rows([np.zeros(b.trace_capacity) for b in q], np.float64),
                   np.zeros((max(len(q), 1), 1), dtype=np.int64)) if q else None
+    # None in a machine without a Gaussian learner or actor-critic (the taxi's), whose
+    # code then holds neither (the Q and Gibbs banks' pruning)
     gbank = GaussianBank(*_trace_rows([_trace_size(b) for b in g]),
                          _stack_rows([np.zeros(_values_size(b)) for b in g], np.float64),
                          el.Trace(*_trace_rows([b.coder.size for b in widths]))
-                         if widths else None)
+                         if widths else None) if g else None
     self.tile_bank = self._tile_bank()
     k = int(self.tile_bank.n_tilings.max())
     depth = self._depth(graph.root)
