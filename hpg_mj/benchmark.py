@@ -53,7 +53,7 @@ from hpg_mj.agents import _taxi
 from hpg_mj.agents import base
 from hpg_mj.experiments import bounds as bounds_mod
 from hpg_mj.experiments.bounds import SCORES, TASKS, bounds  # noqa: F401  (public here)
-from hpg_mj.hierarchy import route
+from hpg_mj.hierarchy import ship_rules
 from hpg_mj.worlds import ship_core
 from hpg_mj.worlds import taxi_core
 from hpg_mj.worlds import taxi_rules
@@ -464,21 +464,21 @@ class RandomPolicy:
 
 
 def helmsman_settings():
-  """The gate target's settings: the shipped route's (`hierarchy.route`'s
-  SHIPPED_TARGETS: the posts moved in by 2 m)."""
-  return route.SHIPPED_TARGETS
+  """The gate target's settings: the shipped route's (`ship_rules.SHIPPED_TARGETS`:
+  the posts moved in by 2 m)."""
+  return ship_rules.SHIPPED_TARGETS
 
 
 @numba.njit(cache=True)
 def _helmsman_batch(obs, s, out):
   for i in range(obs.shape[0]):
-    tx, ty = route.target_of(0, obs[i], 1.0, s)
+    tx, ty = ship_rules.target_of(0, obs[i], 1.0, s.inset_m, s.approach_m)
     out[i] = ship_core.pilot_turn_rate(obs[i], tx, ty)
 
 
 def helmsman(obs):
   """The scripted helmsman (`ship_core.pilot_turn_rate`) steering at the point of
-  the gate nearest the ship (`route.target_of`'s gate target, the posts
+  the gate nearest the ship (`ship_rules.target_of`'s gate target, the posts
   moved in by 2 m), for a batch of observations (n, 4): n turning rates."""
   obs = np.ascontiguousarray(obs, dtype=np.float64).reshape(-1, 4)
   out = np.empty(len(obs))
@@ -539,13 +539,13 @@ def _sail_turns(state, rate, first, back, target, s, max_steps, gate_reward,
       r = -rate
     else:
       if steps == first + back:
-        side = route.side_of(state[1])
+        side = ship_rules.side_of(state[1])
       if target > GATE_POINTS:
-        tx, ty = route.target_of(target - GATE_POINTS, state, side, s)
+        tx, ty = ship_rules.target_of(target - GATE_POINTS, state, side, s.inset_m, s.approach_m)
         if math.hypot(state[0] - tx, state[1] - ty) <= s.radius_m:
           target = 0                        # reached: on through the gate
       if target == 0:
-        tx, ty = route.target_of(0, state, side, s)
+        tx, ty = ship_rules.target_of(0, state, side, s.inset_m, s.approach_m)
       elif target <= GATE_POINTS:
         tx, ty = ship_core.GATE[0, 0] + width * (target - 0.5) / GATE_POINTS, ship_core.GATE[0, 1]
       r = ship_core.pilot_turn_rate(state, tx, ty)

@@ -6,7 +6,7 @@ its order of calls, so a test that holds the two equal checks the machine's
 control flow: calls, returns, rewards summed per level, ends, runs and draws."""
 import numpy as np
 
-from hpg_mj.hierarchy import blocks, executor
+from hpg_mj.hierarchy import blocks, executor, ship_rules
 from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
 from hpg_mj.learners import schedules, stepwise, tiles
 from hpg_mj.worlds import ship_core as core
@@ -33,9 +33,10 @@ class Oracle:
         nodes.append(node)
         continue
       refs = graph.children(name)
+      learner = self._reflected(node, self._learner(node.learner, len(refs)))
       nodes.append(Subtask(name, children=[Child(r.node, **r.args) for r in refs],
-                           learner=self._learner(node.learner, len(refs)),
-                           view=self._view(node.view), termination=self._end(node),
+                           learner=learner, view=self._view(node, len(refs), learner),
+                           termination=self._end(node),
                            internal_reward=self._internal(node),
                            reward=self._seen(node), on_exit=self._exit(name)))
     self.graph = TaskGraph(graph.root, nodes, on_episode_end=self._episode_end)
@@ -43,11 +44,16 @@ class Oracle:
 
   def _learner(self, block, n_children):
     if id(block) not in self.learners:
+      source = (lambda: self.schedule[0][0]) if getattr(block, "epsilon_schedule", 0) else None
       if isinstance(block, blocks.QTable):
-        source = (lambda: self.schedule[0][0]) if block.epsilon_schedule else None
         self.learners[id(block)] = stepwise.QLambda(
             block.n_states, n_children, block.alpha, block.trace_decay, block.gamma,
             block.epsilon, epsilon_source=source, trace_capacity=block.trace_capacity)
+      elif isinstance(block, blocks.TiledQTable):
+        self.learners[id(block)] = stepwise.TiledQLambda(
+            block.coder.size, block.coder.n_tilings, n_children, block.alpha,
+            block.trace_decay, block.gamma, block.epsilon, epsilon_source=source,
+            trace_capacity=block.trace_capacity)
       else:
         self.learners[id(block)] = stepwise.GaussianPolicyGradient(
             block.coder.size, block.coder.n_tilings, block.r_max, block.alpha,
@@ -55,7 +61,20 @@ class Oracle:
             sigma_low=block.sigma_low, sigma_high=block.sigma_high)
     return self.learners[id(block)]
 
-  def _view(self, view):
+  @staticmethod
+  def _reflected(node, learner):
+    """An AimTiles node's learner: its draw times the side of its last view."""
+    return _Reflected(learner) if isinstance(node.view, blocks.AimTiles) else learner
+
+  @staticmethod
+  def _target(view, call, obs):
+    t = view.targets
+    side = ship_rules.side_of(float(call.origin[1]))
+    return ship_rules.target_of(call.args["target"], np.asarray(obs, dtype=np.float64), side,
+                                t.inset_m, t.approach_m)
+
+  def _view(self, node, n_children, learner):
+    view = node.view
     if isinstance(view, blocks.GridCell):
       return lambda call, obs: _grid_cell(obs[0], obs[1], view.cell_m, view.grid)
     if isinstance(view, blocks.CellRule):
@@ -67,9 +86,27 @@ class Oracle:
     local = np.empty(4)
     if isinstance(view, blocks.StateTiles):
       def state_view(call, obs):
-        tiles.active_tiles(np.asarray(obs, dtype=np.float64), arrays, out)
+        obs = np.asarray(obs, dtype=np.float64)
+        tiles.active_tiles(obs[:len(view.coder.low)], arrays, out)
+        if isinstance(node.available, blocks.NearGateLine):
+          near = abs(obs[1] - ship_rules.GATE_Y) <= node.available.within_m
+          return out, n_children if near else 1
         return out
       return state_view
+    if isinstance(view, blocks.AimTiles):
+      aim = np.empty(3)
+      sqrt_error = view.error_scale == "sqrt"
+      reflect_at = ship_rules.error_coordinate(view.reflect_deg, view.error_scale)
+
+      def aim_view(call, obs):
+        # The executor views the state it acts in last before acting, so the side
+        # set here is the one its act() applies.
+        tx, ty = self._target(view, call, obs)
+        learner.side = ship_rules.aim_view(np.asarray(obs, dtype=np.float64), tx, ty, aim,
+                                                 sqrt_error, reflect_at)
+        tiles.active_tiles(aim, arrays, out)
+        return out
+      return aim_view
 
     def local_view(call, obs):
       core.global_to_local(obs, self._origin(call), call.args["direction"], local)
@@ -91,6 +128,16 @@ class Oracle:
         event, internal = core.low_level_outcome(
             step.info["positions"], step.obs, self._origin(call), arg, call.steps,
             np.empty((4, 2)), np.empty(4), node.termination.max_steps)
+      elif isinstance(node.termination, blocks.TargetReached):
+        tx, ty = self._target(node.view, call, obs)
+        t = node.view.targets
+        weight = node.internal_reward.weight if isinstance(node.internal_reward,
+                                                           blocks.Shaping) else 0.0
+        event, internal = ship_rules.aim_outcome(step.info["positions"], obs, call.args["target"],
+                                                 tx, ty, call.steps, node.termination.max_steps,
+                                                 t.radius_m, weight)
+        if not isinstance(node.internal_reward, blocks.Shaping):
+          internal = 0.0
       elif isinstance(node.termination, blocks.EndRule):
         event = int(node.termination.rule(obs, self._origin(call), arg, call.steps))
       if isinstance(node.internal_reward, blocks.RewardRule):
@@ -151,3 +198,17 @@ class Oracle:
       rows[i, :3] = last.info.get("event") == "gate", steps, total
       rows[i, 4:] = self.counters.reshape(-1)          # column 3: the taxi's illegal actions
     return rows
+
+
+class _Reflected:
+  """A learner whose draw is negated where its AimTiles view reflected the state."""
+
+  def __init__(self, learner):
+    self.learner = learner
+    self.side = 1.0
+
+  def act(self, features, mask, rng_state, sample):
+    return self.side * self.learner.act(features, mask, rng_state, sample)
+
+  def __getattr__(self, name):
+    return getattr(self.learner, name)

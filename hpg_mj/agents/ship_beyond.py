@@ -30,27 +30,22 @@ errors a reflection with r -> -r), as SPEC section 3 asks of the paper's local
 frames. Only the -1s, the gate's reward and the field's penalty
 reach the root (Watkins's Q(lambda) over the SMDP of calls, as the hybrid's).
 
-Its compiled rules and fused loop are `hpg_mj.hierarchy.route`.
+Its compiled rules are `hpg_mj.hierarchy.ship_rules`' (the targets, the aim state
+and its end), run as blocks by `hpg_mj.hierarchy.machine`.
 """
 import dataclasses
-
-import numpy as np
+import math
 
 from hpg_mj.agents import _ship
 from hpg_mj.taskfile import param
 from hpg_mj.hierarchy import blocks
-from hpg_mj.hierarchy import route
+from hpg_mj.hierarchy import ship_rules
 from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
-# Settings is read here too: a numba cache written before the route's rules moved to
-# hierarchy.route names it at this module, and must still load to be found stale.
-from hpg_mj.hierarchy.route import (AIM_RUNS, AIM_SUCCESS, CALLS, N_RECORD, RootTable, Settings,
-                                    aim_coder, aim_outcome, aim_view, n_targets, offered,
-                                    root_coder, root_tiles, settings, side_of, target_of, train)
 from hpg_mj.learners import eligibility as el
-from hpg_mj.learners import schedules
-from hpg_mj.learners import stepwise as learners
 from hpg_mj.learners import tiles as tiles_mod
 from hpg_mj.worlds import ship_core as core
+
+SHIPPED = ship_rules.SHIPPED_TARGETS
 
 
 # ---- the task file's schema --------------------------------------------------------
@@ -73,9 +68,9 @@ class Root:
   tilings: int = param(1, "tilings of the cells and sectors, each offset by k/tilings of a "
                        "tile (1: the table; more: Q generalises between neighbours and "
                        "resolves finer)", low=1, high=64)
-  inset_m: float = param(route.INSET_M, "the gate action aims at the gate with its posts moved in "
+  inset_m: float = param(SHIPPED.inset_m, "the gate action aims at the gate with its posts moved in "
                          "by this (m)", low=0, high=49)
-  approach_m: float = param(route.APPROACH_M, "how far before the gate line the approach points lie (m)",
+  approach_m: float = param(SHIPPED.approach_m, "how far before the gate line the approach points lie (m)",
                             low=0, low_open=True, high=300)
   approach_within_m: float = param(1000.0, "the approach points are offered only within "
                                    "this distance of the gate line (1000: everywhere); "
@@ -99,7 +94,7 @@ class LowLevel:
   sigma_high: float = param(1.0, "the learned width's upper clip", low=1, high=100)
   shaping: float = param(1.0, "weight of the heading shaping G (1: SPEC section 3's G, "
                          "0: none)", low=0, high=10)
-  radius_m: float = param(route.RADIUS_M, "within this distance of its target a call has succeeded",
+  radius_m: float = param(SHIPPED.radius_m, "within this distance of its target a call has succeeded",
                           low=0, low_open=True)
   error_scale: str = param("sqrt", "the heading error's scale on the tiles: sqrt (finer "
                            "near 0) or linear", choices=("sqrt", "linear"))
@@ -120,22 +115,29 @@ class Config:
   low_level: LowLevel = dataclasses.field(default_factory=LowLevel)
 
 
-class _Reflected:
-  """The aim learner on the step-by-step path: its turning rate times the side of
-  the last view (`aim_view`'s reflection)."""
-
-  def __init__(self, learner):
-    self.learner = learner
-    self.side = 1.0
-
-  def act(self, features, mask, rng_state, sample):
-    return self.side * self.learner.act(features, mask, rng_state, sample)
-
-  def __getattr__(self, name):
-    return getattr(self.learner, name)
+def root_coder(root):
+  """The root's tiles over (x, y, heading): `cell_m` squares and `headings` sectors
+  (the first centred on north), `tilings` of them offset along SPEC section 3's
+  displacement. One tiling is the table of cells and sectors."""
+  grid = int(math.ceil(core.FIELD_SIZE / root.cell_m))
+  half = 180.0 / root.headings
+  side = grid * root.cell_m
+  return tiles_mod.TileCoder((0.0, 0.0, -half), (side, side, 360.0 - half),
+                             (grid, grid, int(root.headings)), (False, False, True),
+                             int(root.tilings))
 
 
-class ShipBeyond(_ship.ShipAgent):
+def aim_coder(low):
+  """The aim state's tiles: heading error (wrapping; reflected, over [-reflect_deg,
+  180] on its scale), turning rate, distance."""
+  reflected = low.reflect_deg < 180.0
+  low_error = -ship_rules.error_coordinate(low.reflect_deg, low.error_scale)
+  return tiles_mod.TileCoder((low_error, -core.MAX_TURN_RATE, 0.0),
+                             (180.0, core.MAX_TURN_RATE, ship_rules.DISTANCE_CLIP),
+                             tuple(low.tiles), (not reflected, False, False), low.tilings)
+
+
+class ShipBeyond(_ship.ShipMachineAgent):
   """A root over (cell, heading) that picks points; an aim subtask that steers there."""
 
   name = "ship_beyond"
@@ -146,123 +148,53 @@ class ShipBeyond(_ship.ShipAgent):
     super().__init__(config, seed, task)
     root, low = self.config.root, self.config.low_level
     blocks.check_width(low.width_alpha, low.sigma_low, low.sigma_high, "[low_level]")
-    self.s: Settings = settings(self.config)
     self.coder = aim_coder(low)
-    self.tile_arrays = self.coder.arrays()
-    self.schedule, self.outcomes, self.counts = schedules.new_schedule(root.epsilon,
-                                                                   root.epsilon_window)
     self.root_coder = root_coder(root)
-    self.root_tiling = self.root_coder.arrays()
-    self.root = learners.TiledQLambda(self.root_coder.size, root.tilings, n_targets(self.s),
-                                      root.alpha, root.trace_decay,
-                                      epsilon_source=lambda: self.schedule[0])
-    self.low = learners.GaussianPolicyGradient(self.coder.size, low.tilings, core.MAX_TURN_RATE,
-                                               low.alpha, low.trace_gamma, baseline=low.baseline)
-    self.width = el.new_trace(self.coder.size)
-    self._learn = True
+    self.root = blocks.TiledQTable(self.root_coder, root.alpha, root.trace_decay, root.epsilon,
+                                   epsilon_schedule=True)
+    self.low = blocks.GaussianCMAC(self.coder, low.alpha, low.trace_gamma, low.baseline,
+                                   core.MAX_TURN_RATE, low.width_alpha, low.sigma_low,
+                                   low.sigma_high)
+
+  def graph(self):
+    """The root (Q(lambda) over tiles of position and heading) chooses a target; aim
+    steers there (Eq. 3 over the tiles of its error, turning rate and distance)."""
+    root, low = self.config.root, self.config.low_level
+    targets = blocks.GatePoints(root.inset_m, root.approach_m, low.radius_m)
+    return TaskGraph("root", [
+        Subtask("root", learner=self.root, view=blocks.StateTiles(self.root_coder),
+                available=blocks.NearGateLine(root.approach_within_m),
+                termination=blocks.Never(),
+                children=[Child("aim", target=a) for a in range(ship_rules.N_TARGETS)]),
+        Subtask("aim", children=["turn"], learner=self.low,
+                view=blocks.AimTiles(self.coder, targets, low.error_scale, low.reflect_deg),
+                termination=blocks.TargetReached(low.max_steps),
+                internal_reward=blocks.Shaping(low.shaping), reward=blocks.STEP),  # the -1s
+        Primitive("turn"),
+    ], schedule=blocks.HeldEpsilon(root.epsilon, ("aim",), root.epsilon_threshold,
+                                   root.epsilon_window, root.epsilon_every,
+                                   root.epsilon_divisor))
 
   def state(self):
-    out = {"rng_state": self.rng_state, "root_q": self.root.q,
-           "root_trace_index": self.root.index, "root_trace_value": self.root.value,
-           "root_trace_count": self.root.count, "epsilon_schedule": self.schedule,
-           "subtask_outcomes": self.outcomes, "subtask_counts": self.counts,
-           "aim_baseline": self.low.values}
-    for key, value in self.low.trace._asdict().items():
-      out[f"aim_{key}"] = value
-    for key, value in self.width._asdict().items():
-      out[f"aim_width_{key}"] = value
+    m = self.machine
+    q, index, value, count = m.q_arrays(self.root)
+    eps, outcomes, counts = m.epsilon_schedule
+    trace, values = m.gaussian_arrays(self.low)
+    out = {"rng_state": self.rng_state, "root_q": q, "root_trace_index": index,
+           "root_trace_value": value, "root_trace_count": count, "epsilon_schedule": eps,
+           "subtask_outcomes": outcomes, "subtask_counts": counts, "aim_baseline": values}
+    out.update({f"aim_{key}": v for key, v in trace._asdict().items()})
+    width = m.width_trace(self.low)
+    if width is not None:
+      out.update({f"aim_width_{key}": v for key, v in width._asdict().items()})
     return out
 
   def parameters(self):
-    return {"root_q": self.root.parameters(), "aim_w": self.low.parameters(),
-            "aim_log_sigma": el.parameters(self.width)}
-
-  def compiled(self, episodes, learn, sample, start=None):
-    rows = np.zeros((episodes, N_RECORD))
-    fixed = np.empty(0) if start is None else np.array(start, dtype=np.float64)
-    train(episodes, learn, sample, self.rng_state,
-          RootTable(self.root.q, self.root.index, self.root.value, self.root.count),
-          self.root_tiling, (self.schedule, self.outcomes, self.counts), self.low.trace, self.width,
-          self.low.values, self.tile_arrays, self.s, rows, fixed)
-    return rows
-
-  # ---- the step-by-step path -----------------------------------------------------
-
-  def graph(self):
-    if self.s.width_alpha != 0.0:
-      raise ValueError("ship_beyond: [low_level] width_alpha > 0 runs on the compiled path "
-                       "only (backend 'analytic'); the step-by-step path (MuJoCo) has the "
-                       "paper's sigma = 1 learner. Evaluate greedily there (u = m).")
-    s = self.s
-    n = self.tile_arrays.offsets.shape[0]
-    scratch_tiles = np.empty(n, dtype=np.int64)
-    view = np.empty(3)
-
-    def target(call, obs):
-      side = call.memo.setdefault("side", side_of(float(call.origin[1])))
-      return target_of(call.args["action"], np.asarray(obs, dtype=np.float64), side, s)
-
-    aim_learner = _Reflected(self.low)
-
-    def low_view(call, obs):
-      tx, ty = target(call, obs)
-      # The executor views the state it acts in last before acting (and the next
-      # state after), so the side set here is the one act() applies.
-      aim_learner.side = aim_view(np.asarray(obs, dtype=np.float64), tx, ty, view,
-                                  s.sqrt_error, s.reflect_at)
-      tiles_mod.active_tiles(view, self.tile_arrays, scratch_tiles)
-      return scratch_tiles
-
-    def internal_reward(call, step):
-      tx, ty = target(call, step.obs)
-      info = step.info
-      g_event = {"gate": core.SUCCESS, "out_of_bounds": core.FAILURE}.get(info.get("event"),
-                                                                          core.NO_EVENT)
-      event, internal = aim_outcome(info["positions"], np.asarray(step.obs, dtype=np.float64),
-                                    call.args["action"], tx, ty, call.steps, g_event, s)
-      call.memo["event"] = event
-      call.memo["global"] = g_event
-      return internal
-
-    def on_exit(call, step, episode_over):
-      self.row[CALLS] += 1
-      if episode_over and call.memo.get("global") != core.SUCCESS:
-        return
-      if step.truncated:
-        return
-      success = call.memo["event"] == core.SUCCESS
-      self.row[AIM_RUNS] += 1
-      self.row[AIM_SUCCESS] += success
-      if self._learn:
-        schedules.record_run(self.outcomes, self.counts, 0, success)
-        schedules.record_run(self.outcomes, self.counts, 1, success)
-
-    def on_episode_end(last_step, learn):
-      if learn:
-        root = self.config.root
-        schedules.end_episode(self.schedule, self.outcomes, self.counts, root.epsilon_threshold,
-                              root.epsilon_every, root.epsilon_divisor)
-
-    aim = Subtask("aim", children=["turn"], learner=aim_learner, view=low_view,
-                  internal_reward=internal_reward,
-                  reward=lambda call, step, child_reward: core.STEP_REWARD,
-                  termination=lambda call, step: call.memo["event"] != core.NO_EVENT,
-                  on_exit=on_exit)
-    root_scratch = (np.empty(3), np.empty(self.root_tiling.offsets.shape[0], dtype=np.int64))
-
-    def root_view(call, obs):
-      obs = np.asarray(obs, dtype=np.float64)
-      root_tiles(obs, self.root_tiling, *root_scratch)
-      return root_scratch[1], offered(obs, s)
-
-    root = Subtask("root", learner=self.root,
-                   children=[Child("aim", action=a) for a in range(n_targets(s))],
-                   view=root_view,
-                   termination=lambda call, step: False)
-    return TaskGraph("root", [root, aim, Primitive("turn")], on_episode_end=on_episode_end)
-
-  def begin_episode(self, learn):
-    self._learn = learn
+    m = self.machine
+    width = m.width_trace(self.low)
+    return {"root_q": m.q_arrays(self.root)[0].copy(),
+            "aim_w": el.parameters(m.gaussian_arrays(self.low)[0]),
+            **({} if width is None else {"aim_log_sigma": el.parameters(width)})}
 
   def metrics(self, record):
     out = super().metrics(record)

@@ -12,6 +12,9 @@ share its parameters):
       Watkins's Q(lambda) over an SMDP with replacing traces (SPEC section 3),
       epsilon-greedy; `epsilon_schedule=True` reads epsilon from the graph's
       `HeldEpsilon` instead of its own constant.
+  TiledQTable(coder, alpha, trace_decay, epsilon, ...)
+      the same Q(lambda), linear in `coder`'s tiles of its StateTiles view (one
+      tiling of non-overlapping tiles is the table; `qlambda.tiled_update`).
   GaussianCMAC(coder, alpha, trace_gamma, baseline, r_max, width_alpha, sigma_low,
                sigma_high)
       Eq. 3 with a Gaussian-with-sigmoid policy over a CMAC (SPEC section 3),
@@ -36,9 +39,19 @@ Views (what a node's learner sees of the world's state):
   LocalTiles(coder)            the ship's state in the call's local 150 m frame
                                (origin: where it was called; rotation: the
                                `direction` argument of its `Child`), as CMAC tiles
-  StateTiles(coder)            the world's state itself, as CMAC tiles (a flat learner)
+  StateTiles(coder)            the world's state itself (its first coder.low numbers),
+                               as CMAC tiles (a flat learner, the route's root)
+  AimTiles(coder, targets, error_scale, reflect_deg)
+                               the heading error, turning rate and distance to the
+                               target its `Child`'s `target` argument names (the
+                               route's, `GatePoints`), as CMAC tiles; errors beyond
+                               `reflect_deg` to one side reflected onto the other,
+                               with the drawn turning rate negated (SPEC section 8)
   TaxiState()                  the taxi's full state, as its index (a flat QTable)
   TaxiAbstraction(subtask)     the taxi hierarchy's abstract state of `subtask`
+
+The children a ship node may choose (its `available`): `NearGateLine(within_m)`,
+all within `within_m` of the gate line, else only the first (a TiledQTable's).
 
 The taxi hierarchy's rules (`hierarchy.taxi_subtasks`), for a machine built with the
 taxi's world: `TaxiChildren(subtask)` (a node's `available`), `TaxiEnd(subtask)`
@@ -51,6 +64,13 @@ Terminations and internal rewards:
                                within 10 m, its frame left, or max_steps control
                                steps; with `internal_reward=Shaping()` its G is the
                                heading shaping and the local +100 / -100
+  TargetReached(max_steps)     an AimTiles node's end: through the gate or within
+                               its GatePoints' `radius_m` of an approach point
+                               (success), off the
+                               field, across the gate line beside the gate or
+                               after max_steps (failure); with `Shaping(weight)`
+                               its G is the shaping towards the target, times
+                               weight, and +100 / -100
 
 A user's own rule, where the blocks do not reach: a small `@numba.njit` function of
 (obs, origin, arg, steps) -- the observation now (float64), the first two numbers of
@@ -106,6 +126,19 @@ def check_width(width_alpha, sigma_low, sigma_high, where="GaussianCMAC"):
   if not (0 < sigma_low <= 1.0 <= sigma_high and math.isfinite(sigma_high)):
     raise ValueError(f"{where} sigma_low = {sigma_low!r}, sigma_high = {sigma_high!r}: need "
                      "0 < sigma_low <= 1 <= sigma_high < inf (sigma starts at 1)")
+
+
+@dataclasses.dataclass(eq=False)
+class TiledQTable:
+  """Watkins's Q(lambda) linear in `coder`'s tiles x the node's children (its view: a
+  StateTiles over `coder`); `trace_capacity` None: every weight once."""
+  coder: tiles_mod.TileCoder
+  alpha: float = 0.1
+  trace_decay: float = 0.9
+  epsilon: float = 0.1
+  gamma: float = 1.0
+  epsilon_schedule: bool = False
+  trace_capacity: int = None
 
 
 @dataclasses.dataclass(eq=False)
@@ -174,6 +207,41 @@ class StateTiles:
 
 
 @dataclasses.dataclass(frozen=True)
+class GatePoints:
+  """The route's targets by number (`ship_rules.target_of`): 0 the point of the gate,
+  its posts moved in by `inset_m`, nearest the ship; 1-3 points `approach_m` before
+  the gate line on the side where the call began; a TargetReached ends a call
+  within `radius_m` of an approach point."""
+  inset_m: float = 2.0
+  approach_m: float = 80.0
+  radius_m: float = 15.0
+
+
+@dataclasses.dataclass(eq=False)
+class AimTiles:
+  """The aim subtask's state towards its target (`ship_rules.aim_view`), coded by
+  `coder`: heading error on a "sqrt" or "linear" `error_scale`, turning rate,
+  distance; errors beyond `reflect_deg` (180: never) to the negative side reflected."""
+  coder: tiles_mod.TileCoder
+  targets: GatePoints = GatePoints()
+  error_scale: str = "sqrt"
+  reflect_deg: float = 180.0
+
+  def __post_init__(self):
+    if self.error_scale not in ("sqrt", "linear"):
+      raise ValueError(f"AimTiles: error_scale {self.error_scale!r}; allowed: 'sqrt', 'linear'")
+    if not 0.0 <= self.reflect_deg <= 180.0:
+      raise ValueError(f"AimTiles: reflect_deg = {self.reflect_deg!r}; allowed: 0 to 180")
+
+
+@dataclasses.dataclass(frozen=True)
+class NearGateLine:
+  """A node's available children: all within `within_m` of the gate line, else only
+  its first (an option's initiation set)."""
+  within_m: float = 1000.0
+
+
+@dataclasses.dataclass(frozen=True)
 class CellRule:
   """A QTable's view by a user's `@numba.njit` rule(obs, origin, arg, steps) -> state."""
   rule: object
@@ -236,6 +304,13 @@ class LocalGoal:
 
 
 @dataclasses.dataclass(frozen=True)
+class TargetReached:
+  """An AimTiles node's end (`ship_rules.aim_outcome`); `max_steps` control steps,
+  then a failure."""
+  max_steps: int = 600
+
+
+@dataclasses.dataclass(frozen=True)
 class EndRule:
   """A termination by a user's `@numba.njit` rule(obs, origin, arg, steps) -> event
   (0 go on, 1 success, -1 failure)."""
@@ -251,7 +326,9 @@ class RewardRule:
 
 @dataclasses.dataclass(frozen=True)
 class Shaping:
-  """G: the heading shaping and the local +100 / -100 (SPEC section 3)."""
+  """G: the heading shaping towards the subtask's goal, times `weight` (1 with a
+  LocalGoal), and the local +100 / -100 (SPEC section 3)."""
+  weight: float = 1.0
 
 
 @dataclasses.dataclass(frozen=True)

@@ -66,10 +66,11 @@ from hpg_mj.worlds import taxi_rules
 
 # Node kinds, learner kinds, views, ends, internal rewards, rewards seen.
 PRIMITIVE, SUBTASK = 0, 1
-NO_LEARNER, Q_TABLE, GAUSSIAN_CMAC, ACTOR_CRITIC, GIBBS_TABLE = range(5)
+NO_LEARNER, Q_TABLE, GAUSSIAN_CMAC, ACTOR_CRITIC, GIBBS_TABLE, TILED_Q = range(6)
 (NO_VIEW, VIEW_GRID_CELL, VIEW_LOCAL_TILES, VIEW_STATE_TILES, VIEW_RULE, VIEW_TAXI_STATE,
- VIEW_TAXI_ABSTRACT) = range(7)
-END_NEVER, END_LOCAL_GOAL, END_RULE, END_TAXI = range(4)
+ VIEW_TAXI_ABSTRACT, VIEW_AIM_TILES) = range(8)
+END_NEVER, END_LOCAL_GOAL, END_RULE, END_TAXI, END_TARGET = range(5)
+OFFER_ALL, OFFER_NEAR_GATE = 0, 1
 G_NONE, G_SHAPING, G_RULE = 0, 1, 2
 SEEN_SUMMED, SEEN_STEP = 0, 1
 
@@ -79,17 +80,23 @@ SEEN_SUMMED, SEEN_STEP = 0, 1
 # RewardRule's number, or a TaxiEnd's subtask id; N_STATES: a table's states.
 # WIDTH_SLOT: the row of a GaussianCMAC's learned width in GaussianBank.widths (-1: none).
 # AVAILABLE_AT: the subtask id of a TaxiChildren (-1: every child is available).
+# OFFER: how many of a TiledQTable's children a state offers (OFFER_ALL; OFFER_NEAR_GATE,
+# a NearGateLine's).
 (KIND, LEARNER, SLOT, VIEW, VIEW_SLOT, END, INTERNAL, SEEN, MAX_STEPS, FIRST_CHILD,
  N_CHILDREN, WATCH, EPS_SCHEDULE, CRITIC_SLOT, END_AT, G_AT, N_STATES, WIDTH_SLOT,
- AVAILABLE_AT) = range(19)
-N_INT = 19
+ AVAILABLE_AT, OFFER) = range(20)
+N_INT = 20
 # Columns of the node parameters (float64[n_nodes, N_FLOAT]); START_FRACTION, DELAY and
-# RAMP: a GibbsTable's warm-up.
+# RAMP: a GibbsTable's warm-up; INSET_M ... REFLECT_AT: an AimTiles' GatePoints and
+# scale, SHAPING_WEIGHT: a Shaping's weight; WITHIN_M: a NearGateLine's.
 (ALPHA, DECAY, GAMMA, BETA, R_MAX, EPSILON, CELL_M, GRID, ACTION, ALPHA_ACTOR, WIDTH_ALPHA,
- LOG_SIGMA_LOW, LOG_SIGMA_HIGH, START_FRACTION, DELAY, RAMP) = range(16)
-N_FLOAT = 16
+ LOG_SIGMA_LOW, LOG_SIGMA_HIGH, START_FRACTION, DELAY, RAMP, INSET_M, APPROACH_M, RADIUS_M,
+ SQRT_ERROR, REFLECT_AT, SHAPING_WEIGHT, WITHIN_M) = range(23)
+N_FLOAT = 23
 # Columns of the children table (int64[n_children, 3]): the child's node, its
-# `direction` argument (-1: none), the subtask id of its TaxiTarget binding (-1: none).
+# argument (`direction` or `target`; -1: none), the subtask id of its TaxiTarget
+# binding (-1: none).
+ARGUMENTS = ("direction", "target")
 C_NODE, C_ARG, C_BIND = range(3)
 # Columns of the per-node counters of an episode (float64[n_nodes, 3]).
 CALLS, RUNS, SUCCESSES = range(3)
@@ -112,8 +119,9 @@ GibbsBank = collections.namedtuple("GibbsBank", ("theta", "zs", "y", "touched", 
 # machine without any, whose code then does not hold the width's rule (`_width`).
 GaussianBank = collections.namedtuple("GaussianBank", ("theta", "zs", "y", "touched", "marked",
                                                        "count", "acc", "values", "widths"))
+# `dims`: the numbers each coder reads (a StateTiles reads the first dims of the state).
 TileBank = collections.namedtuple("TileBank", ("low", "width", "n_tiles", "wrap", "offsets",
-                                               "n_tilings"))
+                                               "n_tilings", "dims"))
 # The epsilon schedule (`learners.schedules`): its arrays and its settings, [threshold,
 # every, divisor] of a held one, [start, end, episodes] of a linear one, after its kind.
 Schedule = collections.namedtuple("Schedule", ("epsilon", "outcomes", "counts", "settings"))
@@ -121,7 +129,8 @@ HELD, LINEAR = 0, 1
 SCHEDULE_KIND, LINEAR_START, LINEAR_END, LINEAR_EPISODES = 3, 4, 5, 6
 # The call stack and the episode: per depth d the node, its choice, its argument, its
 # steps, the steps of its current child's run, its state (a table's) and the next;
-# the reward of the current child's run, the action value chosen; the call's origin;
+# the reward of the current child's run, the action value chosen, (an actor-critic's
+# m and u, below), the sign an AimTiles view puts on the drawn action; the call's origin;
 # its tiles (current, next; an actor-critic's critic tiles: current, next), score and
 # a learned width's score; an actor-critic's mean m and draw u; the episode's [depth,
 # steps, the root's argument, the root's event when it ended, the learning episodes
@@ -132,7 +141,7 @@ SCHEDULE_KIND, LINEAR_START, LINEAR_END, LINEAR_EPISODES = 3, 4, 5, 6
 # the machine's float64 obs; a GibbsTable's mask of available children
 # and scratch (probabilities, score indices, scores); the run's flags (RUN_LEARN ...).
 (S_NODE, S_CHOICE, S_ARG, S_STEPS, S_CHILD_STEPS, S_STATE, S_NEXT_STATE) = range(7)
-F_REWARD, F_ACTION, F_MEAN, F_U = range(4)
+F_REWARD, F_ACTION, F_MEAN, F_U, F_SIDE = range(5)
 Stack = collections.namedtuple("Stack", ("ints", "floats", "origin", "tiles", "psi",
                                          "psi_width", "episode", "total", "counters", "local",
                                          "local_samples", "sa", "ship", "samples", "taxi", "taxi_obs",
@@ -273,13 +282,39 @@ def _view(P, Q, B, G, T, S, K, X, W, d, obs, which):
     tiles_mod.active_tiles(local, tiling, K.tiles[d, which, :tiling.offsets.shape[0]])
   elif kind == VIEW_STATE_TILES:
     tiling = _tiling(T, row[VIEW_SLOT])
-    tiles_mod.active_tiles(obs, tiling, K.tiles[d, which, :tiling.offsets.shape[0]])
+    tiles_mod.active_tiles(obs[:T.dims[row[VIEW_SLOT]]], tiling,
+                           K.tiles[d, which, :tiling.offsets.shape[0]])
+  elif kind == VIEW_AIM_TILES:
+    p = P.params[node]
+    tiling = _tiling(T, row[VIEW_SLOT])
+    tx, ty = _target(P, K, d, obs)
+    view = K.local[:3]
+    K.floats[d, F_SIDE] = ship_rules.aim_view(obs, tx, ty, view, p[SQRT_ERROR] != 0.0,
+                                              p[REFLECT_AT])
+    tiles_mod.active_tiles(view, tiling, K.tiles[d, which, :tiling.offsets.shape[0]])
   elif kind == VIEW_TAXI_STATE:
     if W is not None:
       K.ints[d, S_STATE + which] = taxi_rules.encoded(obs, W)
   elif kind == VIEW_TAXI_ABSTRACT:
     if W is not None:
       K.ints[d, S_STATE + which] = _taxi_abstract(K, W, row, d)
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _target(P, K, d, obs):
+  """The point an AimTiles node at depth d steers to now (`ship_rules.target_of`)."""
+  p = P.params[K.ints[d, S_NODE]]
+  return ship_rules.target_of(K.ints[d, S_ARG], obs, ship_rules.side_of(K.origin[d, 1]),
+                              p[INSET_M], p[APPROACH_M])
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _offered(P, node, obs):
+  """How many of its first children `node` offers in `obs` (its `available`)."""
+  row = P.nodes[node]
+  if row[OFFER] == OFFER_NEAR_GATE and abs(obs[1] - ship_rules.GATE_Y) > P.params[node, WITHIN_M]:
+    return np.int64(1)
+  return row[N_CHILDREN]
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -306,7 +341,7 @@ def _gaussian_choose(P, G, T, K, d, rng_state):
   K.floats[d, F_ACTION] = policies.gaussian_choose(
       _trace(G, slot), G.values[slot], K.tiles[d, 0, :k], K.psi[d, :k], p[ALPHA], p[BETA],
       p[R_MAX], learn, sample, rng_state, _width(G, row), K.psi_width[d, :k],
-      p[WIDTH_ALPHA], p[LOG_SIGMA_LOW], p[LOG_SIGMA_HIGH])
+      p[WIDTH_ALPHA], p[LOG_SIGMA_LOW], p[LOG_SIGMA_HIGH]) * K.floats[d, F_SIDE]
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
@@ -333,6 +368,14 @@ def _gibbs_choose(P, B, K, W, d, rng_state):
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _epsilon(S, row, p, sample):
+  """A Q learner's epsilon: the schedule's or its own; 0 when not sampling."""
+  if not sample:
+    return 0.0
+  return S.epsilon[0] if row[EPS_SCHEDULE] else p[EPSILON]
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _choose(P, Q, B, G, T, S, K, X, W, d, obs, rng_state):
   """Algorithm 1: choose a with mu^i(s, theta^i); sets the stack's choice and action."""
   sample = K.flags[RUN_SAMPLE]
@@ -342,11 +385,14 @@ def _choose(P, Q, B, G, T, S, K, X, W, d, obs, rng_state):
   slot = row[SLOT]
   if row[LEARNER] == Q_TABLE:
     if Q is not None:
-      epsilon = 0.0
-      if sample:
-        epsilon = S.epsilon[0] if row[EPS_SCHEDULE] else p[EPSILON]
+      epsilon = _epsilon(S, row, p, sample)
       K.ints[d, S_CHOICE] = qlambda.epsilon_greedy(Q.q[slot], K.ints[d, S_STATE],
                                                    row[N_CHILDREN], epsilon, rng_state)
+  elif row[LEARNER] == TILED_Q:
+    if Q is not None:
+      K.ints[d, S_CHOICE] = qlambda.tiled_epsilon_greedy(
+          Q.q[slot], K.tiles[d, 0, :T.n_tilings[row[VIEW_SLOT]]], row[N_CHILDREN],
+          _offered(P, node, obs), _epsilon(S, row, p, sample), rng_state)
   elif row[LEARNER] == GAUSSIAN_CMAC:
     if G is not None:
       _gaussian_choose(P, G, T, K, d, rng_state)
@@ -375,10 +421,11 @@ def _call(P, Q, B, G, T, S, K, X, W, d, node, arg, obs, rng_state):
   ints[d, S_STEPS] = 0
   ints[d, S_CHILD_STEPS] = 0
   K.floats[d, F_REWARD] = 0.0
+  K.floats[d, F_SIDE] = 1.0
   K.origin[d, 0] = obs[0]
   K.origin[d, 1] = obs[1]
   row = P.nodes[node]
-  if row[LEARNER] == Q_TABLE:
+  if row[LEARNER] == Q_TABLE or row[LEARNER] == TILED_Q:
     if Q is not None:
       qlambda.clear(Q.count[row[SLOT]])
   elif row[LEARNER] == GAUSSIAN_CMAC:
@@ -478,6 +525,14 @@ def _end_of(P, K, X, W, d, obs, samples):
                                              row[MAX_STEPS])
     if row[INTERNAL] != G_SHAPING:
       internal = 0.0
+  elif row[END] == END_TARGET:
+    p = P.params[node]
+    tx, ty = _target(P, K, d, obs)
+    event, internal = ship_rules.aim_outcome(samples, obs, K.ints[d, S_ARG], tx, ty,
+                                             K.ints[d, S_STEPS], row[MAX_STEPS], p[RADIUS_M],
+                                             p[SHAPING_WEIGHT])
+    if row[INTERNAL] != G_SHAPING:
+      internal = 0.0
   elif row[END] == END_TAXI:
     if W is not None:
       if taxi_subtasks.done_of(row[END_AT], K.ints[d, S_ARG], K.taxi[0:5], W):
@@ -512,19 +567,26 @@ def _observe(P, Q, B, G, T, S, K, X, W, d, obs, signal, done, terminal, rng_stat
   if kind == GIBBS_TABLE and row[VIEW] == VIEW_TAXI_ABSTRACT:
     if W is not None:              # without the call to `_view`: the taxi's every step
       ints[d, S_NEXT_STATE] = _taxi_abstract(K, W, row, d)
-  elif kind == Q_TABLE or kind == GIBBS_TABLE or (kind == GAUSSIAN_CMAC and not done) or (
-      kind == ACTOR_CRITIC and not terminal):
+  elif kind == Q_TABLE or kind == TILED_Q or kind == GIBBS_TABLE or (
+      kind == GAUSSIAN_CMAC and not done) or (kind == ACTOR_CRITIC and not terminal):
     _view(P, Q, B, G, T, S, K, X, W, d, obs, np.int64(1))
   if kind == Q_TABLE:
     if Q is not None:
-      epsilon = 0.0
-      if sample:
-        epsilon = S.epsilon[0] if row[EPS_SCHEDULE] else p[EPSILON]
       ints[d, S_CHOICE] = qlambda.smdp_step(
           (Q.q[slot], Q.index[slot], Q.value[slot], Q.count[slot]), row[N_CHILDREN],
-          ints[d, S_STATE], ints[d, S_CHOICE], signal, ints[d, S_NEXT_STATE], done,
-          terminal, epsilon, p[ALPHA], p[GAMMA], p[DECAY], learn, rng_state)
+          ints[d, S_STATE], ints[d, S_CHOICE], signal, ints[d, S_NEXT_STATE], row[N_CHILDREN],
+          done, terminal, _epsilon(S, row, p, sample), p[ALPHA], p[GAMMA], p[DECAY], learn,
+          rng_state)
       ints[d, S_STATE] = ints[d, S_NEXT_STATE]
+  elif kind == TILED_Q:
+    if Q is not None:
+      k = T.n_tilings[row[VIEW_SLOT]]
+      ints[d, S_CHOICE] = qlambda.smdp_step(
+          (Q.q[slot], Q.index[slot], Q.value[slot], Q.count[slot]), row[N_CHILDREN],
+          K.tiles[d, 0, :k], ints[d, S_CHOICE], signal, K.tiles[d, 1, :k],
+          _offered(P, node, obs), done, terminal, _epsilon(S, row, p, sample), p[ALPHA],
+          p[GAMMA], p[DECAY], learn, rng_state)
+      arrays.copy_into(K.tiles[d, 0, :k], K.tiles[d, 1, :k])
   elif kind == GIBBS_TABLE:
     if B is not None:
       if learn:                                        # Eq. 3 with R + G, and b(s)
@@ -790,6 +852,8 @@ class Machine:
     order = [n for n in graph.nodes if n != graph.root] + [graph.root]
     self.names = order
     index = {name: i for i, name in enumerate(order)}
+    self.index_of = index
+    self.argument_names = {}            # node -> the name of its argument (`ARGUMENTS`)
     nodes = np.zeros((len(order), N_INT), dtype=np.int64)
     params = np.zeros((len(order), N_FLOAT))
     params[:, ACTION] = np.nan
@@ -811,13 +875,12 @@ class Machine:
       nodes[i, FIRST_CHILD] = len(children)
       nodes[i, N_CHILDREN] = len(refs)
       for ref in refs:
-        children.append((index[ref.node], int(ref.args.get("direction", -1)),
-                         self._binding(name, ref)))
+        children.append((index[ref.node], self._argument(name, ref), self._binding(name, ref)))
       nodes[i, WATCH] = watch.get(name, -1)
-      nodes[i, AVAILABLE_AT] = self._available(name, node)
+      nodes[i, AVAILABLE_AT] = self._available(name, node, nodes[i], params[i])
       self._learner(name, node, nodes[i], params[i], refs)
       self._view(name, node, nodes[i], params[i])
-      self._end(name, node, nodes[i])
+      self._end(name, node, nodes[i], params[i])
     self.index = index
     q = self.learners[Q_TABLE]
     g = self.learners[GAUSSIAN_CMAC]
@@ -826,11 +889,11 @@ class Machine:
     for i in range(len(order)):
       learner = getattr(graph.nodes[order[i]], "learner", None)
       nodes[i, WIDTH_SLOT] = self._width_slot_of.get(id(learner), -1)
-    n_q = [b.n_states * self._n_actions[id(b)] for b in q]
+    n_q = [self._q_size(b) for b in q]
     # None in a machine without a QTable, whose code then holds no Q-learning (as extras)
     qbank = QBank(_stack_rows([np.zeros(n) for n in n_q], np.float64),
-                  _stack_rows([np.zeros(b.trace_capacity) for b in q], np.int64),
-                  _stack_rows([np.zeros(b.trace_capacity) for b in q], np.float64),
+                  _stack_rows([np.zeros(self._capacity(b)) for b in q], np.int64),
+                  _stack_rows([np.zeros(self._capacity(b)) for b in q], np.float64),
                   np.zeros((max(len(q), 1), 1), dtype=np.int64)) if q else None
     # None in a machine without a Gaussian learner or actor-critic (the taxi's), whose
     # code then holds neither (the Q and Gibbs banks' pruning)
@@ -856,7 +919,7 @@ class Machine:
     schedule = Schedule(eps, outcomes, counts, np.array(settings, dtype=np.float64))
     critics = [b.critic_coder for b in g if isinstance(b, blocks.ActorCritic)]
     n_max = max([int(nodes[i, N_CHILDREN]) for i in range(len(order))] + [1])
-    stack = Stack(np.zeros((depth, 7), dtype=np.int64), np.zeros((depth, 4)),
+    stack = Stack(np.zeros((depth, 7), dtype=np.int64), np.zeros((depth, 5)),
                   np.zeros((depth, 2)), np.zeros((depth, 4, k), dtype=np.int64),
                   np.zeros((depth, k)), np.zeros((depth, k)),
                   np.array([0, 0, int(root_args.get("direction", -1)), 0, 0], dtype=np.int64),
@@ -891,17 +954,23 @@ class Machine:
   def _learner(self, name, node, row, p, refs):
     learner = node.learner
     self._n_actions = getattr(self, "_n_actions", {})
-    if isinstance(learner, blocks.QTable):
-      row[LEARNER] = Q_TABLE
-      row[SLOT] = self._slot(Q_TABLE, learner)
+    if isinstance(learner, (blocks.QTable, blocks.TiledQTable)):
+      tiled = isinstance(learner, blocks.TiledQTable)
+      row[LEARNER] = TILED_Q if tiled else Q_TABLE
+      row[SLOT] = self._slot(Q_TABLE, learner)          # both in the QBank
       self._same_children(name, learner, refs)
       p[ALPHA], p[DECAY], p[GAMMA], p[EPSILON] = (learner.alpha, learner.trace_decay,
                                                   learner.gamma, learner.epsilon)
       row[EPS_SCHEDULE] = int(bool(learner.epsilon_schedule))
-      row[N_STATES] = int(learner.n_states)
-      if not isinstance(node.view, (blocks.GridCell, blocks.CellRule, blocks.TaxiState)):
-        raise GraphError(f"subtask {name!r}: a QTable needs a GridCell, CellRule or TaxiState "
-                         f"view, got {type(node.view).__name__}")
+      if tiled and (not isinstance(node.view, blocks.StateTiles)
+                    or node.view.coder != learner.coder):
+        raise GraphError(f"subtask {name!r}: a TiledQTable needs a StateTiles view over its "
+                         "own coder")
+      if not tiled:
+        row[N_STATES] = int(learner.n_states)
+        if not isinstance(node.view, (blocks.GridCell, blocks.CellRule, blocks.TaxiState)):
+          raise GraphError(f"subtask {name!r}: a QTable needs a GridCell, CellRule or TaxiState "
+                           f"view, got {type(node.view).__name__}")
     elif isinstance(learner, blocks.GibbsTable):
       row[LEARNER] = GIBBS_TABLE
       row[SLOT] = self._slot(GIBBS_TABLE, learner)
@@ -933,14 +1002,22 @@ class Machine:
       p[WIDTH_ALPHA], p[LOG_SIGMA_LOW], p[LOG_SIGMA_HIGH] = (
           learner.width_alpha, math.log(learner.sigma_low), math.log(learner.sigma_high))
       self._one_continuous_child(name, "a GaussianCMAC", refs)
-      if not isinstance(node.view, (blocks.LocalTiles, blocks.StateTiles)) or \
-          node.view.coder != learner.coder:
-        raise GraphError(f"subtask {name!r}: a GaussianCMAC needs a LocalTiles or StateTiles "
-                         "view over its own coder")
+      if not isinstance(node.view, (blocks.LocalTiles, blocks.StateTiles, blocks.AimTiles)) \
+          or node.view.coder != learner.coder:
+        raise GraphError(f"subtask {name!r}: a GaussianCMAC needs a LocalTiles, StateTiles or "
+                         "AimTiles view over its own coder")
     else:
       raise GraphError(f"subtask {name!r}: learner {learner!r} is not a machine learner; "
-                       "allowed: QTable, GibbsTable, GaussianCMAC, ActorCritic "
+                       "allowed: QTable, TiledQTable, GibbsTable, GaussianCMAC, ActorCritic "
                        "(hpg_mj.hierarchy.blocks)")
+
+  def _q_size(self, learner):
+    """A QBank row's weights: a table's states, or a TiledQTable's tiles, x its actions."""
+    n = learner.coder.size if isinstance(learner, blocks.TiledQTable) else learner.n_states
+    return n * self._n_actions[id(learner)]
+
+  def _capacity(self, learner):
+    return learner.trace_capacity or self._q_size(learner)
 
   def _same_children(self, name, learner, refs):
     """A table's children: the same number at every node that shares it."""
@@ -955,18 +1032,36 @@ class Machine:
                        "world (Machine(graph, world=taxi_rules.world_config(rules)))")
     return blocks.TAXI_SUBTASKS.index(block.subtask)
 
-  def _available(self, name, node):
-    """The node's AVAILABLE_AT: a TaxiChildren's subtask id, -1 without one."""
+  def _available(self, name, node, row, p):
+    """The node's AVAILABLE_AT: a TaxiChildren's subtask id, -1 without one (a
+    NearGateLine sets its OFFER)."""
     available = node.available
     if available is None:
       return -1
+    if isinstance(available, blocks.NearGateLine):
+      if not isinstance(node.learner, blocks.TiledQTable):
+        raise GraphError(f"subtask {name!r}: only a TiledQTable offers its children by "
+                         f"NearGateLine; its learner is a {type(node.learner).__name__}")
+      row[OFFER], p[WITHIN_M] = OFFER_NEAR_GATE, float(available.within_m)
+      return -1
     if not isinstance(available, blocks.TaxiChildren):
       raise GraphError(f"subtask {name!r}: available {available!r} is not a machine block; "
-                       "allowed: None, TaxiChildren (hpg_mj.hierarchy.blocks)")
+                       "allowed: None, TaxiChildren, NearGateLine (hpg_mj.hierarchy.blocks)")
     if not isinstance(node.learner, blocks.GibbsTable):
       raise GraphError(f"subtask {name!r}: only a GibbsTable chooses among available children; "
                        f"its learner is a {type(node.learner).__name__}")
     return self._taxi_id(name, available)
+
+  def _argument(self, name, ref):
+    """A child's C_ARG: its `direction` or `target` argument (-1: none)."""
+    unknown = sorted(set(ref.args) - set(ARGUMENTS))
+    if unknown or len(ref.args) > 1:
+      raise GraphError(f"subtask {name!r}: its child {ref.node!r} takes {sorted(ref.args)}; "
+                       f"the machine passes one integer argument, one of {list(ARGUMENTS)}")
+    for key, value in ref.args.items():
+      self.argument_names[self.index_of[ref.node]] = key
+      return int(value)
+    return -1
 
   def _binding(self, name, ref):
     """A child's C_BIND: a TaxiTarget's subtask id, -1 without one."""
@@ -994,6 +1089,14 @@ class Machine:
       row[VIEW] = VIEW_LOCAL_TILES if isinstance(view, blocks.LocalTiles) else VIEW_STATE_TILES
       row[VIEW_SLOT] = len(self.codings)
       self.codings.append(view.coder)
+    elif isinstance(view, blocks.AimTiles):
+      row[VIEW] = VIEW_AIM_TILES
+      row[VIEW_SLOT] = len(self.codings)
+      self.codings.append(view.coder)
+      t = view.targets
+      p[INSET_M], p[APPROACH_M], p[RADIUS_M] = t.inset_m, t.approach_m, t.radius_m
+      p[SQRT_ERROR] = float(view.error_scale == "sqrt")
+      p[REFLECT_AT] = ship_rules.error_coordinate(view.reflect_deg, view.error_scale)
     elif isinstance(view, blocks.TaxiState):
       self._taxi_id(name, blocks.TaxiAbstraction("root"))      # needs the world
       row[VIEW] = VIEW_TAXI_STATE
@@ -1007,8 +1110,8 @@ class Machine:
           int(self.world[taxi_rules.W_CAPACITY]))[row[VIEW_SLOT]])
     else:
       raise GraphError(f"subtask {name!r}: view {view!r} is not a machine view; allowed: "
-                       "GridCell, LocalTiles, StateTiles, CellRule, TaxiState, TaxiAbstraction "
-                       "(hpg_mj.hierarchy.blocks)")
+                       "GridCell, LocalTiles, StateTiles, AimTiles, CellRule, TaxiState, "
+                       "TaxiAbstraction (hpg_mj.hierarchy.blocks)")
 
   def _states(self, name, node, view, n):
     """A table over a taxi view has its states."""
@@ -1021,12 +1124,18 @@ class Machine:
     self.rules.append((name, kind, rule))
     return len(self.rules) - 1
 
-  def _end(self, name, node, row):
+  def _end(self, name, node, row, p):
     end, internal = node.termination, node.internal_reward
     if isinstance(end, blocks.Never):
       row[END] = END_NEVER
     elif isinstance(end, blocks.LocalGoal):
       row[END] = END_LOCAL_GOAL
+      row[MAX_STEPS] = int(end.max_steps)
+    elif isinstance(end, blocks.TargetReached):
+      if row[VIEW] != VIEW_AIM_TILES:
+        raise GraphError(f"subtask {name!r}: a TargetReached ends a node with an AimTiles "
+                         f"view (its targets); its view is a {type(node.view).__name__}")
+      row[END] = END_TARGET
       row[MAX_STEPS] = int(end.max_steps)
     elif isinstance(end, blocks.EndRule):
       row[END] = END_RULE
@@ -1036,18 +1145,21 @@ class Machine:
       row[END_AT] = self._taxi_id(name, end)
     else:
       raise GraphError(f"subtask {name!r}: termination {end!r} is not a machine "
-                       "termination; allowed: Never, LocalGoal, EndRule, TaxiEnd "
-                       "(hpg_mj.hierarchy.blocks)")
+                       "termination; allowed: Never, LocalGoal, TargetReached, EndRule, "
+                       "TaxiEnd (hpg_mj.hierarchy.blocks)")
     if internal is None:
       row[INTERNAL] = G_NONE
-    elif isinstance(internal, blocks.Shaping) and row[END] == END_LOCAL_GOAL:
+    elif isinstance(internal, blocks.Shaping) and (
+        row[END] == END_TARGET or (row[END] == END_LOCAL_GOAL and internal.weight == 1.0)):
       row[INTERNAL] = G_SHAPING
+      p[SHAPING_WEIGHT] = float(internal.weight)
     elif isinstance(internal, blocks.RewardRule):
       row[INTERNAL] = G_RULE
       row[G_AT] = self._rule(name, rules_mod.REWARD, internal.rule)
     else:
       raise GraphError(f"subtask {name!r}: internal reward {internal!r} is not allowed; "
-                       "allowed: None, RewardRule, Shaping() with a LocalGoal termination")
+                       "allowed: None, RewardRule, Shaping() with a LocalGoal termination, "
+                       "Shaping(weight) with a TargetReached")
     seen = node.reward if node.reward is not None else blocks.SUMMED
     if seen not in (blocks.SUMMED, blocks.STEP):
       raise GraphError(f"subtask {name!r}: reward {seen!r} is not allowed; allowed: "
@@ -1069,7 +1181,8 @@ class Machine:
       low[i, :n], width[i, :n], n_tiles[i, :n], wrap[i, :n] = t.low, t.width, t.n_tiles, t.wrap
       offsets[i, :t.offsets.shape[0], :n] = t.offsets
     return TileBank(low, width, n_tiles, wrap, offsets,
-                    np.array([c.n_tilings for c in coders], dtype=np.int64))
+                    np.array([c.n_tilings for c in coders], dtype=np.int64),
+                    np.array([len(c.low) for c in coders], dtype=np.int64))
 
   def _depth(self, name):
     node = self.graph.nodes[name]
@@ -1096,9 +1209,10 @@ class Machine:
                              self.banks.gibbs), self.banks.gibbs.values[slot, :learner.n_states])
 
   def q_arrays(self, learner):
-    """(q, trace index, trace value, trace count) of a QTable (views of the bank)."""
+    """(q, trace index, trace value, trace count) of a QTable or TiledQTable (views of
+    the bank)."""
     slot = self._slot_of[id(learner)]
-    n = learner.n_states * self._n_actions[id(learner)]
+    n = self._q_size(learner)
     b = self.banks.q
     return b.q[slot, :n], b.index[slot], b.value[slot], b.count[slot]
 
@@ -1244,7 +1358,9 @@ def _tell_calls(machine, on_call):
   for d in range(1, int(k.episode[E_DEPTH]) + 1):
     if k.ints[d, S_STEPS] == 0:
       arg = int(k.ints[d, S_ARG])
-      on_call(Call(machine.names[int(k.ints[d, S_NODE])], {"direction": arg} if arg >= 0 else {},
+      node = int(k.ints[d, S_NODE])
+      name = machine.argument_names.get(node)
+      on_call(Call(machine.names[node], {name: arg} if name is not None else {},
                    k.origin[d].copy()))
 
 

@@ -45,11 +45,48 @@ def _local_coder(g):
                          int(g.integers(1, 6)))
 
 
+def _route_graph(g):
+  """A root over tiles of (x, y, heading) choosing targets (`blocks.GatePoints`) for
+  an aim subtask (`blocks.AimTiles`, `blocks.TargetReached`)."""
+  root_coder = tiles.TileCoder((0.0, 0.0, -45.0), (1000.0, 1000.0, 315.0),
+                               (int(g.integers(2, 11)), int(g.integers(2, 11)), 4),
+                               (False, False, True), int(g.integers(1, 9)))
+  reflect, scale = float(g.choice([180.0, 90.0, 45.0])), str(g.choice(["sqrt", "linear"]))
+  aim_coder = tiles.TileCoder((-ship_rules.error_coordinate(reflect, scale), -15.0, 0.0),
+                              (180.0, 15.0, ship_rules.DISTANCE_CLIP),
+                              (int(g.integers(6, 37)), int(g.integers(2, 7)), int(g.integers(2, 5))),
+                              (reflect == 180.0, False, False), int(g.integers(1, 9)))
+  root = blocks.TiledQTable(root_coder, float(g.uniform(0.05, 0.3)), float(g.uniform(0.0, 0.95)),
+                            float(g.uniform(0.05, 0.5)), epsilon_schedule=bool(g.random() < 0.5))
+  aim = blocks.GaussianCMAC(aim_coder, float(g.uniform(0.002, 0.05)),
+                            float(g.choice([1.0, 0.99])), float(g.choice([0.0, 0.3])), 15.0,
+                            float(g.choice([0.0, 0.01])), 0.25, float(g.choice([1.0, 4.0])))
+  targets = blocks.GatePoints(float(g.uniform(0.0, 10.0)), float(g.uniform(30.0, 150.0)),
+                              float(g.uniform(5.0, 60.0)))
+  chosen = g.choice(ship_rules.N_TARGETS, size=int(g.integers(1, 5)), replace=False)
+  return TaskGraph("root", [
+      Subtask("root", children=[Child("aim", target=int(t)) for t in chosen], learner=root,
+              view=blocks.StateTiles(root_coder), termination=blocks.Never(),
+              available=blocks.NearGateLine(float(g.uniform(50.0, 1000.0)))),
+      Subtask("aim", children=["turn"], learner=aim,
+              view=blocks.AimTiles(aim_coder, targets, scale, reflect),
+              termination=blocks.TargetReached(int(g.integers(30, 300))),
+              internal_reward=blocks.Shaping(float(g.uniform(0.0, 2.0)))
+              if g.random() < 0.7 else None,
+              reward=blocks.STEP if g.random() < 0.7 else blocks.SUMMED),
+      Primitive("turn")],
+      schedule=blocks.HeldEpsilon(float(g.uniform(0.1, 0.5)), ("aim",)[:int(g.integers(0, 2))],
+                                  0.5, 3, 2, 1.5))
+
+
 def random_graph(seed):
-  """A random graph of blocks: flat, two levels (root over legs) or three (root
-  over regions over legs), with random learners, sizes, ends and rewards."""
+  """A random graph of blocks: flat, two levels (root over legs), three (root over
+  regions over legs) or a route (a tiled root over targets for an aim subtask), with
+  random learners, sizes, ends and rewards."""
   g = np.random.default_rng(seed)
-  shape = ("flat", "two", "three")[seed % 3]
+  shape = ("flat", "two", "three", "route")[seed % 4]
+  if shape == "route":
+    return _route_graph(g)
   if shape == "flat":
     coder = tiles.TileCoder((0.0, 0.0, -180.0, -15.0), (1000.0, 1000.0, 180.0, 15.0),
                             (int(g.integers(2, 21)), int(g.integers(2, 21)), 36, 5),
@@ -104,7 +141,7 @@ def random_graph(seed):
 def _parameters(m, graph):
   out = {}
   for node in graph.subtasks():
-    if isinstance(node.learner, blocks.QTable):
+    if isinstance(node.learner, (blocks.QTable, blocks.TiledQTable)):
       out[node.name] = m.q_arrays(node.learner)[0].copy()
     else:
       trace, values = m.gaussian_arrays(node.learner)
@@ -118,7 +155,7 @@ def _oracle_parameters(o, graph):
   out = {}
   for node in graph.subtasks():
     learner = o.learners[id(node.learner)]
-    if isinstance(node.learner, blocks.QTable):
+    if isinstance(node.learner, (blocks.QTable, blocks.TiledQTable)):
       out[node.name] = learner.q.copy()
     else:
       width = [] if learner.width is None else [el.parameters(learner.width)]
@@ -147,7 +184,7 @@ def test_random_graphs_give_the_oracles_numbers_on_every_path(seed):
   calls = ([], [])
 
   def told(k):
-    return lambda call: calls[k].append((call.node, call.args.get("direction"),
+    return lambda call: calls[k].append((call.node, sorted(call.args.items()),
                                          float(call.origin[0]), float(call.origin[1])))
 
   for learn, sample, episodes in ((True, True, 6), (False, True, 2), (False, False, 2)):
@@ -173,12 +210,14 @@ def test_random_graphs_give_the_oracles_numbers_on_every_path(seed):
 
 def test_random_graphs_cover_every_shape_and_a_subtask_run():
   graphs = [random_graph(s) for s in range(12)]
-  shapes = {len([n for n in g.subtasks() if isinstance(n.learner, blocks.QTable)])
+  shapes = {(len([n for n in g.subtasks() if isinstance(n.learner, blocks.QTable)]),
+             any(isinstance(n.learner, blocks.TiledQTable) for n in g.subtasks()))
             for g in graphs}
-  assert shapes == {0, 1, 2}                     # flat, two and three levels
+  assert shapes == {(0, False), (1, False), (2, False), (0, True)}   # flat, 2, 3 levels, route
   used = {type(part).__name__ for g in graphs for n in g.subtasks()
-          for part in (n.view, n.termination, n.internal_reward)}
-  assert {"CellRule", "EndRule", "RewardRule", "Shaping", "GridCell", "LocalGoal"} <= used
+          for part in (n.view, n.termination, n.internal_reward, n.available)}
+  assert {"CellRule", "EndRule", "RewardRule", "Shaping", "GridCell", "LocalGoal", "AimTiles",
+          "TargetReached", "NearGateLine", "StateTiles"} <= used
   assert any(getattr(n.learner, "width_alpha", 0.0) for g in graphs for n in g.subtasks())
 
 
@@ -205,7 +244,8 @@ def _root(children=None, **kw):
 @pytest.mark.parametrize("nodes, schedule, message", [
     (lambda: [_root(), _leg(learner=stepwise.SoftmaxPolicyGradient(1, 1, 0.1)),
               Primitive("turn")], None,
-     "subtask 'leg': learner .* is not a machine learner; allowed: QTable, GibbsTable, GaussianCMAC"),
+     "subtask 'leg': learner .* is not a machine learner; allowed: QTable, TiledQTable, GibbsTable, "
+     "GaussianCMAC"),
     (lambda: [_root(), _leg(learner=object()), Primitive("turn")], None,
      "subtask 'leg': its learner object has no start, act, observe"),
     (lambda: [_root(view=blocks.LocalTiles(_coder())), _leg(), Primitive("turn")], None,
@@ -213,7 +253,21 @@ def _root(children=None, **kw):
     (lambda: [_root(), _leg(children=("turn", "turn2")), Primitive("turn"), Primitive("turn2")],
      None, "subtask 'leg': a GaussianCMAC's one child is a continuous primitive"),
     (lambda: [_root(), _leg(view=blocks.GridCell()), Primitive("turn")], None,
-     "subtask 'leg': a GaussianCMAC needs a LocalTiles or StateTiles view over its own coder"),
+     "subtask 'leg': a GaussianCMAC needs a LocalTiles, StateTiles or AimTiles view over its "
+     "own coder"),
+    (lambda: [_root(learner=blocks.TiledQTable(_coder())), _leg(), Primitive("turn")], None,
+     "subtask 'root': a TiledQTable needs a StateTiles view over its own coder"),
+    (lambda: [Subtask("root", children=[Child("leg", direction=0)], learner=blocks.QTable(400),
+                      view=blocks.GridCell(), termination=blocks.Never(),
+                      available=blocks.NearGateLine(100.0)), _leg(), Primitive("turn")], None,
+     "subtask 'root': only a TiledQTable offers its children by NearGateLine; its learner is "
+     "a QTable"),
+    (lambda: [_root(), _leg(termination=blocks.TargetReached()), Primitive("turn")], None,
+     "subtask 'leg': a TargetReached ends a node with an AimTiles view \\(its targets\\); its "
+     "view is a LocalTiles"),
+    (lambda: [_root(children=[Child("leg", heading=3)]), _leg(), Primitive("turn")], None,
+     "subtask 'root': its child 'leg' takes \\['heading'\\]; the machine passes one integer "
+     "argument, one of \\['direction', 'target'\\]"),
     (lambda: [_root(), _leg(termination=object()), Primitive("turn")], None,
      "subtask 'leg': termination .* is not a machine termination; allowed: Never, LocalGoal"),
     (lambda: [_root(view=blocks.CellRule(lambda obs, origin, arg, steps: 0)), _leg(),
