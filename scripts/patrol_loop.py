@@ -44,10 +44,11 @@ import numpy as np
 from hpg_mj import agents
 from hpg_mj.agents import _ship
 from hpg_mj.agents import ship_patrol as sp
-from hpg_mj.hierarchy import patrol
 from hpg_mj.hierarchy import ship_rules as rules
+from hpg_mj.learners import policies
 from hpg_mj.learners import qlambda
 from hpg_mj.learners import rng
+from hpg_mj.learners import tiles
 from hpg_mj.worlds import ship_core as core
 
 # Columns of one recorded call.
@@ -57,13 +58,48 @@ X, Y, HEADING, STATE, ACTION, STEPS, REWARD, G_EVENT, L_EVENT, RATE = range(10)
 def _scratch(tiling):
   n = tiling.offsets.shape[0]
   samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
-  return (np.empty(n, dtype=np.int64), np.empty(n), np.empty(n, dtype=np.int64), samples,
-          np.empty_like(samples), np.empty(4), np.empty(2))
+  return (np.empty(n, dtype=np.int64), np.empty(n), samples, np.empty_like(samples),
+          np.empty(4), np.empty(2))
+
+
+class Sailing:
+  """What `sail_calls` needs of an agent: its local tiles, its subtasks' max steps and
+  the task's rewards."""
+
+  def __init__(self, agent):
+    self.tiling = agent.coder.arrays()
+    self.s = (int(agent.config.low_level.max_steps), float(agent.config.environment.gate_reward),
+              float(agent.config.environment.out_of_bounds_reward))
+
+
+@numba.njit
+def run_call(state, direction, trace, values, tiling, s, sample, rng_state, scratch):
+  """One call of a low-level subtask from `state` (in place), its policy only (no
+  learning; the machine's LocalGoal end, cut by a gate pass or a departure):
+  (global event, local event, reward to the root, control steps)."""
+  max_steps, gate_reward, out_of_bounds_reward = s
+  tiles_, psi, samples, local_samples, local, origin = scratch
+  origin[0], origin[1] = state[0], state[1]
+  core.global_to_local(state, origin, direction, local)
+  reward_root, k = 0.0, 0
+  while True:
+    tiles.active_tiles(local, tiling, tiles_)
+    r = policies.gaussian_choose(trace, values, tiles_, psi, 0.0, 0.0, core.MAX_TURN_RATE,
+                                 False, sample, rng_state)
+    core.euler_control(state, r, samples)
+    k += 1
+    g, reward = core.global_outcome(samples, gate_reward, out_of_bounds_reward)
+    reward_root += reward
+    l, _ = core.low_level_outcome(samples, state, origin, direction, k, local_samples, local,
+                                  max_steps)
+    if g != core.NO_EVENT or l != core.NO_EVENT:
+      return g, l, reward_root, k
 
 
 @numba.njit
 def sail_calls(ship, q, low, tiling, s, view, sample_low, rng_state, first, max_steps, out,
                scratch):
+  # (`s`: Sailing.s)
   """Greedy root calls from `ship` (in place) until `max_steps` control steps or
   `out` is full; the first call is `first` when >= 0. Returns the calls made."""
   diagonal, diagonal_values, straight, straight_values = low
@@ -71,7 +107,7 @@ def sail_calls(ship, q, low, tiling, s, view, sample_low, rng_state, first, max_
   steps = 0
   i = 0
   while steps < max_steps and i < out.shape[0]:
-    state = patrol.root_state(ship, sectors, near_m, near_cell_m)
+    state = rules.root_state(ship, sectors, near_m, near_cell_m)
     # epsilon 0 through epsilon_greedy: the generator's draws are the evaluation's.
     a = first if (i == 0 and first >= 0) else qlambda.epsilon_greedy(
         q, state, rules.N_DIRECTIONS, 0.0, rng_state)
@@ -79,8 +115,7 @@ def sail_calls(ship, q, low, tiling, s, view, sample_low, rng_state, first, max_
     row[0], row[1], row[2], row[9] = ship[0], ship[1], ship[2], ship[3]
     trace, values = ((diagonal, diagonal_values) if rules.subtask_of(a) == rules.DIAGONAL
                      else (straight, straight_values))
-    g, l, reward, k = patrol.run_low_level(ship, a, trace, values, tiling, s, False, sample_low,
-                                           rng_state, 0, scratch)
+    g, l, reward, k = run_call(ship, a, trace, values, tiling, s, sample_low, rng_state, scratch)
     row[3], row[4], row[5], row[6], row[7], row[8] = state, a, k, reward, g, l
     if g == core.FAILURE:
       _ship.sample_start(rng_state, ship)
@@ -99,7 +134,7 @@ def period(pairs):
 
 
 def describe(state, view):
-  """(cell, sector) of a root state in words (`hierarchy.patrol.root_state`)."""
+  """(cell, sector) of a root state in words (`ship_rules.root_state`)."""
   sectors, near_m, near_cell_m = view
   cell, sector = divmod(int(state), sectors)
   if cell < rules.ROOT_GRID ** 2:
@@ -134,12 +169,11 @@ def main():
     if args.episodic:
       episodic_task = agents.load_task(config.comparison.episodic_task)
       episodic, _, _ = agents.train(episodic_task, seed=seed)
-      low = tuple(x for k in (rules.DIAGONAL, rules.STRAIGHT)
-                  for x in (episodic.low[k].trace, episodic.low[k].values))
+      low = low_arrays(episodic)
       print(f"seed {seed}, the episodic hybrid ({episodic_task.path.name}, "
             f"{episodic_task.protocol.episodes} episodes) on the continuing task; its root's "
             f"values are discounted returns of episodes that end at the gate", flush=True)
-      report(agent, episodic.root.parameters(), low, (1, 0.0, 25.0), None, None, args)
+      report(agent, episodic.parameters()["root_q"], low, (1, 0.0, 25.0), None, None, args)
       continue
     # In blocks of 100 hours (the same process as one call): the hour each Q(s, a)
     # last moved.
@@ -154,25 +188,33 @@ def main():
     print(f"seed {seed}: learned gain rho {agent.gain[0]:+.4f}/step = "
           f"{(agent.gain[0] + 1) / 100 * core.HOUR_STEPS:.1f} gates/h equivalent; online last "
           f"125 h {agent.metrics(record[-125:])['gates_per_hour']:.1f} gates/h; epsilon "
-          f"{agent.schedule[0]:.3f}", flush=True)
+          f"{agent.machine.epsilon_schedule[0][0]:.3f}", flush=True)
     view = (int(config.root.heading_sectors), float(config.root.near_gate_m),
             float(config.root.near_gate_cell_m))
-    report(agent, agent.q, agent._tables(None), view, agent.gain[0], moved, args)
+    report(agent, agent.q, low_arrays(agent), view, agent.gain[0], moved, args)
     subtasks(agent, record)
+
+
+def low_arrays(agent):
+  """(diagonal trace, its baseline, straight trace, its baseline) of a hybrid-shaped
+  agent on the machine (the episodic hybrid, the patrol)."""
+  return tuple(x for k in (rules.DIAGONAL, rules.STRAIGHT)
+               for x in agent.machine.gaussian_arrays(agent.low[k]))
 
 
 def report(agent, q, low, view, rho, moved, args):
   """The greedy policy of root values `q` over `view` with subtasks `low`, sailed
   100 hours from the evaluation's start; `rho` the learned gain (None: none)."""
-  s = sp.settings(agent.config)
-  scratch = _scratch(agent.tile_arrays)
+  sailing = Sailing(agent)
+  s, tiling = sailing.s, sailing.tiling
+  scratch = _scratch(tiling)
   rng_state = rng.make_state(sp.EVALUATION_SEED)
   ship = np.empty(4)
   _ship.sample_start(rng_state, ship)
   out = np.zeros((200_000, 10))
   n = 0
   for _ in range(100):          # hour by hour, as the evaluation's rows: the same calls
-    n += sail_calls(ship, q, low, agent.tile_arrays, s, view, False, rng_state, -1,
+    n += sail_calls(ship, q, low, tiling, s, view, False, rng_state, -1,
                     core.HOUR_STEPS, out[n:], scratch)
   calls = out[:n]
   gates = (calls[:, G_EVENT] == core.SUCCESS).sum()
@@ -219,10 +261,10 @@ def report(agent, q, low, view, rho, moved, args):
                f"{moved[st * rules.N_DIRECTIONS:(st + 1) * rules.N_DIRECTIONS]}")
     print(line, flush=True)
   if args.rollouts:
-    rollouts(agent, q, loop, view, s, low, scratch, args)
+    rollouts(tiling, q, loop, view, s, low, scratch, args)
 
 
-def rollouts(agent, q, loop, view, s, low, scratch, args):
+def rollouts(tiling, q, loop, view, s, low, scratch, args):
   buf = np.zeros((20_000, 10))
   rng_state = rng.make_state(1)
   for c in loop:
@@ -234,7 +276,7 @@ def rollouts(agent, q, loop, view, s, low, scratch, args):
       for a in range(rules.N_DIRECTIONS):
         for _ in range(reps):
           ship = start.copy()
-          m = sail_calls(ship, q, low, agent.tile_arrays, s, view, mode == "sampled",
+          m = sail_calls(ship, q, low, tiling, s, view, mode == "sampled",
                          rng_state, a, args.horizon, buf, scratch)
           rewards = buf[:m, REWARD].copy()
           over = buf[:m, STEPS].sum() - args.horizon      # the last call past the horizon
@@ -253,7 +295,7 @@ def rollouts(agent, q, loop, view, s, low, scratch, args):
 
 def subtasks(agent, record):
   tail = record[-125:]
-  rates = [agent.outcomes[k].mean() for k in range(2)]
+  rates = [agent.machine.epsilon_schedule[1][k].mean() for k in range(2)]
   print(f"  subtasks, last 1,000 runs: diagonal {rates[0]:.2f}, straight {rates[1]:.2f}; last "
         f"125 h: diagonal {tail['diagonal_successes'].sum() / tail['diagonal_runs'].sum():.2f}"
         f", straight {tail['straight_successes'].sum() / tail['straight_runs'].sum():.2f}",

@@ -281,6 +281,7 @@ class MachineAgent(Agent):
 
   _machine = None
   end_field = "passed"
+  illegal_field = "illegal"          # the field of machine.ROW_ILLEGAL (a patrol: departures)
   machine_world = None               # the machine's `world` (the taxi's), if any
 
   @property
@@ -306,7 +307,8 @@ class MachineAgent(Agent):
     fields = self.record_fields
     out = np.zeros((rows.shape[0], len(fields)))
     for name, k in ((self.end_field, machine_mod.ROW_END), ("steps", machine_mod.ROW_STEPS),
-                    ("return", machine_mod.ROW_RETURN), ("illegal", machine_mod.ROW_ILLEGAL)):
+                    ("return", machine_mod.ROW_RETURN),
+                    (self.illegal_field, machine_mod.ROW_ILLEGAL)):
       if name in fields:
         out[:, fields.index(name)] = rows[:, k]
     for name in m.names[:-1]:

@@ -15,9 +15,7 @@ from hpg_mj.taskfile import param
 from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy import ship_rules as rules
 from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
-from hpg_mj.learners import stepwise as learners
 from hpg_mj.learners import eligibility as el
-from hpg_mj.learners import schedules
 from hpg_mj.learners import tiles
 from hpg_mj.worlds import ship_core as core
 
@@ -60,24 +58,34 @@ class Config:
   low_level: LowLevel = dataclasses.field(default_factory=LowLevel)
 
 
-def low_level_parts(config):
-  """The hybrid's tiles, its two subtasks' Eq. 3 learners and its epsilon schedule as
-  separate arrays, for the patrol's own loop (`ship_patrol`, which runs
-  `run_low_level` until it moves onto `hierarchy.machine`)."""
-  root, low = config.root, config.low_level
-  coder = _coder(low)
-  schedule = schedules.new_schedule(root.epsilon, root.epsilon_window)
-  learners_ = [learners.GaussianPolicyGradient(coder.size, low.tilings, core.MAX_TURN_RATE,
-                                               low.alpha, low.trace_gamma, baseline=low.baseline)
-               for _ in (rules.DIAGONAL, rules.STRAIGHT)]
-  return coder.arrays(), learners_, schedule
-
-
-def _coder(low):
+def coder(low):
   """The CMAC of the local frame (SPEC section 3) with [low_level]'s tiles."""
   return tiles.TileCoder((0.0, 0.0, -180.0, -core.MAX_TURN_RATE),
                          (core.LOCAL_SIZE, core.LOCAL_SIZE, 180.0, core.MAX_TURN_RATE),
                          tuple(low.tiles), (False, False, True, False), low.tilings)
+
+
+def figure3(root, view, termination, low, coder, max_steps, epsilon, per_decision=False):
+  """Figure 3's graph of blocks (SPEC section 3): the root (learner `root`, its `view`
+  and `termination`) calls, for each of eight directions, the diagonal or the
+  straight subtask (the GaussianCMACs `low`) in its local frame (`coder`'s tiles,
+  `max_steps` control steps), under the held epsilon of `epsilon` (a [root] section:
+  its epsilon, threshold, window, every and divisor)."""
+  def subtask(name, learner):
+    return Subtask(name, children=["turn"], learner=learner, view=blocks.LocalTiles(coder),
+                   termination=blocks.LocalGoal(max_steps),
+                   internal_reward=blocks.Shaping(), reward=blocks.STEP)  # only the -1s
+
+  return TaskGraph("root", [
+      Subtask("root", learner=root, view=view, termination=termination,
+              children=[Child("diagonal" if d % 2 else "straight", direction=d)
+                        for d in range(rules.N_DIRECTIONS)]),
+      subtask("diagonal", low[rules.DIAGONAL]),
+      subtask("straight", low[rules.STRAIGHT]),
+      Primitive("turn"),          # the turning rate r, drawn by the low level
+  ], schedule=blocks.HeldEpsilon(epsilon.epsilon, ("diagonal", "straight"),
+                                 epsilon.epsilon_threshold, epsilon.epsilon_window,
+                                 epsilon.epsilon_every, epsilon.epsilon_divisor, per_decision))
 
 
 class ShipHybrid(_ship.ShipMachineAgent):
@@ -91,7 +99,7 @@ class ShipHybrid(_ship.ShipMachineAgent):
   def __init__(self, config=None, seed=0, task=None):
     super().__init__(config, seed, task)
     root, low = self.config.root, self.config.low_level
-    self.coder = _coder(low)
+    self.coder = coder(low)
     self.root = blocks.QTable(rules.ROOT_GRID ** 2, alpha=root.alpha,
                               trace_decay=root.trace_decay, epsilon=root.epsilon,
                               epsilon_schedule=True)
@@ -102,25 +110,9 @@ class ShipHybrid(_ship.ShipMachineAgent):
   def graph(self):
     """Figure 3 (SPEC section 3): the root over 50 m cells calls, for each of eight
     directions, the diagonal or the straight subtask in its local frame."""
-    root, low = self.config.root, self.config.low_level
-
-    def subtask(name, learner):
-      return Subtask(name, children=["turn"], learner=learner,
-                     view=blocks.LocalTiles(self.coder),
-                     termination=blocks.LocalGoal(low.max_steps),
-                     internal_reward=blocks.Shaping(), reward=blocks.STEP)  # only the -1s
-
-    return TaskGraph("root", [
-        Subtask("root", learner=self.root, view=blocks.GridCell(rules.ROOT_CELL_M, rules.ROOT_GRID),
-                termination=blocks.Never(),
-                children=[Child("diagonal" if d % 2 else "straight", direction=d)
-                          for d in range(rules.N_DIRECTIONS)]),
-        subtask("diagonal", self.low[rules.DIAGONAL]),
-        subtask("straight", self.low[rules.STRAIGHT]),
-        Primitive("turn"),          # the turning rate r, drawn by the low level
-    ], schedule=blocks.HeldEpsilon(root.epsilon, ("diagonal", "straight"),
-                                   root.epsilon_threshold, root.epsilon_window,
-                                   root.epsilon_every, root.epsilon_divisor))
+    return figure3(self.root, blocks.GridCell(rules.ROOT_CELL_M, rules.ROOT_GRID),
+                   blocks.Never(), self.low, self.coder, self.config.low_level.max_steps,
+                   self.config.root)
 
   def state(self):
     m = self.machine

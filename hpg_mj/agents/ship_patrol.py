@@ -26,10 +26,11 @@ greedily, on the same hours from the same starts, this agent, the episodic
 hybrid (tasks/ship_hybrid.toml's agent, trained on its own protocol with this
 run's seed) and the scripted figure-eight helmsman (`ship_core.patrol_pilot_target`).
 
-Both paths call the same compiled rules: the fused loop over the analytic ship
-(`patrol`) and the task graph run step by step (`graph`, `run_stepwise`) through
-the Gymnasium patrol on either backend, with the restarts drawn from the agent's
-generator; for a fixed seed they give the same records and arrays.
+Both paths are the compiled machine (`hpg_mj.hierarchy.machine`) over the graph
+of blocks (`graph`): fused with the analytic ship (`Machine.run_continuing`) and step
+by step through the Gymnasium patrol on either backend, with the restarts drawn
+from the agent's generator (`hierarchy.patrol.AgentRestarts`); for a fixed seed they
+give the same records and arrays.
 """
 import dataclasses
 
@@ -38,30 +39,16 @@ import numpy as np
 from hpg_mj.agents import _ship
 from hpg_mj.agents import ship_hybrid as hybrid
 from hpg_mj.taskfile import param
-from hpg_mj.hierarchy import executor as executor_mod
+from hpg_mj.hierarchy import blocks
+from hpg_mj.hierarchy import machine as machine_mod
 from hpg_mj.hierarchy import ship_rules as rules
-from hpg_mj.hierarchy.patrol import (CALLS, DEPARTURES, GAIN, GATES, N_RECORD, NEVER, RETURN, STEPS,
-                                     AgentRestarts, Settings, count_run, n_root_cells, patrol,
-                                     root_state, scripted)
-from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
+from hpg_mj.hierarchy.patrol import N_RECORD, NEVER, AgentRestarts, scripted
 from hpg_mj.learners import average_reward
+from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import rng
-from hpg_mj.learners import schedules
-from hpg_mj.learners import tiles as tiles_mod
 from hpg_mj.worlds import ship_core as core
 
 EVALUATION_SEED = 2 ** 20    # the generator of the greedy evaluations' starts
-# The environment's events that end a low-level call (and what the row counts).
-_GLOBAL_EVENTS = {"gate": core.SUCCESS, "out_of_bounds": core.FAILURE}
-
-
-def settings(config):
-  """`hierarchy.patrol.Settings` for `run_low_level`, with no episode clock."""
-  root, low, env = config.root, config.low_level, config.environment
-  return Settings(float(root.alpha), 0.0, float(root.epsilon_threshold),
-                         int(root.epsilon_every), float(root.epsilon_divisor), float(low.alpha),
-                         float(low.trace_gamma), float(low.baseline), int(low.max_steps),
-                         NEVER, float(env.gate_reward), float(env.out_of_bounds_reward))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -118,7 +105,7 @@ class Config:
   comparison: Comparison = dataclasses.field(default_factory=Comparison)
 
 
-class ShipPatrol(_ship.ShipAgent):
+class ShipPatrol(_ship.ShipMachineAgent):
   """The hybrid's hierarchy with an average-reward root, on the continuing task."""
 
   name = "ship_patrol"
@@ -127,45 +114,70 @@ class ShipPatrol(_ship.ShipAgent):
                    "diagonal_successes", "straight_runs", "straight_successes", "return",
                    "gain")
   figure = "gates_per_hour"
+  end_field, illegal_field = "gates", "departures"    # a continuing row's (machine.run_ship)
   record_steps = core.HOUR_STEPS       # a continuing agent: one record row per hour
   metric_window = 125                  # online metrics: the last 125 hours (beyond's block)
 
   def __init__(self, config=None, seed=0, task=None):
     super().__init__(config, seed, task)
-    # The hybrid's tiles, subtasks and epsilon schedule; the root is replaced.
-    self.tile_arrays, self.low, (self.schedule, self.outcomes, self.counts) = \
-        hybrid.low_level_parts(hybrid.Config(low_level=self.config.low_level, root=hybrid.Root(
-            epsilon=self.config.root.epsilon, epsilon_window=self.config.root.epsilon_window)))
-    root = self.config.root
+    root, low = self.config.root, self.config.low_level
     side = 2.0 * root.near_gate_m / root.near_gate_cell_m
     if abs(side - round(side)) > 1e-9:
       raise ValueError(f"[root] near_gate_cell_m = {root.near_gate_cell_m} must divide twice "
                        f"near_gate_m = {root.near_gate_m} (2 * near_gate_m / near_gate_cell_m "
                        f"= {side}, not a whole number)")
-    self.q = np.zeros(n_root_cells(root.near_gate_m, root.near_gate_cell_m) *
-                      root.heading_sectors * rules.N_DIRECTIONS)
-    self.gain = average_reward.new_gain()
-    # The planning model (`average_reward.new_model`); its first array of length 0
-    # when [root] planning_every is 0, so nothing is kept.
-    self.model = average_reward.new_model(self.q.size if root.planning_every else 0)
+    self.coder = hybrid.coder(low)
+    self.view = blocks.PatrolCell(root.heading_sectors, root.near_gate_m, root.near_gate_cell_m)
+    self.root = blocks.RLearning(self.view.n_states(), root.alpha, root.gain_step, root.epsilon,
+                                 epsilon_schedule=True, planning_every=root.planning_every)
+    self.low = [blocks.GaussianCMAC(self.coder, low.alpha, low.trace_gamma, low.baseline,
+                                    core.MAX_TURN_RATE) for _ in (rules.DIAGONAL, rules.STRAIGHT)]
     self.ship = np.zeros(4)
     self.started = np.zeros(1)         # 1 once the process has its first start
-    self._sailing = None               # the state a step-by-step run sails on from
-    self._learn = True
-    self._row_steps = 0
+
+  def graph(self):
+    """Figure 3's graph with the continuing root (SPEC section 8): R-learning over the
+    patrol's cells; a low-level call also returns at a gate pass or a departure; the
+    root's call, a record row, ends once it has `record_steps` control steps, between
+    calls; the held epsilon counts the root's decisions (there are no episodes)."""
+    return hybrid.figure3(self.root, self.view, blocks.Clock(self.record_steps), self.low,
+                          self.coder, self.config.low_level.max_steps, self.config.root,
+                          per_decision=True)
+
+  @property
+  def q(self):
+    """The root's relative values Q (a view)."""
+    return self.machine.r_learning_arrays(self.root)[0]
+
+  @property
+  def gain(self):
+    """The root's gain [rho, greedy transitions seen] (a view)."""
+    return self.machine.r_learning_arrays(self.root)[1]
+
+  @property
+  def model(self):
+    """The root's planning model (next, reward, steps, [count]; views)."""
+    return self.machine.r_learning_arrays(self.root)[2]
 
   def state(self):
-    out = {"rng_state": self.rng_state, "root_q": self.q, "root_gain": self.gain,
-           **{f"root_model_{k}": v for k, v in zip(("next", "reward", "steps", "count"),
-                                                    self.model)},
+    m = self.machine
+    q, gain, model = m.r_learning_arrays(self.root)
+    eps, outcomes, counts = m.epsilon_schedule
+    out = {"rng_state": self.rng_state, "root_q": q, "root_gain": gain,
+           **{f"root_model_{k}": v for k, v in zip(("next", "reward", "steps", "count"), model)},
            "ship_state": self.ship, "ship_started": self.started,
-           "epsilon_schedule": self.schedule, "subtask_outcomes": self.outcomes,
-           "subtask_counts": self.counts}
-    for name, learner in (("diagonal", self.low[0]), ("straight", self.low[1])):
-      for key, value in learner.trace._asdict().items():
-        out[f"{name}_{key}"] = value
-      out[f"{name}_baseline"] = learner.values
+           "epsilon_schedule": eps, "subtask_outcomes": outcomes, "subtask_counts": counts}
+    for name, learner in zip(("diagonal", "straight"), self.low):
+      trace, values = m.gaussian_arrays(learner)
+      out.update({f"{name}_{key}": value for key, value in trace._asdict().items()})
+      out[f"{name}_baseline"] = values
     return out
+
+  def parameters(self):
+    m = self.machine
+    return {"root_q": self.q.copy(), "root_gain": self.gain.copy(),
+            **{f"{name}_w": el.parameters(m.gaussian_arrays(learner)[0])
+               for name, learner in zip(("diagonal", "straight"), self.low)}}
 
   def make_env(self, api="gymnasium", backend="analytic", **kwargs):
     env = self.config.environment
@@ -180,7 +192,40 @@ class ShipPatrol(_ship.ShipAgent):
       return suite.load("ship", "patrol", {"random": 0, **kwargs})
     raise ValueError(f"unknown environment api {api!r}; allowed: ['gymnasium', 'dm_control']")
 
-  # ---- the step-by-step path ----------------------------------------------------
+  # ---- both paths: rows of the process -------------------------------------------
+
+  def _process(self, learn, start):
+    """The state the rows sail from: learning continues the agent's own process
+    (from `start`, if given); without learning, a fresh start from the agent's
+    generator (or `start`)."""
+    if not learn:
+      return np.array(start, dtype=np.float64) if start is not None else \
+          _ship.draw_start(self.rng_state)
+    if start is not None:
+      self.ship[:] = start
+      self.started[0] = 1.0
+    elif not self.started[0]:
+      _ship.sample_start(self.rng_state, self.ship)
+      self.started[0] = 1.0
+    return self.ship
+
+  def _rows(self, hours, row_of):
+    """`hours` rows, each from `row_of()` (one machine row), with the gain after it."""
+    out = np.zeros((int(hours), N_RECORD))
+    for i in range(int(hours)):
+      out[i] = self._record_rows(row_of())[0]
+      out[i, self.record_fields.index("gain")] = self.gain[average_reward.RHO]
+    return out
+
+  def compiled(self, episodes, learn, sample, ship=None, rng_state=None):
+    """`episodes` rows (hours) fused with the analytic ship, from `ship` (None: the
+    process, `_process`), drawing from `rng_state` (None: the agent's)."""
+    ship = self._process(learn, None) if ship is None else ship
+    rng_state = self.rng_state if rng_state is None else rng_state
+    env = self.config.environment
+    world = (env.gate_reward, env.out_of_bounds_reward)
+    return self._rows(episodes, lambda: self.machine.run_continuing(1, learn, sample, rng_state,
+                                                                    world, ship))
 
   def stepwise_env(self, backend):
     """The Gymnasium patrol on `backend`, without its one-hour truncation: the
@@ -188,160 +233,53 @@ class ShipPatrol(_ship.ShipAgent):
     return self.make_env("gymnasium", backend=backend, max_steps=NEVER)
 
   def run_stepwise(self, env, episodes, learn=True, sample=None, start=None, on_call=None):
-    """`episodes` rows (hours) of the patrol task graph (`graph`) through `env`, a
-    Gymnasium patrol without truncation (`stepwise_env`). As the compiled path:
-    learning continues the agent's own process (from `start`, if given, instead);
-    without learning the rows sail on from a fresh start drawn from the agent's
-    generator; after leaving the field the ship restarts at a start drawn from
-    the agent's generator too (the environment's own draw is replaced)."""
-    adapter = AgentRestarts(executor_mod.adapter_for(env), self.rng_state)
+    """`episodes` rows (hours) through `env`, a Gymnasium patrol without truncation
+    (`stepwise_env`), continuing the process as the compiled path does; after a
+    departure the ship restarts at a start drawn from the agent's generator (the
+    environment's own draw replaced, `AgentRestarts`)."""
+    from hpg_mj.hierarchy import executor
+    adapter = AgentRestarts(executor.adapter_for(env), self.rng_state)
+    ship = self._process(learn, start)
+
+    def row():
+      rows = machine_mod.run_stepwise(self.machine, adapter, 1, learn, sample, self.rng_state,
+                                      lambda: ship.copy(), lambda last: adapter.gates,
+                                      on_call=on_call)
+      rows[0, machine_mod.ROW_ILLEGAL] = adapter.departures
+      ship[:] = adapter.last_obs                # the next row sails on from here
+      return rows
+    out = self._rows(episodes, row)
     if learn:
-      if start is not None:
-        self.ship[:] = start
-        self.started[0] = 1.0
-      elif not self.started[0]:
-        _ship.sample_start(self.rng_state, self.ship)
-        self.started[0] = 1.0
-      self._sailing = self.ship
-    else:
-      self._sailing = np.array(start, dtype=np.float64) if start is not None else np.empty(4)
-      if start is None:
-        _ship.sample_start(self.rng_state, self._sailing)
-    try:
-      return super().run_stepwise(adapter, episodes, learn=learn, sample=sample,
-                                  on_call=on_call)
-    finally:
-      self._sailing = None
+      self.episodes += int(episodes)
+    return self.as_record(out)
 
-  def start_state(self):
-    """Inside `run_stepwise`: where the process is (each row starts where the last
-    ended); outside it, a fresh start from the agent's generator."""
-    if self._sailing is None:
-      return super().start_state()
-    return self._sailing.copy()
+  # ---- the greedy evaluations --------------------------------------------------------
 
-  def begin_episode(self, learn):
-    self._learn = learn
-    self._row_steps = 0
-
-  def end_episode(self, row, total, steps, last, learn):
-    row[STEPS] = steps
-    row[RETURN] = total
-    row[GAIN] = self.gain[average_reward.RHO]
-    self._sailing[:] = last.obs          # the next row sails on from here
-
-  def graph(self):
-    """Figure 3's graph with the continuing root (SPEC section 8): the root's
-    R-learning over `root_state`; a low-level call also returns at a gate pass
-    or a departure; the root returns (a record row ends) once the row has
-    `record_steps` control steps, between calls."""
-    cfg = self.config
-    n_tilings = self.tile_arrays.offsets.shape[0]
-    scratch_tiles = np.empty(n_tilings, dtype=np.int64)
-    local = np.empty(4)
-    local_samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
-    max_steps = int(cfg.low_level.max_steps)
-    sectors = cfg.root.heading_sectors
-    near_m, near_cell_m = float(cfg.root.near_gate_m), float(cfg.root.near_gate_cell_m)
-    root_learner = average_reward.RLearning(self.q, self.gain, rules.N_DIRECTIONS,
-                                            cfg.root.alpha, cfg.root.gain_step,
-                                            lambda: self.schedule[0], self.model,
-                                            cfg.root.planning_every)
-
-    def low_view(call, obs):
-      origin = call.memo.setdefault("origin", np.array(call.origin[:2], dtype=np.float64))
-      core.global_to_local(obs, origin, call.args["direction"], local)
-      tiles_mod.active_tiles(local, self.tile_arrays, scratch_tiles)
-      return scratch_tiles
-
-    def low_internal_reward(call, step):
-      # G on the state the step ended in, before any restart (as run_low_level).
-      end = step.info.get("state_before_restart", step.obs)
-      event, internal = core.low_level_outcome(
-          step.info["positions"], end, call.memo["origin"], call.args["direction"],
-          call.steps, local_samples, local, max_steps)
-      call.memo["event"] = event
-      call.memo["global"] = step.info.get("event")
-      return internal
-
-    def low_termination(call, step):
-      return call.memo["event"] != core.NO_EVENT or call.memo["global"] in _GLOBAL_EVENTS
-
-    def low_exit(call, step, episode_over):
-      row = self.row
-      row[CALLS] += 1
-      g_event = _GLOBAL_EVENTS.get(call.memo["global"], core.NO_EVENT)
-      sub = rules.subtask_of(call.args["direction"])
-      if count_run(row, sub, call.memo["event"], g_event) and self._learn:
-        schedules.record_run(self.outcomes, self.counts, sub, call.memo["event"] == core.SUCCESS)
-      row[GATES] += g_event == core.SUCCESS
-      row[DEPARTURES] += g_event == core.FAILURE
-
-    def low_level(name, learner):
-      return Subtask(name, children=["turn"], learner=learner, view=low_view,
-                     internal_reward=low_internal_reward,
-                     reward=lambda call, step, child_reward: core.STEP_REWARD,  # SPEC 3
-                     termination=low_termination, on_exit=low_exit)
-
-    def root_reward(call, step, child_reward):
-      root_learner.duration = call.steps - self._row_steps     # the child's tau
-      self._row_steps = call.steps
-      return child_reward
-
-    def root_termination(call, step):
-      if self._learn:       # the held schedule, counted in root decisions (no episodes)
-        s = settings(cfg)
-        schedules.end_episode(self.schedule, self.outcomes, self.counts,
-                              s.root_epsilon_threshold, s.root_epsilon_every,
-                              s.root_epsilon_divisor)
-      return call.steps >= self.record_steps
-
-    root = Subtask(
-        "root", learner=root_learner,
-        children=[Child("diagonal" if d % 2 else "straight", direction=d)
-                  for d in range(rules.N_DIRECTIONS)],
-        view=lambda call, obs: root_state(obs, sectors, near_m, near_cell_m),
-        reward=root_reward, termination=root_termination)
-    return TaskGraph("root", [
-        root,
-        low_level("diagonal", self.low[rules.DIAGONAL]),
-        low_level("straight", self.low[rules.STRAIGHT]),
-        Primitive("turn"),
-    ])
-
-  # ---- the compiled path ---------------------------------------------------------
-
-  def _tables(self, low):
-    return (self.low[rules.DIAGONAL].trace, self.low[rules.DIAGONAL].values,
-            self.low[rules.STRAIGHT].trace, self.low[rules.STRAIGHT].values) if low is None \
-        else low
-
-  def sail(self, hours, learn, sample, ship, rng_state, q=None, low=None, heading_sectors=None):
-    """`hours` rows of the continuing task from `ship` (in place); `q` (another
-    root's table over `heading_sectors` and the 50 m grid, the episodic
-    hybrid's: 1) and `low` replace this agent's."""
-    rows = np.zeros((int(hours), N_RECORD))
-    cfg = self.config
-    sectors = cfg.root.heading_sectors if heading_sectors is None else heading_sectors
-    view = ((int(sectors), float(cfg.root.near_gate_m), float(cfg.root.near_gate_cell_m))
-            if q is None else (int(sectors), 0.0, 25.0))
-    patrol(int(hours), self.record_steps, learn, sample, rng_state, ship,
-           self.q if q is None else q, self.gain, (self.schedule, self.outcomes, self.counts),
-           self._tables(low), self.tile_arrays, settings(cfg),
-           (float(cfg.root.gain_step), self.model, int(cfg.root.planning_every)), view, rows)
-    return rows
-
-  def compiled(self, episodes, learn, sample):
-    """Learning continues the agent's own process; without learning, `episodes`
-    hours are sailed from a fresh start drawn from the agent's generator."""
-    if learn:
-      if not self.started[0]:
-        _ship.sample_start(self.rng_state, self.ship)
-        self.started[0] = 1.0
-      return self.sail(episodes, True, sample, self.ship, self.rng_state)
-    ship = np.empty(4)
-    _ship.sample_start(self.rng_state, ship)
-    return self.sail(episodes, False, sample, ship, self.rng_state)
+  def evaluation(self, hours, kind="agent", other=None):
+    """Gates per hour of `hours` greedy hours from the evaluation generator's start
+    (the same for every policy): this agent's ("agent"), an episodic hybrid's
+    (`other`, "episodic": its root's values and subtasks, run on this task) or the
+    scripted helmsman's ("scripted")."""
+    rng_state = rng.make_state(EVALUATION_SEED)
+    ship = _ship.draw_start(rng_state)
+    if kind == "scripted":
+      rows = np.zeros((int(hours), N_RECORD))
+      env = self.config.environment
+      scripted(int(hours), self.record_steps, rng_state, ship, env.gate_reward,
+               env.out_of_bounds_reward, rows)
+      return self.as_record(rows)
+    agent = self
+    if kind == "episodic":
+      cfg = self.config
+      agent = ShipPatrol(dataclasses.replace(cfg, root=dataclasses.replace(
+          cfg.root, heading_sectors=1, near_gate_m=0.0, planning_every=0)), seed=self.seed)
+      agent.q[:] = other.parameters()["root_q"]       # the hybrid's 50 m cells: the same table
+      for mine, theirs in zip(agent.low, other.low):
+        (trace, values), (their_trace, their_values) = (agent.machine.gaussian_arrays(mine),
+                                                        other.machine.gaussian_arrays(theirs))
+        for a, b in zip((*trace, values), (*their_trace, their_values)):
+          a[...] = b
+    return agent.as_record(agent.compiled(hours, False, False, ship, rng_state))
 
   # ---- metrics -------------------------------------------------------------------
 
@@ -369,25 +307,6 @@ class ShipPatrol(_ship.ShipAgent):
         **{f"{k}_success_rate": float(record[f"{k}_successes"].sum() / runs[k]) if runs[k]
            else None for k in runs},
     }
-
-  def evaluation(self, hours, kind="agent", other=None):
-    """Gates per hour of `hours` greedy hours from the evaluation generator's start
-    (the same for every policy): this agent's ("agent"), an episodic hybrid's
-    (`other`, "episodic") or the scripted helmsman's ("scripted")."""
-    rng_state = rng.make_state(EVALUATION_SEED)
-    ship = np.empty(4)
-    _ship.sample_start(rng_state, ship)
-    if kind == "scripted":
-      rows = np.zeros((int(hours), N_RECORD))
-      env = self.config.environment
-      scripted(int(hours), self.record_steps, rng_state, ship, env.gate_reward,
-               env.out_of_bounds_reward, rows)
-    elif kind == "episodic":
-      rows = self.sail(hours, False, False, ship, rng_state, q=other.parameters()["root_q"],
-                       low=other.low_arrays(), heading_sectors=1)
-    else:
-      rows = self.sail(hours, False, False, ship, rng_state)
-    return self.as_record(rows)
 
   def final_metrics(self, record):
     """Greedy gates per hour of this agent, the episodic hybrid and the scripted

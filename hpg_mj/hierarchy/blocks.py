@@ -15,6 +15,10 @@ share its parameters):
   TiledQTable(coder, alpha, trace_decay, epsilon, ...)
       the same Q(lambda), linear in `coder`'s tiles of its StateTiles view (one
       tiling of non-overlapping tiles is the table; `qlambda.tiled_update`).
+  RLearning(n_states, alpha, gain_step, epsilon, epsilon_schedule, planning_every)
+      average-reward SMDP Q-learning on a table (`learners.average_reward`, SPEC section
+      8): relative values and the gain rho, for the root of a continuing task (its
+      termination a `Clock`); with `planning_every` > 0 it also plans (Dyna).
   GaussianCMAC(coder, alpha, trace_gamma, baseline, r_max, width_alpha, sigma_low,
                sigma_high)
       Eq. 3 with a Gaussian-with-sigmoid policy over a CMAC (SPEC section 3),
@@ -36,6 +40,9 @@ share its parameters):
 Views (what a node's learner sees of the world's state):
 
   GridCell(cell_m, grid)       the (x, y) cell of a grid over the field
+  PatrolCell(heading_sectors, near_gate_m, near_gate_cell_m)
+                               the patrol root's: the 50 m cell, finer cells about
+                               the gate, the heading's sector (`ship_rules.root_state`)
   LocalTiles(coder)            the ship's state in the call's local 150 m frame
                                (origin: where it was called; rotation: the
                                `direction` argument of its `Child`), as CMAC tiles
@@ -60,6 +67,11 @@ taxi's world: `TaxiChildren(subtask)` (a node's `available`), `TaxiEnd(subtask)`
 Terminations and internal rewards:
 
   Never()                      the node ends only with the episode (a root)
+  Clock(steps)                 a continuing root: its call (a record row) ends once
+                               it has run `steps` primitive steps, between its
+                               children's calls; the world's events (a gate pass, a
+                               departure and the restart after it) end its children's
+                               calls, not it
   LocalGoal(max_steps)         the ship's local subtask (SPEC section 3): its goal
                                within 10 m, its frame left, or max_steps control
                                steps; with `internal_reward=Shaping()` its G is the
@@ -91,14 +103,16 @@ summed: the root's R) or `reward=STEP` (-1 a primitive step: the low level's R,
 SPEC section 3).
 
 The graph-wide epsilon schedule: `HeldEpsilon(epsilon, watch, threshold, window,
-every, divisor)` (`learners.schedules`): held until every watched node succeeds in
-`threshold` of its last `window` runs, then divided by `divisor` every `every`
-episodes; or `LinearEpsilon(start, end, episodes)`, a linear decay over learning
+every, divisor, per_decision)` (`learners.schedules`): held until every watched node
+succeeds in `threshold` of its last `window` runs, then divided by `divisor` every
+`every` episodes (with `per_decision`, every `every` decisions of the root: a
+continuing task has no episodes); or `LinearEpsilon(start, end, episodes)`, a linear decay over learning
 episodes.
 """
 import dataclasses
 import math
 
+from hpg_mj.hierarchy import ship_rules
 from hpg_mj.learners import tiles as tiles_mod
 
 SUMMED = "summed"
@@ -139,6 +153,20 @@ class TiledQTable:
   gamma: float = 1.0
   epsilon_schedule: bool = False
   trace_capacity: int = None
+
+
+@dataclasses.dataclass(eq=False)
+class RLearning:
+  """Average-reward SMDP Q-learning on a table of `n_states` states x the node's
+  children (`learners.average_reward`): relative values Q (step size `alpha`) and the
+  gain rho (Schwartz's update, step size `gain_step`); epsilon-greedy; with
+  `planning_every` > 0 one planning sweep every that many decisions."""
+  n_states: int
+  alpha: float = 0.1
+  gain_step: float = 0.0001
+  epsilon: float = 0.1
+  epsilon_schedule: bool = False
+  planning_every: int = 0
 
 
 @dataclasses.dataclass(eq=False)
@@ -242,6 +270,19 @@ class NearGateLine:
 
 
 @dataclasses.dataclass(frozen=True)
+class PatrolCell:
+  """The patrol root's state (`ship_rules.root_state`): the 50 m cell of (x, y) or,
+  within `near_gate_m` of the gate's centre, a `near_gate_cell_m` cell; times
+  `heading_sectors` sectors of the heading."""
+  heading_sectors: int = 1
+  near_gate_m: float = 0.0
+  near_gate_cell_m: float = 25.0
+
+  def n_states(self):
+    return ship_rules.n_root_cells(self.near_gate_m, self.near_gate_cell_m) * self.heading_sectors
+
+
+@dataclasses.dataclass(frozen=True)
 class CellRule:
   """A QTable's view by a user's `@numba.njit` rule(obs, origin, arg, steps) -> state."""
   rule: object
@@ -304,6 +345,13 @@ class LocalGoal:
 
 
 @dataclasses.dataclass(frozen=True)
+class Clock:
+  """A continuing root's end: a record row of `steps` primitive steps, ended between
+  its children's calls (the row in which a call starts holds it)."""
+  steps: int = 6000
+
+
+@dataclasses.dataclass(frozen=True)
 class TargetReached:
   """An AimTiles node's end (`ship_rules.aim_outcome`); `max_steps` control steps,
   then a failure."""
@@ -340,6 +388,7 @@ class HeldEpsilon:
   window: int = 1000
   every: int = 50
   divisor: float = 1.01
+  per_decision: bool = False
 
 
 @dataclasses.dataclass(frozen=True)

@@ -5,9 +5,9 @@ are blocks is data: `Machine(graph)` turns it into arrays (the node table, each
 learner kind's parameters stacked in one bank, the call stack) and the compiled
 functions below run it. The same functions serve both paths:
 
-* fused with a compiled world (`Machine.run`, the analytic ship; `Machine.run_taxi`,
-  the taxi): the world's step and the machine's `step` alternate inside one
-  compiled loop;
+* fused with a compiled world (`Machine.run`, the analytic ship; `Machine.run_continuing`,
+  its continuing task's record rows; `Machine.run_taxi`, the taxi): the world's step
+  and the machine's `step` alternate inside one compiled loop;
 * resumable under any environment (`Machine.run_stepwise`, `Machine.begin` and
   `Machine.advance(obs, reward, terminated, truncated, info) -> action`): the
   environment steps in Python and the machine takes each outcome,
@@ -31,7 +31,9 @@ Function HPG(Task i, State s)                         -> call(d, node, arg, obs)
     z, theta updates (Eq. 3)                          -> _observe(d, R + G)
 ```
 
-Every subtask also returns when the episode ends (terminated or truncated).
+Every subtask also returns when the episode ends (terminated or truncated); a
+continuing root (a `Clock`) returns only by its clock, between its children's calls,
+and a world's event (the patrol's gate pass or departure) ends the calls below it.
 A subtask's *run* is a call that ended by its own termination; a call cut short
 by the end of the episode is counted as a call but no run (`counters`).
 """
@@ -50,6 +52,7 @@ from hpg_mj.hierarchy import ship_rules
 from hpg_mj.hierarchy.graph import Child, GraphError, Primitive, Subtask
 from hpg_mj.learners import actor_critic
 from hpg_mj.learners import arrays
+from hpg_mj.learners import average_reward
 from hpg_mj.learners import banks as banks_mod
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import jit
@@ -66,10 +69,10 @@ from hpg_mj.worlds import taxi_rules
 
 # Node kinds, learner kinds, views, ends, internal rewards, rewards seen.
 PRIMITIVE, SUBTASK = 0, 1
-NO_LEARNER, Q_TABLE, GAUSSIAN_CMAC, ACTOR_CRITIC, GIBBS_TABLE, TILED_Q = range(6)
+NO_LEARNER, Q_TABLE, GAUSSIAN_CMAC, ACTOR_CRITIC, GIBBS_TABLE, TILED_Q, AVERAGE_REWARD = range(7)
 (NO_VIEW, VIEW_GRID_CELL, VIEW_LOCAL_TILES, VIEW_STATE_TILES, VIEW_RULE, VIEW_TAXI_STATE,
- VIEW_TAXI_ABSTRACT, VIEW_AIM_TILES) = range(8)
-END_NEVER, END_LOCAL_GOAL, END_RULE, END_TAXI, END_TARGET = range(5)
+ VIEW_TAXI_ABSTRACT, VIEW_AIM_TILES, VIEW_PATROL_CELL) = range(9)
+END_NEVER, END_LOCAL_GOAL, END_RULE, END_TAXI, END_TARGET, END_CLOCK = range(6)
 OFFER_ALL, OFFER_NEAR_GATE = 0, 1
 G_NONE, G_SHAPING, G_RULE = 0, 1, 2
 SEEN_SUMMED, SEEN_STEP = 0, 1
@@ -88,11 +91,13 @@ SEEN_SUMMED, SEEN_STEP = 0, 1
 N_INT = 20
 # Columns of the node parameters (float64[n_nodes, N_FLOAT]); START_FRACTION, DELAY and
 # RAMP: a GibbsTable's warm-up; INSET_M ... REFLECT_AT: an AimTiles' GatePoints and
-# scale, SHAPING_WEIGHT: a Shaping's weight; WITHIN_M: a NearGateLine's.
+# scale, SHAPING_WEIGHT: a Shaping's weight; WITHIN_M: a NearGateLine's; GAIN_STEP and
+# PLANNING_EVERY: an RLearning's; SECTORS, NEAR_GATE_M, NEAR_GATE_CELL_M: a PatrolCell's.
 (ALPHA, DECAY, GAMMA, BETA, R_MAX, EPSILON, CELL_M, GRID, ACTION, ALPHA_ACTOR, WIDTH_ALPHA,
  LOG_SIGMA_LOW, LOG_SIGMA_HIGH, START_FRACTION, DELAY, RAMP, INSET_M, APPROACH_M, RADIUS_M,
- SQRT_ERROR, REFLECT_AT, SHAPING_WEIGHT, WITHIN_M) = range(23)
-N_FLOAT = 23
+ SQRT_ERROR, REFLECT_AT, SHAPING_WEIGHT, WITHIN_M, GAIN_STEP, PLANNING_EVERY, SECTORS,
+ NEAR_GATE_M, NEAR_GATE_CELL_M) = range(28)
+N_FLOAT = 28
 # Columns of the children table (int64[n_children, 3]): the child's node, its
 # argument (`direction` or `target`; -1: none), the subtask id of its TaxiTarget
 # binding (-1: none).
@@ -101,16 +106,21 @@ C_NODE, C_ARG, C_BIND = range(3)
 # Columns of the per-node counters of an episode (float64[n_nodes, 3]).
 CALLS, RUNS, SUCCESSES = range(3)
 # Columns of a row of the machine's record (`run_ship`, `run_taxi`, `run_stepwise`): how
-# the episode ended (the ship: passed the gate; the taxi: `taxi_rules`' outcome), its
-# primitive steps, its return, the taxi's illegal Pickups and Dropoffs (0 on the ship),
-# then calls, runs and successes of each node.
+# the episode ended (the ship: passed the gate; the taxi: `taxi_rules`' outcome; a
+# continuing ship's row: its gate passes), its primitive steps, its return, the
+# taxi's illegal Pickups and Dropoffs (a continuing ship's row: its departures; else
+# 0), then calls, runs and successes of each node.
 ROW_END, ROW_STEPS, ROW_RETURN, ROW_ILLEGAL, ROW_COUNTERS = range(5)
 
 # `rules`: the graph's user rules as one first-class function (`hierarchy.rules`).
 Program = collections.namedtuple("Program", ("nodes", "params", "children", "rules"))
 # Each learner kind's parameters, one row per learner (slot). An actor-critic keeps its
 # critic's trace in a GaussianBank row and its actor's weights in that row's values.
-QBank = collections.namedtuple("QBank", ("q", "index", "value", "count"))
+# An RLearning's gain [rho, greedy transitions] and its planning model (per entry the
+# latest transition's next state, reward and duration; [transitions kept]) are rows of
+# `gain` and `model_*` (`learners.average_reward`).
+QBank = collections.namedtuple("QBank", ("q", "index", "value", "count", "gain", "model_next",
+                                         "model_reward", "model_steps", "model_count"))
 # The GibbsTables: a Trace's fields and the baseline's values per row, and each row's
 # step size in this episode (alpha after its warm-up).
 GibbsBank = collections.namedtuple("GibbsBank", ("theta", "zs", "y", "touched", "marked", "count",
@@ -126,11 +136,12 @@ TileBank = collections.namedtuple("TileBank", ("low", "width", "n_tiles", "wrap"
 # every, divisor] of a held one, [start, end, episodes] of a linear one, after its kind.
 Schedule = collections.namedtuple("Schedule", ("epsilon", "outcomes", "counts", "settings"))
 HELD, LINEAR = 0, 1
-SCHEDULE_KIND, LINEAR_START, LINEAR_END, LINEAR_EPISODES = 3, 4, 5, 6
+SCHEDULE_KIND, LINEAR_START, LINEAR_END, LINEAR_EPISODES, PER_DECISION = 3, 4, 5, 6, 7
 # The call stack and the episode: per depth d the node, its choice, its argument, its
 # steps, the steps of its current child's run, its state (a table's) and the next;
 # the reward of the current child's run, the action value chosen, (an actor-critic's
-# m and u, below), the sign an AimTiles view puts on the drawn action; the call's origin;
+# m and u, below), the sign an AimTiles view puts on the drawn action, whether an
+# RLearning's choice was greedy (1.0); the call's origin;
 # its tiles (current, next; an actor-critic's critic tiles: current, next), score and
 # a learned width's score; an actor-critic's mean m and draw u; the episode's [depth,
 # steps, the root's argument, the root's event when it ended, the learning episodes
@@ -139,14 +150,16 @@ SCHEDULE_KIND, LINEAR_START, LINEAR_END, LINEAR_EPISODES = 3, 4, 5, 6
 # state and the positions sampled in its step; the taxi's fused loop's state and
 # episode (`taxi_rules`' int64[5], the state the taxi blocks read, and [3]), the state as
 # the machine's float64 obs; a GibbsTable's mask of available children
-# and scratch (probabilities, score indices, scores); the run's flags (RUN_LEARN ...).
+# and scratch (probabilities, score indices, scores); the run's flags (RUN_LEARN ...);
+# the state a continuing ship restarts from after a departure (E_RESTART: pending).
 (S_NODE, S_CHOICE, S_ARG, S_STEPS, S_CHILD_STEPS, S_STATE, S_NEXT_STATE) = range(7)
-F_REWARD, F_ACTION, F_MEAN, F_U, F_SIDE = range(5)
+F_REWARD, F_ACTION, F_MEAN, F_U, F_SIDE, F_GREEDY = range(6)
 Stack = collections.namedtuple("Stack", ("ints", "floats", "origin", "tiles", "psi",
                                          "psi_width", "episode", "total", "counters", "local",
                                          "local_samples", "sa", "ship", "samples", "taxi", "taxi_obs",
-                                         "mask", "probs", "index", "scores", "flags"))
-E_DEPTH, E_STEPS, E_ROOT_ARG, E_EVENT, E_LEARNED = range(5)
+                                         "mask", "probs", "index", "scores", "flags",
+                                         "restart"))
+E_DEPTH, E_STEPS, E_ROOT_ARG, E_EVENT, E_LEARNED, E_RESTART = range(6)
 # The run's flags (the stack's `flags`): whether it learns, whether it samples its
 # policies (else greedy); set by the Python side before each compiled call.
 RUN_LEARN, RUN_SAMPLE = range(2)
@@ -268,6 +281,10 @@ def _view(P, Q, B, G, T, S, K, X, W, d, obs, which):
   if kind == VIEW_GRID_CELL:
     p = P.params[node]
     K.ints[d, S_STATE + which] = grid_cell(obs[0], obs[1], p[CELL_M], np.int64(p[GRID]))
+  elif kind == VIEW_PATROL_CELL:
+    p = P.params[node]
+    K.ints[d, S_STATE + which] = ship_rules.root_state(obs, np.int64(p[SECTORS]), p[NEAR_GATE_M],
+                                                       p[NEAR_GATE_CELL_M])
   elif kind == VIEW_RULE:
     if X is not None:
       state = np.int64(P.rules(row[VIEW_SLOT], obs, K.origin[d], K.ints[d, S_ARG],
@@ -383,11 +400,14 @@ def _choose(P, Q, B, G, T, S, K, X, W, d, obs, rng_state):
   row = P.nodes[node]
   p = P.params[node]
   slot = row[SLOT]
-  if row[LEARNER] == Q_TABLE:
+  if row[LEARNER] == Q_TABLE or row[LEARNER] == AVERAGE_REWARD:
     if Q is not None:
       epsilon = _epsilon(S, row, p, sample)
       K.ints[d, S_CHOICE] = qlambda.epsilon_greedy(Q.q[slot], K.ints[d, S_STATE],
                                                    row[N_CHILDREN], epsilon, rng_state)
+      if row[LEARNER] == AVERAGE_REWARD:
+        K.floats[d, F_GREEDY] = average_reward.is_greedy(Q.q[slot], K.ints[d, S_STATE],
+                                                         K.ints[d, S_CHOICE], row[N_CHILDREN])
   elif row[LEARNER] == TILED_Q:
     if Q is not None:
       K.ints[d, S_CHOICE] = qlambda.tiled_epsilon_greedy(
@@ -533,6 +553,9 @@ def _end_of(P, K, X, W, d, obs, samples):
                                              p[SHAPING_WEIGHT])
     if row[INTERNAL] != G_SHAPING:
       internal = 0.0
+  elif row[END] == END_CLOCK:
+    if K.ints[d, S_STEPS] >= row[MAX_STEPS]:
+      event = core.SUCCESS
   elif row[END] == END_TAXI:
     if W is not None:
       if taxi_subtasks.done_of(row[END_AT], K.ints[d, S_ARG], K.taxi[0:5], W):
@@ -551,6 +574,14 @@ def _end_of(P, K, X, W, d, obs, samples):
   return event, internal
 
 
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _end_schedule(S):
+  """The held epsilon schedule's step (`schedules.end_episode`): at an episode's end, or
+  after each of the root's decisions (`HeldEpsilon.per_decision`)."""
+  schedules.end_episode(S.epsilon, S.outcomes, S.counts, S.settings[0], np.int64(S.settings[1]),
+                        S.settings[2])
+
+
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
 def _observe(P, Q, B, G, T, S, K, X, W, d, obs, signal, done, terminal, rng_state):
   """Algorithm 1: the learner of the node at depth d takes R + G of its child's run;
@@ -567,9 +598,11 @@ def _observe(P, Q, B, G, T, S, K, X, W, d, obs, signal, done, terminal, rng_stat
   if kind == GIBBS_TABLE and row[VIEW] == VIEW_TAXI_ABSTRACT:
     if W is not None:              # without the call to `_view`: the taxi's every step
       ints[d, S_NEXT_STATE] = _taxi_abstract(K, W, row, d)
-  elif kind == Q_TABLE or kind == TILED_Q or kind == GIBBS_TABLE or (
+  elif kind == Q_TABLE or kind == TILED_Q or kind == GIBBS_TABLE or kind == AVERAGE_REWARD or (
       kind == GAUSSIAN_CMAC and not done) or (kind == ACTOR_CRITIC and not terminal):
     _view(P, Q, B, G, T, S, K, X, W, d, obs, np.int64(1))
+  if d == 0 and learn and S.settings[PER_DECISION] != 0.0:
+    _end_schedule(S)                    # a held schedule counted in the root's decisions
   if kind == Q_TABLE:
     if Q is not None:
       ints[d, S_CHOICE] = qlambda.smdp_step(
@@ -578,6 +611,25 @@ def _observe(P, Q, B, G, T, S, K, X, W, d, obs, signal, done, terminal, rng_stat
           done, terminal, _epsilon(S, row, p, sample), p[ALPHA], p[GAMMA], p[DECAY], learn,
           rng_state)
       ints[d, S_STATE] = ints[d, S_NEXT_STATE]
+  elif kind == AVERAGE_REWARD:
+    if Q is not None:
+      n = row[N_CHILDREN]
+      s, a, s_next = ints[d, S_STATE], ints[d, S_CHOICE], ints[d, S_NEXT_STATE]
+      if learn:                 # (s, a, r, tau, s'), tau the child's run's steps
+        q, gain = Q.q[slot], Q.gain[slot]
+        tau = float(ints[d, S_CHILD_STEPS])
+        average_reward.update(q, n, gain, s, a, signal, tau, s_next, p[ALPHA], p[GAIN_STEP],
+                              K.floats[d, F_GREEDY] != 0.0)
+        average_reward.remember_and_plan(
+            q, n, gain, (Q.model_next[slot], Q.model_reward[slot], Q.model_steps[slot],
+                         Q.model_count[slot]), s, a, signal, tau, s_next, p[ALPHA],
+            np.int64(p[PLANNING_EVERY]))
+      ints[d, S_STATE] = s_next
+      if not done:
+        ints[d, S_CHOICE] = qlambda.epsilon_greedy(Q.q[slot], s_next, n,
+                                                   _epsilon(S, row, p, sample), rng_state)
+        K.floats[d, F_GREEDY] = average_reward.is_greedy(Q.q[slot], s_next, ints[d, S_CHOICE],
+                                                         n)
   elif kind == TILED_Q:
     if Q is not None:
       k = T.n_tilings[row[VIEW_SLOT]]
@@ -658,14 +710,21 @@ def step(P, Q, B, G, T, S, K, X, W, obs, samples, reward, terminated, truncated,
     row = P.nodes[node]
     event, internal = _end_of(P, K, X, W, d, obs, samples)
     done = event != core.NO_EVENT or over
+    terminal = terminated or event != core.NO_EVENT
+    if row[END] == END_CLOCK:     # a continuing root: the world's events end its children only
+      done = event != core.NO_EVENT
+      terminal = False
+      if K.episode[E_RESTART] != 0:             # after a departure, it sees the restart
+        K.episode[E_RESTART] = 0
+        for i in range(K.restart.shape[0]):
+          obs[i] = K.restart[i]
     if row[SEEN] == SEEN_STEP:
       seen = core.STEP_REWARD * ints[d, S_CHILD_STEPS]
     else:
       seen = floats[d, F_REWARD]
     floats[d, F_REWARD] = 0.0
-    ints[d, S_CHILD_STEPS] = 0
-    _observe(P, Q, B, G, T, S, K, X, W, d, obs, seen + internal, done,
-             terminated or event != core.NO_EVENT, rng_state)
+    _observe(P, Q, B, G, T, S, K, X, W, d, obs, seen + internal, done, terminal, rng_state)
+    ints[d, S_CHILD_STEPS] = 0                  # (an RLearning's tau, read by _observe)
     if not done:
       action = _primitive_action(P, K, d)        # the common case: no call to make
       if action != action:
@@ -681,9 +740,8 @@ def step(P, Q, B, G, T, S, K, X, W, obs, samples, reward, terminated, truncated,
         if sch.settings[SCHEDULE_KIND] == LINEAR:
           sch.epsilon[0] = schedules.linear(K.episode[E_LEARNED], sch.settings[LINEAR_START],
                                             sch.settings[LINEAR_END], sch.settings[LINEAR_EPISODES])
-        else:
-          schedules.end_episode(sch.epsilon, sch.outcomes, sch.counts, sch.settings[0],
-                                np.int64(sch.settings[1]), sch.settings[2])
+        elif sch.settings[PER_DECISION] == 0.0:
+          _end_schedule(sch)
       return True, 0.0
     c[CALLS] += 1
     if not over:
@@ -704,18 +762,29 @@ def run_ship(P, Q, B, G, T, S, K, X, W, n_episodes, rng_state, world, record,
   `world` = [gate reward, out-of-bounds reward, max steps, 0], or of the root alone
   as a stand-alone subtask (`world[3]` = 1, SPEC section 8): each episode a call at
   the local start of the root's argument (`sample_local_start`), -1 a step, ended by
-  the root's own termination. Record row (ROW_END ...): passed (the gate, or the root's
-  success), steps, return, 0, then calls, runs, successes of each node; the ship's state and the
-  positions sampled in a step are the stack's `ship` and `samples`. Compiled without
+  the root's own termination; or `n_episodes` record rows of the continuing task
+  (`world[3]` = 2, SPEC section 8; a root with a Clock): the ship sails on from
+  `fixed_start` (the process's state, written back), each gate pass pays and it sails
+  on, each departure pays and it restarts at a start drawn from `rng_state`. Record
+  row (ROW_END ...): passed (the gate, or the root's success; a continuing row: its
+  gate passes), steps, return, 0 (a continuing row: its departures), then calls,
+  runs, successes of each node; the ship's state and the positions sampled in a
+  step are the stack's `ship` and `samples`. Compiled without
   reference counting, as everything it inlines: the machine reads its banks through
   views, and counting references to them cost 70% of its time."""
   max_steps = np.int64(world[2])
-  alone = world[3] != 0.0
+  alone = world[3] == 1.0
+  continuing = world[3] == 2.0
   state, samples = K.ship, K.samples
   event = core.NO_EVENT
   reward = core.STEP_REWARD
+  if continuing:
+    arrays.copy_into(state, fixed_start)
   for episode in range(n_episodes):
-    if fixed_start.shape[0] == 4:
+    passes, departures = 0.0, 0.0
+    if continuing:
+      pass                                    # the process sails on
+    elif fixed_start.shape[0] == 4:
       arrays.copy_into(state, fixed_start)
     elif alone:
       ship_rules.sample_local_start(rng_state, K.episode[E_ROOT_ARG], state)
@@ -728,14 +797,26 @@ def run_ship(P, Q, B, G, T, S, K, X, W, n_episodes, rng_state, world, record,
       if not alone:
         event, reward = core.global_outcome(samples, world[0], world[1])
         terminated = event != core.NO_EVENT
-        truncated = (not terminated) and K.episode[E_STEPS] + 1 >= max_steps
+        if not continuing:
+          truncated = (not terminated) and K.episode[E_STEPS] + 1 >= max_steps
+        elif event == core.SUCCESS:
+          passes += 1.0
+        elif event == core.FAILURE:           # SPEC section 8: a fresh start, sail on
+          departures += 1.0
+          ship_rules.sample_start(rng_state, K.restart)
+          K.episode[E_RESTART] = 1
       over, action = step(P, Q, B, G, T, S, K, X, W, state, samples, reward, terminated, truncated,
                           rng_state)
       if over:
         break
+    if continuing:
+      _write_row(K, record[episode], passes, departures)
+      continue
     if alone:
       event = K.episode[E_EVENT]
-    _write_row(K, record[episode], event == core.SUCCESS, 0.0)
+    _write_row(K, record[episode], 1.0 if event == core.SUCCESS else 0.0, 0.0)
+  if continuing:
+    arrays.copy_into(fixed_start, state)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -891,9 +972,15 @@ class Machine:
       nodes[i, WIDTH_SLOT] = self._width_slot_of.get(id(learner), -1)
     n_q = [self._q_size(b) for b in q]
     # None in a machine without a QTable, whose code then holds no Q-learning (as extras)
+    planned = [n if getattr(b, "planning_every", 0) else 0 for b, n in zip(q, n_q)]
     qbank = QBank(_stack_rows([np.zeros(n) for n in n_q], np.float64),
                   _stack_rows([np.zeros(self._capacity(b)) for b in q], np.int64),
                   _stack_rows([np.zeros(self._capacity(b)) for b in q], np.float64),
+                  np.zeros((max(len(q), 1), 1), dtype=np.int64),
+                  np.zeros((max(len(q), 1), 2)),
+                  _stack_rows([np.full(n, -1) for n in planned], np.int64),
+                  _stack_rows([np.zeros(n) for n in planned], np.float64),
+                  _stack_rows([np.zeros(n) for n in planned], np.float64),
                   np.zeros((max(len(q), 1), 1), dtype=np.int64)) if q else None
     # None in a machine without a Gaussian learner or actor-critic (the taxi's), whose
     # code then holds neither (the Q and Gibbs banks' pruning)
@@ -911,25 +998,27 @@ class Machine:
                          f"the graph; subtasks: {sorted(n.name for n in graph.subtasks())}")
     if isinstance(sb, blocks.LinearEpsilon):
       eps, outcomes, counts = schedules.new_schedule(sb.start, 1, 1)
-      settings = [0.0, 1.0, 1.0, LINEAR, sb.start, sb.end, sb.episodes]
+      settings = [0.0, 1.0, 1.0, LINEAR, sb.start, sb.end, sb.episodes, 0.0]
     else:
       eps, outcomes, counts = schedules.new_schedule(sb.epsilon, sb.window,
                                                      max(len(sb.watch), 1))
-      settings = [sb.threshold, sb.every, sb.divisor, HELD, 0.0, 0.0, 0.0]
+      settings = [sb.threshold, sb.every, sb.divisor, HELD, 0.0, 0.0, 0.0,
+                  float(bool(sb.per_decision))]
     schedule = Schedule(eps, outcomes, counts, np.array(settings, dtype=np.float64))
     critics = [b.critic_coder for b in g if isinstance(b, blocks.ActorCritic)]
     n_max = max([int(nodes[i, N_CHILDREN]) for i in range(len(order))] + [1])
-    stack = Stack(np.zeros((depth, 7), dtype=np.int64), np.zeros((depth, 5)),
+    stack = Stack(np.zeros((depth, 7), dtype=np.int64), np.zeros((depth, 6)),
                   np.zeros((depth, 2)), np.zeros((depth, 4, k), dtype=np.int64),
                   np.zeros((depth, k)), np.zeros((depth, k)),
-                  np.array([0, 0, int(root_args.get("direction", -1)), 0, 0], dtype=np.int64),
+                  np.array([0, 0, int(root_args.get("direction", -1)), 0, 0, 0], dtype=np.int64),
                   np.zeros(1),
                   np.zeros((len(order), 3)), np.zeros(4),
                   np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)),
                   np.zeros(len(critics[0].low) if critics else 1), np.zeros(4),
                   np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)), np.zeros(8, dtype=np.int64),
                   np.zeros(5), np.zeros(n_max, dtype=np.bool_), np.zeros(n_max),
-                  np.zeros(n_max, dtype=np.int64), np.zeros(n_max), np.zeros(2, dtype=np.bool_))
+                  np.zeros(n_max, dtype=np.int64), np.zeros(n_max), np.zeros(2, dtype=np.bool_),
+                  np.zeros(4))
     if len({len(c.low) for c in critics}) > 1:
       raise GraphError("the graph's actor-critics' critics code (state, action) of "
                        f"different sizes: {sorted({len(c.low) for c in critics})}")
@@ -971,6 +1060,17 @@ class Machine:
         if not isinstance(node.view, (blocks.GridCell, blocks.CellRule, blocks.TaxiState)):
           raise GraphError(f"subtask {name!r}: a QTable needs a GridCell, CellRule or TaxiState "
                            f"view, got {type(node.view).__name__}")
+    elif isinstance(learner, blocks.RLearning):
+      row[LEARNER] = AVERAGE_REWARD
+      row[SLOT] = self._slot(Q_TABLE, learner)          # in the QBank
+      self._same_children(name, learner, refs)
+      p[ALPHA], p[GAIN_STEP], p[EPSILON], p[PLANNING_EVERY] = (
+          learner.alpha, learner.gain_step, learner.epsilon, learner.planning_every)
+      row[EPS_SCHEDULE] = int(bool(learner.epsilon_schedule))
+      row[N_STATES] = int(learner.n_states)
+      if not isinstance(node.view, (blocks.GridCell, blocks.CellRule, blocks.PatrolCell)):
+        raise GraphError(f"subtask {name!r}: an RLearning needs a GridCell, CellRule or "
+                         f"PatrolCell view, got {type(node.view).__name__}")
     elif isinstance(learner, blocks.GibbsTable):
       row[LEARNER] = GIBBS_TABLE
       row[SLOT] = self._slot(GIBBS_TABLE, learner)
@@ -1008,8 +1108,8 @@ class Machine:
                          "AimTiles view over its own coder")
     else:
       raise GraphError(f"subtask {name!r}: learner {learner!r} is not a machine learner; "
-                       "allowed: QTable, TiledQTable, GibbsTable, GaussianCMAC, ActorCritic "
-                       "(hpg_mj.hierarchy.blocks)")
+                       "allowed: QTable, TiledQTable, RLearning, GibbsTable, GaussianCMAC, "
+                       "ActorCritic (hpg_mj.hierarchy.blocks)")
 
   def _q_size(self, learner):
     """A QBank row's weights: a table's states, or a TiledQTable's tiles, x its actions."""
@@ -1017,7 +1117,8 @@ class Machine:
     return n * self._n_actions[id(learner)]
 
   def _capacity(self, learner):
-    return learner.trace_capacity or self._q_size(learner)
+    """A Q learner's trace: its capacity (None: every weight once); RLearning has none."""
+    return getattr(learner, "trace_capacity", 1) or self._q_size(learner)
 
   def _same_children(self, name, learner, refs):
     """A table's children: the same number at every node that shares it."""
@@ -1082,6 +1183,12 @@ class Machine:
     if isinstance(view, blocks.GridCell):
       row[VIEW] = VIEW_GRID_CELL
       p[CELL_M], p[GRID] = float(view.cell_m), float(view.grid)
+      self._states(name, node, "GridCell", int(view.grid) ** 2)
+    elif isinstance(view, blocks.PatrolCell):
+      row[VIEW] = VIEW_PATROL_CELL
+      p[SECTORS], p[NEAR_GATE_M], p[NEAR_GATE_CELL_M] = (view.heading_sectors, view.near_gate_m,
+                                                         view.near_gate_cell_m)
+      self._states(name, node, "PatrolCell", view.n_states())
     elif isinstance(view, blocks.CellRule):
       row[VIEW] = VIEW_RULE
       row[VIEW_SLOT] = self._rule(name, rules_mod.VIEW, view.rule)
@@ -1110,11 +1217,11 @@ class Machine:
           int(self.world[taxi_rules.W_CAPACITY]))[row[VIEW_SLOT]])
     else:
       raise GraphError(f"subtask {name!r}: view {view!r} is not a machine view; allowed: "
-                       "GridCell, LocalTiles, StateTiles, AimTiles, CellRule, TaxiState, "
-                       "TaxiAbstraction (hpg_mj.hierarchy.blocks)")
+                       "GridCell, PatrolCell, LocalTiles, StateTiles, AimTiles, CellRule, "
+                       "TaxiState, TaxiAbstraction (hpg_mj.hierarchy.blocks)")
 
   def _states(self, name, node, view, n):
-    """A table over a taxi view has its states."""
+    """A table has as many states as its view (a grid, a taxi abstraction, ...)."""
     if node.learner.n_states != n:
       raise GraphError(f"subtask {name!r}: its {view} view has {n} states, its "
                        f"{type(node.learner).__name__} {node.learner.n_states}")
@@ -1131,6 +1238,12 @@ class Machine:
     elif isinstance(end, blocks.LocalGoal):
       row[END] = END_LOCAL_GOAL
       row[MAX_STEPS] = int(end.max_steps)
+    elif isinstance(end, blocks.Clock):
+      if name != self.graph.root:
+        raise GraphError(f"subtask {name!r}: a Clock ends only the root (a continuing task's "
+                         f"record row); the root is {self.graph.root!r}")
+      row[END] = END_CLOCK
+      row[MAX_STEPS] = int(end.steps)
     elif isinstance(end, blocks.TargetReached):
       if row[VIEW] != VIEW_AIM_TILES:
         raise GraphError(f"subtask {name!r}: a TargetReached ends a node with an AimTiles "
@@ -1145,7 +1258,7 @@ class Machine:
       row[END_AT] = self._taxi_id(name, end)
     else:
       raise GraphError(f"subtask {name!r}: termination {end!r} is not a machine "
-                       "termination; allowed: Never, LocalGoal, TargetReached, EndRule, "
+                       "termination; allowed: Never, Clock, LocalGoal, TargetReached, EndRule, "
                        "TaxiEnd (hpg_mj.hierarchy.blocks)")
     if internal is None:
       row[INTERNAL] = G_NONE
@@ -1216,6 +1329,16 @@ class Machine:
     b = self.banks.q
     return b.q[slot, :n], b.index[slot], b.value[slot], b.count[slot]
 
+  def r_learning_arrays(self, learner):
+    """(q, gain [rho, greedy transitions], the planning model (next, reward, steps,
+    [count])) of an RLearning (views of the bank)."""
+    slot = self._slot_of[id(learner)]
+    n = self._q_size(learner)
+    b = self.banks.q
+    m = n if learner.planning_every else 0
+    return (b.q[slot, :n], b.gain[slot], (b.model_next[slot, :m], b.model_reward[slot, :m],
+                                          b.model_steps[slot, :m], b.model_count[slot]))
+
   def gaussian_arrays(self, learner):
     """The Eq. 3 trace (`eligibility.Trace`) and baseline values of a GaussianCMAC."""
     slot = self._slot_of[id(learner)]
@@ -1278,6 +1401,17 @@ class Machine:
     run_ship(*self.refs, int(episodes), rng_state, world, rows, fixed)
     return rows
 
+  def run_continuing(self, rows, learn, sample, rng_state, world, ship):
+    """`rows` record rows of the continuing ship task (`run_ship`'s world[3] = 2) from
+    `ship`, the process's state (float64[4], sailed on in place); `world` = (gate
+    reward, out-of-bounds reward)."""
+    jit.compile_first(run_ship, self._bottom_up)
+    out = self._rows(rows)
+    world = np.array([world[0], world[1], 0.0, 2.0], dtype=np.float64)
+    self._flags(learn, sample)
+    run_ship(*self.refs, int(rows), rng_state, world, out, ship)
+    return out
+
   def run_taxi(self, episodes, learn, sample, rng_state, starts=None):
     """Episodes fused with the taxi of the machine's `world`, from `starts` (rows of
     taxi_rules' state, used in turn; None: drawn); rows as `run_taxi` writes them."""
@@ -1314,6 +1448,12 @@ class Machine:
     """Resumable: the environment stepped; returns (episode over, next action)."""
     samples = info.get("positions") if info else None
     samples = _NO_SAMPLES if samples is None else np.ascontiguousarray(samples, dtype=np.float64)
+    before = info.get("state_before_restart") if info else None
+    if before is not None:          # a continuing ship restarted: its root sees `obs`
+      k = self.banks.stack
+      k.restart[:] = obs
+      k.episode[E_RESTART] = 1
+      obs = before
     self._flags(learn, sample)
     return self._compiled(advance, np.ascontiguousarray(obs, dtype=np.float64), samples,
                           float(reward), bool(terminated), bool(truncated), rng_state)

@@ -9,6 +9,7 @@ import collections
 import math
 
 import numba
+import numpy as np
 
 from hpg_mj.learners import rng
 from hpg_mj.worlds import ship_core as core
@@ -51,6 +52,45 @@ def sample_local_start(rng_state, direction, out):
 def subtask_of(direction):
   """Which shared low-level subtask sails `direction` (0..7 = N..NW)."""
   return DIAGONAL if direction % 2 == 1 else STRAIGHT
+
+
+# ---- the patrol's root (SPEC section 8) ----------------------------------------------
+
+@numba.njit(cache=True)
+def n_root_cells(near_gate_m, near_gate_cell_m):
+  """How many places the root tells apart: the 20 x 20 grid's 50 m cells, then,
+  with `near_gate_m` > 0, the finer cells of the square of that half-width about
+  the gate's centre (`root_state`)."""
+  if near_gate_m <= 0.0:
+    return ROOT_GRID ** 2
+  side = int(round(2.0 * near_gate_m / near_gate_cell_m))
+  return ROOT_GRID ** 2 + side * side
+
+
+@numba.njit(cache=True)
+def root_state(state, heading_sectors, near_gate_m=0.0, near_gate_cell_m=25.0):
+  """The root's abstract state: where the ship is and, with `heading_sectors`
+  n > 1, its heading in n equal sectors counted clockwise, sector 0 centred on
+  south (-180 deg): place * n + sector. The place is the 50 m cell of (x, y)
+  (`ship_root_cell`) or, inside the square of half-width `near_gate_m`
+  about the gate's centre, a cell of `near_gate_cell_m` there (numbered after
+  the 400 coarse ones): how far the ship is from a post decides whether a
+  U-turn passes the gate again. n = 1 and `near_gate_m` 0 is the hybrid's root."""
+  cell = root_cell(state[0], state[1])
+  if near_gate_m > 0.0:
+    x0 = 0.5 * (core.GATE[0, 0] + core.GATE[1, 0]) - near_gate_m
+    y0 = 0.5 * (core.GATE[0, 1] + core.GATE[1, 1]) - near_gate_m
+    side = int(round(2.0 * near_gate_m / near_gate_cell_m))
+    i = int(np.floor((state[0] - x0) / near_gate_cell_m))
+    j = int(np.floor((state[1] - y0) / near_gate_cell_m))
+    if 0 <= i < side and 0 <= j < side:
+      cell = ROOT_GRID ** 2 + i * side + j
+  if heading_sectors == 1:
+    return cell
+  width = 360.0 / heading_sectors
+  sector = int((core.wrap_deg(state[2] + 0.5 * width) + 180.0) // width) % heading_sectors
+  return cell * heading_sectors + sector
+
 
 
 # ---- the route's targets and its aim subtask (SPEC section 8) -----------------------

@@ -9,6 +9,7 @@ import pytest
 
 from hpg_mj import agents, cli
 from hpg_mj.hierarchy import patrol
+from hpg_mj.hierarchy import ship_rules
 from hpg_mj.taskfile import TaskFileError
 from hpg_mj.render import video
 from hpg_mj.worlds import ship_core as core
@@ -183,8 +184,8 @@ def test_a_truncating_environment_is_refused(tmp_path):
                                           (-22.6, 3), (90.0, 6)])
 def test_the_root_state_is_the_cell_and_the_heading_sector(theta, sector):
   state = np.array([425.0, 375.0, theta, 0.0])              # cell (8, 7): 8 * 20 + 7
-  assert patrol.root_state(state, 1) == 167
-  assert patrol.root_state(state, 8) == 167 * 8 + sector
+  assert ship_rules.root_state(state, 1) == 167
+  assert ship_rules.root_state(state, 8) == 167 * 8 + sector
 
 
 def test_the_shipped_root_sees_the_heading():
@@ -199,12 +200,12 @@ def test_finer_cells_about_the_gate_are_numbered_after_the_grid():
   # x0 = y0 = 300, (425, 375) is its cell (5, 3): 400 + 5 * 8 + 3; (250, 375) is
   # outside it, in the 50 m cell (5, 7).
   inside, outside = np.array([425.0, 375.0, 0.0, 0.0]), np.array([250.0, 375.0, 0.0, 0.0])
-  assert patrol.n_root_cells(100.0, 25.0) == 400 + 64
-  assert patrol.n_root_cells(0.0, 25.0) == 400
-  assert patrol.root_state(inside, 1, 100.0, 25.0) == 443
-  assert patrol.root_state(inside, 8, 100.0, 25.0) == 443 * 8 + 4
-  assert patrol.root_state(outside, 1, 100.0, 25.0) == 107
-  assert patrol.root_state(inside, 1, 0.0, 25.0) == 167     # off: the 50 m grid
+  assert ship_rules.n_root_cells(100.0, 25.0) == 400 + 64
+  assert ship_rules.n_root_cells(0.0, 25.0) == 400
+  assert ship_rules.root_state(inside, 1, 100.0, 25.0) == 443
+  assert ship_rules.root_state(inside, 8, 100.0, 25.0) == 443 * 8 + 4
+  assert ship_rules.root_state(outside, 1, 100.0, 25.0) == 107
+  assert ship_rules.root_state(inside, 1, 0.0, 25.0) == 167     # off: the 50 m grid
 
 
 @pytest.mark.parametrize("line,match", [
@@ -267,7 +268,7 @@ def test_the_loop_script_sails_what_the_evaluation_sails(tmp_path, capsys):
   view = (root.heading_sectors, root.near_gate_m, root.near_gate_cell_m)
   moved = np.full(agent.q.size, 2)
   args = argparse.Namespace(rollouts=1, horizon=200)
-  script.report(agent, agent.q, agent._tables(None), view, agent.gain[0], moved, args)
+  script.report(agent, agent.q, script.low_arrays(agent), view, agent.gain[0], moved, args)
   out = capsys.readouterr().out
   gates = float(re.search(r"greedy: ([\d.]+) gates/h", out).group(1))
   assert gates == pytest.approx(agent.metrics(agent.evaluation(100))["gates_per_hour"], abs=0.05)

@@ -244,8 +244,8 @@ def _root(children=None, **kw):
 @pytest.mark.parametrize("nodes, schedule, message", [
     (lambda: [_root(), _leg(learner=stepwise.SoftmaxPolicyGradient(1, 1, 0.1)),
               Primitive("turn")], None,
-     "subtask 'leg': learner .* is not a machine learner; allowed: QTable, TiledQTable, GibbsTable, "
-     "GaussianCMAC"),
+     "subtask 'leg': learner .* is not a machine learner; allowed: QTable, TiledQTable, RLearning, "
+     "GibbsTable, GaussianCMAC"),
     (lambda: [_root(), _leg(learner=object()), Primitive("turn")], None,
      "subtask 'leg': its learner object has no start, act, observe"),
     (lambda: [_root(view=blocks.LocalTiles(_coder())), _leg(), Primitive("turn")], None,
@@ -269,7 +269,13 @@ def _root(children=None, **kw):
      "subtask 'root': its child 'leg' takes \\['heading'\\]; the machine passes one integer "
      "argument, one of \\['direction', 'target'\\]"),
     (lambda: [_root(), _leg(termination=object()), Primitive("turn")], None,
-     "subtask 'leg': termination .* is not a machine termination; allowed: Never, LocalGoal"),
+     "subtask 'leg': termination .* is not a machine termination; allowed: Never, Clock, "
+     "LocalGoal"),
+    (lambda: [_root(), _leg(termination=blocks.Clock(100)), Primitive("turn")], None,
+     "subtask 'leg': a Clock ends only the root \\(a continuing task's record row\\); the "
+     "root is 'root'"),
+    (lambda: [_root(learner=blocks.RLearning(7)), _leg(), Primitive("turn")], None,
+     "subtask 'root': its GridCell view has 400 states, its RLearning 7"),
     (lambda: [_root(view=blocks.CellRule(lambda obs, origin, arg, steps: 0)), _leg(),
               Primitive("turn")], None,
      "subtask 'root': its CellRule's rule must be an @numba.njit function; got <function"),
