@@ -1056,10 +1056,8 @@ class Machine:
         raise GraphError(f"subtask {name!r}: a TiledQTable needs a StateTiles view over its "
                          "own coder")
       if not tiled:
-        row[N_STATES] = int(learner.n_states)
-        if not isinstance(node.view, (blocks.GridCell, blocks.CellRule, blocks.TaxiState)):
-          raise GraphError(f"subtask {name!r}: a QTable needs a GridCell, CellRule or TaxiState "
-                           f"view, got {type(node.view).__name__}")
+        self._table(name, node, row, "a QTable", (blocks.GridCell, blocks.CellRule,
+                                                  blocks.TaxiState))
     elif isinstance(learner, blocks.RLearning):
       row[LEARNER] = AVERAGE_REWARD
       row[SLOT] = self._slot(Q_TABLE, learner)          # in the QBank
@@ -1067,10 +1065,8 @@ class Machine:
       p[ALPHA], p[GAIN_STEP], p[EPSILON], p[PLANNING_EVERY] = (
           learner.alpha, learner.gain_step, learner.epsilon, learner.planning_every)
       row[EPS_SCHEDULE] = int(bool(learner.epsilon_schedule))
-      row[N_STATES] = int(learner.n_states)
-      if not isinstance(node.view, (blocks.GridCell, blocks.CellRule, blocks.PatrolCell)):
-        raise GraphError(f"subtask {name!r}: an RLearning needs a GridCell, CellRule or "
-                         f"PatrolCell view, got {type(node.view).__name__}")
+      self._table(name, node, row, "an RLearning", (blocks.GridCell, blocks.CellRule,
+                                                    blocks.PatrolCell))
     elif isinstance(learner, blocks.GibbsTable):
       row[LEARNER] = GIBBS_TABLE
       row[SLOT] = self._slot(GIBBS_TABLE, learner)
@@ -1078,11 +1074,8 @@ class Machine:
       p[ALPHA], p[DECAY], p[BETA] = learner.alpha, learner.trace_gamma, learner.baseline
       p[START_FRACTION], p[DELAY], p[RAMP] = (learner.start_fraction, learner.delay,
                                               learner.ramp)
-      row[N_STATES] = int(learner.n_states)
-      if not isinstance(node.view, (blocks.GridCell, blocks.CellRule, blocks.TaxiState,
-                                    blocks.TaxiAbstraction)):
-        raise GraphError(f"subtask {name!r}: a GibbsTable needs a GridCell, CellRule, "
-                         f"TaxiState or TaxiAbstraction view, got {type(node.view).__name__}")
+      self._table(name, node, row, "a GibbsTable", (blocks.GridCell, blocks.CellRule,
+                                                    blocks.TaxiState, blocks.TaxiAbstraction))
     elif isinstance(learner, blocks.ActorCritic):
       row[LEARNER] = ACTOR_CRITIC
       row[SLOT] = self._slot(GAUSSIAN_CMAC, learner)
@@ -1110,6 +1103,15 @@ class Machine:
       raise GraphError(f"subtask {name!r}: learner {learner!r} is not a machine learner; "
                        "allowed: QTable, TiledQTable, RLearning, GibbsTable, GaussianCMAC, "
                        "ActorCritic (hpg_mj.hierarchy.blocks)")
+
+  @staticmethod
+  def _table(name, node, row, kind, views):
+    """A table learner's states (N_STATES), over a view of one of the kinds `views`."""
+    row[N_STATES] = int(node.learner.n_states)
+    if not isinstance(node.view, views):
+      allowed = [v.__name__ for v in views]
+      raise GraphError(f"subtask {name!r}: {kind} needs a {', '.join(allowed[:-1])} or "
+                       f"{allowed[-1]} view, got {type(node.view).__name__}")
 
   def _q_size(self, learner):
     """A QBank row's weights: a table's states, or a TiledQTable's tiles, x its actions."""
