@@ -34,7 +34,11 @@ print(time.process_time() - start)
 
 def _start(checkout, task, core):
   env = dict(os.environ, PYTHONPATH=str(checkout), NUMBA_CACHE_DIR=tempfile.mkdtemp())
+  # cwd: `python -c` puts the working directory first on sys.path, ahead of PYTHONPATH;
+  # from any other directory holding an hpg_mj (this checkout's root), both sides
+  # would import that one.
   return subprocess.Popen([sys.executable, "-c", _TIMED, task], env=env, text=True,
+                          cwd=str(checkout),
                           stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                           preexec_fn=lambda: os.sched_setaffinity(0, {core}))
 
