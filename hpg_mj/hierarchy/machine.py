@@ -39,7 +39,6 @@ by the end of the episode is counted as a call but no run (`counters`).
 """
 import collections
 import math
-import types as pytypes
 
 import numba
 import numpy as np
@@ -163,11 +162,17 @@ E_DEPTH, E_STEPS, E_ROOT_ARG, E_EVENT, E_LEARNED, E_RESTART = range(6)
 # The run's flags (the stack's `flags`): whether it learns, whether it samples its
 # policies (else greedy); set by the Python side before each compiled call.
 RUN_LEARN, RUN_SAMPLE = range(2)
-# `extras`: None in a machine whose graph has neither an ActorCritic nor a user rule
-# (else 1). numba prunes a branch on `x is None` of an argument before typing it, so
-# such a machine compiles without their code (a sixth of the hybrid's first compile).
+# `extras`: None in a machine whose graph has none of the blocks in _EXTRA_KINDS (an
+# ActorCritic, a user rule, the route's and the patrol's blocks), else 1. numba prunes
+# a branch on `x is None` of an argument before typing it, so such a machine (the
+# hybrid's, flat PGRL's, the taxi's, most users') compiles without their code: the
+# route's and the patrol's blocks alone took a quarter of the hybrid's first compile.
 # `world`: the taxi's world array (`taxi_rules.world_config`) in a machine with taxi
 # blocks, else None (the same pruning: a ship graph holds no taxi code).
+_EXTRA_KINDS = ((LEARNER, (ACTOR_CRITIC, TILED_Q, AVERAGE_REWARD)),
+                (VIEW, (VIEW_RULE, VIEW_AIM_TILES, VIEW_PATROL_CELL)),
+                (END, (END_RULE, END_TARGET, END_CLOCK)), (INTERNAL, (G_RULE,)),
+                (OFFER, (OFFER_NEAR_GATE,)))
 Banks = collections.namedtuple("Banks", ("program", "q", "gibbs", "gaussian", "tiling",
                                          "schedule", "stack", "extras", "world"))
 
@@ -282,9 +287,10 @@ def _view(P, Q, B, G, T, S, K, X, W, d, obs, which):
     p = P.params[node]
     K.ints[d, S_STATE + which] = grid_cell(obs[0], obs[1], p[CELL_M], np.int64(p[GRID]))
   elif kind == VIEW_PATROL_CELL:
-    p = P.params[node]
-    K.ints[d, S_STATE + which] = ship_rules.root_state(obs, np.int64(p[SECTORS]), p[NEAR_GATE_M],
-                                                       p[NEAR_GATE_CELL_M])
+    if X is not None:
+      p = P.params[node]
+      K.ints[d, S_STATE + which] = ship_rules.root_state(obs, np.int64(p[SECTORS]),
+                                                         p[NEAR_GATE_M], p[NEAR_GATE_CELL_M])
   elif kind == VIEW_RULE:
     if X is not None:
       state = np.int64(P.rules(row[VIEW_SLOT], obs, K.origin[d], K.ints[d, S_ARG],
@@ -293,22 +299,24 @@ def _view(P, Q, B, G, T, S, K, X, W, d, obs, which):
         raise IndexError("a CellRule's rule gave a state outside its QTable's states")
       K.ints[d, S_STATE + which] = state
   elif kind == VIEW_LOCAL_TILES:
-    tiling = _tiling(T, row[VIEW_SLOT])
-    local = K.local
-    core.global_to_local(obs, K.origin[d], K.ints[d, S_ARG], local)
-    tiles_mod.active_tiles(local, tiling, K.tiles[d, which, :tiling.offsets.shape[0]])
+    if W is None:                  # a ship block (Machine._ship_only)
+      tiling = _tiling(T, row[VIEW_SLOT])
+      local = K.local
+      core.global_to_local(obs, K.origin[d], K.ints[d, S_ARG], local)
+      tiles_mod.active_tiles(local, tiling, K.tiles[d, which, :tiling.offsets.shape[0]])
   elif kind == VIEW_STATE_TILES:
     tiling = _tiling(T, row[VIEW_SLOT])
     tiles_mod.active_tiles(obs[:T.dims[row[VIEW_SLOT]]], tiling,
                            K.tiles[d, which, :tiling.offsets.shape[0]])
   elif kind == VIEW_AIM_TILES:
-    p = P.params[node]
-    tiling = _tiling(T, row[VIEW_SLOT])
-    tx, ty = _target(P, K, d, obs)
-    view = K.local[:3]
-    K.floats[d, F_SIDE] = ship_rules.aim_view(obs, tx, ty, view, p[SQRT_ERROR] != 0.0,
-                                              p[REFLECT_AT])
-    tiles_mod.active_tiles(view, tiling, K.tiles[d, which, :tiling.offsets.shape[0]])
+    if X is not None:
+      p = P.params[node]
+      tiling = _tiling(T, row[VIEW_SLOT])
+      tx, ty = _target(P, K, d, obs)
+      view = K.local[:3]
+      K.floats[d, F_SIDE] = ship_rules.aim_view(obs, tx, ty, view, p[SQRT_ERROR] != 0.0,
+                                                p[REFLECT_AT])
+      tiles_mod.active_tiles(view, tiling, K.tiles[d, which, :tiling.offsets.shape[0]])
   elif kind == VIEW_TAXI_STATE:
     if W is not None:
       K.ints[d, S_STATE + which] = taxi_rules.encoded(obs, W)
@@ -346,9 +354,11 @@ def _critic_tiles(P, T, K, d, obs, r, which):
   tiles_mod.active_tiles(sa, tiling, K.tiles[d, 2 + which, :tiling.offsets.shape[0]])
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
 def _gaussian_choose(P, G, T, K, d, rng_state):
-  """A GaussianCMAC node's choice (`policies.gaussian_choose`) into the stack."""
+  """A GaussianCMAC node's choice (`policies.gaussian_choose`) into the stack. Called,
+  not inlined: `_call` and `_observe` share one compiled copy of the inlined Eq. 3
+  rule (four pointers and two numbers a call; compiled without reference counting)."""
   learn, sample = K.flags[RUN_LEARN], K.flags[RUN_SAMPLE]
   node = K.ints[d, S_NODE]
   row = P.nodes[node]
@@ -393,6 +403,18 @@ def _epsilon(S, row, p, sample):
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _table_choose(Q, S, K, X, row, p, d, sample, rng_state):
+  """A QTable's or RLearning's epsilon-greedy choice in its state S_STATE (an
+  RLearning also notes whether the choice was greedy, for its gain)."""
+  q = Q.q[row[SLOT]]
+  K.ints[d, S_CHOICE] = qlambda.epsilon_greedy(q, K.ints[d, S_STATE], row[N_CHILDREN],
+                                               _epsilon(S, row, p, sample), rng_state)
+  if row[LEARNER] == AVERAGE_REWARD and X is not None:
+    K.floats[d, F_GREEDY] = average_reward.is_greedy(q, K.ints[d, S_STATE], K.ints[d, S_CHOICE],
+                                                     row[N_CHILDREN])
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _choose(P, Q, B, G, T, S, K, X, W, d, obs, rng_state):
   """Algorithm 1: choose a with mu^i(s, theta^i); sets the stack's choice and action."""
   sample = K.flags[RUN_SAMPLE]
@@ -402,14 +424,9 @@ def _choose(P, Q, B, G, T, S, K, X, W, d, obs, rng_state):
   slot = row[SLOT]
   if row[LEARNER] == Q_TABLE or row[LEARNER] == AVERAGE_REWARD:
     if Q is not None:
-      epsilon = _epsilon(S, row, p, sample)
-      K.ints[d, S_CHOICE] = qlambda.epsilon_greedy(Q.q[slot], K.ints[d, S_STATE],
-                                                   row[N_CHILDREN], epsilon, rng_state)
-      if row[LEARNER] == AVERAGE_REWARD:
-        K.floats[d, F_GREEDY] = average_reward.is_greedy(Q.q[slot], K.ints[d, S_STATE],
-                                                         K.ints[d, S_CHOICE], row[N_CHILDREN])
+      _table_choose(Q, S, K, X, row, p, d, sample, rng_state)
   elif row[LEARNER] == TILED_Q:
-    if Q is not None:
+    if Q is not None and X is not None:
       K.ints[d, S_CHOICE] = qlambda.tiled_epsilon_greedy(
           Q.q[slot], K.tiles[d, 0, :T.n_tilings[row[VIEW_SLOT]]], row[N_CHILDREN],
           _offered(P, node, obs), _epsilon(S, row, p, sample), rng_state)
@@ -476,7 +493,7 @@ def _primitive_action(P, K, d):
   return K.floats[d, F_ACTION] if action != action else action       # NaN: continuous
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
 def _descend(P, Q, B, G, T, S, K, X, W, d, obs, rng_state):
   """From depth d, calls the chosen children down to a primitive; returns the
   primitive's action."""
@@ -539,22 +556,24 @@ def _end_of(P, K, X, W, d, obs, samples):
   row = P.nodes[node]
   event, internal = core.NO_EVENT, 0.0
   if row[END] == END_LOCAL_GOAL:
-    event, internal = core.low_level_outcome(samples, obs, K.origin[d],
-                                             K.ints[d, S_ARG], K.ints[d, S_STEPS],
-                                             K.local_samples, K.local,
-                                             row[MAX_STEPS])
-    if row[INTERNAL] != G_SHAPING:
-      internal = 0.0
+    if W is None:                  # a ship block (Machine._ship_only)
+      event, internal = core.low_level_outcome(samples, obs, K.origin[d],
+                                               K.ints[d, S_ARG], K.ints[d, S_STEPS],
+                                               K.local_samples, K.local,
+                                               row[MAX_STEPS])
+      if row[INTERNAL] != G_SHAPING:
+        internal = 0.0
   elif row[END] == END_TARGET:
-    p = P.params[node]
-    tx, ty = _target(P, K, d, obs)
-    event, internal = ship_rules.aim_outcome(samples, obs, K.ints[d, S_ARG], tx, ty,
-                                             K.ints[d, S_STEPS], row[MAX_STEPS], p[RADIUS_M],
-                                             p[SHAPING_WEIGHT])
-    if row[INTERNAL] != G_SHAPING:
-      internal = 0.0
+    if X is not None:
+      p = P.params[node]
+      tx, ty = _target(P, K, d, obs)
+      event, internal = ship_rules.aim_outcome(samples, obs, K.ints[d, S_ARG], tx, ty,
+                                               K.ints[d, S_STEPS], row[MAX_STEPS], p[RADIUS_M],
+                                               p[SHAPING_WEIGHT])
+      if row[INTERNAL] != G_SHAPING:
+        internal = 0.0
   elif row[END] == END_CLOCK:
-    if K.ints[d, S_STEPS] >= row[MAX_STEPS]:
+    if X is not None and K.ints[d, S_STEPS] >= row[MAX_STEPS]:
       event = core.SUCCESS
   elif row[END] == END_TAXI:
     if W is not None:
@@ -612,7 +631,7 @@ def _observe(P, Q, B, G, T, S, K, X, W, d, obs, signal, done, terminal, rng_stat
           rng_state)
       ints[d, S_STATE] = ints[d, S_NEXT_STATE]
   elif kind == AVERAGE_REWARD:
-    if Q is not None:
+    if Q is not None and X is not None:
       n = row[N_CHILDREN]
       s, a, s_next = ints[d, S_STATE], ints[d, S_CHOICE], ints[d, S_NEXT_STATE]
       if learn:                 # (s, a, r, tau, s'), tau the child's run's steps
@@ -626,12 +645,9 @@ def _observe(P, Q, B, G, T, S, K, X, W, d, obs, signal, done, terminal, rng_stat
             np.int64(p[PLANNING_EVERY]))
       ints[d, S_STATE] = s_next
       if not done:
-        ints[d, S_CHOICE] = qlambda.epsilon_greedy(Q.q[slot], s_next, n,
-                                                   _epsilon(S, row, p, sample), rng_state)
-        K.floats[d, F_GREEDY] = average_reward.is_greedy(Q.q[slot], s_next, ints[d, S_CHOICE],
-                                                         n)
+        _table_choose(Q, S, K, X, row, p, d, sample, rng_state)
   elif kind == TILED_Q:
-    if Q is not None:
+    if Q is not None and X is not None:
       k = T.n_tilings[row[VIEW_SLOT]]
       ints[d, S_CHOICE] = qlambda.smdp_step(
           (Q.q[slot], Q.index[slot], Q.value[slot], Q.count[slot]), row[N_CHILDREN],
@@ -711,7 +727,7 @@ def step(P, Q, B, G, T, S, K, X, W, obs, samples, reward, terminated, truncated,
     event, internal = _end_of(P, K, X, W, d, obs, samples)
     done = event != core.NO_EVENT or over
     terminal = terminated or event != core.NO_EVENT
-    if row[END] == END_CLOCK:     # a continuing root: the world's events end its children only
+    if row[END] == END_CLOCK and X is not None:   # a continuing root: the world's events end its children only
       done = event != core.NO_EVENT
       terminal = False
       if K.episode[E_RESTART] != 0:             # after a departure, it sees the restart
@@ -833,21 +849,6 @@ def _write_row(K, row, end, illegal):
 
 # ---- fused with the taxi ------------------------------------------------------------
 
-def _inlined(fn, **callees):
-  """A copy of compiled function `fn` that numba inlines, calling `callees` (name ->
-  function) in place of the functions of those names. The taxi's fused loop inlines
-  `step` and its `_observe`: a primitive step of the taxi is a few hundred
-  instructions, and the two calls (some 60 words of arguments) cost it about a tenth
-  of its speed; the ship's loop calls them (its step is longer, and the hybrid's
-  first compile is what it saves)."""
-  code = fn.py_func
-  copy = pytypes.FunctionType(code.__code__, dict(code.__globals__, **callees),
-                              code.__name__ + "_inlined")
-  return numba.njit(error_model="numpy", _nrt=False, inline="always")(copy)
-
-
-_step_inlined = _inlined(step, _observe=_inlined(_observe))
-
 @numba.njit(cache=True, error_model="numpy", _nrt=False)
 def run_taxi(P, Q, B, G, T, S, K, X, W, n_episodes, rng_state, record, starts):
   """`n_episodes` episodes of the taxi task `W` (`taxi_rules.world_config`; SPEC
@@ -877,8 +878,8 @@ def run_taxi(P, Q, B, G, T, S, K, X, W, n_episodes, rng_state, record, starts):
       outcome = episode[taxi_rules.E_OUTCOME]
       truncated = outcome == taxi_rules.TRUNCATED
       terminated = outcome != taxi_rules.RUNNING and not truncated
-      over, action = _step_inlined(P, Q, B, G, T, S, K, X, W, obs, K.samples, reward, terminated, truncated,
-                          rng_state)
+      over, action = step(P, Q, B, G, T, S, K, X, W, obs, K.samples, reward, terminated,
+                          truncated, rng_state)
       if over:
         break
     _write_row(K, record[e], episode[taxi_rules.E_OUTCOME], episode[taxi_rules.E_ILLEGAL])
@@ -1024,8 +1025,9 @@ class Machine:
                        f"different sizes: {sorted({len(c.low) for c in critics})}")
     program = Program(nodes, params, np.array(children, dtype=np.int64).reshape(-1, 3),
                       rules_mod.compile_rules(self.rules))
+    extras = any(np.isin(nodes[:, column], kinds).any() for column, kinds in _EXTRA_KINDS)
     self.banks = Banks(program, qbank, self._gibbs_bank(), gbank, self.tile_bank, schedule, stack,
-                       1 if critics or self.rules else None, self.world)
+                       1 if extras else None, self.world)
     # What the compiled functions take: each bank as a struct of the same arrays,
     # passed by reference (`learners.banks`: numba copied the namedtuples' ~45
     # arrays at every call and inlined call, at a high price in compile time).
@@ -1195,6 +1197,8 @@ class Machine:
       row[VIEW] = VIEW_RULE
       row[VIEW_SLOT] = self._rule(name, rules_mod.VIEW, view.rule)
     elif isinstance(view, (blocks.LocalTiles, blocks.StateTiles)):
+      if isinstance(view, blocks.LocalTiles):
+        self._ship_only(name, "LocalTiles")
       row[VIEW] = VIEW_LOCAL_TILES if isinstance(view, blocks.LocalTiles) else VIEW_STATE_TILES
       row[VIEW_SLOT] = len(self.codings)
       self.codings.append(view.coder)
@@ -1233,11 +1237,19 @@ class Machine:
     self.rules.append((name, kind, rule))
     return len(self.rules) - 1
 
+  def _ship_only(self, name, block):
+    """A block of the ship's local frame is refused in a machine with a taxi world,
+    whose code does not hold it (`W is None` prunes it there)."""
+    if self.world is not None:
+      raise GraphError(f"subtask {name!r}: {block} is a block of the ship's local frame; a "
+                       "machine with a taxi world (Machine(graph, world=...)) cannot run it")
+
   def _end(self, name, node, row, p):
     end, internal = node.termination, node.internal_reward
     if isinstance(end, blocks.Never):
       row[END] = END_NEVER
     elif isinstance(end, blocks.LocalGoal):
+      self._ship_only(name, "LocalGoal")
       row[END] = END_LOCAL_GOAL
       row[MAX_STEPS] = int(end.max_steps)
     elif isinstance(end, blocks.Clock):
@@ -1381,9 +1393,10 @@ class Machine:
     d, obs, rng_state = np.int64(0), np.zeros(4 if b[-1] is None else 5), \
         np.zeros(4, dtype=np.uint64)
     gibbs = [] if b[2] is None else [(_gibbs_choose, (b[0], b[2], b[6], b[8], d, rng_state))]
-    return [*gibbs, (_view, (*b, d, obs, d)),
-            (_call, (*b, d, d, d, obs, rng_state)),
-            (_observe, (*b, d, obs, 0.0, False, False, rng_state)),
+    gaussian = [] if b[3] is None else [(_gaussian_choose, (b[0], b[3], b[4], b[6], d,
+                                                             rng_state))]
+    return [*gibbs, *gaussian, (_view, (*b, d, obs, d)), (_call, (*b, d, d, d, obs, rng_state)),
+            (_descend, (*b, d, obs, rng_state)), (_observe, (*b, d, obs, 0.0, False, False, rng_state)),
             (step, (*b, obs, _NO_SAMPLES, 0.0, False, False, rng_state))]
 
   def _flags(self, learn, sample):

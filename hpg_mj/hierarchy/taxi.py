@@ -8,9 +8,10 @@ SPEC section 5), on the task-graph API:
     Navigate(t) -> {South, North, East, West}
 
 `taxi_graph` builds it over given learners, one per subtask, with Python callables
-for the executor: MAXQ-Q's nodes (`hpg_mj.agents.taxi_maxq`) run on it step by step.
-Taxi HPG's graph is the same one made of blocks (`hpg_mj.agents.taxi_hpg.graph`:
-the same `taxi_subtasks` rules), which the task-graph machine runs.
+for the pure-Python executor: MAXQ-Q's step-by-step path (`hpg_mj.agents.taxi_maxq`;
+MAXQ-Q keeps its own engine, `hierarchy.maxq`). Taxi HPG's graph is the same one
+made of blocks (`hpg_mj.agents.taxi_hpg.graph`: the same `taxi_subtasks` rules),
+which the task-graph machine runs.
 """
 import numpy as np
 
@@ -26,7 +27,7 @@ def rules_state(obs, fuel_enabled, out):
 
 
 def taxi_graph(world, learners, state_of, view_of):
-  """The task graph above over `learners` (by subtask id), for HPG and MAXQ-Q alike:
+  """The task graph above over `learners` (by subtask id), for the executor:
   `state_of(obs)` is taxi_rules' state of an observation, `view_of(subtask id)`
   the view function of that subtask."""
 

@@ -293,6 +293,34 @@ def test_what_the_machine_refuses_is_named(nodes, schedule, message):
     machine.Machine(TaskGraph("root", nodes(), schedule=schedule))
 
 
+@pytest.mark.parametrize("leg, block", [
+    (lambda: _leg(), "LocalTiles"),
+    (lambda: _leg(view=blocks.StateTiles(_coder())), "LocalGoal"),
+])
+def test_a_taxi_machine_refuses_the_ships_local_frame(leg, block):
+  # A machine with a taxi world compiles without the ship's local frame (its code is
+  # pruned there), so a graph that needs it is refused when it is built.
+  from hpg_mj.worlds import taxi_rules
+  with pytest.raises(GraphError, match=f"subtask 'leg': {block} is a block of the ship's local "
+                     "frame; a machine with a taxi world"):
+    machine.Machine(TaskGraph("root", [_root(), leg(), Primitive("turn")]),
+                    world=taxi_rules.world_config())
+
+
+def test_only_a_graph_with_extra_blocks_compiles_their_code():
+  # `extras` is None (their code pruned, a shorter first compile) unless the graph has
+  # an actor-critic, a user rule, or the route's or the patrol's blocks.
+  plain = [_root(), _leg(), Primitive("turn")]
+  assert machine.Machine(TaskGraph("root", plain)).banks.extras is None
+  for root in (_root(learner=blocks.RLearning(400)),
+               _root(learner=blocks.RLearning(400), view=blocks.PatrolCell())):
+    graph = TaskGraph("root", [root, _leg(), Primitive("turn")])
+    assert machine.Machine(graph).banks.extras == 1
+  ruled = _leg()
+  ruled.internal_reward = blocks.RewardRule(_steady)
+  assert machine.Machine(TaskGraph("root", [_root(), ruled, Primitive("turn")])).banks.extras == 1
+
+
 @numba.njit
 def _pair(obs, origin, arg, steps):
   return 0, 1
