@@ -1,6 +1,7 @@
 """What the ship agents share: the [environment] section, the environments, the
 starts of the full task (drawn from the agent's generator, the same way on every
-path), and the gate metrics."""
+path), and the gate metrics; `ContinuingShipAgent`, what an agent on the continuing
+task (SPEC section 8) needs beside its graph."""
 import dataclasses
 
 import numpy as np
@@ -8,7 +9,9 @@ import numpy as np
 from hpg_mj.agents import base
 from hpg_mj import taskfile
 from hpg_mj.taskfile import param
+from hpg_mj.hierarchy import machine as machine_mod
 from hpg_mj.hierarchy import ship_rules as rules
+from hpg_mj.hierarchy.patrol import NEVER, AgentRestarts
 from hpg_mj.worlds import ship_core as core
 
 # SPEC section 7: J, the discounted return under MushroomRL's ShipSteering rewards,
@@ -153,3 +156,112 @@ class ShipMachineAgent(base.MachineAgent, ShipAgent):
 
   def _ended(self, last):
     return last.info.get("event") == "gate"
+
+
+@dataclasses.dataclass(frozen=True)
+class ContinuingEnvironment(taskfile.Section):
+  """[environment] of the continuing ship task (SPEC section 8)."""
+  world: str = param("ship", "the world", choices=("ship",))
+  backend: str = param("analytic", "train on Equation 1 (the compiled path)",
+                       choices=("analytic",))
+  gate_reward: float = param(core.GATE_REWARD, "reward for each pass of the gate")
+  out_of_bounds_reward: float = param(core.OUT_OF_BOUNDS_REWARD,
+                                      "reward for leaving the field (then a fresh start)")
+
+
+class ContinuingShipAgent(ShipMachineAgent):
+  """An agent on the continuing ship task (SPEC section 8) whose graph's root is a
+  `blocks.Clock`: one process that never ends (each gate pass pays and the ship sails
+  on; a departure pays and the ship restarts at a start drawn from the agent's
+  generator), one record row per `record_steps` control steps (an hour). Both paths
+  are the machine: fused with the analytic ship (`Machine.run_continuing`) and step
+  by step through the Gymnasium patrol without its truncation (`AgentRestarts`);
+  for a fixed seed they give the same rows. Its Config needs an `environment:
+  ContinuingEnvironment`; its record the fields steps, gates, departures, return."""
+
+  end_field, illegal_field = "gates", "departures"    # a continuing row's (machine.run_ship)
+  record_steps = core.HOUR_STEPS       # one record row per hour
+
+  def __init__(self, config=None, seed=0, task=None):
+    super().__init__(config, seed, task)
+    self.ship = np.zeros(4)            # the process's state
+    self.started = np.zeros(1)         # 1 once the process has its first start
+
+  def state(self):
+    return {"rng_state": self.rng_state, "ship_state": self.ship, "ship_started": self.started}
+
+  def make_env(self, api="gymnasium", backend="analytic", **kwargs):
+    env = self.config.environment
+    settings = {"gate_reward": env.gate_reward, "out_of_bounds_reward": env.out_of_bounds_reward}
+    if api == "gymnasium":
+      import gymnasium
+
+      import hpg_mj  # noqa: F401  (registers the ids)
+      return gymnasium.make("hpg_mj/ShipPatrol-v0", backend=backend, **settings, **kwargs)
+    if api == "dm_control":
+      from hpg_mj import suite
+      return suite.load("ship", "patrol", {"random": 0, **kwargs})
+    raise ValueError(f"unknown environment api {api!r}; allowed: ['gymnasium', 'dm_control']")
+
+  def finish_row(self, row):
+    """Fills the agent's own columns of a record row just sailed (nothing here)."""
+
+  def _process(self, learn, start):
+    """The state the rows sail from: learning continues the agent's own process
+    (from `start`, if given); without learning, a fresh start from the agent's
+    generator (or `start`)."""
+    if not learn:
+      return np.array(start, dtype=np.float64) if start is not None else \
+          draw_start(self.rng_state)
+    if start is not None:
+      self.ship[:] = start
+      self.started[0] = 1.0
+    elif not self.started[0]:
+      sample_start(self.rng_state, self.ship)
+      self.started[0] = 1.0
+    return self.ship
+
+  def _rows(self, hours, row_of):
+    """`hours` record rows, each from `row_of()` (one machine row), finished by
+    `finish_row`."""
+    out = np.zeros((int(hours), len(self.record_fields)))
+    for i in range(int(hours)):
+      out[i] = self._record_rows(row_of())[0]
+      self.finish_row(out[i])
+    return out
+
+  def compiled(self, episodes, learn, sample, ship=None, rng_state=None):
+    """`episodes` rows (hours) fused with the analytic ship, from `ship` (None: the
+    process, `_process`), drawing from `rng_state` (None: the agent's)."""
+    ship = self._process(learn, None) if ship is None else ship
+    rng_state = self.rng_state if rng_state is None else rng_state
+    env = self.config.environment
+    world = (env.gate_reward, env.out_of_bounds_reward)
+    return self._rows(episodes, lambda: self.machine.run_continuing(1, learn, sample, rng_state,
+                                                                    world, ship))
+
+  def stepwise_env(self, backend):
+    """The Gymnasium patrol on `backend`, without its one-hour truncation: the
+    agent's rows are its own hours, ended between calls as the compiled loop's."""
+    return self.make_env("gymnasium", backend=backend, max_steps=NEVER)
+
+  def run_stepwise(self, env, episodes, learn=True, sample=None, start=None, on_call=None):
+    """`episodes` rows (hours) through `env`, a Gymnasium patrol without truncation
+    (`stepwise_env`), continuing the process as the compiled path does; after a
+    departure the ship restarts at a start drawn from the agent's generator (the
+    environment's own draw replaced, `AgentRestarts`)."""
+    from hpg_mj.hierarchy import executor
+    adapter = AgentRestarts(executor.adapter_for(env), self.rng_state)
+    ship = self._process(learn, start)
+
+    def row():
+      rows = machine_mod.run_stepwise(self.machine, adapter, 1, learn, sample, self.rng_state,
+                                      lambda: ship.copy(), lambda last: adapter.gates,
+                                      on_call=on_call)
+      rows[0, machine_mod.ROW_ILLEGAL] = adapter.departures
+      ship[:] = adapter.last_obs                # the next row sails on from here
+      return rows
+    out = self._rows(episodes, row)
+    if learn:
+      self.episodes += int(episodes)
+    return self.as_record(out)

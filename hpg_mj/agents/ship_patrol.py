@@ -26,10 +26,8 @@ greedily, on the same hours from the same starts, this agent, the episodic
 hybrid (tasks/ship_hybrid.toml's agent, trained on its own protocol with this
 run's seed) and the scripted figure-eight helmsman (`ship_core.patrol_pilot_target`).
 
-Both paths are the compiled machine (`hpg_mj.hierarchy.machine`) over the graph
-of blocks (`graph`): fused with the analytic ship (`Machine.run_continuing`) and step
-by step through the Gymnasium patrol on either backend, with the restarts drawn
-from the agent's generator (`hierarchy.patrol.AgentRestarts`); for a fixed seed they
+Both paths are the compiled machine over the graph of blocks (`graph`), fused and
+step by step on either backend (`_ship.ContinuingShipAgent`); for a fixed seed they
 give the same records and arrays.
 """
 import dataclasses
@@ -40,26 +38,14 @@ from hpg_mj.agents import _ship
 from hpg_mj.agents import ship_hybrid as hybrid
 from hpg_mj.taskfile import param
 from hpg_mj.hierarchy import blocks
-from hpg_mj.hierarchy import machine as machine_mod
 from hpg_mj.hierarchy import ship_rules as rules
-from hpg_mj.hierarchy.patrol import N_RECORD, NEVER, AgentRestarts, scripted
+from hpg_mj.hierarchy.patrol import N_RECORD, scripted
 from hpg_mj.learners import average_reward
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import rng
 from hpg_mj.worlds import ship_core as core
 
 EVALUATION_SEED = 2 ** 20    # the generator of the greedy evaluations' starts
-
-
-@dataclasses.dataclass(frozen=True)
-class Environment:
-  """[environment] of the continuing ship task (SPEC section 8)."""
-  world: str = param("ship", "the world", choices=("ship",))
-  backend: str = param("analytic", "train on Equation 1 (the compiled path)",
-                       choices=("analytic",))
-  gate_reward: float = param(core.GATE_REWARD, "reward for each pass of the gate")
-  out_of_bounds_reward: float = param(core.OUT_OF_BOUNDS_REWARD,
-                                      "reward for leaving the field (then a fresh start)")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -99,13 +85,14 @@ class Comparison:
 
 @dataclasses.dataclass(frozen=True)
 class Config:
-  environment: Environment = dataclasses.field(default_factory=Environment)
+  environment: _ship.ContinuingEnvironment = dataclasses.field(
+      default_factory=_ship.ContinuingEnvironment)
   root: Root = dataclasses.field(default_factory=Root)
   low_level: hybrid.LowLevel = dataclasses.field(default_factory=hybrid.LowLevel)
   comparison: Comparison = dataclasses.field(default_factory=Comparison)
 
 
-class ShipPatrol(_ship.ShipMachineAgent):
+class ShipPatrol(_ship.ContinuingShipAgent):
   """The hybrid's hierarchy with an average-reward root, on the continuing task."""
 
   name = "ship_patrol"
@@ -114,8 +101,6 @@ class ShipPatrol(_ship.ShipMachineAgent):
                    "diagonal_successes", "straight_runs", "straight_successes", "return",
                    "gain")
   figure = "gates_per_hour"
-  end_field, illegal_field = "gates", "departures"    # a continuing row's (machine.run_ship)
-  record_steps = core.HOUR_STEPS       # a continuing agent: one record row per hour
   metric_window = 125                  # online metrics: the last 125 hours (beyond's block)
 
   def __init__(self, config=None, seed=0, task=None):
@@ -132,8 +117,6 @@ class ShipPatrol(_ship.ShipMachineAgent):
                                  epsilon_schedule=True, planning_every=root.planning_every)
     self.low = [blocks.GaussianCMAC(self.coder, low.alpha, low.trace_gamma, low.baseline,
                                     core.MAX_TURN_RATE) for _ in (rules.DIAGONAL, rules.STRAIGHT)]
-    self.ship = np.zeros(4)
-    self.started = np.zeros(1)         # 1 once the process has its first start
 
   def graph(self):
     """Figure 3's graph with the continuing root (SPEC section 8): R-learning over the
@@ -163,9 +146,8 @@ class ShipPatrol(_ship.ShipMachineAgent):
     m = self.machine
     q, gain, model = m.r_learning_arrays(self.root)
     eps, outcomes, counts = m.epsilon_schedule
-    out = {"rng_state": self.rng_state, "root_q": q, "root_gain": gain,
+    out = {**super().state(), "root_q": q, "root_gain": gain,
            **{f"root_model_{k}": v for k, v in zip(("next", "reward", "steps", "count"), model)},
-           "ship_state": self.ship, "ship_started": self.started,
            "epsilon_schedule": eps, "subtask_outcomes": outcomes, "subtask_counts": counts}
     for name, learner in zip(("diagonal", "straight"), self.low):
       trace, values = m.gaussian_arrays(learner)
@@ -179,79 +161,8 @@ class ShipPatrol(_ship.ShipMachineAgent):
             **{f"{name}_w": el.parameters(m.gaussian_arrays(learner)[0])
                for name, learner in zip(("diagonal", "straight"), self.low)}}
 
-  def make_env(self, api="gymnasium", backend="analytic", **kwargs):
-    env = self.config.environment
-    settings_ = {"gate_reward": env.gate_reward, "out_of_bounds_reward": env.out_of_bounds_reward}
-    if api == "gymnasium":
-      import gymnasium
-
-      import hpg_mj  # noqa: F401  (registers the ids)
-      return gymnasium.make("hpg_mj/ShipPatrol-v0", backend=backend, **settings_, **kwargs)
-    if api == "dm_control":
-      from hpg_mj import suite
-      return suite.load("ship", "patrol", {"random": 0, **kwargs})
-    raise ValueError(f"unknown environment api {api!r}; allowed: ['gymnasium', 'dm_control']")
-
-  # ---- both paths: rows of the process -------------------------------------------
-
-  def _process(self, learn, start):
-    """The state the rows sail from: learning continues the agent's own process
-    (from `start`, if given); without learning, a fresh start from the agent's
-    generator (or `start`)."""
-    if not learn:
-      return np.array(start, dtype=np.float64) if start is not None else \
-          _ship.draw_start(self.rng_state)
-    if start is not None:
-      self.ship[:] = start
-      self.started[0] = 1.0
-    elif not self.started[0]:
-      _ship.sample_start(self.rng_state, self.ship)
-      self.started[0] = 1.0
-    return self.ship
-
-  def _rows(self, hours, row_of):
-    """`hours` rows, each from `row_of()` (one machine row), with the gain after it."""
-    out = np.zeros((int(hours), N_RECORD))
-    for i in range(int(hours)):
-      out[i] = self._record_rows(row_of())[0]
-      out[i, self.record_fields.index("gain")] = self.gain[average_reward.RHO]
-    return out
-
-  def compiled(self, episodes, learn, sample, ship=None, rng_state=None):
-    """`episodes` rows (hours) fused with the analytic ship, from `ship` (None: the
-    process, `_process`), drawing from `rng_state` (None: the agent's)."""
-    ship = self._process(learn, None) if ship is None else ship
-    rng_state = self.rng_state if rng_state is None else rng_state
-    env = self.config.environment
-    world = (env.gate_reward, env.out_of_bounds_reward)
-    return self._rows(episodes, lambda: self.machine.run_continuing(1, learn, sample, rng_state,
-                                                                    world, ship))
-
-  def stepwise_env(self, backend):
-    """The Gymnasium patrol on `backend`, without its one-hour truncation: the
-    agent's rows are its own hours, ended between calls as the compiled loop's."""
-    return self.make_env("gymnasium", backend=backend, max_steps=NEVER)
-
-  def run_stepwise(self, env, episodes, learn=True, sample=None, start=None, on_call=None):
-    """`episodes` rows (hours) through `env`, a Gymnasium patrol without truncation
-    (`stepwise_env`), continuing the process as the compiled path does; after a
-    departure the ship restarts at a start drawn from the agent's generator (the
-    environment's own draw replaced, `AgentRestarts`)."""
-    from hpg_mj.hierarchy import executor
-    adapter = AgentRestarts(executor.adapter_for(env), self.rng_state)
-    ship = self._process(learn, start)
-
-    def row():
-      rows = machine_mod.run_stepwise(self.machine, adapter, 1, learn, sample, self.rng_state,
-                                      lambda: ship.copy(), lambda last: adapter.gates,
-                                      on_call=on_call)
-      rows[0, machine_mod.ROW_ILLEGAL] = adapter.departures
-      ship[:] = adapter.last_obs                # the next row sails on from here
-      return rows
-    out = self._rows(episodes, row)
-    if learn:
-      self.episodes += int(episodes)
-    return self.as_record(out)
+  def finish_row(self, row):
+    row[self.record_fields.index("gain")] = self.gain[average_reward.RHO]
 
   # ---- the greedy evaluations --------------------------------------------------------
 
