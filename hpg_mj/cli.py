@@ -511,6 +511,10 @@ def _cmd_reproduce(args):
   section 8's continuing task (hpg_mj.experiments.beyond)."""
   from hpg_mj import _paths
   _paths.check_folder_out(args.out)
+  if args.earlier and args.figure != "reference":
+    raise ValueError(f"--earlier completes `reproduce reference` with an earlier report's "
+                     f"runs; {args.figure!r} reruns its experiments (allowed: reproduce "
+                     f"reference --earlier {args.earlier})")
   if args.figure == "beyond":
     return _reproduce_beyond(args)
   if args.figure == "reference":
@@ -567,7 +571,8 @@ def _reproduce_reference(args):
   if not args.existing:
     for name in reference.EXPERIMENTS:
       rc |= _cmd_run(argparse.Namespace(**{**vars(args), "experiment_file": name}))
-  report = reference.write(args.out, quick=args.quick)
+  earlier = reference.read_earlier(args.earlier) if args.earlier else None
+  report = reference.write(args.out, quick=args.quick, earlier=earlier)
   suffix = "_quick" if args.quick else ""
   names = [n + suffix for n in list(dict.fromkeys(FIGURE_EXPERIMENTS.values())) + ["beyond"]
            if (pathlib.Path(args.out) / (n + suffix) / "REPORT.md").is_file()]
@@ -745,6 +750,10 @@ def build_parser():
   p.add_argument("--existing", action="store_true",
                  help="reference only: draw from the runs already finished under --out, "
                       "run nothing")
+  p.add_argument("--earlier", metavar="RUNS_JSONL",
+                 help="reference only: for each seed whose run is not finished under --out, "
+                      "its metrics from an earlier report's runs.jsonl (for example "
+                      "figures/reference/runs.jsonl)")
   p.set_defaults(func=_cmd_reproduce)
 
   p = sub.add_parser("evaluate", help="score a saved agent, or any policy (--policy), on "

@@ -53,11 +53,34 @@ def folder(out, quick=False):
   return pathlib.Path(out) / ("reference_quick" if quick else "reference")
 
 
-def collect(out, quick=False, names=None):
+def read_earlier(path):
+  """{(task file stem, seed): metrics} of an earlier report's runs.jsonl (`write`)."""
+  path = pathlib.Path(path)
+  if not path.is_file():
+    raise ValueError(f"--earlier {path}: no such file; give the runs.jsonl of an earlier "
+                     "`hpg-mj reproduce reference` (for example figures/reference/runs.jsonl)")
+  earlier = {}
+  for number, line in enumerate(path.read_text().splitlines(), 1):
+    if not line.strip():
+      continue
+    try:
+      run = json.loads(line)
+      key = (run.pop("task"), int(run["seed"]))
+    except (ValueError, KeyError, TypeError) as error:
+      raise ValueError(f"--earlier {path}, line {number}: not a run of runs.jsonl (a JSON "
+                       f"object with its task and seed): {error}") from None
+    earlier[key] = run
+  return earlier
+
+
+def collect(out, quick=False, names=None, earlier=None):
   """{world: [{"experiment", "task" (task file), "runs" (each finished run's
   metrics, by seed)}]} over the reference experiments (`names`: a subset) whose
-  runs are under OUT; a learner with no finished run has an empty list."""
+  runs are under OUT; a learner with no finished run has an empty list. `earlier`
+  (`read_earlier`): the metrics of an earlier report's runs, each taken for a seed of
+  the experiment whose run is not finished under OUT (a run under OUT wins)."""
   found = {}
+  earlier = earlier or {}
   for world, spec in WORLDS.items():
     for name in spec["experiments"]:
       if names is not None and name not in names:
@@ -65,10 +88,15 @@ def collect(out, quick=False, names=None):
       experiment = runner.load_experiment(name)
       root = runner.folder(experiment, out, quick)
       for task in experiment["task_files"]:
-        dirs = [root / task.path.stem / f"seed{s}" for s in runner.seeds(experiment, quick)]
-        found.setdefault(world, []).append({
-            "experiment": experiment, "task": task,
-            "runs": [runs.read_metrics(d) for d in dirs if runs.is_finished(d)]})
+        done = []
+        for seed in runner.seeds(experiment, quick):
+          run = root / task.path.stem / f"seed{seed}"
+          if runs.is_finished(run):
+            done.append(runs.read_metrics(run))
+          elif (task.path.stem, seed) in earlier:
+            done.append(earlier[(task.path.stem, seed)])
+        found.setdefault(world, []).append({"experiment": experiment, "task": task,
+                                            "runs": done})
   return found
 
 
@@ -135,13 +163,13 @@ def _bounds_line(world):
               for score in entry["scores"]) + " (SPEC section 7.1).")
 
 
-def write(out, quick=False):
+def write(out, quick=False, earlier=None):
   """Draws the figures and writes table.md, REPORT.md and runs.jsonl under
-  OUT/reference (OUT/reference_quick with `quick`) from the finished runs;
-  returns REPORT.md's path."""
+  OUT/reference (OUT/reference_quick with `quick`) from the finished runs (and
+  `earlier`'s, `collect`); returns REPORT.md's path."""
   root = folder(out, quick)
   root.mkdir(parents=True, exist_ok=True)
-  found = collect(out, quick)
+  found = collect(out, quick, earlier=earlier)
   lines = ["# reference: Reference scores for the methods people bring (issue 21)", "",
            "Each learner trained on held-out seeds (those its row names; never a tuning seed), then "
            "measured greedily (no exploration, no learning) on the fixed seeded set of "

@@ -162,6 +162,37 @@ def test_reproduce_reference_draws_whatever_runs_exist(tmp_path, capsys):
   assert "- DQN (SB3): tuned by scripts/tuning_runs.py" in table
 
 
+def test_earlier_runs_complete_the_seeds_not_run_here(tmp_path, capsys):
+  # --earlier: a seed finished under --out wins; a seed not run here takes the earlier
+  # report's metrics; an earlier run of a seed the experiment no longer has is left out.
+  first, second = tmp_path / "first", tmp_path / "second"
+  for seed in (100, 101):
+    _finished(first, "reference_taxi_hierarchy", "taxi_fuel_flat_q", seed, 2000, (1000,))
+  assert cli.main(["reproduce", "reference", "--quick", "--existing", "--out", str(first)]) == 0
+  earlier = first / "reference_quick" / "runs.jsonl"
+  with open(earlier, "a") as f:
+    f.write(json.dumps({"task": "taxi_fuel_flat_q", "seed": 7, "episodes": 5}) + "\n")
+  here = _finished(second, "reference_taxi_hierarchy", "taxi_fuel_flat_q", 101, 1000, (500,))
+  assert cli.main(["reproduce", "reference", "--quick", "--existing", "--earlier", str(earlier),
+                   "--out", str(second)]) == 0
+  table = (second / "reference_quick" / "table.md").read_text()
+  assert "| 2 of 2 runs (seeds 100-101), 1,000 or 2,000 episodes each |" in table
+  runs_ = [json.loads(line) for line in
+           (second / "reference_quick" / "runs.jsonl").read_text().splitlines()]
+  assert sorted((r["seed"], r["episodes"]) for r in runs_) == [(100, 2000), (101, 1000)]
+  assert [r for r in runs_ if r["seed"] == 101][0]["greedy"] == here["greedy"]
+  capsys.readouterr()
+  assert cli.main(["reproduce", "reference", "--quick", "--existing", "--earlier",
+                   str(tmp_path / "nowhere.jsonl"), "--out", str(second)]) == 2
+  assert "--earlier " in capsys.readouterr().err
+  (tmp_path / "bad.jsonl").write_text("{\"seed\": 3}\n")
+  assert cli.main(["reproduce", "reference", "--quick", "--existing", "--earlier",
+                   str(tmp_path / "bad.jsonl"), "--out", str(second)]) == 2
+  assert "bad.jsonl, line 1: not a run of runs.jsonl" in capsys.readouterr().err
+  assert cli.main(["reproduce", "fig6", "--earlier", str(earlier), "--out", str(second)]) == 2
+  assert "--earlier completes `reproduce reference`" in capsys.readouterr().err
+
+
 def test_existing_is_refused_for_the_papers_figures(tmp_path, capsys):
   assert cli.main(["reproduce", "fig6", "--existing", "--out", str(tmp_path)]) == 2
   assert "--existing draws `reproduce reference` from the runs found" in capsys.readouterr().err
