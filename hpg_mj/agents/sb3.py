@@ -437,7 +437,7 @@ class ShipSAC(_SB3Ship):
   name = "ship_sac"
   algorithm = "sac"
   Config = ShipSACConfig
-  checkpoint_rows = 50           # ~10 minutes of SAC on one core
+  checkpoint_rows = 5            # a few minutes of SAC on one core (a row: 50-85 s here)
 
 
 # ---- taxi-fuel ---------------------------------------------------------------------
