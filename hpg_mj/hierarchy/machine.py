@@ -529,10 +529,9 @@ def _begin(P, Q, B, G, T, S, K, X, W, obs, rng_state):
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False)
 def begin(P, Q, B, G, T, S, K, X, W, obs, rng_state):
-  """`_begin` for the step-by-step path. The fused loops inline `_begin` and
-  `_descend` (numba copies their small bodies), so that a first train compiles
-  neither as a function of its own (each a separate LLVM module, optimized again
-  inside every caller's)."""
+  """`_begin` for the step-by-step path. The fused loops inline `_begin` (numba
+  copies its small body), so that a first train does not compile it as a function
+  of its own; `_descend`, which `step` needs too, is one called function."""
   if W is not None:
     _taxi_seen(K, W, obs)
   return _begin(P, Q, B, G, T, S, K, X, W, obs, rng_state)
