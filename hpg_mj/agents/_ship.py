@@ -83,6 +83,20 @@ def draw_start(rng_state):
   return start
 
 
+def make_env(gym_id, suite_task, api, backend, settings, kwargs):
+  """A ship task's environment with the task file's `settings`: Gymnasium's
+  hpg_mj/`gym_id` on `backend`, or dm_control's suite task ("ship", `suite_task`)."""
+  if api == "gymnasium":
+    import gymnasium
+
+    import hpg_mj  # noqa: F401  (registers the ids)
+    return gymnasium.make(f"hpg_mj/{gym_id}", backend=backend, **settings, **kwargs)
+  if api == "dm_control":
+    from hpg_mj import suite
+    return suite.load("ship", suite_task, {"random": 0, **settings, **kwargs})
+  raise ValueError(f"unknown environment api {api!r}; allowed: ['gymnasium', 'dm_control']")
+
+
 def gate_metrics(record, max_steps, out_of_bounds_reward):
   """What a ship record (fields passed, steps, return) says, over all its
   episodes: the gate pass rate, the control steps to the gate over the passes,
@@ -111,17 +125,9 @@ class ShipAgent(base.Agent):
 
   def make_env(self, api="gymnasium", backend="analytic", **kwargs):
     env = self.config.environment
-    settings = {"max_steps": env.max_steps, "gate_reward": env.gate_reward,
-                "out_of_bounds_reward": env.out_of_bounds_reward}
-    if api == "gymnasium":
-      import gymnasium
-
-      import hpg_mj  # noqa: F401  (registers the ids)
-      return gymnasium.make("hpg_mj/ShipSteering-v0", backend=backend, **settings, **kwargs)
-    if api == "dm_control":
-      from hpg_mj import suite
-      return suite.load("ship", "steer", {"random": 0, **settings, **kwargs})
-    raise ValueError(f"unknown environment api {api!r}; allowed: ['gymnasium', 'dm_control']")
+    return make_env("ShipSteering-v0", "steer", api, backend,
+                    {"max_steps": env.max_steps, "gate_reward": env.gate_reward,
+                     "out_of_bounds_reward": env.out_of_bounds_reward}, kwargs)
 
   def start_state(self):
     return draw_start(self.rng_state)
@@ -192,16 +198,9 @@ class ContinuingShipAgent(ShipMachineAgent):
 
   def make_env(self, api="gymnasium", backend="analytic", **kwargs):
     env = self.config.environment
-    settings = {"gate_reward": env.gate_reward, "out_of_bounds_reward": env.out_of_bounds_reward}
-    if api == "gymnasium":
-      import gymnasium
-
-      import hpg_mj  # noqa: F401  (registers the ids)
-      return gymnasium.make("hpg_mj/ShipPatrol-v0", backend=backend, **settings, **kwargs)
-    if api == "dm_control":
-      from hpg_mj import suite
-      return suite.load("ship", "patrol", {"random": 0, **kwargs})
-    raise ValueError(f"unknown environment api {api!r}; allowed: ['gymnasium', 'dm_control']")
+    return make_env("ShipPatrol-v0", "patrol", api, backend,
+                    {"gate_reward": env.gate_reward,
+                     "out_of_bounds_reward": env.out_of_bounds_reward}, kwargs)
 
   def finish_row(self, row):
     """Fills the agent's own columns of a record row just sailed (nothing here)."""

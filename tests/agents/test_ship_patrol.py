@@ -290,3 +290,17 @@ def test_the_compare_script_pairs_seeds(tmp_path, capsys):
   assert "| paired: root minus episodic hybrid | +73.3 [" in out and "-30.0, 200.0, 50.0" in out
   assert "Root ahead on 2 of 3 seeds; below the helmsman: root 1 (min 100.0), episodic " \
          "hybrid 1 (min 40.0)." in out
+
+
+def test_both_apis_take_the_task_files_rewards():
+  # The patrol's dm_control environment once ignored [environment]'s rewards.
+  import dataclasses
+  task = agents.load_task("ship_patrol_average_reward")
+  agent = agents.build(task, seed=0)
+  env_section = dataclasses.replace(agent.config.environment, gate_reward=7.0,
+                                    out_of_bounds_reward=-9.0)
+  agent.config = dataclasses.replace(agent.config, environment=env_section)
+  rules = agent.make_env("dm_control").task.rules
+  assert (rules.success_reward, rules.failure_reward) == (7.0, -9.0)
+  rules = agent.make_env("gymnasium").unwrapped.rules
+  assert (rules.success_reward, rules.failure_reward) == (7.0, -9.0)
