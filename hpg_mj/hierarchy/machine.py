@@ -112,7 +112,10 @@ CALLS, RUNS, SUCCESSES = range(3)
 ROW_END, ROW_STEPS, ROW_RETURN, ROW_ILLEGAL, ROW_COUNTERS = range(5)
 
 # `rules`: the graph's user rules as one first-class function (`hierarchy.rules`).
-Program = collections.namedtuple("Program", ("nodes", "params", "children", "rules"))
+# `calls`: the addresses of the functions the machine calls through `jit.call_at`
+# (_FAR, in the order of CALL_STEP ...), set in each process (`Machine._link`).
+Program = collections.namedtuple("Program", ("nodes", "params", "children", "rules", "calls"))
+CALL_STEP, CALL_CALL, CALL_DESCEND = range(3)
 # Each learner kind's parameters, one row per learner (slot). An actor-critic keeps its
 # critic's trace in a GaussianBank row and its actor's weights in that row's values.
 # An RLearning's gain [rho, greedy transitions] and its planning model (per entry the
@@ -273,6 +276,55 @@ def grid_cell(x, y, cell_m, grid):
   return i * grid + j
 
 
+# The ship's local blocks (LocalTiles, LocalGoal), chosen by type: none in a taxi
+# machine (W, its world, not None), whose graph cannot hold them (Machine._ship_only).
+# numba prunes a branch on `W is None` only where W is None, so a guard in the code
+# left their rules (a third of a taxi's ship-side compile) in every taxi machine.
+
+def _local_tiles(T, K, W, row, d, obs, which):
+  """A LocalTiles view: the local frame of the call's origin and direction, tiled."""
+
+
+@overload(_local_tiles, inline="always")
+def _local_tiles_typed(T, K, W, row, d, obs, which):
+  if not isinstance(W, types.NoneType):
+    return lambda T, K, W, row, d, obs, which: None
+
+  def view(T, K, W, row, d, obs, which):
+    tiling = _tiling(T, row[VIEW_SLOT])
+    core.global_to_local(obs, K.origin[d], K.ints[d, S_ARG], K.local)
+    tiles_mod.active_tiles(K.local, tiling, K.tiles[d, which, :tiling.offsets.shape[0]])
+  return view
+
+
+def _local_goal(K, W, row, d, obs, samples):
+  """A LocalGoal end: (event, G) of the step's samples (`ship_core.low_level_outcome`)."""
+
+
+@overload(_local_goal, inline="always")
+def _local_goal_typed(K, W, row, d, obs, samples):
+  if not isinstance(W, types.NoneType):
+    return lambda K, W, row, d, obs, samples: (core.NO_EVENT, 0.0)
+
+  def end(K, W, row, d, obs, samples):
+    return core.low_level_outcome(samples, obs, K.origin[d], K.ints[d, S_ARG], K.ints[d, S_STEPS],
+                                  K.local_samples, K.local, row[MAX_STEPS])
+  return end
+
+
+def _taxi_done(K, W, row, d):
+  """A TaxiDone end (`taxi_subtasks.done_of`); never in a ship machine (W None). By
+  type too: `_end_of` is inlined, and numba inlined the taxi's rules into it before
+  pruning them."""
+
+
+@overload(_taxi_done, inline="always")
+def _taxi_done_typed(K, W, row, d):
+  if isinstance(W, types.NoneType):
+    return lambda K, W, row, d: False
+  return lambda K, W, row, d: taxi_subtasks.done_of(row[END_AT], K.ints[d, S_ARG], K.taxi[0:5], W)
+
+
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
 def _view(P, Q, B, G, T, S, K, X, W, d, obs, which):
   """The node at depth d views `obs`: a table's state into S_STATE (which = 0) or
@@ -299,11 +351,7 @@ def _view(P, Q, B, G, T, S, K, X, W, d, obs, which):
         raise IndexError("a CellRule's rule gave a state outside its QTable's states")
       K.ints[d, S_STATE + which] = state
   elif kind == VIEW_LOCAL_TILES:
-    if W is None:                  # a ship block (Machine._ship_only)
-      tiling = _tiling(T, row[VIEW_SLOT])
-      local = K.local
-      core.global_to_local(obs, K.origin[d], K.ints[d, S_ARG], local)
-      tiles_mod.active_tiles(local, tiling, K.tiles[d, which, :tiling.offsets.shape[0]])
+    _local_tiles(T, K, W, row, d, obs, which)
   elif kind == VIEW_STATE_TILES:
     tiling = _tiling(T, row[VIEW_SLOT])
     tiles_mod.active_tiles(obs[:T.dims[row[VIEW_SLOT]]], tiling,
@@ -414,6 +462,29 @@ def _table_choose(Q, S, K, X, row, p, d, sample, rng_state):
                                                      row[N_CHILDREN])
 
 
+def _actor_critic_choose(P, G, T, K, X, d, obs, sample, rng_state):
+  """An ActorCritic node's draw (m, u, r) and its critic's tiles into the stack; by
+  type, as `_taxi_done`: nothing where X is None (a machine without one)."""
+
+
+@overload(_actor_critic_choose, inline="always")
+def _actor_critic_choose_typed(P, G, T, K, X, d, obs, sample, rng_state):
+  if isinstance(X, types.NoneType) or isinstance(G, types.NoneType):
+    return lambda P, G, T, K, X, d, obs, sample, rng_state: None
+
+  def choose(P, G, T, K, X, d, obs, sample, rng_state):
+    row = P.nodes[K.ints[d, S_NODE]]
+    k = T.n_tilings[row[VIEW_SLOT]]
+    m, u, r = actor_critic.choose(G.values[row[SLOT]], K.tiles[d, 0, :k],
+                                  P.params[K.ints[d, S_NODE], R_MAX], sample, rng_state)
+    K.floats[d, F_MEAN] = m
+    K.floats[d, F_U] = u
+    K.floats[d, F_ACTION] = r
+    _critic_tiles(P, T, K, d, obs, r, np.int64(0))
+    K.ints[d, S_CHOICE] = 0
+  return choose
+
+
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _choose(P, Q, B, G, T, S, K, X, W, d, obs, rng_state):
   """Algorithm 1: choose a with mu^i(s, theta^i); sets the stack's choice and action."""
@@ -437,15 +508,7 @@ def _choose(P, Q, B, G, T, S, K, X, W, d, obs, rng_state):
     if B is not None:
       _gibbs_choose(P, B, K, W, d, rng_state)
   elif row[LEARNER] == ACTOR_CRITIC:
-    if X is not None and G is not None:
-      k = T.n_tilings[row[VIEW_SLOT]]
-      m, u, r = actor_critic.choose(G.values[slot], K.tiles[d, 0, :k], p[R_MAX], sample,
-                                    rng_state)
-      K.floats[d, F_MEAN] = m
-      K.floats[d, F_U] = u
-      K.floats[d, F_ACTION] = r
-      _critic_tiles(P, T, K, d, obs, r, np.int64(0))
-      K.ints[d, S_CHOICE] = 0
+    _actor_critic_choose(P, G, T, K, X, d, obs, sample, rng_state)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
@@ -507,7 +570,8 @@ def _descend(P, Q, B, G, T, S, K, X, W, d, obs, rng_state):
       if W is not None:
         arg = taxi_subtasks.carry_target(child[C_BIND], K.taxi[0:5])
     d += 1
-    _call(P, Q, B, G, T, S, K, X, W, d, child[C_NODE], arg, obs, rng_state)
+    jit.call_at(_call, P.calls[CALL_CALL], (P, Q, B, G, T, S, K, X, W, d, child[C_NODE], arg,
+                                            obs, rng_state))
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -522,16 +586,19 @@ def _begin(P, Q, B, G, T, S, K, X, W, obs, rng_state):
   K.total[0] = 0.0
   if B is not None:
     _step_sizes(P, B, K)
-  _call(P, Q, B, G, T, S, K, X, W, np.int64(0), P.nodes.shape[0] - 1, K.episode[E_ROOT_ARG], obs,
-        rng_state)
-  return _descend(P, Q, B, G, T, S, K, X, W, np.int64(0), obs, rng_state)
+  jit.call_at(_call, P.calls[CALL_CALL], (P, Q, B, G, T, S, K, X, W, np.int64(0),
+                                          P.nodes.shape[0] - 1, K.episode[E_ROOT_ARG], obs,
+                                          rng_state))
+  return jit.call_at(_descend, P.calls[CALL_DESCEND],
+                     (P, Q, B, G, T, S, K, X, W, np.int64(0), obs, rng_state))
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False)
 def begin(P, Q, B, G, T, S, K, X, W, obs, rng_state):
   """`_begin` for the step-by-step path. The fused loops inline `_begin` (numba
   copies its small body), so that a first train does not compile it as a function
-  of its own; `_descend`, which `step` needs too, is one called function."""
+  of its own; `_call` and `_descend`, which `step` needs too, are called through
+  their addresses (`_FAR`), each compiled once."""
   if W is not None:
     _taxi_seen(K, W, obs)
   return _begin(P, Q, B, G, T, S, K, X, W, obs, rng_state)
@@ -544,8 +611,8 @@ def advance(P, Q, B, G, T, S, K, X, W, obs, samples, reward, terminated, truncat
   taxi_rules' state (the fused loop steps that state itself)."""
   if W is not None:
     _taxi_seen(K, W, obs)
-  return step(P, Q, B, G, T, S, K, X, W, obs, samples, reward, terminated, truncated,
-              rng_state)
+  return jit.call_at(step, P.calls[CALL_STEP], (P, Q, B, G, T, S, K, X, W, obs, samples, reward,
+                                                terminated, truncated, rng_state))
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -555,13 +622,9 @@ def _end_of(P, K, X, W, d, obs, samples):
   row = P.nodes[node]
   event, internal = core.NO_EVENT, 0.0
   if row[END] == END_LOCAL_GOAL:
-    if W is None:                  # a ship block (Machine._ship_only)
-      event, internal = core.low_level_outcome(samples, obs, K.origin[d],
-                                               K.ints[d, S_ARG], K.ints[d, S_STEPS],
-                                               K.local_samples, K.local,
-                                               row[MAX_STEPS])
-      if row[INTERNAL] != G_SHAPING:
-        internal = 0.0
+    event, internal = _local_goal(K, W, row, d, obs, samples)
+    if row[INTERNAL] != G_SHAPING:
+      internal = 0.0
   elif row[END] == END_TARGET:
     if X is not None:
       p = P.params[node]
@@ -575,9 +638,8 @@ def _end_of(P, K, X, W, d, obs, samples):
     if X is not None and K.ints[d, S_STEPS] >= row[MAX_STEPS]:
       event = core.SUCCESS
   elif row[END] == END_TAXI:
-    if W is not None:
-      if taxi_subtasks.done_of(row[END_AT], K.ints[d, S_ARG], K.taxi[0:5], W):
-        event = core.SUCCESS
+    if _taxi_done(K, W, row, d):
+      event = core.SUCCESS
   elif row[END] == END_RULE:
     if X is not None:
       said = P.rules(row[END_AT], obs, K.origin[d], K.ints[d, S_ARG], K.ints[d, S_STEPS],
@@ -705,9 +767,10 @@ def step(P, Q, B, G, T, S, K, X, W, obs, samples, reward, terminated, truncated,
          rng_state):
   """A primitive step ended in `obs` with `reward` (`samples`: the positions
   sampled inside it, for the ship's local ends). Returns (episode over, the next
-  action). One compiled function for both paths: the fused loops call it (seven
-  pointers, the banks being structs) rather than inline it, which numba did by
-  copying its whole body, the largest part of a fused loop's first compile."""
+  action). One compiled function for both paths: the fused loops call it rather
+  than inline it, which numba did by copying its whole body, the largest part of a
+  fused loop's first compile; the ship's loop and `advance` call it through its
+  address (`_FAR`), so that its code is not compiled again inside theirs."""
   learn = K.flags[RUN_LEARN]
   ints = K.ints
   floats = K.floats
@@ -743,7 +806,8 @@ def step(P, Q, B, G, T, S, K, X, W, obs, samples, reward, terminated, truncated,
     if not done:
       action = _primitive_action(P, K, d)        # the common case: no call to make
       if action != action:
-        action = _descend(P, Q, B, G, T, S, K, X, W, d, obs, rng_state)
+        action = jit.call_at(_descend, P.calls[CALL_DESCEND],
+                             (P, Q, B, G, T, S, K, X, W, d, obs, rng_state))
       return False, action
     # The call returns (Algorithm 1: return to the parent).
     c = K.counters[node]
@@ -820,8 +884,9 @@ def run_ship(P, Q, B, G, T, S, K, X, W, n_episodes, rng_state, world, record,
           departures += 1.0
           ship_rules.sample_start(rng_state, K.restart)
           K.episode[E_RESTART] = 1
-      over, action = step(P, Q, B, G, T, S, K, X, W, state, samples, reward, terminated, truncated,
-                          rng_state)
+      over, action = jit.call_at(step, P.calls[CALL_STEP], (P, Q, B, G, T, S, K, X, W, state, samples,
+                                                            reward, terminated, truncated,
+                                                            rng_state))
       if over:
         break
     if continuing:
@@ -882,6 +947,14 @@ def run_taxi(P, Q, B, G, T, S, K, X, W, n_episodes, rng_state, record, starts):
       if over:
         break
     _write_row(K, record[e], episode[taxi_rules.E_OUTCOME], episode[taxi_rules.E_ILLEGAL])
+
+
+# The functions called through their addresses (`jit.call_at`), each compiled once
+# rather than again inside each caller: a subtask's call and descent (rare beside
+# the steps), and a control step from the ship's loop and the step-by-step path. The
+# taxi's loop calls `step` directly: a primitive step of the taxi is short enough that
+# numba's linked call measured faster.
+_FAR = (step, _call, _descend)
 
 
 # ---- building the arrays from a graph of blocks ---------------------------------------
@@ -1023,7 +1096,7 @@ class Machine:
       raise GraphError("the graph's actor-critics' critics code (state, action) of "
                        f"different sizes: {sorted({len(c.low) for c in critics})}")
     program = Program(nodes, params, np.array(children, dtype=np.int64).reshape(-1, 3),
-                      rules_mod.compile_rules(self.rules))
+                      rules_mod.compile_rules(self.rules), np.zeros(len(_FAR), dtype=np.int64))
     extras = any(np.isin(nodes[:, column], kinds).any() for column, kinds in _EXTRA_KINDS)
     self.banks = Banks(program, qbank, self._gibbs_bank(), gbank, self.tile_bank, schedule, stack,
                        1 if extras else None, self.world)
@@ -1398,6 +1471,19 @@ class Machine:
             (_descend, (*b, d, obs, rng_state)), (_observe, (*b, d, obs, 0.0, False, False, rng_state)),
             (step, (*b, obs, _NO_SAMPLES, 0.0, False, False, rng_state))]
 
+  def _link(self):
+    """Compiles (or loads) the machine's functions from the bottom up, as
+    `learners.jit.compile_first` does, and sets the addresses of those called
+    through them (`_FAR`) in this machine's program: once per machine, before its
+    first compiled call."""
+    calls = self.banks.program.calls
+    if calls.all():
+      return
+    for function, example in self._bottom_up():
+      address = jit.address_of(function, example)
+      if function in _FAR:
+        calls[_FAR.index(function)] = address
+
   def _flags(self, learn, sample):
     """The run's flags (RUN_LEARN, RUN_SAMPLE) for the compiled calls that follow."""
     flags = self.banks.stack.flags
@@ -1407,7 +1493,7 @@ class Machine:
   def run(self, episodes, learn, sample, rng_state, world, start=None):
     """Episodes fused with the analytic ship; `world` as `run_ship`'s (its last
     entry may be left out: the full task); rows as `run_ship` writes them."""
-    jit.compile_first(run_ship, self._bottom_up)
+    self._link()
     rows = self._rows(episodes)
     fixed = np.empty(0) if start is None else np.asarray(start, dtype=np.float64)
     world = np.concatenate([np.asarray(world, dtype=np.float64), np.zeros(4)])[:4]
@@ -1419,7 +1505,7 @@ class Machine:
     """`rows` record rows of the continuing ship task (`run_ship`'s world[3] = 2) from
     `ship`, the process's state (float64[4], sailed on in place); `world` = (gate
     reward, out-of-bounds reward)."""
-    jit.compile_first(run_ship, self._bottom_up)
+    self._link()
     out = self._rows(rows)
     world = np.array([world[0], world[1], 0.0, 2.0], dtype=np.float64)
     self._flags(learn, sample)
@@ -1432,7 +1518,7 @@ class Machine:
     if self.banks.world is None:
       raise GraphError("run_taxi: this machine was built without a taxi world "
                        "(Machine(graph, world=taxi_rules.world_config(...)))")
-    jit.compile_first(run_taxi, self._bottom_up)
+    self._link()
     rows = self._rows(episodes)
     starts = np.zeros((0, 5), dtype=np.int64) if starts is None else \
         np.ascontiguousarray(starts, dtype=np.int64).reshape(-1, 5)
@@ -1456,12 +1542,12 @@ class Machine:
   def begin(self, obs, learn, sample, rng_state):
     """Resumable: an episode starts at `obs`; returns the first action."""
     self._flags(learn, sample)
-    return self._compiled(begin, np.ascontiguousarray(obs, dtype=np.float64), rng_state)
+    return self._compiled(begin, _c_floats(obs), rng_state)
 
   def advance(self, obs, reward, terminated, truncated, info, learn, sample, rng_state):
     """Resumable: the environment stepped; returns (episode over, next action)."""
     samples = info.get("positions") if info else None
-    samples = _NO_SAMPLES if samples is None else np.ascontiguousarray(samples, dtype=np.float64)
+    samples = _NO_SAMPLES if samples is None else _c_floats(samples)
     before = info.get("state_before_restart") if info else None
     if before is not None:          # a continuing ship restarted: its root sees `obs`
       k = self.banks.stack
@@ -1469,8 +1555,8 @@ class Machine:
       k.episode[E_RESTART] = 1
       obs = before
     self._flags(learn, sample)
-    return self._compiled(advance, np.ascontiguousarray(obs, dtype=np.float64), samples,
-                          float(reward), bool(terminated), bool(truncated), rng_state)
+    return self._compiled(advance, _c_floats(obs), samples, float(reward), bool(terminated),
+                          bool(truncated), rng_state)
 
   def _compiled(self, fn, *args):
     """fn(*banks, *args) through the entry point numba compiled for these types. numba's
@@ -1480,9 +1566,16 @@ class Machine:
     would be read as float64), so it is kept for the kind of each per-call argument
     (its dtype, dimensions and flags; a scalar's type): another kind goes through the
     dispatcher first."""
+    state = args[-1]
+    if not (state.flags.c_contiguous and state.flags.writeable):
+      contiguous = np.array(state, order="C")    # the compiled code takes C arrays (jit.call_at)
+      out = self._compiled(fn, *args[:-1], contiguous)
+      state[...] = contiguous
+      return out
     key = (fn, *(_kind(a) for a in args))
     entry = self._entries.get(key)
     if entry is None:
+      self._link()
       out = fn(*self.refs, *args)
       found = fn.overloads.get(tuple(numba.typeof(a) for a in (*self.refs, *args)))
       self._entries[key] = fn if found is None else found.entry_point
@@ -1495,6 +1588,12 @@ class Machine:
 
 
 _NO_SAMPLES = np.zeros((core.SAMPLES_PER_CONTROL + 1, 2))
+
+
+def _c_floats(values):
+  """`values` as a writable C array of float64 (`jit.call_at`'s), copied only if need be."""
+  values = np.ascontiguousarray(values, dtype=np.float64)
+  return values if values.flags.writeable else values.copy()
 
 
 def _kind(value):

@@ -393,11 +393,12 @@ def test_a_subtask_alone_is_the_same_fused_and_through_its_environment(task, env
   assert runs[0][0][:, 0].sum() > 0                                 # some calls succeeded
 
 
-def test_an_argument_of_another_kind_goes_through_the_dispatcher():
+def test_an_argument_of_another_kind_is_not_read_as_the_contiguous_one():
   """`Machine._compiled` calls numba's entry point for the argument kinds it has seen,
   which checks no types: a generator state of another layout (a strided view) must
-  go through the dispatcher, not be read as the contiguous one. Both draws, from the
-  same state, give the same action and leave the same state."""
+  not be read as the contiguous one (the compiled code takes C arrays: it goes in as
+  a contiguous copy and comes back). Both draws, from the same state, give the same
+  action and leave the same state; a read-only observation is taken too."""
   from hpg_mj import agents
   m = agents.build(agents.load_task("ship_flat_pg"), seed=0).machine
   obs = np.array([400.0, 300.0, 10.0, 0.0])
@@ -409,6 +410,8 @@ def test_an_argument_of_another_kind_goes_through_the_dispatcher():
   assert first == second
   np.testing.assert_array_equal(strided[::2], state)
   assert strided[1::2].sum() == 0
+  obs.flags.writeable = False
+  assert m.begin(obs, False, False, state) == m.begin(obs.copy(), False, False, state)
 
 
 def test_the_machine_compiles_its_functions_once_leaves_first(tmp_path):
