@@ -279,13 +279,15 @@ def grid_cell(x, y, cell_m, grid):
 # The ship's local blocks (LocalTiles, LocalGoal), chosen by type: none in a taxi
 # machine (W, its world, not None), whose graph cannot hold them (Machine._ship_only).
 # numba prunes a branch on `W is None` only where W is None, so a guard in the code
-# left their rules (a third of a taxi's ship-side compile) in every taxi machine.
+# left their rules (1.5 s of a taxi's first compile) in every taxi machine. Called,
+# not inlined: numba compiles an overload's code on its own even where it inlines
+# it, and these two were then compiled twice in every ship machine.
 
 def _local_tiles(T, K, W, row, d, obs, which):
   """A LocalTiles view: the local frame of the call's origin and direction, tiled."""
 
 
-@overload(_local_tiles, inline="always")
+@overload(_local_tiles)
 def _local_tiles_typed(T, K, W, row, d, obs, which):
   if not isinstance(W, types.NoneType):
     return lambda T, K, W, row, d, obs, which: None
@@ -301,7 +303,7 @@ def _local_goal(K, W, row, d, obs, samples):
   """A LocalGoal end: (event, G) of the step's samples (`ship_core.low_level_outcome`)."""
 
 
-@overload(_local_goal, inline="always")
+@overload(_local_goal)
 def _local_goal_typed(K, W, row, d, obs, samples):
   if not isinstance(W, types.NoneType):
     return lambda K, W, row, d, obs, samples: (core.NO_EVENT, 0.0)
