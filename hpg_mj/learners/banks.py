@@ -168,8 +168,10 @@ def _make(banks):
 # a namedtuple class of another package's (a test's, a user's) in it made every later
 # process that could not import that package fail to load the index. hpg_mj's own
 # banks are cached; anyone else's compile in their process.
-_as_structs = numba.njit(cache=True)(_make)
-_as_foreign_structs = numba.njit(_make)
+# Without the C-callable wrapper numba adds to every function (only a first-class
+# function needs one): over ~45 arrays it was a third of _make's first compile.
+_as_structs = numba.njit(cache=True, no_cfunc_wrapper=True)(_make)
+_as_foreign_structs = numba.njit(no_cfunc_wrapper=True)(_make)
 
 
 def as_structs(*banks):
