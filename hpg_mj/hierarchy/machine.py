@@ -115,7 +115,7 @@ ROW_END, ROW_STEPS, ROW_RETURN, ROW_ILLEGAL, ROW_COUNTERS = range(5)
 # `calls`: the addresses of the functions the machine calls through `jit.call_at`
 # (_FAR, in the order of CALL_STEP ...), set in each process (`Machine._link`).
 Program = collections.namedtuple("Program", ("nodes", "params", "children", "rules", "calls"))
-CALL_STEP, CALL_CALL, CALL_DESCEND = range(3)
+CALL_STEP, CALL_CALL, CALL_DESCEND, CALL_OBSERVE, CALL_VIEW, CALL_GAUSSIAN = range(6)
 # Each learner kind's parameters, one row per learner (slot). An actor-critic keeps its
 # critic's trace in a GaussianBank row and its actor's weights in that row's values.
 # An RLearning's gain [rho, greedy transitions] and its planning model (per entry the
@@ -181,6 +181,9 @@ Banks = collections.namedtuple("Banks", ("program", "q", "gibbs", "gaussian", "t
 
 
 # ---- the compiled machine -------------------------------------------------------
+# Its functions that are compiled on their own go without the C-callable wrapper numba
+# adds to every function for a first-class function's use (no_cfunc_wrapper): nothing
+# takes them so, and over nine banks each wrapper was ~18,000 characters of IR.
 
 @numba.njit(cache=True, inline="always")
 def _trace(g, slot):
@@ -327,7 +330,20 @@ def _taxi_done_typed(K, W, row, d):
   return lambda K, W, row, d: taxi_subtasks.done_of(row[END_AT], K.ints[d, S_ARG], K.taxi[0:5], W)
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _in_world(W, function, address, args):
+  """function(*args) as the world suits: in a ship machine (W None) through its address
+  (`jit.call_at`), so that its code is compiled once rather than again inside each
+  caller; in a taxi machine by numba's linked call, which LLVM may inline (the taxi's
+  primitive steps are short: with every call through an address it trained ~20%
+  slower)."""
+  if W is None:
+    return jit.call_at(function, address, args)
+  return function(*args)
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def _view(P, Q, B, G, T, S, K, X, W, d, obs, which):
   """The node at depth d views `obs`: a table's state into S_STATE (which = 0) or
   S_NEXT_STATE (1); tiles into its tiles[d, which]. `_view` and `_observe` are
@@ -404,7 +420,8 @@ def _critic_tiles(P, T, K, d, obs, r, which):
   tiles_mod.active_tiles(sa, tiling, K.tiles[d, 2 + which, :tiling.offsets.shape[0]])
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def _gaussian_choose(P, G, T, K, d, rng_state):
   """A GaussianCMAC node's choice (`policies.gaussian_choose`) into the stack. Called,
   not inlined: `_call` and `_observe` share one compiled copy of the inlined Eq. 3
@@ -421,7 +438,8 @@ def _gaussian_choose(P, G, T, K, d, rng_state):
       p[WIDTH_ALPHA], p[LOG_SIGMA_LOW], p[LOG_SIGMA_HIGH]) * K.floats[d, F_SIDE]
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def _gibbs_choose(P, B, K, W, d, rng_state):
   """A GibbsTable node's choice among its available children into the stack. Called,
   not inlined: inlined into `_choose`, beside the other learners' inlined code, numba
@@ -505,7 +523,7 @@ def _choose(P, Q, B, G, T, S, K, X, W, d, obs, rng_state):
           _offered(P, node, obs), _epsilon(S, row, p, sample), rng_state)
   elif row[LEARNER] == GAUSSIAN_CMAC:
     if G is not None:
-      _gaussian_choose(P, G, T, K, d, rng_state)
+      _in_world(W, _gaussian_choose, P.calls[CALL_GAUSSIAN], (P, G, T, K, d, rng_state))
   elif row[LEARNER] == GIBBS_TABLE:
     if B is not None:
       _gibbs_choose(P, B, K, W, d, rng_state)
@@ -513,7 +531,8 @@ def _choose(P, Q, B, G, T, S, K, X, W, d, obs, rng_state):
     _actor_critic_choose(P, G, T, K, X, d, obs, sample, rng_state)
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def _call(P, Q, B, G, T, S, K, X, W, d, node, arg, obs, rng_state):
   """Task `node` is called at depth d with `arg` from `obs`: z <- 0, its view, its
   first choice."""
@@ -542,7 +561,7 @@ def _call(P, Q, B, G, T, S, K, X, W, d, node, arg, obs, rng_state):
       el.reset(_trace(G, row[SLOT]))                # the critic's e <- 0
       for i in range(K.psi.shape[1]):
         K.psi[d, i] = 1.0                           # phi(s, a) of the critic's tiles
-  _view(P, Q, B, G, T, S, K, X, W, d, obs, np.int64(0))
+  _in_world(W, _view, P.calls[CALL_VIEW], (P, Q, B, G, T, S, K, X, W, d, obs, np.int64(0)))
   _choose(P, Q, B, G, T, S, K, X, W, d, obs, rng_state)
 
 
@@ -558,7 +577,8 @@ def _primitive_action(P, K, d):
   return K.floats[d, F_ACTION] if action != action else action       # NaN: continuous
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def _descend(P, Q, B, G, T, S, K, X, W, d, obs, rng_state):
   """From depth d, calls the chosen children down to a primitive; returns the
   primitive's action."""
@@ -595,7 +615,7 @@ def _begin(P, Q, B, G, T, S, K, X, W, obs, rng_state):
                      (P, Q, B, G, T, S, K, X, W, np.int64(0), obs, rng_state))
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
 def begin(P, Q, B, G, T, S, K, X, W, obs, rng_state):
   """`_begin` for the step-by-step path. The fused loops inline `_begin` (numba
   copies its small body), so that a first train does not compile it as a function
@@ -606,7 +626,7 @@ def begin(P, Q, B, G, T, S, K, X, W, obs, rng_state):
   return _begin(P, Q, B, G, T, S, K, X, W, obs, rng_state)
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
 def advance(P, Q, B, G, T, S, K, X, W, obs, samples, reward, terminated, truncated,
             rng_state):
   """`step` for the step-by-step path: the taxi's blocks read the observation as
@@ -664,7 +684,8 @@ def _end_schedule(S):
                         S.settings[2])
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def _observe(P, Q, B, G, T, S, K, X, W, d, obs, signal, done, terminal, rng_state):
   """Algorithm 1: the learner of the node at depth d takes R + G of its child's run;
   unless done, it makes its next choice."""
@@ -682,7 +703,7 @@ def _observe(P, Q, B, G, T, S, K, X, W, d, obs, signal, done, terminal, rng_stat
       ints[d, S_NEXT_STATE] = _taxi_abstract(K, W, row, d)
   elif kind == Q_TABLE or kind == TILED_Q or kind == GIBBS_TABLE or kind == AVERAGE_REWARD or (
       kind == GAUSSIAN_CMAC and not done) or (kind == ACTOR_CRITIC and not terminal):
-    _view(P, Q, B, G, T, S, K, X, W, d, obs, np.int64(1))
+    _in_world(W, _view, P.calls[CALL_VIEW], (P, Q, B, G, T, S, K, X, W, d, obs, np.int64(1)))
   if d == 0 and learn and S.settings[PER_DECISION] != 0.0:
     _end_schedule(S)                    # a held schedule counted in the root's decisions
   if kind == Q_TABLE:
@@ -736,7 +757,7 @@ def _observe(P, Q, B, G, T, S, K, X, W, d, obs, signal, done, terminal, rng_stat
                                 _width(G, row), p[WIDTH_ALPHA])
       if not done:
         arrays.copy_into(K.tiles[d, 0, :k], K.tiles[d, 1, :k])
-        _gaussian_choose(P, G, T, K, d, rng_state)
+        _in_world(W, _gaussian_choose, P.calls[CALL_GAUSSIAN], (P, G, T, K, d, rng_state))
   elif kind == ACTOR_CRITIC:
     # delta = R + Q(s', a') - Q(s, a), with a' drawn in s' unless s' is terminal (also
     # when the call is cut, to bootstrap from it); the next step's a is that a'.
@@ -764,7 +785,8 @@ def _observe(P, Q, B, G, T, S, K, X, W, d, obs, signal, done, terminal, rng_stat
         K.floats[d, F_ACTION] = r
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def step(P, Q, B, G, T, S, K, X, W, obs, samples, reward, terminated, truncated,
          rng_state):
   """A primitive step ended in `obs` with `reward` (`samples`: the positions
@@ -803,7 +825,8 @@ def step(P, Q, B, G, T, S, K, X, W, obs, samples, reward, terminated, truncated,
     else:
       seen = floats[d, F_REWARD]
     floats[d, F_REWARD] = 0.0
-    _observe(P, Q, B, G, T, S, K, X, W, d, obs, seen + internal, done, terminal, rng_state)
+    _in_world(W, _observe, P.calls[CALL_OBSERVE],
+              (P, Q, B, G, T, S, K, X, W, d, obs, seen + internal, done, terminal, rng_state))
     ints[d, S_CHILD_STEPS] = 0                  # (an RLearning's tau, read by _observe)
     if not done:
       action = _primitive_action(P, K, d)        # the common case: no call to make
@@ -836,7 +859,7 @@ def step(P, Q, B, G, T, S, K, X, W, obs, samples, reward, terminated, truncated,
 
 # ---- fused with the analytic ship --------------------------------------------------
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
 def run_ship(P, Q, B, G, T, S, K, X, W, n_episodes, rng_state, world, record,
              fixed_start):
   """`n_episodes` episodes on Equation 1, of the full ship task (SPEC section 2):
@@ -886,9 +909,9 @@ def run_ship(P, Q, B, G, T, S, K, X, W, n_episodes, rng_state, world, record,
           departures += 1.0
           ship_rules.sample_start(rng_state, K.restart)
           K.episode[E_RESTART] = 1
-      over, action = jit.call_at(step, P.calls[CALL_STEP], (P, Q, B, G, T, S, K, X, W, state, samples,
-                                                            reward, terminated, truncated,
-                                                            rng_state))
+      over, action = jit.call_at(step, P.calls[CALL_STEP],
+                                 (P, Q, B, G, T, S, K, X, W, state, samples, reward, terminated,
+                                  truncated, rng_state))
       if over:
         break
     if continuing:
@@ -915,7 +938,7 @@ def _write_row(K, row, end, illegal):
 
 # ---- fused with the taxi ------------------------------------------------------------
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
 def run_taxi(P, Q, B, G, T, S, K, X, W, n_episodes, rng_state, record, starts):
   """`n_episodes` episodes of the taxi task `W` (`taxi_rules.world_config`; SPEC
   section 5), each from a start drawn from `rng_state` (`taxi_subtasks.sample_start`)
@@ -953,10 +976,12 @@ def run_taxi(P, Q, B, G, T, S, K, X, W, n_episodes, rng_state, record, starts):
 
 # The functions called through their addresses (`jit.call_at`), each compiled once
 # rather than again inside each caller: a subtask's call and descent (rare beside
-# the steps), and a control step from the ship's loop and the step-by-step path. The
-# taxi's loop calls `step` directly: a primitive step of the taxi is short enough that
-# numba's linked call measured faster.
-_FAR = (step, _call, _descend)
+# the steps), and a control step from the ship's loop and the step-by-step path; in a
+# ship machine also `_observe`, `_view` and the Gaussian choice (`_in_world`). Not the
+# taxi's `step` from its loop, nor its `_observe`, `_view` and choices: with every
+# call through an address, taxi HPG trained ~20% slower (a primitive step of the
+# taxi is short, and numba's linked calls let LLVM inline them).
+_FAR = (step, _call, _descend, _observe, _view, _gaussian_choose)
 
 
 # ---- building the arrays from a graph of blocks ---------------------------------------
@@ -1477,9 +1502,10 @@ class Machine:
     """Compiles (or loads) the machine's functions from the bottom up, as
     `learners.jit.compile_first` does, and sets the addresses of those called
     through them (`_FAR`) in this machine's program: once per machine, before its
-    first compiled call."""
+    first compiled call (a function the graph does not need, such as the Gaussian
+    choice of a machine without one, keeps address 0)."""
     calls = self.banks.program.calls
-    if calls.all():
+    if calls[CALL_STEP]:
       return
     for function, example in self._bottom_up():
       address = jit.address_of(function, example)
