@@ -482,21 +482,20 @@ def _table_choose(Q, S, K, X, row, p, d, sample, rng_state):
                                                      row[N_CHILDREN])
 
 
-def _actor_critic_choose(P, G, T, K, X, d, obs, sample, rng_state):
+def _actor_critic_choose(P, G, T, K, X, row, p, d, obs, sample, rng_state):
   """An ActorCritic node's draw (m, u, r) and its critic's tiles into the stack; by
   type, as `_taxi_done`: nothing where X is None (a machine without one)."""
 
 
 @overload(_actor_critic_choose, inline="always")
-def _actor_critic_choose_typed(P, G, T, K, X, d, obs, sample, rng_state):
+def _actor_critic_choose_typed(P, G, T, K, X, row, p, d, obs, sample, rng_state):
   if isinstance(X, types.NoneType) or isinstance(G, types.NoneType):
-    return lambda P, G, T, K, X, d, obs, sample, rng_state: None
+    return lambda P, G, T, K, X, row, p, d, obs, sample, rng_state: None
 
-  def choose(P, G, T, K, X, d, obs, sample, rng_state):
-    row = P.nodes[K.ints[d, S_NODE]]
+  def choose(P, G, T, K, X, row, p, d, obs, sample, rng_state):
     k = T.n_tilings[row[VIEW_SLOT]]
-    m, u, r = actor_critic.choose(G.values[row[SLOT]], K.tiles[d, 0, :k],
-                                  P.params[K.ints[d, S_NODE], R_MAX], sample, rng_state)
+    m, u, r = actor_critic.choose(G.values[row[SLOT]], K.tiles[d, 0, :k], p[R_MAX], sample,
+                                  rng_state)
     K.floats[d, F_MEAN] = m
     K.floats[d, F_U] = u
     K.floats[d, F_ACTION] = r
@@ -528,7 +527,7 @@ def _choose(P, Q, B, G, T, S, K, X, W, d, obs, rng_state):
     if B is not None:
       _gibbs_choose(P, B, K, W, d, rng_state)
   elif row[LEARNER] == ACTOR_CRITIC:
-    _actor_critic_choose(P, G, T, K, X, d, obs, sample, rng_state)
+    _actor_critic_choose(P, G, T, K, X, row, p, d, obs, sample, rng_state)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
@@ -1486,8 +1485,9 @@ class Machine:
 
   def _bottom_up(self):
     """The machine's functions, callees first, with arguments of the types its
-    callers pass (`learners.jit.compile_first`: each then compiles near the top of
-    the Python stack). One list for every graph: their types do not depend on it."""
+    callers pass (`_link`: each then compiles near the top of the Python stack, as
+    `learners.jit.compile_first` has them). One list for every graph: their types do
+    not depend on it."""
     b = self.refs
     d, obs, rng_state = np.int64(0), np.zeros(4 if b[-1] is None else 5), \
         np.zeros(4, dtype=np.uint64)
