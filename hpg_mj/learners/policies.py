@@ -231,26 +231,23 @@ def _no_width(width):
   return isinstance(width, (types.NoneType, types.Omitted))
 
 
-def _draw(t, width, tiles, r_max, width_alpha, log_sigma_low, log_sigma_high, rng_state, psi,
-          psi_width):
-  """u ~ Normal(m, 1) with its score added to z (`gaussian_act`), or with a learned width
-  (width_alpha != 0) u ~ Normal(m, sigma(s)^2) (`gaussian_width_act`); returns r."""
+def _width_draw(t, width, tiles, r_max, log_sigma_low, log_sigma_high, rng_state, psi,
+                psi_width):
+  """u ~ Normal(m, sigma(s)^2) with a learned width (`gaussian_width_act`); returns r.
+  Typed by the width: without one (never called then) a stand-in. `gaussian_act` is
+  not in here but in `gaussian_choose`: numba compiles an overload's code on its own as
+  well, and the inlined `gaussian_act` cost ~1 s of the hybrid's first compile so."""
 
 
-@overload(_draw, inline="always")
-def _draw_typed(t, width, tiles, r_max, width_alpha, log_sigma_low, log_sigma_high, rng_state,
-                psi, psi_width):
+@overload(_width_draw, inline="always")
+def _width_draw_typed(t, width, tiles, r_max, log_sigma_low, log_sigma_high, rng_state, psi,
+                      psi_width):
   if _no_width(width):
-    return lambda t, width, tiles, r_max, width_alpha, log_sigma_low, log_sigma_high, \
-        rng_state, psi, psi_width: gaussian_act(t, tiles, r_max, rng_state, psi)
-
-  def draw(t, width, tiles, r_max, width_alpha, log_sigma_low, log_sigma_high, rng_state, psi,
-           psi_width):
-    if width_alpha == 0.0:
-      return gaussian_act(t, tiles, r_max, rng_state, psi)
-    return gaussian_width_act(t, width, tiles, r_max, log_sigma_low, log_sigma_high, rng_state,
-                              psi, psi_width)
-  return draw
+    return lambda t, width, tiles, r_max, log_sigma_low, log_sigma_high, rng_state, psi, \
+        psi_width: 0.0
+  return lambda t, width, tiles, r_max, log_sigma_low, log_sigma_high, rng_state, psi, \
+      psi_width: gaussian_width_act(t, width, tiles, r_max, log_sigma_low, log_sigma_high,
+                                    rng_state, psi, psi_width)
 
 
 def _width_baseline(width, values, tiles, width_alpha, psi_width):
@@ -298,8 +295,11 @@ def gaussian_choose(t, values, tiles, psi, alpha, beta, r_max, learn, sample, rn
   width (its trace `width`, scratch `psi_width`, width_alpha != 0): u ~ Normal(m,
   sigma(s)^2) (`gaussian_width_act`), and the baseline's step on the width too."""
   if sample:
-    r = _draw(t, width, tiles, r_max, width_alpha, log_sigma_low, log_sigma_high, rng_state, psi,
-              psi_width)
+    if width is None or width_alpha == 0.0:
+      r = gaussian_act(t, tiles, r_max, rng_state, psi)
+    else:
+      r = _width_draw(t, width, tiles, r_max, log_sigma_low, log_sigma_high, rng_state, psi,
+                      psi_width)
     if learn and beta != 0.0:
       subtract_baseline(t.theta, values, tiles, alpha, psi)
       _width_baseline(width, values, tiles, width_alpha, psi_width)
