@@ -178,7 +178,8 @@ def gaussian_act(t, tiles, r_max, rng_state, psi):
   """Samples u ~ Normal(m, 1), adds psi = (u - m) phi / sum(phi) to the trace,
   and returns the action r. `psi` is scratch of the length of `tiles`. Inlined: its
   caller (the machine's Gaussian choice, compiled once) then reads the trace's rows
-  in place; called, it took them as ~60 numbers a step (flat PGRL ~3% faster)."""
+  in place; called, it took them as ~60 numbers a step (flat PGRL's machine and
+  learner code then took about a quarter more time a step)."""
   m = gaussian_mean(t, tiles)
   u = gaussian_draw(m, rng_state)
   g = (u - m) / tiles.shape[0]
