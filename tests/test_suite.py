@@ -118,6 +118,16 @@ def test_time_step_types():
   assert env.task.last_event == "gate"
 
 
+@pytest.mark.parametrize("task", ["steer", "diagonal", "straight", "patrol"])
+def test_an_episode_ends_after_max_steps_control_steps(task):
+  # The reset is no control step: LAST comes at the max_steps-th step, as in Gymnasium.
+  env = suite.load("ship", task, {"random": 0, "max_steps": 5})
+  ts, steps = env.reset(), 0
+  while not ts.last():
+    ts, steps = env.step(np.array([0.0])), steps + 1
+  assert steps == 5 and env.task.last_event in (None, "timeout")
+
+
 def test_patrol_sails_on_after_the_gate_and_restarts_after_leaving():
   # SPEC section 8: each pass +100 (either way), no LAST step until the clock runs out.
   env = suite.load("ship", "patrol", {"random": 0, "initial_state": [400.0, 395.0, 0.0, 0.0],
@@ -136,4 +146,6 @@ def test_patrol_sails_on_after_the_gate_and_restarts_after_leaving():
   assert np.all((0.0 <= ts.observation["position"]) & (ts.observation["position"] <= 1000.0))
   for _ in range(6):
     ts = env.step(np.array([0.0]))
+  assert ts.step_type == dm_env.StepType.MID                         # 7 steps
+  ts = env.step(np.array([0.0]))
   assert ts.step_type == dm_env.StepType.LAST and ts.discount == 1.0   # truncated at 8

@@ -78,6 +78,7 @@ class ShipTask(base.Task):
     self.initial_state = initial_state
     self._steps = 0
     self._outcome = (0.0, False, False, None)
+    self._state_after_step = None
     super().__init__(random=random)
 
   @property
@@ -97,7 +98,10 @@ class ShipTask(base.Task):
     physics._samples = None
     self._steps = 0
     self._outcome = (0.0, False, False, None)
-    super().initialize_episode(physics)
+    self._state_after_step = None
+    # Not `base.Task.initialize_episode`: all it does is call `after_step`, which here
+    # counts a control step and judges it (a reset counted as one ended every episode
+    # a step before its `max_steps`).
 
   def action_spec(self, physics):
     return specs.BoundedArray((1,), np.float64, -core.MAX_TURN_RATE, core.MAX_TURN_RATE,
@@ -111,13 +115,19 @@ class ShipTask(base.Task):
 
   def after_step(self, physics):
     self._steps += 1
-    self._outcome = self.rules.evaluate(physics.sampled_positions(), physics.ship_state(),
-                                        self._steps)
+    state = physics.stepped_state      # `ship_state()` after the step just taken
+    self._outcome = self.rules.evaluate(physics.sampled_positions(), state, self._steps)
     if self.rules.restarts(self._outcome[3]):   # SPEC section 8: the process goes on
       physics.set_ship_state(self.rules.sample_start(self.random))
+      state = physics.ship_state()
+    # `control.Environment.step` asks for the observation next (after the reward): the
+    # state is handed to that one call, not read again.
+    self._state_after_step = state
 
   def get_observation(self, physics):
-    state = physics.ship_state()
+    state, self._state_after_step = self._state_after_step, None
+    if state is None:
+      state = physics.ship_state()
     obs = collections.OrderedDict()
     obs["position"] = state[:2]
     obs["heading_deg"] = state[2:3]
