@@ -6,10 +6,15 @@ drawing (`render.drawing`) both build on it, so neither imports the other.
 Creating a `ShipPhysics` stops MuJoCo's built-in profiler for the whole process (its
 `mjData.timer` stays 0) unless the user installed a clock (`stop_profiler_clock`).
 """
+import ctypes
 import math
+import os
 
 import numba
 import numpy as np
+from llvmlite import ir
+from numba.core import types
+from numba.extending import intrinsic
 
 from hpg_mj import _assets
 from hpg_mj import _headless
@@ -79,6 +84,54 @@ def bow_readings(qpos, act, bow, positions, state):
   state[3] = act[0]
 
 
+def _mj_step_address():
+  """The address of MuJoCo's C function `mj_step` in the library the bindings loaded
+  (loading a library already loaded gives the same one), or 0 where it is not found."""
+  folder = os.path.dirname(mj.__file__)
+  for name in sorted(os.listdir(folder)):
+    if name.startswith("libmujoco") or name == "mujoco.dll":
+      try:
+        return ctypes.cast(ctypes.CDLL(os.path.join(folder, name)).mj_step,
+                           ctypes.c_void_p).value or 0
+      except (OSError, AttributeError):
+        return 0
+  return 0
+
+
+# `mj_step` called from compiled code (`sail`); 0: through the bindings (`ShipPhysics.step`).
+MJ_STEP = _mj_step_address()
+
+
+@intrinsic
+def _c_call(typingctx, address, first, second):
+  """The C function `void f(void*, void*)` at `address`, called with two addresses."""
+  def codegen(context, builder, signature, args):
+    pointer = ir.IntType(8).as_pointer()
+    function = builder.inttoptr(args[0], ir.FunctionType(ir.VoidType(), [pointer, pointer])
+                                .as_pointer())
+    builder.call(function, [builder.inttoptr(args[1], pointer),
+                            builder.inttoptr(args[2], pointer)])
+    return context.get_dummy_value()
+  return types.void(types.int64, types.int64, types.int64), codegen
+
+
+@numba.njit(cache=True)
+def sail(mj_step, model, data, substeps, qpos, act, bow, rows, positions, state):
+  """One control step of the MuJoCo ship in compiled code: `mj_step` (the C function at
+  that address) on the mjModel and mjData at `model` and `data`, `substeps` times per
+  sample; the joint positions `qpos` before and after each sample into `rows`; then
+  `bow_readings`. The same MuJoCo steps as the bindings' `mj_step`, bit for bit, without
+  a Python call for each."""
+  for j in range(3):
+    rows[0, j] = qpos[j]
+  for k in range(1, rows.shape[0]):
+    for _ in range(substeps):
+      _c_call(mj_step, model, data)
+    for j in range(3):
+      rows[k, j] = qpos[j]
+  bow_readings(rows, act, bow, positions, state)
+
+
 class ShipPhysics(mujoco.Physics):
   """The MuJoCo ship with named readings in the paper's units."""
 
@@ -101,6 +154,10 @@ class ShipPhysics(mujoco.Physics):
     # (nstep, MuJoCo steps per 0.2 s sample, the joint positions at each sample) of
     # the last `step`, checked when nstep first differs from the step before.
     self._sampling = None
+    # `step` in compiled code (`sail`): the mjModel's and mjData's addresses, and the
+    # entry point of `sail`, made at the first step.
+    self._addresses = (self._model_ptr._address, self._data_ptr._address)
+    self._sailing = None
 
   def _substeps_per_sample(self):
     substeps = core.SAMPLING_INTERVAL / self._model_ptr.opt.timestep
@@ -180,12 +237,19 @@ class ShipPhysics(mujoco.Physics):
     if sampling is None or sampling[0] != nstep:
       sampling = self._sampling = self._sampling_of(nstep)
     _, substeps, rows = sampling
+    # New arrays each step: callers keep the last step's samples and state.
+    self._samples = positions = np.empty((rows.shape[0], 2))
+    self.stepped_state = state = np.empty(4)   # `ship_state()` after this step, read with it
+    if MJ_STEP:
+      args = (MJ_STEP, self._addresses[0], self._addresses[1], substeps, self._qpos, self._act,
+              self._bow, rows, positions, state)
+      if self._sailing is None:      # numba's code for these types, typed once
+        self._sailing = sail.compile(tuple(numba.typeof(a) for a in args))
+      self._sailing(*args)
+      return
     model, data, qpos = self._model_ptr, self._data_ptr, self._qpos
     rows[0] = qpos
     for k in range(1, rows.shape[0]):
       mj.mj_step(model, data, substeps)
       rows[k] = qpos
-    # New arrays each step: callers keep the last step's samples and state.
-    self._samples = np.empty((rows.shape[0], 2))
-    self.stepped_state = np.empty(4)   # `ship_state()` after this step, read with it
-    bow_readings(rows, self._act, self._bow, self._samples, self.stepped_state)
+    bow_readings(rows, self._act, self._bow, positions, state)

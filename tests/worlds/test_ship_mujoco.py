@@ -94,6 +94,22 @@ def test_disabling_the_constraint_stage_changes_no_bit():
   np.testing.assert_array_equal(_sail(shipped, controls), expected)
 
 
+def test_compiled_steps_are_the_bindings_steps_bit_for_bit(monkeypatch):
+  # `step` calls MuJoCo's C mj_step from compiled code (ship_model.sail); through the
+  # bindings' mj_step (MJ_STEP = 0, where the library is not found) it sails the same.
+  from hpg_mj.worlds import ship_model
+  assert ship_model.MJ_STEP != 0
+  controls = np.random.default_rng(6).uniform(-15, 15, 200)
+  compiled = ship.Physics.from_xml_string(*ship.get_model_and_assets())
+  through_compiled = _sail(compiled, controls)
+  monkeypatch.setattr(ship_model, "MJ_STEP", 0)
+  bindings = ship.Physics.from_xml_string(*ship.get_model_and_assets())
+  np.testing.assert_array_equal(_sail(bindings, controls), through_compiled)
+  np.testing.assert_array_equal(bindings.data.qvel, compiled.data.qvel)
+  np.testing.assert_array_equal(bindings.data.act, compiled.data.act)
+  assert bindings.data.time == compiled.data.time
+
+
 def test_profiler_clock_is_stopped_but_a_users_clock_is_kept():
   physics = ship.Physics.from_xml_string(*ship.get_model_and_assets())
   assert mujoco.get_mjcb_time() is not None          # the stopped clock (a C function)
