@@ -45,9 +45,10 @@ def bounded_scalar_action(action, low: float, high: float, *, strict: bool, task
                           name: str = "action") -> float:
   """`finite_scalar_action` then `clip_or_refuse`, with their refusals and messages:
   `action` as a float, clipped to [low, high] (refused outside it if `strict`)."""
-  if type(action) is np.ndarray and action.dtype is _FLOAT64 and action.shape == (1,):
-    value = action.item()
-    if low <= value <= high:   # the common case; False for NaN, so finite too
+  kind = type(action)
+  if kind is float or (kind is np.ndarray and action.dtype is _FLOAT64 and action.shape == (1,)):
+    value = action if kind is float else action.item()
+    if low <= value <= high:   # the common cases; False for NaN, so finite too
       return value
   return clip_or_refuse(finite_scalar_action(action, task, name), low, high, strict=strict,
                         task=task, name=name)

@@ -17,7 +17,6 @@ class AnalyticBackend:
 
   def __init__(self):
     self._state = np.zeros(4)
-    self._samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
 
   def set_state(self, state):
     self._state[:] = state
@@ -26,12 +25,14 @@ class AnalyticBackend:
     return self._state.copy()
 
   def control(self, r_deg):
-    """Sails one 0.6 s control interval; returns the sampled positions."""
+    """Sails one 0.6 s control interval; returns the sampled positions (a new array,
+    as the MuJoCo ship's)."""
+    samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
     # Every argument given: numba dispatches a call that omits defaulted
     # arguments through its slow Python path (~30 us, 200 times Equation 1).
-    core.euler_control(self._state, r_deg, self._samples, core.SPEED, core.TIME_CONSTANT,
+    core.euler_control(self._state, r_deg, samples, core.SPEED, core.TIME_CONSTANT,
                        core.SAMPLING_INTERVAL)
-    return self._samples
+    return samples
 
 
 class MujocoBackend:
@@ -198,7 +199,7 @@ class ShipSteeringEnv(gymnasium.Env):
     reward, terminated, truncated, event = self.rules.evaluate(samples, obs, self._steps)
     if self.render_mode is not None:
       self._trail.extend(samples[1:].copy())
-    info = {"event": event, "positions": samples.copy()}
+    info = {"event": event, "positions": samples}   # each backend's new array
     if event is not None and self.rules.restarts(event):   # SPEC section 8: a fresh start
       info["state_before_restart"] = obs   # where it left (a learner's last step sees it)
       self.backend.set_state(self.rules.sample_start(self.np_random))
