@@ -39,15 +39,23 @@ class DmControlAdapter:
   """A dm_control environment; observations are flattened in their dict order.
 
   A fixed start is handed to the task through its `initial_state` attribute.
-  Positions sampled inside a step (the ship's) come from the physics.
+  Positions sampled inside a step (the ship's) come from the physics: its
+  `sampled_positions()`, a new array each step (`worlds.ship_model`), is handed on
+  as it is.
   """
 
   def __init__(self, env):
     self.env = env
+    # Read once: an environment keeps its physics and task.
+    self._positions = getattr(env.physics, "sampled_positions", None)
+    self._events = hasattr(env.task, "last_event")
 
   def _flat(self, timestep):
-    return np.concatenate([np.ravel(v) for v in timestep.observation.values()]).astype(
-        np.float64)
+    values = timestep.observation.values()
+    try:                             # vectors (the ship's): one call
+      return np.concatenate(tuple(values), dtype=np.float64)
+    except ValueError:               # a scalar among them
+      return np.concatenate([np.ravel(v) for v in values]).astype(np.float64)
 
   def reset(self, start=None):
     if start is not None:
@@ -55,11 +63,11 @@ class DmControlAdapter:
     return self._flat(self.env.reset())
 
   def step(self, action):
-    ts = self.env.step(np.atleast_1d(action))
+    ts = self.env.step(np.array(action, ndmin=1))
     info = {}
-    if hasattr(self.env.physics, "sampled_positions"):
-      info["positions"] = self.env.physics.sampled_positions().copy()
-    if hasattr(self.env.task, "last_event"):
+    if self._positions is not None:
+      info["positions"] = self._positions()
+    if self._events:
       info["event"] = self.env.task.last_event
     last = ts.last()
     return Step(self._flat(ts), float(ts.reward), last and ts.discount == 0.0,

@@ -636,6 +636,25 @@ def advance(P, Q, B, G, T, S, K, X, W, obs, samples, reward, terminated, truncat
                                                 terminated, truncated, rng_state))
 
 
+# The machine's nine arguments as the fields of one struct (`banks.as_structs` of a
+# Refs): the step-by-step path's entry points take it, and unbox one struct a call
+# where they unboxed seven (~0.8 us of a ~20 us control step through the MuJoCo ship).
+Refs = collections.namedtuple("Refs", ("P", "Q", "B", "G", "T", "S", "K", "X", "W"))
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+def _begin_with(R, obs, rng_state):
+  """`begin` on the structs of `R` (a Refs struct)."""
+  return begin(R.P, R.Q, R.B, R.G, R.T, R.S, R.K, R.X, R.W, obs, rng_state)
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+def _advance_with(R, obs, samples, reward, terminated, truncated, rng_state):
+  """`advance` on the structs of `R` (a Refs struct)."""
+  return advance(R.P, R.Q, R.B, R.G, R.T, R.S, R.K, R.X, R.W, obs, samples, reward,
+                 terminated, truncated, rng_state)
+
+
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _end_of(P, K, X, W, d, obs, samples):
   """After a child of the node at depth d returned: (its own event, G)."""
@@ -1130,7 +1149,13 @@ class Machine:
     # passed by reference (`learners.banks`: numba copied the namedtuples' ~45
     # arrays at every call and inlined call, at a high price in compile time).
     self.refs = (*banks_mod.as_structs(*self.banks[:-2]), self.banks.extras, self.banks.world)
-    self._entries = {}                  # (function, argument kinds) -> entry point
+    self._entries = {}                  # (function, generator state's kind) -> entry point
+    # The step-by-step path's observation and sampled positions, copied into arrays of
+    # the machine's own (`_input`), so that their kind never changes between calls.
+    self._inputs = [np.zeros(0), np.zeros((0, 2))]
+    self._state_seen = self._state_kind = None
+    self._flags_set = (None, None)      # (learn, sample) last written by `_flags`
+    self._refs_struct = None            # `refs` as one struct, made at the first `begin`
 
   # -- what each block puts in the node's row --
 
@@ -1513,10 +1538,14 @@ class Machine:
         calls[_FAR.index(function)] = address
 
   def _flags(self, learn, sample):
-    """The run's flags (RUN_LEARN, RUN_SAMPLE) for the compiled calls that follow."""
+    """The run's flags (RUN_LEARN, RUN_SAMPLE) for the compiled calls that follow,
+    written when they change (the machine's code only reads them)."""
+    if learn is self._flags_set[0] and sample is self._flags_set[1]:
+      return
     flags = self.banks.stack.flags
     flags[RUN_LEARN] = bool(learn)
     flags[RUN_SAMPLE] = bool(sample)
+    self._flags_set = (learn, sample)
 
   def run(self, episodes, learn, sample, rng_state, world, start=None):
     """Episodes fused with the analytic ship; `world` as `run_ship`'s (its last
@@ -1570,45 +1599,71 @@ class Machine:
   def begin(self, obs, learn, sample, rng_state):
     """Resumable: an episode starts at `obs`; returns the first action."""
     self._flags(learn, sample)
-    return self._compiled(begin, _c_floats(obs), rng_state)
+    return self._compiled(_begin_with, self._input(0, obs, "obs"), rng_state)
 
   def advance(self, obs, reward, terminated, truncated, info, learn, sample, rng_state):
     """Resumable: the environment stepped; returns (episode over, next action)."""
-    samples = info.get("positions") if info else None
-    samples = _NO_SAMPLES if samples is None else _c_floats(samples)
-    before = info.get("state_before_restart") if info else None
-    if before is not None:          # a continuing ship restarted: its root sees `obs`
-      k = self.banks.stack
-      k.restart[:] = obs
-      k.episode[E_RESTART] = 1
-      obs = before
+    samples = _NO_SAMPLES
+    if info:
+      positions = info.get("positions")
+      if positions is not None:
+        samples = self._input(1, positions, "info['positions']")
+      before = info.get("state_before_restart")
+      if before is not None:        # a continuing ship restarted: its root sees `obs`
+        k = self.banks.stack
+        k.restart[:] = obs
+        k.episode[E_RESTART] = 1
+        obs = before
     self._flags(learn, sample)
-    return self._compiled(advance, _c_floats(obs), samples, float(reward), bool(terminated),
-                          bool(truncated), rng_state)
+    return self._compiled(_advance_with, self._input(0, obs, "obs"), samples, float(reward),
+                          bool(terminated), bool(truncated), rng_state)
+
+  def _input(self, slot, values, name):
+    """`values` copied into the machine's input array `slot` (0: the observation, a
+    vector; 1: the sampled positions, rows of (x, y)) as float64: the compiled entry
+    points then see arrays of one kind on every call. The compiled code reads them
+    within the call and keeps none."""
+    if type(values) is not np.ndarray:
+      values = np.asarray(values)
+    buffer = self._inputs[slot]
+    if values.shape != buffer.shape:
+      if values.ndim != buffer.ndim or values.shape[1:] != buffer.shape[1:]:
+        want = "a vector" if buffer.ndim == 1 else "rows of (x, y)"
+        raise ValueError(f"Machine: {name} must be {want} of numbers, got shape {values.shape}")
+      buffer = self._inputs[slot] = np.empty(values.shape)
+    buffer[...] = values
+    return buffer
 
   def _compiled(self, fn, *args):
-    """fn(*banks, *args) through the entry point numba compiled for these types. numba's
+    """fn(refs, *args), `refs` the machine's structs as one (`Refs`), through the entry
+    point numba compiled for these types. numba's
     dispatcher types every argument on each call, and typing the banks, when they were
     namedtuples of arrays, cost three quarters of a step-by-step step (the hybrid through
-    the MuJoCo ship: 12,000 control steps a second, 41,000 this way). An entry point checks no types (a float32 array
-    would be read as float64), so it is kept for the kind of each per-call argument
-    (its dtype, dimensions and flags; a scalar's type): another kind goes through the
-    dispatcher first."""
+    the MuJoCo ship: 12,000 control steps a second, 41,000 this way). An entry point checks
+    no types (a float32 array would be read as float64): the arrays passed are the
+    machine's own (`_input`) and the scalars Python's float and bool, of one kind on every
+    call, but for the generator state, the caller's (the last argument), whose kind (its
+    dtype, dimensions and flags) is read again whenever another array is passed; another
+    kind goes through the dispatcher first."""
     state = args[-1]
-    if not (state.flags.c_contiguous and state.flags.writeable):
-      contiguous = np.array(state, order="C")    # the compiled code takes C arrays (jit.call_at)
-      out = self._compiled(fn, *args[:-1], contiguous)
-      state[...] = contiguous
-      return out
-    key = (fn, *(_kind(a) for a in args))
+    if state is not self._state_seen:
+      if not (state.flags.c_contiguous and state.flags.writeable):
+        contiguous = np.array(state, order="C")    # the compiled code takes C arrays (jit.call_at)
+        out = self._compiled(fn, *args[:-1], contiguous)
+        state[...] = contiguous
+        return out
+      self._state_seen, self._state_kind = state, _kind(state)
+    key = (fn, self._state_kind)
     entry = self._entries.get(key)
     if entry is None:
       self._link()
-      out = fn(*self.refs, *args)
-      found = fn.overloads.get(tuple(numba.typeof(a) for a in (*self.refs, *args)))
+      if self._refs_struct is None:
+        (self._refs_struct,) = banks_mod.as_structs(Refs(*self.refs))
+      out = fn(self._refs_struct, *args)
+      found = fn.overloads.get(tuple(numba.typeof(a) for a in (self._refs_struct, *args)))
       self._entries[key] = fn if found is None else found.entry_point
       return out
-    return entry(*self.refs, *args)
+    return entry(self._refs_struct, *args)
 
   def counters(self):
     """This episode's per-node counters (calls, runs, successes), flattened."""
@@ -1616,12 +1671,6 @@ class Machine:
 
 
 _NO_SAMPLES = np.zeros((core.SAMPLES_PER_CONTROL + 1, 2))
-
-
-def _c_floats(values):
-  """`values` as a writable C array of float64 (`jit.call_at`'s), copied only if need be."""
-  values = np.ascontiguousarray(values, dtype=np.float64)
-  return values if values.flags.writeable else values.copy()
 
 
 def _kind(value):

@@ -414,6 +414,34 @@ def test_an_argument_of_another_kind_is_not_read_as_the_contiguous_one():
   assert m.begin(obs, False, False, state) == m.begin(obs.copy(), False, False, state)
 
 
+def test_observations_of_any_kind_are_read_as_their_values():
+  """`Machine._input` copies each observation and sampled positions into arrays of the
+  machine's own, whose kind never changes: a float32, integer, strided or list
+  observation, and strided positions, give what their float64 values give; an
+  observation that is not a vector is refused, by name."""
+  from hpg_mj import agents
+  m = agents.build(agents.load_task("ship_flat_pg"), seed=0).machine
+  state = rng.make_state(3)
+  obs = np.array([400.0, 300.0, 10.0, 2.0])
+  positions = np.array([[399.0, 298.5], [399.3, 299.0], [399.6, 299.5], [400.0, 300.0]])
+  def episode(start, after, samples):
+    s = state.copy()
+    first = m.begin(start, False, True, s)
+    return first, m.advance(after, -1.0, False, False, {"positions": samples}, False, True, s)
+  expected = episode(obs, obs + 1.5, positions)
+  wide = np.zeros((4, 4))
+  wide[:, ::2] = positions
+  for start, after, samples in ((obs.astype(np.float32), (obs + 1.5).astype(np.float32),
+                                 positions.astype(np.float32)),
+                                (np.repeat(obs, 2)[::2], list(obs + 1.5), wide[:, ::2])):
+    assert episode(start, after, samples) == expected
+  assert episode(np.array([400, 300, 10, 2]), obs + 1.5, positions) == expected
+  with pytest.raises(ValueError, match="obs must be a vector"):
+    m.begin(obs.reshape(2, 2), False, True, state)
+  with pytest.raises(ValueError, match=r"info\['positions'\] must be rows of \(x, y\)"):
+    m.advance(obs, -1.0, False, False, {"positions": positions.ravel()}, False, True, state)
+
+
 def test_the_machine_compiles_its_functions_once_leaves_first(tmp_path):
   """The functions `Machine._bottom_up` compiles before the fused loop are those the
   loop calls, for the types it calls them with: each compiles once."""
