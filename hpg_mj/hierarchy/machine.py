@@ -1575,13 +1575,32 @@ class Machine:
     if self.banks.world is None:
       raise GraphError("run_taxi: this machine was built without a taxi world "
                        "(Machine(graph, world=taxi_rules.world_config(...)))")
-    self._link()
     rows = self._rows(episodes)
     starts = np.zeros((0, 5), dtype=np.int64) if starts is None else \
         np.ascontiguousarray(starts, dtype=np.int64).reshape(-1, 5)
+    args = (*self.refs, int(episodes), rng_state, rows, starts)
+    self._link_taxi_loop(args)
     self._flags(learn, sample)
-    run_taxi(*self.refs, int(episodes), rng_state, rows, starts)
+    run_taxi(*args)
     return rows
+
+  def _link_taxi_loop(self, args):
+    """`_link` for the taxi's fused loop, called with `args`. The loop calls only
+    `_call` and `_descend` through their addresses and links the rest of the machine
+    into its own code: when its code for these types and theirs are in this process or
+    numba's cache, only they are loaded (the other four, loaded as functions of their
+    own, took ~35 ms of a ~1.5 s taxi run's start); otherwise all is, from the bottom
+    up, before the loop compiles (its unused calls through addresses are typed too)."""
+    calls = self.banks.program.calls
+    if calls[CALL_CALL] and tuple(numba.typeof(a) for a in args) in run_taxi.overloads:
+      return
+    far = [(f, example) for f, example in self._bottom_up() if f in (_call, _descend)]
+    if all(jit.load_cached(f, jit.canonical_signature(example)) for f, example in far) and \
+        jit.load_cached(run_taxi, tuple(numba.typeof(a) for a in args)):
+      for f, example in far:
+        calls[_FAR.index(f)] = jit.address_of(f, example)
+    else:
+      self._link()
 
   def _rows(self, episodes):
     return np.zeros((int(episodes), ROW_COUNTERS + 3 * len(self.names)))
@@ -1636,15 +1655,15 @@ class Machine:
 
   def _compiled(self, fn, *args):
     """fn(refs, *args), `refs` the machine's structs as one (`Refs`), through the entry
-    point numba compiled for these types. numba's
-    dispatcher types every argument on each call, and typing the banks, when they were
-    namedtuples of arrays, cost three quarters of a step-by-step step (the hybrid through
-    the MuJoCo ship: 12,000 control steps a second, 41,000 this way). An entry point checks
-    no types (a float32 array would be read as float64): the arrays passed are the
-    machine's own (`_input`) and the scalars Python's float and bool, of one kind on every
-    call, but for the generator state, the caller's (the last argument), whose kind (its
-    dtype, dimensions and flags) is read again whenever another array is passed; another
-    kind goes through the dispatcher first."""
+    point numba compiled for these types. numba's dispatcher types every argument on each
+    call, and typing the banks, when they were namedtuples of arrays, cost three quarters
+    of a step-by-step step (the hybrid through the MuJoCo ship: 12,000 control steps a
+    second, 41,000 this way). An entry point checks no types (a float32 array would be
+    read as float64): the arrays passed are the machine's own (`_input`) and the scalars
+    Python's float and bool, of one kind on every call, but for the generator state, the
+    caller's (the last argument), whose kind (its dtype, dimensions and flags) is read
+    again whenever another array is passed; another kind goes through the dispatcher
+    first."""
     state = args[-1]
     if state is not self._state_seen:
       if not (state.flags.c_contiguous and state.flags.writeable):

@@ -23,6 +23,7 @@ import numba
 from numba.core import cgutils
 from numba.core import errors
 from numba.core import types
+from numba.core.compiler_lock import global_compiler_lock
 from numba.extending import intrinsic
 
 
@@ -55,14 +56,38 @@ def _canonical(typ):
   return typ
 
 
+def canonical_signature(example):
+  """The types `address_of` compiles a function for, given example arguments."""
+  return tuple(_canonical(numba.typeof(value)) for value in example)
+
+
 def address_of(dispatcher, example):
   """The address of `dispatcher`'s code for the (canonical) types of the values
   `example`, compiled or loaded from numba's cache now, for `call_at`. Valid in this
   process only, while the dispatcher lives."""
-  signature = tuple(_canonical(numba.typeof(value)) for value in example)
+  signature = canonical_signature(example)
   dispatcher.compile(signature)
   compiled = dispatcher.overloads[signature]
   return compiled.library.get_pointer_to_function(compiled.fndesc.mangled_name)
+
+
+def load_cached(dispatcher, signature):
+  """Whether `dispatcher` has code for `signature` in this process, loading it from
+  numba's cache if it is there (what `Dispatcher.compile` does before it compiles);
+  never compiles. False where this numba's dispatcher lacks what it reads."""
+  if signature in dispatcher.overloads:
+    return True
+  try:
+    with global_compiler_lock:
+      compiled = dispatcher._cache.load_overload(signature, dispatcher.targetctx)
+      if compiled is None:
+        return False
+      dispatcher.targetctx.insert_user_function(compiled.entry_point, compiled.fndesc,
+                                                [compiled.library])
+      dispatcher.add_overload(compiled)
+  except AttributeError:
+    return False
+  return True
 
 
 @intrinsic
