@@ -1592,11 +1592,12 @@ class Machine:
     own, took ~35 ms of a ~1.5 s taxi run's start); otherwise all is, from the bottom
     up, before the loop compiles (its unused calls through addresses are typed too)."""
     calls = self.banks.program.calls
-    if calls[CALL_CALL] and tuple(numba.typeof(a) for a in args) in run_taxi.overloads:
+    signature = tuple(numba.typeof(a) for a in args)
+    if calls[CALL_CALL] and signature in run_taxi.overloads:
       return
     far = [(f, example) for f, example in self._bottom_up() if f in (_call, _descend)]
     if all(jit.load_cached(f, jit.canonical_signature(example)) for f, example in far) and \
-        jit.load_cached(run_taxi, tuple(numba.typeof(a) for a in args)):
+        jit.load_cached(run_taxi, signature):
       for f, example in far:
         calls[_FAR.index(f)] = jit.address_of(f, example)
     else:
