@@ -114,7 +114,9 @@ ROW_END, ROW_STEPS, ROW_RETURN, ROW_ILLEGAL, ROW_COUNTERS = range(5)
 # `rules`: the graph's user rules as one first-class function (`hierarchy.rules`).
 # `calls`: the addresses of the functions the machine calls through `jit.call_at`
 # (_FAR, in the order of CALL_STEP ...), set in each process (`Machine._link`).
-Program = collections.namedtuple("Program", ("nodes", "params", "children", "rules", "calls"))
+# `world`: the taxi's world array (`taxi_rules.world_config`; empty in a ship machine).
+Program = collections.namedtuple("Program", ("nodes", "params", "children", "rules", "calls",
+                                             "world"))
 CALL_STEP, CALL_CALL, CALL_DESCEND, CALL_OBSERVE, CALL_VIEW, CALL_GAUSSIAN = range(6)
 # Each learner kind's parameters, one row per learner (slot). An actor-critic keeps its
 # critic's trace in a GaussianBank row and its actor's weights in that row's values.
@@ -148,19 +150,24 @@ SCHEDULE_KIND, LINEAR_START, LINEAR_END, LINEAR_EPISODES, PER_DECISION = 3, 4, 5
 # a learned width's score; an actor-critic's mean m and draw u; the episode's [depth,
 # steps, the root's argument, the root's event when it ended, the learning episodes
 # before it], [return], per-node
-# counters; scratch of the local frame and of (state, action); the fused loop's ship
-# state and the positions sampled in its step; the taxi's fused loop's state and
-# episode (`taxi_rules`' int64[5], the state the taxi blocks read, and [3]), the state as
-# the machine's float64 obs; a GibbsTable's mask of available children
-# and scratch (probabilities, score indices, scores); the run's flags (RUN_LEARN ...);
-# the state a continuing ship restarts from after a departure (E_RESTART: pending).
+# counters; scratch of the local frame and of (state, action); the positions sampled
+# in the fused ship loop's step; the taxi's fused loop's state and episode
+# (`taxi_rules`' int64[5], the state the taxi blocks read, and [3]); a GibbsTable's
+# mask of available children and scratch (probabilities, score indices, scores); the
+# run's flags (RUN_LEARN ...); the state a continuing ship restarts from after a
+# departure (E_RESTART: pending); what the machine observes (`obs`: the fused ship's
+# state, the taxi's state as float64 numbers, or the step-by-step path's observation,
+# which `Machine._observation` writes) and the generator's state while a compiled
+# entry point runs (`rng`, copied from the caller's and back). The machine's
+# functions read these two from the stack rather than take them as arguments: each
+# array passed was seven numbers pushed at every call, a sixth of a taxi step.
 (S_NODE, S_CHOICE, S_ARG, S_STEPS, S_CHILD_STEPS, S_STATE, S_NEXT_STATE) = range(7)
 F_REWARD, F_ACTION, F_MEAN, F_U, F_SIDE, F_GREEDY = range(6)
 Stack = collections.namedtuple("Stack", ("ints", "floats", "origin", "tiles", "psi",
                                          "psi_width", "episode", "total", "counters", "local",
-                                         "local_samples", "sa", "ship", "samples", "taxi", "taxi_obs",
-                                         "mask", "probs", "index", "scores", "flags",
-                                         "restart"))
+                                         "local_samples", "sa", "samples", "taxi", "mask",
+                                         "probs", "index", "scores", "flags", "restart", "obs",
+                                         "rng"))
 E_DEPTH, E_STEPS, E_ROOT_ARG, E_EVENT, E_LEARNED, E_RESTART = range(6)
 # The run's flags (the stack's `flags`): whether it learns, whether it samples its
 # policies (else greedy); set by the Python side before each compiled call.
@@ -170,8 +177,9 @@ RUN_LEARN, RUN_SAMPLE = range(2)
 # a branch on `x is None` of an argument before typing it, so such a machine (the
 # hybrid's, flat PGRL's, the taxi's, most users') compiles without their code: the
 # route's and the patrol's blocks alone took a quarter of the hybrid's first compile.
-# `world`: the taxi's world array (`taxi_rules.world_config`) in a machine with taxi
-# blocks, else None (the same pruning: a ship graph holds no taxi code).
+# `world`: 1 in a machine with taxi blocks, whose world array (`taxi_rules.world_config`)
+# is the program's `world`, else None (the same pruning: a ship graph holds no taxi
+# code). Passed as the array, it was seven more numbers at every call of a taxi step.
 _EXTRA_KINDS = ((LEARNER, (ACTOR_CRITIC, TILED_Q, AVERAGE_REWARD)),
                 (VIEW, (VIEW_RULE, VIEW_AIM_TILES, VIEW_PATROL_CELL)),
                 (END, (END_RULE, END_TARGET, END_CLOCK)), (INTERNAL, (G_RULE,)),
@@ -239,20 +247,20 @@ def _gibbs_trace(B, slot):
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _taxi_seen(K, W, obs):
+def _taxi_seen(P, K, obs):
   """The state the taxi blocks read (`taxi_rules`' int64[5], K.taxi[0:5]) from `obs`,
   on the step-by-step path; the fused loop steps that state itself."""
   s = K.taxi[0:5]
   for i in range(4):
     s[i] = np.int64(obs[i])
-  s[4] = np.int64(obs[4]) if W[taxi_rules.W_FUEL_ENABLED] != 0 else taxi_core.CLASSIC_FUEL
+  s[4] = np.int64(obs[4]) if P.world[taxi_rules.W_FUEL_ENABLED] != 0 else taxi_core.CLASSIC_FUEL
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _taxi_abstract(K, W, row, d):
+def _taxi_abstract(P, K, row, d):
   """The abstract state that the node at depth d (`row`) sees of the taxi
   (a TaxiAbstraction view)."""
-  return taxi_subtasks.abstract_state(row[VIEW_SLOT], K.ints[d, S_ARG], K.taxi[0:5], W)
+  return taxi_subtasks.abstract_state(row[VIEW_SLOT], K.ints[d, S_ARG], K.taxi[0:5], P.world)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -317,17 +325,18 @@ def _local_goal_typed(K, W, row, d, obs, samples):
   return end
 
 
-def _taxi_done(K, W, row, d):
+def _taxi_done(P, K, W, row, d):
   """A TaxiDone end (`taxi_subtasks.done_of`); never in a ship machine (W None). By
   type too: `_end_of` is inlined, and numba inlined the taxi's rules into it before
   pruning them."""
 
 
 @overload(_taxi_done, inline="always")
-def _taxi_done_typed(K, W, row, d):
+def _taxi_done_typed(P, K, W, row, d):
   if isinstance(W, types.NoneType):
-    return lambda K, W, row, d: False
-  return lambda K, W, row, d: taxi_subtasks.done_of(row[END_AT], K.ints[d, S_ARG], K.taxi[0:5], W)
+    return lambda P, K, W, row, d: False
+  return lambda P, K, W, row, d: taxi_subtasks.done_of(row[END_AT], K.ints[d, S_ARG], K.taxi[0:5],
+                                                       P.world)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -344,12 +353,13 @@ def _in_world(W, function, address, args):
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
-def _view(P, Q, B, G, T, S, K, X, W, d, obs, which):
-  """The node at depth d views `obs`: a table's state into S_STATE (which = 0) or
+def _view(P, Q, B, G, T, S, K, X, W, d, which):
+  """The node at depth d views the observation (K.obs): a table's state into S_STATE (which = 0) or
   S_NEXT_STATE (1); tiles into its tiles[d, which]. `_view` and `_observe` are
   compiled once and called, not inlined (numba copied an inlined body into each
   caller, at a high price in compile time; with the banks passed as pointers a call
   costs little)."""
+  obs = K.obs
   node = K.ints[d, S_NODE]
   row = P.nodes[node]
   kind = row[VIEW]
@@ -385,10 +395,10 @@ def _view(P, Q, B, G, T, S, K, X, W, d, obs, which):
       tiles_mod.active_tiles(view, tiling, K.tiles[d, which, :tiling.offsets.shape[0]])
   elif kind == VIEW_TAXI_STATE:
     if W is not None:
-      K.ints[d, S_STATE + which] = taxi_rules.encoded(obs, W)
+      K.ints[d, S_STATE + which] = taxi_rules.encoded(obs, P.world)
   elif kind == VIEW_TAXI_ABSTRACT:
     if W is not None:
-      K.ints[d, S_STATE + which] = _taxi_abstract(K, W, row, d)
+      K.ints[d, S_STATE + which] = _taxi_abstract(P, K, row, d)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -422,7 +432,7 @@ def _critic_tiles(P, T, K, d, obs, r, which):
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
-def _gaussian_choose(P, G, T, K, d, rng_state):
+def _gaussian_choose(P, G, T, K, d):
   """A GaussianCMAC node's choice (`policies.gaussian_choose`) into the stack. Called,
   not inlined: `_call` and `_observe` share one compiled copy of the inlined Eq. 3
   rule (four pointers and two numbers a call; compiled without reference counting)."""
@@ -434,13 +444,13 @@ def _gaussian_choose(P, G, T, K, d, rng_state):
   k = T.n_tilings[row[VIEW_SLOT]]
   K.floats[d, F_ACTION] = policies.gaussian_choose(
       _trace(G, slot), G.values[slot], K.tiles[d, 0, :k], K.psi[d, :k], p[ALPHA], p[BETA],
-      p[R_MAX], learn, sample, rng_state, _width(G, row), K.psi_width[d, :k],
+      p[R_MAX], learn, sample, K.rng, _width(G, row), K.psi_width[d, :k],
       p[WIDTH_ALPHA], p[LOG_SIGMA_LOW], p[LOG_SIGMA_HIGH]) * K.floats[d, F_SIDE]
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
-def _gibbs_choose(P, B, K, W, d, rng_state):
+def _gibbs_choose(P, B, K, W, d):
   """A GibbsTable node's choice among its available children into the stack. Called,
   not inlined: inlined into `_choose`, beside the other learners' inlined code, numba
   compiled the baseline's theta <- theta - alpha b(s) psi to a store that never reached
@@ -452,13 +462,13 @@ def _gibbs_choose(P, B, K, W, d, rng_state):
   mask = K.mask[:n_children]
   if row[AVAILABLE_AT] >= 0:
     if W is not None:
-      taxi_subtasks.children_of(row[AVAILABLE_AT], K.taxi[0:5], W, mask)
+      taxi_subtasks.children_of(row[AVAILABLE_AT], K.taxi[0:5], P.world, mask)
   else:
     for i in range(n_children):
       mask[i] = True
   K.ints[d, S_CHOICE] = policies.softmax_choose(
       _gibbs_trace(B, slot), B.values[slot], K.ints[d, S_STATE], n_children, mask, B.alpha[slot],
-      learn, sample, rng_state, K.probs[:n_children], K.index[:n_children],
+      learn, sample, K.rng, K.probs[:n_children], K.index[:n_children],
       K.scores[:n_children])
 
 
@@ -505,8 +515,9 @@ def _actor_critic_choose_typed(P, G, T, K, X, row, p, d, obs, sample, rng_state)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _choose(P, Q, B, G, T, S, K, X, W, d, obs, rng_state):
+def _choose(P, Q, B, G, T, S, K, X, W, d):
   """Algorithm 1: choose a with mu^i(s, theta^i); sets the stack's choice and action."""
+  obs, rng_state = K.obs, K.rng
   sample = K.flags[RUN_SAMPLE]
   node = K.ints[d, S_NODE]
   row = P.nodes[node]
@@ -522,19 +533,20 @@ def _choose(P, Q, B, G, T, S, K, X, W, d, obs, rng_state):
           _offered(P, node, obs), _epsilon(S, row, p, sample), rng_state)
   elif row[LEARNER] == GAUSSIAN_CMAC:
     if G is not None:
-      _in_world(W, _gaussian_choose, P.calls[CALL_GAUSSIAN], (P, G, T, K, d, rng_state))
+      _in_world(W, _gaussian_choose, P.calls[CALL_GAUSSIAN], (P, G, T, K, d))
   elif row[LEARNER] == GIBBS_TABLE:
     if B is not None:
-      _gibbs_choose(P, B, K, W, d, rng_state)
+      _gibbs_choose(P, B, K, W, d)
   elif row[LEARNER] == ACTOR_CRITIC:
     _actor_critic_choose(P, G, T, K, X, row, p, d, obs, sample, rng_state)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
-def _call(P, Q, B, G, T, S, K, X, W, d, node, arg, obs, rng_state):
-  """Task `node` is called at depth d with `arg` from `obs`: z <- 0, its view, its
-  first choice."""
+def _call(P, Q, B, G, T, S, K, X, W, d, node, arg):
+  """Task `node` is called at depth d with `arg` from the observation (K.obs): z <- 0,
+  its view, its first choice."""
+  obs = K.obs
   ints = K.ints
   ints[d, S_NODE] = node
   ints[d, S_ARG] = arg
@@ -560,8 +572,8 @@ def _call(P, Q, B, G, T, S, K, X, W, d, node, arg, obs, rng_state):
       el.reset(_trace(G, row[SLOT]))                # the critic's e <- 0
       for i in range(K.psi.shape[1]):
         K.psi[d, i] = 1.0                           # phi(s, a) of the critic's tiles
-  _in_world(W, _view, P.calls[CALL_VIEW], (P, Q, B, G, T, S, K, X, W, d, obs, np.int64(0)))
-  _choose(P, Q, B, G, T, S, K, X, W, d, obs, rng_state)
+  _in_world(W, _view, P.calls[CALL_VIEW], (P, Q, B, G, T, S, K, X, W, d, np.int64(0)))
+  _choose(P, Q, B, G, T, S, K, X, W, d)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -578,7 +590,7 @@ def _primitive_action(P, K, d):
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
-def _descend(P, Q, B, G, T, S, K, X, W, d, obs, rng_state):
+def _descend(P, Q, B, G, T, S, K, X, W, d):
   """From depth d, calls the chosen children down to a primitive; returns the
   primitive's action."""
   while True:
@@ -591,13 +603,13 @@ def _descend(P, Q, B, G, T, S, K, X, W, d, obs, rng_state):
       if W is not None:
         arg = taxi_subtasks.carry_target(child[C_BIND], K.taxi[0:5])
     d += 1
-    jit.call_at(_call, P.calls[CALL_CALL], (P, Q, B, G, T, S, K, X, W, d, child[C_NODE], arg,
-                                            obs, rng_state))
+    jit.call_at(_call, P.calls[CALL_CALL], (P, Q, B, G, T, S, K, X, W, d, child[C_NODE], arg))
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _begin(P, Q, B, G, T, S, K, X, W, obs, rng_state):
-  """An episode starts at `obs`: the root is called; returns the first action."""
+def _begin(P, Q, B, G, T, S, K, X, W):
+  """An episode starts at the observation (K.obs): the root is called; returns the
+  first action."""
   c = K.counters
   for i in range(c.shape[0]):
     for j in range(c.shape[1]):
@@ -608,32 +620,37 @@ def _begin(P, Q, B, G, T, S, K, X, W, obs, rng_state):
   if B is not None:
     _step_sizes(P, B, K)
   jit.call_at(_call, P.calls[CALL_CALL], (P, Q, B, G, T, S, K, X, W, np.int64(0),
-                                          P.nodes.shape[0] - 1, K.episode[E_ROOT_ARG], obs,
-                                          rng_state))
-  return jit.call_at(_descend, P.calls[CALL_DESCEND],
-                     (P, Q, B, G, T, S, K, X, W, np.int64(0), obs, rng_state))
+                                          P.nodes.shape[0] - 1, K.episode[E_ROOT_ARG]))
+  return jit.call_at(_descend, P.calls[CALL_DESCEND], (P, Q, B, G, T, S, K, X, W, np.int64(0)))
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
-def begin(P, Q, B, G, T, S, K, X, W, obs, rng_state):
-  """`_begin` for the step-by-step path. The fused loops inline `_begin` (numba
-  copies its small body), so that a first train does not compile it as a function
-  of its own; `_call` and `_descend`, which `step` needs too, are called through
-  their addresses (`_FAR`), each compiled once."""
+def begin(P, Q, B, G, T, S, K, X, W, rng_state):
+  """`_begin` for the step-by-step path, from the observation the Python side wrote
+  into K.obs. The fused loops inline `_begin` (numba copies its small body), so that
+  a first train does not compile it as a function of its own; `_call` and
+  `_descend`, which `step` needs too, are called through their addresses (`_FAR`),
+  each compiled once."""
+  arrays.copy_into(K.rng, rng_state)
   if W is not None:
-    _taxi_seen(K, W, obs)
-  return _begin(P, Q, B, G, T, S, K, X, W, obs, rng_state)
+    _taxi_seen(P, K, K.obs)
+  action = _begin(P, Q, B, G, T, S, K, X, W)
+  arrays.copy_into(rng_state, K.rng)
+  return action
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
-def advance(P, Q, B, G, T, S, K, X, W, obs, samples, reward, terminated, truncated,
-            rng_state):
-  """`step` for the step-by-step path: the taxi's blocks read the observation as
-  taxi_rules' state (the fused loop steps that state itself)."""
+def advance(P, Q, B, G, T, S, K, X, W, samples, reward, terminated, truncated, rng_state):
+  """`step` for the step-by-step path, on the observation the Python side wrote into
+  K.obs: the taxi's blocks read it as taxi_rules' state (the fused loop steps that
+  state itself)."""
+  arrays.copy_into(K.rng, rng_state)
   if W is not None:
-    _taxi_seen(K, W, obs)
-  return jit.call_at(step, P.calls[CALL_STEP], (P, Q, B, G, T, S, K, X, W, obs, samples, reward,
-                                                terminated, truncated, rng_state))
+    _taxi_seen(P, K, K.obs)
+  out = jit.call_at(step, P.calls[CALL_STEP], (P, Q, B, G, T, S, K, X, W, samples, reward,
+                                               terminated, truncated))
+  arrays.copy_into(rng_state, K.rng)
+  return out
 
 
 # The machine's nine arguments as the fields of one struct (`banks.as_structs` of a
@@ -643,21 +660,22 @@ Refs = collections.namedtuple("Refs", ("P", "Q", "B", "G", "T", "S", "K", "X", "
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
-def _begin_with(R, obs, rng_state):
+def _begin_with(R, rng_state):
   """`begin` on the structs of `R` (a Refs struct)."""
-  return begin(R.P, R.Q, R.B, R.G, R.T, R.S, R.K, R.X, R.W, obs, rng_state)
+  return begin(R.P, R.Q, R.B, R.G, R.T, R.S, R.K, R.X, R.W, rng_state)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
-def _advance_with(R, obs, samples, reward, terminated, truncated, rng_state):
+def _advance_with(R, samples, reward, terminated, truncated, rng_state):
   """`advance` on the structs of `R` (a Refs struct)."""
-  return advance(R.P, R.Q, R.B, R.G, R.T, R.S, R.K, R.X, R.W, obs, samples, reward,
-                 terminated, truncated, rng_state)
+  return advance(R.P, R.Q, R.B, R.G, R.T, R.S, R.K, R.X, R.W, samples, reward, terminated,
+                 truncated, rng_state)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _end_of(P, K, X, W, d, obs, samples):
+def _end_of(P, K, X, W, d, samples):
   """After a child of the node at depth d returned: (its own event, G)."""
+  obs = K.obs
   node = K.ints[d, S_NODE]
   row = P.nodes[node]
   event, internal = core.NO_EVENT, 0.0
@@ -678,7 +696,7 @@ def _end_of(P, K, X, W, d, obs, samples):
     if X is not None and K.ints[d, S_STEPS] >= row[MAX_STEPS]:
       event = core.SUCCESS
   elif row[END] == END_TAXI:
-    if _taxi_done(K, W, row, d):
+    if _taxi_done(P, K, W, row, d):
       event = core.SUCCESS
   elif row[END] == END_RULE:
     if X is not None:
@@ -704,9 +722,10 @@ def _end_schedule(S):
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
-def _observe(P, Q, B, G, T, S, K, X, W, d, obs, signal, done, terminal, rng_state):
+def _observe(P, Q, B, G, T, S, K, X, W, d, signal, done, terminal):
   """Algorithm 1: the learner of the node at depth d takes R + G of its child's run;
   unless done, it makes its next choice."""
+  obs, rng_state = K.obs, K.rng
   learn, sample = K.flags[RUN_LEARN], K.flags[RUN_SAMPLE]
   node = K.ints[d, S_NODE]
   row = P.nodes[node]
@@ -718,10 +737,10 @@ def _observe(P, Q, B, G, T, S, K, X, W, d, obs, signal, done, terminal, rng_stat
   # an actor-critic's unless s' is terminal.
   if kind == GIBBS_TABLE and row[VIEW] == VIEW_TAXI_ABSTRACT:
     if W is not None:              # without the call to `_view`: the taxi's every step
-      ints[d, S_NEXT_STATE] = _taxi_abstract(K, W, row, d)
+      ints[d, S_NEXT_STATE] = _taxi_abstract(P, K, row, d)
   elif kind == Q_TABLE or kind == TILED_Q or kind == GIBBS_TABLE or kind == AVERAGE_REWARD or (
       kind == GAUSSIAN_CMAC and not done) or (kind == ACTOR_CRITIC and not terminal):
-    _in_world(W, _view, P.calls[CALL_VIEW], (P, Q, B, G, T, S, K, X, W, d, obs, np.int64(1)))
+    _in_world(W, _view, P.calls[CALL_VIEW], (P, Q, B, G, T, S, K, X, W, d, np.int64(1)))
   if d == 0 and learn and S.settings[PER_DECISION] != 0.0:
     _end_schedule(S)                    # a held schedule counted in the root's decisions
   if kind == Q_TABLE:
@@ -765,7 +784,7 @@ def _observe(P, Q, B, G, T, S, K, X, W, d, obs, signal, done, terminal, rng_stat
                                done)
       ints[d, S_STATE] = ints[d, S_NEXT_STATE]
       if not done:
-        _gibbs_choose(P, B, K, W, d, rng_state)
+        _gibbs_choose(P, B, K, W, d)
   elif kind == GAUSSIAN_CMAC:
     if G is not None:
       k = T.n_tilings[row[VIEW_SLOT]]
@@ -775,7 +794,7 @@ def _observe(P, Q, B, G, T, S, K, X, W, d, obs, signal, done, terminal, rng_stat
                                 _width(G, row), p[WIDTH_ALPHA])
       if not done:
         arrays.copy_into(K.tiles[d, 0, :k], K.tiles[d, 1, :k])
-        _in_world(W, _gaussian_choose, P.calls[CALL_GAUSSIAN], (P, G, T, K, d, rng_state))
+        _in_world(W, _gaussian_choose, P.calls[CALL_GAUSSIAN], (P, G, T, K, d))
   elif kind == ACTOR_CRITIC:
     # delta = R + Q(s', a') - Q(s, a), with a' drawn in s' unless s' is terminal (also
     # when the call is cut, to bootstrap from it); the next step's a is that a'.
@@ -805,9 +824,8 @@ def _observe(P, Q, B, G, T, S, K, X, W, d, obs, signal, done, terminal, rng_stat
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
-def step(P, Q, B, G, T, S, K, X, W, obs, samples, reward, terminated, truncated,
-         rng_state):
-  """A primitive step ended in `obs` with `reward` (`samples`: the positions
+def step(P, Q, B, G, T, S, K, X, W, samples, reward, terminated, truncated):
+  """A primitive step ended in the observation K.obs with `reward` (`samples`: the positions
   sampled inside it, for the ship's local ends). Returns (episode over, the next
   action). One compiled function for both paths: the fused loops call it rather
   than inline it, which numba did by copying its whole body, the largest part of a
@@ -828,7 +846,7 @@ def step(P, Q, B, G, T, S, K, X, W, obs, samples, reward, terminated, truncated,
   while True:
     node = ints[d, S_NODE]
     row = P.nodes[node]
-    event, internal = _end_of(P, K, X, W, d, obs, samples)
+    event, internal = _end_of(P, K, X, W, d, samples)
     done = event != core.NO_EVENT or over
     terminal = terminated or event != core.NO_EVENT
     if row[END] == END_CLOCK and X is not None:   # a continuing root: the world's events end its children only
@@ -837,20 +855,20 @@ def step(P, Q, B, G, T, S, K, X, W, obs, samples, reward, terminated, truncated,
       if K.episode[E_RESTART] != 0:             # after a departure, it sees the restart
         K.episode[E_RESTART] = 0
         for i in range(K.restart.shape[0]):
-          obs[i] = K.restart[i]
+          K.obs[i] = K.restart[i]
     if row[SEEN] == SEEN_STEP:
       seen = core.STEP_REWARD * ints[d, S_CHILD_STEPS]
     else:
       seen = floats[d, F_REWARD]
     floats[d, F_REWARD] = 0.0
     _in_world(W, _observe, P.calls[CALL_OBSERVE],
-              (P, Q, B, G, T, S, K, X, W, d, obs, seen + internal, done, terminal, rng_state))
+              (P, Q, B, G, T, S, K, X, W, d, seen + internal, done, terminal))
     ints[d, S_CHILD_STEPS] = 0                  # (an RLearning's tau, read by _observe)
     if not done:
       action = _primitive_action(P, K, d)        # the common case: no call to make
       if action != action:
         action = jit.call_at(_descend, P.calls[CALL_DESCEND],
-                             (P, Q, B, G, T, S, K, X, W, d, obs, rng_state))
+                             (P, Q, B, G, T, S, K, X, W, d))
       return False, action
     # The call returns (Algorithm 1: return to the parent).
     c = K.counters[node]
@@ -890,14 +908,18 @@ def run_ship(P, Q, B, G, T, S, K, X, W, n_episodes, rng_state, world, record,
   on, each departure pays and it restarts at a start drawn from `rng_state`. Record
   row (ROW_END ...): passed (the gate, or the root's success; a continuing row: its
   gate passes), steps, return, 0 (a continuing row: its departures), then calls,
-  runs, successes of each node; the ship's state and the positions sampled in a
-  step are the stack's `ship` and `samples`. Compiled without
+  runs, successes of each node; the ship's state (what the machine observes) and
+  the positions sampled in a step are the stack's `obs` and `samples`, and the
+  generator's state is copied into the stack's `rng` for the loop and back after
+  it (the machine's functions then take none of them as arguments: passed, each
+  array was seven numbers pushed at every call). Compiled without
   reference counting, as everything it inlines: the machine reads its banks through
   views, and counting references to them cost 70% of its time."""
   max_steps = np.int64(world[2])
   alone = world[3] == 1.0
   continuing = world[3] == 2.0
-  state, samples = K.ship, K.samples
+  state, samples, rng = K.obs, K.samples, K.rng
+  arrays.copy_into(rng, rng_state)
   event = core.NO_EVENT
   reward = core.STEP_REWARD
   if continuing:
@@ -909,10 +931,10 @@ def run_ship(P, Q, B, G, T, S, K, X, W, n_episodes, rng_state, world, record,
     elif fixed_start.shape[0] == 4:
       arrays.copy_into(state, fixed_start)
     elif alone:
-      ship_rules.sample_local_start(rng_state, K.episode[E_ROOT_ARG], state)
+      ship_rules.sample_local_start(rng, K.episode[E_ROOT_ARG], state)
     else:
-      ship_rules.sample_start(rng_state, state)
-    action = _begin(P, Q, B, G, T, S, K, X, W, state, rng_state)
+      ship_rules.sample_start(rng, state)
+    action = _begin(P, Q, B, G, T, S, K, X, W)
     while True:
       core.euler_control(state, action, samples)
       terminated, truncated = False, False
@@ -925,11 +947,11 @@ def run_ship(P, Q, B, G, T, S, K, X, W, n_episodes, rng_state, world, record,
           passes += 1.0
         elif event == core.FAILURE:           # SPEC section 8: a fresh start, sail on
           departures += 1.0
-          ship_rules.sample_start(rng_state, K.restart)
+          ship_rules.sample_start(rng, K.restart)
           K.episode[E_RESTART] = 1
       over, action = jit.call_at(step, P.calls[CALL_STEP],
-                                 (P, Q, B, G, T, S, K, X, W, state, samples, reward, terminated,
-                                  truncated, rng_state))
+                                 (P, Q, B, G, T, S, K, X, W, samples, reward, terminated,
+                                  truncated))
       if over:
         break
     if continuing:
@@ -940,6 +962,7 @@ def run_ship(P, Q, B, G, T, S, K, X, W, n_episodes, rng_state, world, record,
     _write_row(K, record[episode], 1.0 if event == core.SUCCESS else 0.0, 0.0)
   if continuing:
     arrays.copy_into(fixed_start, state)
+  arrays.copy_into(rng_state, rng)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -963,33 +986,35 @@ def run_taxi(P, Q, B, G, T, S, K, X, W, n_episodes, rng_state, record, starts):
   or, with starts int64[k, 5] (k > 0), from starts[e % k]. The machine sees the
   state as float64 numbers; the world steps it as taxi_rules' int64 state. Record
   rows as `run_ship`'s, with the episode's outcome (`taxi_rules`: DELIVERED,
-  OUT_OF_FUEL, TRUNCATED) and its illegal Pickups and Dropoffs."""
+  OUT_OF_FUEL, TRUNCATED) and its illegal Pickups and Dropoffs. The generator's
+  state is the stack's `rng` in the loop, as in `run_ship`."""
   state = K.taxi[0:5]                # the state the taxi blocks read
   episode = K.taxi[5:8]
-  obs = K.taxi_obs
+  obs, rng = K.obs, K.rng
+  arrays.copy_into(rng, rng_state)
   for e in range(n_episodes):
     if starts.shape[0] > 0:
       for i in range(5):
         state[i] = starts[e % starts.shape[0], i]
     else:
-      taxi_subtasks.sample_start(rng_state, W, state)
+      taxi_subtasks.sample_start(rng, P.world, state)
     for i in range(3):
       episode[i] = 0
     for i in range(5):
       obs[i] = state[i]
-    action = _begin(P, Q, B, G, T, S, K, X, W, obs, rng_state)
+    action = _begin(P, Q, B, G, T, S, K, X, W)
     while True:
-      reward = taxi_rules.primitive_step(state, episode, np.int64(action), W)
+      reward = taxi_rules.primitive_step(state, episode, np.int64(action), P.world)
       for i in range(5):
         obs[i] = state[i]
       outcome = episode[taxi_rules.E_OUTCOME]
       truncated = outcome == taxi_rules.TRUNCATED
       terminated = outcome != taxi_rules.RUNNING and not truncated
-      over, action = step(P, Q, B, G, T, S, K, X, W, obs, K.samples, reward, terminated,
-                          truncated, rng_state)
+      over, action = step(P, Q, B, G, T, S, K, X, W, K.samples, reward, terminated, truncated)
       if over:
         break
     _write_row(K, record[e], episode[taxi_rules.E_OUTCOME], episode[taxi_rules.E_ILLEGAL])
+  arrays.copy_into(rng_state, rng)
 
 
 # The functions called through their addresses (`jit.call_at`), each compiled once
@@ -1132,27 +1157,29 @@ class Machine:
                   np.zeros(1),
                   np.zeros((len(order), 3)), np.zeros(4),
                   np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)),
-                  np.zeros(len(critics[0].low) if critics else 1), np.zeros(4),
+                  np.zeros(len(critics[0].low) if critics else 1),
                   np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)), np.zeros(8, dtype=np.int64),
-                  np.zeros(5), np.zeros(n_max, dtype=np.bool_), np.zeros(n_max),
+                  np.zeros(n_max, dtype=np.bool_), np.zeros(n_max),
                   np.zeros(n_max, dtype=np.int64), np.zeros(n_max), np.zeros(2, dtype=np.bool_),
-                  np.zeros(4))
+                  np.zeros(4), np.zeros(4 if self.world is None else 5),
+                  np.zeros(4, dtype=np.uint64))
     if len({len(c.low) for c in critics}) > 1:
       raise GraphError("the graph's actor-critics' critics code (state, action) of "
                        f"different sizes: {sorted({len(c.low) for c in critics})}")
     program = Program(nodes, params, np.array(children, dtype=np.int64).reshape(-1, 3),
-                      rules_mod.compile_rules(self.rules), np.zeros(len(_FAR), dtype=np.int64))
+                      rules_mod.compile_rules(self.rules), np.zeros(len(_FAR), dtype=np.int64),
+                      np.zeros(0, dtype=np.int64) if self.world is None else self.world)
     extras = any(np.isin(nodes[:, column], kinds).any() for column, kinds in _EXTRA_KINDS)
     self.banks = Banks(program, qbank, self._gibbs_bank(), gbank, self.tile_bank, schedule, stack,
-                       1 if extras else None, self.world)
+                       1 if extras else None, None if self.world is None else 1)
     # What the compiled functions take: each bank as a struct of the same arrays,
     # passed by reference (`learners.banks`: numba copied the namedtuples' ~45
     # arrays at every call and inlined call, at a high price in compile time).
     self.refs = (*banks_mod.as_structs(*self.banks[:-2]), self.banks.extras, self.banks.world)
     self._entries = {}                  # (function, generator state's kind) -> entry point
-    # The step-by-step path's observation and sampled positions, copied into arrays of
-    # the machine's own (`_input`), so that their kind never changes between calls.
-    self._inputs = [np.zeros(0), np.zeros((0, 2))]
+    # The step-by-step path's sampled positions, copied into an array of the machine's
+    # own (`_positions`), so that their kind never changes between calls.
+    self._positions_in = np.zeros((0, 2))
     self._state_seen = self._state_kind = None
     self._flags_set = (None, None)      # (learn, sample) last written by `_flags`
     self._refs_struct = None            # `refs` as one struct, made at the first `begin`
@@ -1514,14 +1541,11 @@ class Machine:
     `learners.jit.compile_first` has them). One list for every graph: their types do
     not depend on it."""
     b = self.refs
-    d, obs, rng_state = np.int64(0), np.zeros(4 if b[-1] is None else 5), \
-        np.zeros(4, dtype=np.uint64)
-    gibbs = [] if b[2] is None else [(_gibbs_choose, (b[0], b[2], b[6], b[8], d, rng_state))]
-    gaussian = [] if b[3] is None else [(_gaussian_choose, (b[0], b[3], b[4], b[6], d,
-                                                             rng_state))]
-    return [*gibbs, *gaussian, (_view, (*b, d, obs, d)), (_call, (*b, d, d, d, obs, rng_state)),
-            (_descend, (*b, d, obs, rng_state)), (_observe, (*b, d, obs, 0.0, False, False, rng_state)),
-            (step, (*b, obs, _NO_SAMPLES, 0.0, False, False, rng_state))]
+    d = np.int64(0)
+    gibbs = [] if b[2] is None else [(_gibbs_choose, (b[0], b[2], b[6], b[8], d))]
+    gaussian = [] if b[3] is None else [(_gaussian_choose, (b[0], b[3], b[4], b[6], d))]
+    return [*gibbs, *gaussian, (_view, (*b, d, d)), (_call, (*b, d, d, d)), (_descend, (*b, d)),
+            (_observe, (*b, d, 0.0, False, False)), (step, (*b, _NO_SAMPLES, 0.0, False, False))]
 
   def _link(self):
     """Compiles (or loads) the machine's functions from the bottom up, as
@@ -1554,6 +1578,7 @@ class Machine:
     rows = self._rows(episodes)
     fixed = np.empty(0) if start is None else np.asarray(start, dtype=np.float64)
     world = np.concatenate([np.asarray(world, dtype=np.float64), np.zeros(4)])[:4]
+    self._observation_size(4)
     self._flags(learn, sample)
     run_ship(*self.refs, int(episodes), rng_state, world, rows, fixed)
     return rows
@@ -1565,6 +1590,7 @@ class Machine:
     self._link()
     out = self._rows(rows)
     world = np.array([world[0], world[1], 0.0, 2.0], dtype=np.float64)
+    self._observation_size(4)
     self._flags(learn, sample)
     run_ship(*self.refs, int(rows), rng_state, world, out, ship)
     return out
@@ -1572,10 +1598,11 @@ class Machine:
   def run_taxi(self, episodes, learn, sample, rng_state, starts=None):
     """Episodes fused with the taxi of the machine's `world`, from `starts` (rows of
     taxi_rules' state, used in turn; None: drawn); rows as `run_taxi` writes them."""
-    if self.banks.world is None:
+    if self.world is None:
       raise GraphError("run_taxi: this machine was built without a taxi world "
                        "(Machine(graph, world=taxi_rules.world_config(...)))")
     rows = self._rows(episodes)
+    self._observation_size(5)
     starts = np.zeros((0, 5), dtype=np.int64) if starts is None else \
         np.ascontiguousarray(starts, dtype=np.int64).reshape(-1, 5)
     args = (*self.refs, int(episodes), rng_state, rows, starts)
@@ -1618,8 +1645,9 @@ class Machine:
 
   def begin(self, obs, learn, sample, rng_state):
     """Resumable: an episode starts at `obs`; returns the first action."""
+    self._observation(obs)
     self._flags(learn, sample)
-    return self._compiled(_begin_with, self._input(0, obs, "obs"), rng_state)
+    return self._compiled(_begin_with, rng_state)
 
   def advance(self, obs, reward, terminated, truncated, info, learn, sample, rng_state):
     """Resumable: the environment stepped; returns (episode over, next action)."""
@@ -1627,30 +1655,55 @@ class Machine:
     if info:
       positions = info.get("positions")
       if positions is not None:
-        samples = self._input(1, positions, "info['positions']")
+        samples = self._positions(positions)
       before = info.get("state_before_restart")
       if before is not None:        # a continuing ship restarted: its root sees `obs`
         k = self.banks.stack
         k.restart[:] = obs
         k.episode[E_RESTART] = 1
         obs = before
+    self._observation(obs)
     self._flags(learn, sample)
-    return self._compiled(_advance_with, self._input(0, obs, "obs"), samples, float(reward),
-                          bool(terminated), bool(truncated), rng_state)
+    return self._compiled(_advance_with, samples, float(reward), bool(terminated),
+                          bool(truncated), rng_state)
 
-  def _input(self, slot, values, name):
-    """`values` copied into the machine's input array `slot` (0: the observation, a
-    vector; 1: the sampled positions, rows of (x, y)) as float64: the compiled entry
-    points then see arrays of one kind on every call. The compiled code reads them
-    within the call and keeps none."""
+  def _observation(self, values):
+    """The step-by-step path's observation written into the stack's `obs`, which the
+    machine's functions read, as float64 (the compiled entry points then see arrays of
+    one kind on every call)."""
     if type(values) is not np.ndarray:
       values = np.asarray(values)
-    buffer = self._inputs[slot]
+    obs = self.banks.stack.obs
+    if values.shape != obs.shape:
+      if values.ndim != 1:
+        raise ValueError(f"Machine: obs must be a vector of numbers, got shape {values.shape}")
+      self._observation_size(values.shape[0])
+      obs = self.banks.stack.obs
+    obs[...] = values
+
+  def _observation_size(self, n):
+    """The stack's `obs` of n numbers: a new array where its length differs, and the
+    stack's struct made again around it (a struct's arrays are fixed when it is made)."""
+    stack = self.banks.stack
+    if stack.obs.shape[0] == n:
+      return
+    self.banks = self.banks._replace(stack=stack._replace(obs=np.zeros(n)))
+    (k,) = banks_mod.as_structs(self.banks.stack)
+    self.refs = (*self.refs[:6], k, *self.refs[7:])
+    self._refs_struct = None
+
+  def _positions(self, values):
+    """The positions sampled in a step (info['positions'], rows of (x, y)) copied into
+    the machine's own array as float64, as `_observation` does the observation. The
+    compiled code reads them within the call and keeps none."""
+    if type(values) is not np.ndarray:
+      values = np.asarray(values)
+    buffer = self._positions_in
     if values.shape != buffer.shape:
-      if values.ndim != buffer.ndim or values.shape[1:] != buffer.shape[1:]:
-        want = "a vector" if buffer.ndim == 1 else "rows of (x, y)"
-        raise ValueError(f"Machine: {name} must be {want} of numbers, got shape {values.shape}")
-      buffer = self._inputs[slot] = np.empty(values.shape)
+      if values.ndim != 2 or values.shape[1:] != buffer.shape[1:]:
+        raise ValueError("Machine: info['positions'] must be rows of (x, y) of numbers, "
+                         f"got shape {values.shape}")
+      buffer = self._positions_in = np.empty(values.shape)
     buffer[...] = values
     return buffer
 
@@ -1675,10 +1728,10 @@ class Machine:
       self._state_seen, self._state_kind = state, _kind(state)
     key = (fn, self._state_kind)
     entry = self._entries.get(key)
-    if entry is None:
+    if self._refs_struct is None:     # made at the first call, again after `_observation_size`
       self._link()
-      if self._refs_struct is None:
-        (self._refs_struct,) = banks_mod.as_structs(Refs(*self.refs))
+      (self._refs_struct,) = banks_mod.as_structs(Refs(*self.refs))
+    if entry is None:
       out = fn(self._refs_struct, *args)
       found = fn.overloads.get(tuple(numba.typeof(a) for a in (self._refs_struct, *args)))
       self._entries[key] = fn if found is None else found.entry_point

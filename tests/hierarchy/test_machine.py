@@ -415,8 +415,8 @@ def test_an_argument_of_another_kind_is_not_read_as_the_contiguous_one():
 
 
 def test_observations_of_any_kind_are_read_as_their_values():
-  """`Machine._input` copies each observation and sampled positions into arrays of the
-  machine's own, whose kind never changes: a float32, integer, strided or list
+  """`Machine._observation` and `_positions` copy each observation and sampled positions
+  into arrays of the machine's own, whose kind never changes: a float32, integer, strided or list
   observation, and strided positions, give what their float64 values give; an
   observation that is not a vector is refused, by name."""
   from hpg_mj import agents
@@ -440,6 +440,24 @@ def test_observations_of_any_kind_are_read_as_their_values():
     m.begin(obs.reshape(2, 2), False, True, state)
   with pytest.raises(ValueError, match=r"info\['positions'\] must be rows of \(x, y\)"):
     m.advance(obs, -1.0, False, False, {"positions": positions.ravel()}, False, True, state)
+
+
+def test_an_observation_of_another_length_leaves_the_fused_loop_as_it_was():
+  """The step-by-step path takes an observation of any length (the stack's `obs` is
+  made again for it); the fused loop then sails on the ship's four numbers, and trains
+  as a machine that never saw it."""
+  from hpg_mj import agents
+  task = agents.load_task("ship_flat_pg")
+  seen, fresh = (agents.build(task, seed=0) for _ in range(2))
+  state = rng.make_state(5)
+  wide = np.array([400.0, 300.0, 10.0, 2.0, 7.0, 9.0])
+  seen.machine.begin(wide, False, False, state)
+  seen.machine.advance(wide + 1.0, -1.0, False, False, {}, False, False, state)
+  assert seen.machine.banks.stack.obs.shape == (6,)
+  a, b = seen.train(5), fresh.train(5)
+  for field in a.dtype.names:
+    np.testing.assert_array_equal(a[field], b[field])
+  assert seen.machine.banks.stack.obs.shape == (4,)
 
 
 _TAXI_LOADS = """
