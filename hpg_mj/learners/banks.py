@@ -16,7 +16,10 @@ field it has read in a register across the arrays' writes, as it does a
 namedtuple's. Compiled code cannot assign a field. The struct holds a reference to
 each of its arrays, released when the struct is.
 """
+import ctypes
+
 import numba
+import numpy as np
 from llvmlite import ir
 from numba.core import cgutils
 from numba.core import imputils
@@ -26,12 +29,14 @@ from numba.core.datamodel import models
 from numba.core.extending import NativeValue
 from numba.core.extending import box
 from numba.core.extending import infer_getattr
-from numba.core.extending import intrinsic
 from numba.core.extending import lower_getattr_generic
 from numba.core.extending import unbox
+from numba.core.registry import cpu_target
+from numba.core.runtime import _nrt_python
+from numba.core.runtime import nrt
 from numba.core.typing.templates import AttributeTemplate
+from numba.experimental import function_type
 from numba.experimental import structref
-from numba.experimental.jitclass.base import imp_dtor
 
 # NRT_MemInfo's fields (numba's nrt.h): refct, dtor, dtor_info, data, ...
 _MEMINFO_DATA = 3
@@ -124,61 +129,76 @@ def _struct_type(bank):
   return BankType(list(zip(bank.fields, bank.types)))
 
 
-@intrinsic
-def _new_banks(typingctx, banks):
-  """A struct of each namedtuple of `banks`, of its fields (each referenced once
-  more), made in one compiled function whatever their number; None stays None."""
-  if not (isinstance(banks, types.BaseTuple) and
-          all(isinstance(b, (types.BaseNamedTuple, types.NoneType)) for b in banks)):
-    return None
-  struct_types = [b if isinstance(b, types.NoneType) else _struct_type(b) for b in banks]
+# The struct of a bank is written from Python, word by word, in the layout of numba's
+# data model for it (`_words`), not compiled: a compiled maker unboxed every array of
+# the banks in its C wrapper, ~15 ms of LLVM work an array, 0.8-1.3 s of every
+# machine's first compile. Every field the banks hold is laid out in 8-byte words
+# (an array's meminfo, parent, size, item size, data, shape and strides; a number; a
+# struct's meminfo; a first-class function's three addresses; None's null pointer),
+# so the payload is their words in order, and its size is checked against numba's.
+# An array's meminfo is left null (numba counts no references on a null meminfo, as
+# for its constant arrays): the arrays, the payload and the structs it points to are
+# held by the struct's own meminfo (`rtsys.meminfo_new`: it holds a reference to a
+# Python object, released with it), so they live exactly as long as the struct.
 
-  def codegen(context, builder, signature, args):
-    out = []
-    for k, (bank, struct_type) in enumerate(zip(banks, struct_types)):
-      if isinstance(bank, types.NoneType):
-        out.append(context.get_dummy_value())
-        continue
-      model = context.data_model_manager[struct_type.get_data_type()]
-      alloc_type = model.get_value_type()
-      meminfo = context.nrt.meminfo_alloc_dtor(
-          builder, context.get_constant(types.uintp, context.get_abi_sizeof(alloc_type)),
-          imp_dtor(context, builder.module, struct_type))
-      data = builder.bitcast(context.nrt.meminfo_data(builder, meminfo),
-                             alloc_type.as_pointer())
-      payload = cgutils.create_struct_proxy(struct_type.get_data_type())(context, builder,
-                                                                         ref=data)
-      values = builder.extract_value(args[0], k)
-      for i, (name, field_type) in enumerate(zip(bank.fields, bank.types)):
-        value = builder.extract_value(values, i)
-        context.nrt.incref(builder, field_type, value)
-        setattr(payload, name, value)
-      struct = cgutils.create_struct_proxy(struct_type)(context, builder)
-      struct.meminfo = meminfo
-      out.append(struct._getvalue())
-    return context.make_tuple(builder, signature.return_type, out)
-  return types.Tuple(struct_types)(banks), codegen
+_meminfo_of = ctypes.CFUNCTYPE(ctypes.c_void_p, ctypes.py_object)(
+    _nrt_python.c_helpers["meminfo_from_pyobject"])
+_release = ctypes.CFUNCTYPE(None, ctypes.c_void_p)(_nrt_python.c_helpers["MemInfo_release"])
 
 
-def _make(banks):
-  return _new_banks(banks)
+def _words(value, typ, out, keep):
+  """The 8-byte words of `value`, of numba type `typ`, as numba lays them out."""
+  if isinstance(typ, types.Array):
+    out += [0, id(value), value.size, value.itemsize, value.__array_interface__["data"][0],
+            *value.shape, *value.strides]
+    keep.append(value)
+  elif isinstance(typ, types.NoneType):
+    out.append(0)
+  elif isinstance(typ, types.Integer) and typ.bitwidth == 64:
+    out.append(int(value))
+  elif isinstance(typ, types.Float) and typ.bitwidth == 64:
+    out.append(int(np.float64(value).view(np.int64)))
+  elif isinstance(typ, BankType):
+    pointer = _meminfo_of(value._meminfo)          # a reference taken, and given back:
+    _release(pointer)                              # the struct is kept in `keep`
+    out.append(pointer)
+    keep.append(value)
+  elif isinstance(typ, types.FunctionType):
+    signature = typ.signature
+    out += [function_type._get_wrapper_address(value, signature), id(value),
+            function_type._get_jit_address(value, signature)]
+    keep.append(value)
+  elif isinstance(typ, types.BaseTuple):
+    for v, t in zip(value, typ):
+      _words(v, t, out, keep)
+  else:
+    raise TypeError(f"banks.as_structs: a bank's field of type {typ} cannot go in a struct; "
+                    "fields are arrays, 64-bit numbers, None, structs, first-class "
+                    "functions, or tuples of these")
 
 
-# numba's cache keeps one index per function, with every signature compiled, pickled:
-# a namedtuple class of another package's (a test's, a user's) in it made every later
-# process that could not import that package fail to load the index. hpg_mj's own
-# banks are cached; anyone else's compile in their process.
-# Without the C-callable wrapper numba adds to every function (only a first-class
-# function needs one): over ~45 arrays it was a third of _make's first compile.
-_as_structs = numba.njit(cache=True, no_cfunc_wrapper=True)(_make)
-_as_foreign_structs = numba.njit(no_cfunc_wrapper=True)(_make)
+def _struct(bank):
+  """The struct (a Bank) of the namedtuple `bank`."""
+  typ = numba.typeof(bank)
+  struct_type = _struct_type(typ)
+  words, keep = [], [bank]
+  for value, field_type in zip(bank, typ.types):
+    _words(value, field_type, words, keep)
+  payload = np.array(words, dtype=np.int64)
+  context = cpu_target.target_context
+  size = context.get_abi_sizeof(default_manager[struct_type.get_data_type()].get_value_type())
+  if payload.nbytes != size:
+    raise TypeError(f"banks.as_structs: {type(bank).__name__}'s fields take {payload.nbytes} "
+                    f"bytes in 8-byte words, numba's struct of them {size}")
+  keep.append(payload)
+  nrt.rtsys.initialize(context)          # numba's runtime, which its first compile starts
+  return Bank._numba_box_(struct_type, nrt.rtsys.meminfo_new(payload.ctypes.data, tuple(keep)))
 
 
 def as_structs(*banks):
   """The struct of each namedtuple of arrays of `banks` (their arrays, not copies);
   a None among them stays None."""
-  ours = all(b is None or type(b).__module__.startswith("hpg_mj.") for b in banks)
-  return (_as_structs if ours else _as_foreign_structs)(banks)
+  return tuple(None if b is None else _struct(b) for b in banks)
 
 
 def field_type(bank_type, name):

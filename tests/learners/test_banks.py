@@ -8,6 +8,7 @@ import weakref
 
 import numba
 import numpy as np
+import pytest
 from numba.core import types
 
 from hpg_mj.learners import banks
@@ -84,7 +85,8 @@ def test_a_foreign_namedtuple_leaves_the_shared_cache_alone(tmp_path):
   """numba pickles every signature of a cached function into one index: a namedtuple
   class of another module's in `as_structs`'s made each later process that could not
   import that module fail to load it (a taxi agent's machine, in the experiment
-  runner's workers). A foreign bank compiles in its own process only."""
+  runner's workers). Structs are now made without compiling (`banks._words`), so no
+  bank's type reaches the cache; this holds it so."""
   env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
   (tmp_path / "user").mkdir()
   (tmp_path / "user" / "mine.py").write_text(
@@ -96,3 +98,31 @@ def test_a_foreign_namedtuple_leaves_the_shared_cache_alone(tmp_path):
     done = subprocess.run([sys.executable, "-c", code], env=env, cwd=where,
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-2000:]
+
+
+Inner = collections.namedtuple("Inner", ("a", "b"))
+Outer = collections.namedtuple("Outer", ("n", "x", "inner", "ref", "none"))
+
+
+@numba.njit(_nrt=False)
+def _read_all(o):
+  """Every kind of field a struct holds, read back: numbers, a namedtuple of arrays,
+  another struct, None."""
+  return o.n + o.x + o.inner.a[1] + o.inner.b[0, 1] + o.ref.floats[2, 1] + (o.none is None)
+
+
+def test_every_kind_of_field_reads_back_from_the_struct():
+  """The struct is written word by word in numba's layout (`banks._words`): a 64-bit
+  integer and float, a namedtuple of arrays, another bank's struct and None read back
+  as they were; a field that has no 8-byte layout is refused, by its type."""
+  (pair,) = banks.as_structs(Pair(np.zeros(3, dtype=np.int64), np.arange(6.0).reshape(3, 2),
+                                  None))
+  inner = Inner(np.array([0.0, 0.25]), np.array([[0.0, 0.125]]))
+  (outer,) = banks.as_structs(Outer(np.int64(3), 0.5, inner, pair, None))
+  assert _read_all(outer) == 3 + 0.5 + 0.25 + 0.125 + 5.0 + 1
+  alive = weakref.ref(inner.a)
+  del inner, pair
+  gc.collect()
+  assert alive() is not None and _read_all(outer) == 9.875    # held by the struct
+  with pytest.raises(TypeError, match="field of type bool cannot go in a struct"):
+    banks.as_structs(Pair(np.zeros(1), np.zeros((1, 1)), True))
