@@ -70,21 +70,23 @@ def sample_index(probs, u):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def softmax_act(t, state, n_actions, mask, rng_state, probs, index, psi):
-  """Samples a child from the Gibbs policy and adds its score to the trace.
+def softmax_act(t, state, n_actions, mask, rng_state, probs, index, psi, score=True):
+  """Samples a child from the Gibbs policy and (unless `score` is False) adds its
+  score to the trace.
 
   psi(s, a)[s, b] = 1{b = a} - pi(s, b) for the allowed b (zero elsewhere).
   `probs`, `index`, `psi` are scratch arrays of length n_actions.
   """
   softmax_probabilities(t, state, n_actions, mask, probs)
   a = sample_index(probs, rng.uniform(rng_state))
-  n = 0
-  for b in range(n_actions):
-    if mask[b]:
-      index[n] = state * n_actions + b
-      psi[n] = (1.0 if b == a else 0.0) - probs[b]
-      n += 1
-  el.add_score(t, index[:n], psi[:n])
+  if score:
+    n = 0
+    for b in range(n_actions):
+      if mask[b]:
+        index[n] = state * n_actions + b
+        psi[n] = (1.0 if b == a else 0.0) - probs[b]
+        n += 1
+    el.add_score(t, index[:n], psi[:n])
   return a
 
 
@@ -114,19 +116,17 @@ def softmax_choose(t, values, state, n_actions, mask, alpha, learn, sample, rng_
   most probable. `probs`, `index`, `psi`: scratch of n_actions. (Its locals are named
   apart from its callers': numba's inlining once bound a local `n` here to a caller's
   `n` passed as n_actions, and the baseline's loop ran over nothing.)"""
-  if learn:
-    a = softmax_act(t, state, n_actions, mask, rng_state, probs, index, psi)
-    amount = alpha * values[state]
-    if amount != 0.0:
-      k = 0
-      for b in range(n_actions):
-        if mask[b]:
-          t.theta[index[k]] -= amount * psi[k]
-          k += 1
+  if learn or sample:
+    a = softmax_act(t, state, n_actions, mask, rng_state, probs, index, psi, learn)
+    if learn:
+      amount = alpha * values[state]
+      if amount != 0.0:
+        k = 0
+        for b in range(n_actions):
+          if mask[b]:
+            t.theta[index[k]] -= amount * psi[k]
+            k += 1
     return a
-  if sample:
-    softmax_probabilities(t, state, n_actions, mask, probs)
-    return sample_index(probs, rng.uniform(rng_state))
   return softmax_greedy(t, state, n_actions, mask)
 
 
