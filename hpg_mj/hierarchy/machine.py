@@ -381,9 +381,7 @@ def _view(P, Q, B, G, T, S, K, X, W, d, which):
   elif kind == VIEW_LOCAL_TILES:
     _local_tiles(T, K, W, row, d, obs, which)
   elif kind == VIEW_STATE_TILES:
-    tiling = _tiling(T, row[VIEW_SLOT])
-    tiles_mod.active_tiles(obs[:T.dims[row[VIEW_SLOT]]], tiling,
-                           K.tiles[d, which, :tiling.offsets.shape[0]])
+    _state_tiles(T, K, row, d, which)
   elif kind == VIEW_AIM_TILES:
     if X is not None:
       p = P.params[node]
@@ -399,6 +397,14 @@ def _view(P, Q, B, G, T, S, K, X, W, d, which):
   elif kind == VIEW_TAXI_ABSTRACT:
     if W is not None:
       K.ints[d, S_STATE + which] = _taxi_abstract(P, K, row, d)
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def _state_tiles(T, K, row, d, which):
+  """A StateTiles view: the observation (K.obs) tiled into tiles[d, which]."""
+  tiling = _tiling(T, row[VIEW_SLOT])
+  tiles_mod.active_tiles(K.obs[:T.dims[row[VIEW_SLOT]]], tiling,
+                         K.tiles[d, which, :tiling.offsets.shape[0]])
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -738,6 +744,9 @@ def _observe(P, Q, B, G, T, S, K, X, W, d, signal, done, terminal):
   if kind == GIBBS_TABLE and row[VIEW] == VIEW_TAXI_ABSTRACT:
     if W is not None:              # without the call to `_view`: the taxi's every step
       ints[d, S_NEXT_STATE] = _taxi_abstract(P, K, row, d)
+  elif row[VIEW] == VIEW_STATE_TILES and ((kind == GAUSSIAN_CMAC and not done) or (
+      kind == ACTOR_CRITIC and not terminal)):
+    _state_tiles(T, K, row, d, np.int64(1))    # nor here: flat PGRL's, the actor-critic's
   elif kind == Q_TABLE or kind == TILED_Q or kind == GIBBS_TABLE or kind == AVERAGE_REWARD or (
       kind == GAUSSIAN_CMAC and not done) or (kind == ACTOR_CRITIC and not terminal):
     _in_world(W, _view, P.calls[CALL_VIEW], (P, Q, B, G, T, S, K, X, W, d, np.int64(1)))
