@@ -25,14 +25,14 @@ class AnalyticBackend:
     return self._state.copy()
 
   def control(self, r_deg):
-    """Sails one 0.6 s control interval; returns the sampled positions (a new array,
-    as the MuJoCo ship's)."""
+    """Sails one 0.6 s control interval; returns (the sampled positions, the state
+    at its end), new arrays, as the MuJoCo ship's."""
     samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
     # Every argument given: numba dispatches a call that omits defaulted
     # arguments through its slow Python path (~30 us, 200 times Equation 1).
     core.euler_control(self._state, r_deg, samples, core.SPEED, core.TIME_CONSTANT,
                        core.SAMPLING_INTERVAL)
-    return samples
+    return samples, self._state.copy()
 
 
 class MujocoBackend:
@@ -47,18 +47,16 @@ class MujocoBackend:
 
   def set_state(self, state):
     self.physics.set_ship_state(state)
-    self._state = self.physics.ship_state()
 
   def state(self):
-    return self._state.copy()
+    return self.physics.ship_state()
 
   def control(self, r_deg):
     physics = self.physics
     physics.set_turn_command(r_deg)
     physics.step(self._nstep)
-    # The state is read with the samples: only this backend moves its physics.
-    self._state = physics.stepped_state
-    return physics.sampled_positions()
+    # Both read in the step, new arrays each step: the caller's to keep.
+    return physics.sampled_positions(), physics.stepped_state
 
 
 def spaces_of(rules):
@@ -193,10 +191,9 @@ class ShipSteeringEnv(gymnasium.Env):
     r = _validation.bounded_scalar_action(action, -core.MAX_TURN_RATE, core.MAX_TURN_RATE,
                                           strict=self.strict, task=self._name,
                                           name="turning rate r (deg/s)")
-    samples = self.backend.control(r)
-    obs = self.backend.state()
+    samples, obs = self.backend.control(r)
     self._steps += 1
-    reward, terminated, truncated, event = self.rules.evaluate(samples, obs, self._steps)
+    reward, terminated, truncated, event = self.rules.judge(samples, obs, self._steps)
     if self.render_mode is not None:
       self._trail.extend(samples[1:].copy())
     info = {"event": event, "positions": samples}   # each backend's new array

@@ -229,8 +229,7 @@ class _MujocoShips:
 
   def control(self, states, r, active, samples):
     for i in np.flatnonzero(active).tolist():
-      samples[i] = self.ships[i].control(float(r[i]))
-      states[i] = self.ships[i].state()
+      samples[i], states[i] = self.ships[i].control(float(r[i]))
 
 
 class ShipSteeringVectorEnv(_BatchedEnv):

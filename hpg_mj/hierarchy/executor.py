@@ -63,6 +63,10 @@ class DmControlAdapter:
     return self._flat(self.env.reset())
 
   def step(self, action):
+    return Step(*self.values(action))
+
+  def values(self, action):
+    """`step`'s fields as a tuple (`step_values`)."""
     ts = self.env.step(np.array(action, ndmin=1))
     info = {}
     if self._positions is not None:
@@ -70,8 +74,8 @@ class DmControlAdapter:
     if self._events:
       info["event"] = self.env.task.last_event
     last = ts.last()
-    return Step(self._flat(ts), float(ts.reward), last and ts.discount == 0.0,
-                last and ts.discount != 0.0, info)
+    return (self._flat(ts), float(ts.reward), last and ts.discount == 0.0,
+            last and ts.discount != 0.0, info)
 
 
 def adapter_for(env):
@@ -84,6 +88,25 @@ def adapter_for(env):
   if hasattr(env, "unwrapped") and hasattr(env, "step"):
     return GymAdapter(env.unwrapped)
   raise TypeError(f"{env!r} is neither a Gymnasium nor a dm_control environment")
+
+
+def step_values(adapter):
+  """`adapter.step` as a function of the action that returns the Step's fields as a
+  tuple, (obs, reward, terminated, truncated, info): for an adapter of exactly these
+  two kinds, not a subclass (which may watch each step), without a Step made at each
+  step (the step-by-step path's Python is a third of its time beside the MuJoCo
+  ship): a GymAdapter's is its environment's own `step` (the reward and flags as the
+  environment gives them), a DmControlAdapter's its `values`."""
+  kind = type(adapter)
+  if kind is GymAdapter:
+    return adapter.env.step
+  if kind is DmControlAdapter:
+    return adapter.values
+
+  def values(action):
+    step = adapter.step(action)
+    return step.obs, step.reward, step.terminated, step.truncated, step.info
+  return values
 
 
 class Executor:

@@ -1192,6 +1192,9 @@ class Machine:
     self._state_seen = self._state_kind = None
     self._flags_set = (None, None)      # (learn, sample) last written by `_flags`
     self._refs_struct = None            # `refs` as one struct, made at the first `begin`
+    # (generator state, entry point) of the last `advance` through `_compiled`: the next
+    # with the same state calls that entry point straight away.
+    self._advancing = (None, None)
 
   # -- what each block puts in the node's row --
 
@@ -1672,9 +1675,17 @@ class Machine:
         k.episode[E_RESTART] = 1
         obs = before
     self._observation(obs)
-    self._flags(learn, sample)
-    return self._compiled(_advance_with, samples, float(reward), bool(terminated),
-                          bool(truncated), rng_state)
+    if learn is not self._flags_set[0] or sample is not self._flags_set[1]:
+      self._flags(learn, sample)
+    state, entry = self._advancing
+    if state is rng_state:          # `_compiled`'s entry point for this state, called as it would
+      return entry(self._refs_struct, samples, float(reward), bool(terminated),
+                   bool(truncated), rng_state)
+    out = self._compiled(_advance_with, samples, float(reward), bool(terminated),
+                         bool(truncated), rng_state)
+    if rng_state is self._state_seen:   # (not a copy in C order of it)
+      self._advancing = (rng_state, self._entries[(_advance_with, self._state_kind)])
+    return out
 
   def _observation(self, values):
     """The step-by-step path's observation written into the stack's `obs`, which the
@@ -1700,6 +1711,7 @@ class Machine:
     (k,) = banks_mod.as_structs(self.banks.stack)
     self.refs = (*self.refs[:6], k, *self.refs[7:])
     self._refs_struct = None
+    self._advancing = (None, None)
 
   def _positions(self, values):
     """The positions sampled in a step (info['positions'], rows of (x, y)) copied into
@@ -1788,6 +1800,7 @@ def run_stepwise(machine, env, episodes, learn, sample, rng_state, start, ended,
   `run_ship`'s (ROW_ILLEGAL stays 0)."""
   from hpg_mj.hierarchy import executor     # the environments' adapters
   adapter = executor.adapter_for(env)
+  step, advance = executor.step_values(adapter), machine.advance
   sample = learn if sample is None else (sample or learn)
   rows = machine._rows(episodes)
   for i in range(int(episodes)):
@@ -1797,12 +1810,12 @@ def run_stepwise(machine, env, episodes, learn, sample, rng_state, start, ended,
       _tell_calls(machine, on_call)
     over = False
     while not over:
-      step_ = adapter.step(action)
-      over, action = machine.advance(step_.obs, step_.reward, step_.terminated,
-                                     step_.truncated, step_.info, learn, sample, rng_state)
+      obs, reward, terminated, truncated, info = step(action)
+      over, action = advance(obs, reward, terminated, truncated, info, learn, sample, rng_state)
       if on_call is not None and not over:
         _tell_calls(machine, on_call)
-    rows[i, ROW_END] = ended(step_)
+    rows[i, ROW_END] = ended(executor.Step(obs, float(reward), bool(terminated),
+                                           bool(truncated), info))
     rows[i, ROW_STEPS] = machine.banks.stack.episode[E_STEPS]
     rows[i, ROW_RETURN] = machine.banks.stack.total[0]
     rows[i, ROW_COUNTERS:] = machine.counters()

@@ -116,7 +116,7 @@ class ShipTask(base.Task):
   def after_step(self, physics):
     self._steps += 1
     state = physics.stepped_state      # `ship_state()` after the step just taken
-    self._outcome = self.rules.evaluate(physics.sampled_positions(), state, self._steps)
+    self._outcome = self.rules.judge(physics.sampled_positions(), state, self._steps)
     if self.rules.restarts(self._outcome[3]):   # SPEC section 8: the process goes on
       physics.set_ship_state(self.rules.sample_start(self.random))
       state = physics.ship_state()

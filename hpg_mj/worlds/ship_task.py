@@ -1,6 +1,7 @@
 """The start, reward and ending of each ship task (SPEC sections 2-3), shared by
 the analytic and the MuJoCo backend; free of MuJoCo, so that the analytic ship
 imports neither mujoco nor dm_control (SPEC section 9)."""
+import numba
 import numpy as np
 
 from hpg_mj.worlds import ship_core as core
@@ -42,8 +43,11 @@ class ShipRules:
     # SPEC section 2's +100 / -100 (and the subtasks' local +100 / -100).
     self.success_reward = float(gate_reward)
     self.failure_reward = float(out_of_bounds_reward)
-    # `task_outcome`'s arguments, and its event codes by name.
-    self._goal = np.zeros(2) if self.goal is None else self.goal
+    # `task_outcome`'s arguments after the step's own, its code (`judge`), and its event
+    # codes by name.
+    self._task = (self.goal is None, np.zeros(2) if self.goal is None else self.goal,
+                  self.size, self.max_steps, self.success_reward, self.failure_reward)
+    self._outcome = None
     success = "gate" if self.goal is None else "goal"
     self.event_names = {core.NO_EVENT: None, core.SUCCESS: success,
                         core.FAILURE: "out_of_bounds", core.TIMEOUT: "timeout"}
@@ -74,9 +78,37 @@ class ShipRules:
     `samples` are the positions sampled during the step, `end_state` the state
     at its end, `steps` the control steps taken so far, this one included.
     """
-    event, reward, terminated, truncated = core.task_outcome(
-        samples, end_state, steps, self.goal is None, self._goal, self.size, self.max_steps,
-        self.success_reward, self.failure_reward)
+    samples = np.ascontiguousarray(samples, dtype=np.float64)
+    end_state = np.ascontiguousarray(end_state, dtype=np.float64)
+    if samples.ndim != 2 or samples.shape[1] != 2 or end_state.shape != (4,):
+      raise ValueError("ShipRules.evaluate: samples must be rows of (x, y) and end_state "
+                       f"[x, y, theta_deg, theta_dot_deg], got shapes {samples.shape} and "
+                       f"{end_state.shape}")
+    return self.judge(samples, end_state, int(steps))
+
+  def judge(self, samples, end_state, steps):
+    """`evaluate` of a backend's own arrays, float64 in C order (each backend's new
+    arrays of a step), and an int: `task_outcome`'s compiled code for these kinds is
+    called directly (numba's dispatcher would type all nine arguments again at each
+    step, about half of the call)."""
+    outcome = self._outcome
+    if outcome is None:
+      outcome = self._outcome = _task_outcome()
+    event, reward, terminated, truncated = outcome(samples, end_state, steps, *self._task)
     if self.continuing:        # SPEC section 8: nothing ends the process but the clock
       terminated, truncated = False, steps >= self.max_steps
     return reward, terminated, truncated, self.event_names[event]
+
+
+_OUTCOME = []
+
+
+def _task_outcome():
+  """`core.task_outcome`'s entry point for a backend's arrays (`ShipRules.judge`),
+  compiled or loaded from numba's cache at the first step of the process."""
+  if not _OUTCOME:
+    f64 = numba.float64
+    _OUTCOME.append(core.task_outcome.compile(
+        (f64[:, ::1], f64[::1], numba.int64, numba.boolean, f64[::1], f64, numba.int64, f64,
+         f64)))
+  return _OUTCOME[0]
