@@ -672,8 +672,14 @@ def _begin_with(R, rng_state):
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
-def _advance_with(R, samples, reward, terminated, truncated, rng_state):
-  """`advance` on the structs of `R` (a Refs struct)."""
+def _advance_with(R, obs, samples, reward, terminated, truncated, rng_state):
+  """`advance` on the structs of `R` (a Refs struct), `obs` first copied into the
+  stack's (`Machine.advance`)."""
+  into = R.K.obs
+  if obs.shape[0] != into.shape[0]:
+    raise ValueError("Machine.advance: obs is not of the length of the episode's first")
+  for i in range(obs.shape[0]):
+    into[i] = obs[i]
   return advance(R.P, R.Q, R.B, R.G, R.T, R.S, R.K, R.X, R.W, samples, reward, terminated,
                  truncated, rng_state)
 
@@ -1662,44 +1668,61 @@ class Machine:
     return self._compiled(_begin_with, rng_state)
 
   def advance(self, obs, reward, terminated, truncated, info, learn, sample, rng_state):
-    """Resumable: the environment stepped; returns (episode over, next action)."""
+    """Resumable: the environment stepped; returns (episode over, next action).
+
+    The observation and the sampled positions (`info["positions"]`) of an environment
+    that gives them as float64 arrays in C order (the ship's, every step's new arrays)
+    go to the compiled code as they are, which reads them within the call and keeps
+    none; others are first copied into arrays of the machine's own (`_observation`,
+    `_positions`), as every call through `_compiled` has them: an entry point checks
+    only an array's item size, and copying both cost ~0.5 us of a ~10 us step through
+    the MuJoCo ship."""
     samples = _NO_SAMPLES
     if info:
       positions = info.get("positions")
       if positions is not None:
-        samples = self._positions(positions)
+        samples = positions
+        if type(samples) is not np.ndarray or samples.dtype is not _F64 or \
+            samples.strides != _ROWS_OF_XY:
+          samples = self._positions(positions)
       before = info.get("state_before_restart")
       if before is not None:        # a continuing ship restarted: its root sees `obs`
         k = self.banks.stack
         k.restart[:] = obs
         k.episode[E_RESTART] = 1
         obs = before
-    self._observation(obs)
     if learn is not self._flags_set[0] or sample is not self._flags_set[1]:
       self._flags(learn, sample)
     state, entry = self._advancing
     if state is rng_state:          # `_compiled`'s entry point for this state, called as it would
-      return entry(self._refs_struct, samples, float(reward), bool(terminated),
+      if type(obs) is not np.ndarray or obs.dtype is not _F64 or obs.strides != _VECTOR:
+        obs = self._observation(obs, within_episode=True)
+      return entry(self._refs_struct, obs, samples, float(reward), bool(terminated),
                    bool(truncated), rng_state)
-    out = self._compiled(_advance_with, samples, float(reward), bool(terminated),
-                         bool(truncated), rng_state)
+    if samples is not _NO_SAMPLES:
+      samples = self._positions(samples)
+    out = self._compiled(_advance_with, self._observation(obs, within_episode=True), samples,
+                         float(reward), bool(terminated), bool(truncated), rng_state)
     if rng_state is self._state_seen:   # (not a copy in C order of it)
       self._advancing = (rng_state, self._entries[(_advance_with, self._state_kind)])
     return out
 
-  def _observation(self, values):
+  def _observation(self, values, within_episode=False):
     """The step-by-step path's observation written into the stack's `obs`, which the
     machine's functions read, as float64 (the compiled entry points then see arrays of
-    one kind on every call)."""
+    one kind on every call); returns that array. An episode's first sets its length."""
     if type(values) is not np.ndarray:
       values = np.asarray(values)
     obs = self.banks.stack.obs
     if values.shape != obs.shape:
       if values.ndim != 1:
         raise ValueError(f"Machine: obs must be a vector of numbers, got shape {values.shape}")
+      if within_episode:
+        raise ValueError("Machine.advance: obs is not of the length of the episode's first")
       self._observation_size(values.shape[0])
       obs = self.banks.stack.obs
     obs[...] = values
+    return obs
 
   def _observation_size(self, n):
     """The stack's `obs` of n numbers: a new array where its length differs, and the
@@ -1765,6 +1788,9 @@ class Machine:
 
 
 _NO_SAMPLES = np.zeros((core.SAMPLES_PER_CONTROL + 1, 2))
+# What `advance` passes as it is: float64 (the one native dtype object), in C order.
+_F64 = np.dtype(np.float64)
+_VECTOR, _ROWS_OF_XY = (8,), (16, 8)
 
 
 def _kind(value):

@@ -415,10 +415,13 @@ def test_an_argument_of_another_kind_is_not_read_as_the_contiguous_one():
 
 
 def test_observations_of_any_kind_are_read_as_their_values():
-  """`Machine._observation` and `_positions` copy each observation and sampled positions
+  """`Machine.advance` passes a float64 observation and sampled positions in C order to
+  the compiled code as they are, and `_observation` and `_positions` copy any other
   into arrays of the machine's own, whose kind never changes: a float32, integer, strided or list
-  observation, and strided positions, give what their float64 values give; an
-  observation that is not a vector is refused, by name."""
+  observation, and strided positions, give what their float64 values give, on the
+  first step (through `_compiled`) and the next (its entry point, called straight
+  away); an observation that is not a vector, or not of the episode's length, is
+  refused, by name."""
   from hpg_mj import agents
   m = agents.build(agents.load_task("ship_flat_pg"), seed=0).machine
   state = rng.make_state(3)
@@ -427,7 +430,8 @@ def test_observations_of_any_kind_are_read_as_their_values():
   def episode(start, after, samples):
     s = state.copy()
     first = m.begin(start, False, True, s)
-    return first, m.advance(after, -1.0, False, False, {"positions": samples}, False, True, s)
+    return first, [m.advance(after, -1.0, False, False, {"positions": samples}, False, True, s)
+                   for _ in range(3)]
   expected = episode(obs, obs + 1.5, positions)
   wide = np.zeros((4, 4))
   wide[:, ::2] = positions
@@ -440,6 +444,11 @@ def test_observations_of_any_kind_are_read_as_their_values():
     m.begin(obs.reshape(2, 2), False, True, state)
   with pytest.raises(ValueError, match=r"info\['positions'\] must be rows of \(x, y\)"):
     m.advance(obs, -1.0, False, False, {"positions": positions.ravel()}, False, True, state)
+  for longer in (np.append(obs, 1.0), [*obs, 1.0]):       # as it is / copied
+    m.begin(obs, False, True, state)
+    m.advance(obs, -1.0, False, False, {}, False, True, state)
+    with pytest.raises(ValueError, match="obs is not of the length of the episode's first"):
+      m.advance(longer, -1.0, False, False, {}, False, True, state)
 
 
 def test_an_observation_of_another_length_leaves_the_fused_loop_as_it_was():
