@@ -10,8 +10,10 @@ by tens of percent within minutes; two compiles at once see the same minute).
 
 A checkout runs from its source tree (PYTHONPATH), with this environment's
 dependencies. What is timed: `agents.train(task, episodes=2, seed=0)` in a fresh
-process (the import apart), which compiles everything a first train needs. Stop
-other work on the machine meanwhile.
+process (the import apart), which compiles everything a first train needs; with
+`--whole`, the whole process of `hpg-mj train TASK --episodes 2` (start-up, import,
+the train, its greedy evaluation and what it writes), the command a user runs first.
+Stop other work on the machine meanwhile.
 """
 import argparse
 import os
@@ -30,14 +32,21 @@ start = time.process_time()
 agents.train(task, episodes=2, seed=0)
 print(time.process_time() - start)
 """
+_WHOLE = """
+import sys, tempfile, time
+from hpg_mj import cli
+cli.main(["train", sys.argv[1], "--episodes", "2", "--out", tempfile.mkdtemp() + "/first",
+          "--force", "--quiet"])
+print(time.process_time())
+"""
 
 
-def _start(checkout, task, core):
+def _start(checkout, task, core, program):
   env = dict(os.environ, PYTHONPATH=str(checkout), NUMBA_CACHE_DIR=tempfile.mkdtemp())
   # cwd: `python -c` puts the working directory first on sys.path, ahead of PYTHONPATH;
   # from any other directory holding an hpg_mj (this checkout's root), both sides
   # would import that one.
-  return subprocess.Popen([sys.executable, "-c", _TIMED, task], env=env, text=True,
+  return subprocess.Popen([sys.executable, "-c", program, task], env=env, text=True,
                           cwd=str(checkout),
                           stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                           preexec_fn=lambda: os.sched_setaffinity(0, {core}))
@@ -50,11 +59,11 @@ def _seconds(process, checkout):
   return float(out.strip().splitlines()[-1])
 
 
-def pair(task, reference, cores):
+def pair(task, reference, cores, program=_TIMED):
   """(reference's seconds, this checkout's seconds), compiled at the same time on
   `cores` (reference's first)."""
-  ref = _start(reference, task, cores[0])
-  this = _start(HERE, task, cores[1])
+  ref = _start(reference, task, cores[0], program)
+  this = _start(HERE, task, cores[1], program)
   return _seconds(ref, reference), _seconds(this, HERE)
 
 
@@ -65,6 +74,8 @@ def main(argv=None):
   parser.add_argument("--tasks", nargs="+", default=["ship_hybrid"],
                       help="shipped task names or task files")
   parser.add_argument("--rounds", type=int, default=6)
+  parser.add_argument("--whole", action="store_true",
+                      help="time the whole `hpg-mj train TASK --episodes 2` process")
   args = parser.parse_args(argv)
   if not (args.reference / "hpg_mj").is_dir():
     parser.error(f"--reference {args.reference}: no hpg_mj package there; give a checkout")
@@ -77,7 +88,7 @@ def main(argv=None):
     ratios = []
     for r in range(args.rounds):
       pinned = (cores[0], cores[1]) if r % 2 == 0 else (cores[1], cores[0])
-      ref, this = pair(task, args.reference, pinned)
+      ref, this = pair(task, args.reference, pinned, _WHOLE if args.whole else _TIMED)
       ratios.append(this / ref)
       print(f"{task} round {r + 1}: reference {ref:.1f} s, this {this:.1f} s "
             f"(x{this / ref:.2f})", flush=True)
