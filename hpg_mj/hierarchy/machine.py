@@ -1675,7 +1675,7 @@ class Machine:
     go to the compiled code as they are, which reads them within the call and keeps
     none; others are first copied into arrays of the machine's own (`_observation`,
     `_positions`), as every call through `_compiled` has them: an entry point checks
-    only an array's item size, and copying both cost ~0.5 us of a ~10 us step through
+    only an array's item size, and copying both cost ~0.7 us of a ~10 us step through
     the MuJoCo ship."""
     samples = _NO_SAMPLES
     if info:
@@ -1703,7 +1703,7 @@ class Machine:
       samples = self._positions(samples)
     out = self._compiled(_advance_with, self._observation(obs, within_episode=True), samples,
                          float(reward), bool(terminated), bool(truncated), rng_state)
-    if rng_state is self._state_seen:   # (not a copy in C order of it)
+    if rng_state is self._state_seen:   # not a strided state, which went in as a C copy
       self._advancing = (rng_state, self._entries[(_advance_with, self._state_kind)])
     return out
 

@@ -1,6 +1,8 @@
 """The start, reward and ending of each ship task (SPEC sections 2-3), shared by
 the analytic and the MuJoCo backend; free of MuJoCo, so that the analytic ship
 imports neither mujoco nor dm_control (SPEC section 9)."""
+import functools
+
 import numba
 import numpy as np
 
@@ -100,15 +102,10 @@ class ShipRules:
     return reward, terminated, truncated, self.event_names[event]
 
 
-_OUTCOME = []
-
-
+@functools.cache
 def _task_outcome():
   """`core.task_outcome`'s entry point for a backend's arrays (`ShipRules.judge`),
   compiled or loaded from numba's cache at the first step of the process."""
-  if not _OUTCOME:
-    f64 = numba.float64
-    _OUTCOME.append(core.task_outcome.compile(
-        (f64[:, ::1], f64[::1], numba.int64, numba.boolean, f64[::1], f64, numba.int64, f64,
-         f64)))
-  return _OUTCOME[0]
+  f64 = numba.float64
+  return core.task_outcome.compile(
+      (f64[:, ::1], f64[::1], numba.int64, numba.boolean, f64[::1], f64, numba.int64, f64, f64))

@@ -93,6 +93,26 @@ def test_steer_rewards():
                                                                               None)
 
 
+def test_evaluate_reads_any_kind_of_array_and_refuses_a_wrong_shape():
+  """`evaluate` hands `judge` (numba's entry point, which would misread them) float64
+  arrays in C order: integer, Fortran-ordered and strided samples give what their
+  values give; samples that are not rows of (x, y), or a state not of four numbers,
+  are refused in one line."""
+  rules = ship.ShipRules("steer")
+  state = np.array([500.0, 500.0, 0.0, 0.0])
+  samples = np.array([[400.0, 399.0], [400.0, 401.0]])
+  expected = (99.0, True, False, "gate")
+  wide = np.zeros((2, 4))
+  wide[:, ::2] = samples
+  for kind in (samples.astype(np.int64), np.asfortranarray(samples), wide[:, ::2]):
+    assert rules.evaluate(kind, state[::1], 1) == expected
+  assert rules.evaluate(samples, np.repeat(state, 2)[::2], 1) == expected
+  for bad_samples, bad_state in ((samples.ravel(), state), (samples, state[:3])):
+    with pytest.raises(ValueError, match=r"^ShipRules.evaluate: samples must be rows of "
+                                         r"\(x, y\) and end_state .*, got shapes"):
+      rules.evaluate(bad_samples, bad_state, 1)
+
+
 def test_shaping_reward():
   # Pointing straight at the goal: G = 0; 30 degrees off: exp(-1) - 1.
   assert core.shaping_reward(40.0, 40.0, 45.0, 140.0, 140.0) == pytest.approx(0.0, abs=1e-12)
