@@ -24,6 +24,7 @@ class GymAdapter:
 
   def __init__(self, env):
     self.env = env
+    self.values = env.step     # `step`'s fields as the environment gives them (`step_values`)
 
   def reset(self, start=None):
     options = None if start is None else {"state": start}
@@ -31,7 +32,7 @@ class GymAdapter:
     return obs
 
   def step(self, action):
-    obs, reward, terminated, truncated, info = self.env.step(action)
+    obs, reward, terminated, truncated, info = self.values(action)
     return Step(obs, float(reward), bool(terminated), bool(truncated), info)
 
 
@@ -92,21 +93,21 @@ def adapter_for(env):
 
 def step_values(adapter):
   """`adapter.step` as a function of the action that returns the Step's fields as a
-  tuple, (obs, reward, terminated, truncated, info): for an adapter of exactly these
-  two kinds, not a subclass (which may watch each step), without a Step made at each
-  step (the step-by-step path's Python is a third of its time beside the MuJoCo
-  ship): a GymAdapter's is its environment's own `step` (the reward and flags as the
-  environment gives them), a DmControlAdapter's its `values`."""
-  kind = type(adapter)
-  if kind is GymAdapter:
-    return adapter.env.step
-  if kind is DmControlAdapter:
+  tuple, (obs, reward, terminated, truncated, info): an adapter whose `step` is the
+  one of these classes (not a subclass's own, which may watch each step) gives its
+  `values`, without a Step made at each step (the step-by-step path's Python is a
+  third of its time beside the MuJoCo ship); a GymAdapter's are its environment's
+  own `step`'s, the reward and flags as the environment gives them."""
+  if type(adapter).step in _PLAIN_STEPS:
     return adapter.values
 
   def values(action):
     step = adapter.step(action)
     return step.obs, step.reward, step.terminated, step.truncated, step.info
   return values
+
+
+_PLAIN_STEPS = (GymAdapter.step, DmControlAdapter.step)
 
 
 class Executor:

@@ -1691,8 +1691,7 @@ class Machine:
         k.restart[:] = obs
         k.episode[E_RESTART] = 1
         obs = before
-    if learn is not self._flags_set[0] or sample is not self._flags_set[1]:
-      self._flags(learn, sample)
+    self._flags(learn, sample)
     state, entry = self._advancing
     if state is rng_state:          # `_compiled`'s entry point for this state, called as it would
       if type(obs) is not np.ndarray or obs.dtype is not _F64 or obs.strides != _VECTOR:
