@@ -6,6 +6,7 @@ import json
 import pathlib
 import subprocess
 import sys
+import tempfile
 
 import numpy as np
 import pytest
@@ -110,7 +111,10 @@ def test_native_vec_env_rescales_and_refuses_what_it_cannot_adapt():
 # ---- the agents -----------------------------------------------------------------------
 
 @pytest.mark.parametrize("name", sorted(TINY))
-def test_agent_trains_saves_resumes_bit_for_bit_and_evaluates(tmp_path, name):
+def test_agent_trains_saves_resumes_bit_for_bit_and_evaluates(tmp_path, monkeypatch, name):
+  temporary = tmp_path / "temporary"                # where SB3 would make its log folders
+  temporary.mkdir()
+  monkeypatch.setattr(tempfile, "tempdir", str(temporary))
   task = agents.load_task(tiny_task(tmp_path, name))
   agent = agents.build(task, seed=4)
   record = agent.train(2)
@@ -137,6 +141,7 @@ def test_agent_trains_saves_resumes_bit_for_bit_and_evaluates(tmp_path, name):
     assert 0.0 <= metrics["gate_pass_rate"] <= 1.0 and metrics["J"] < 0
   else:
     assert metrics["optimal_mean_return"] > metrics["mean_return"]
+  assert not list(temporary.glob("SB3-*"))         # trained, resumed: no log folder left
 
 
 def test_ship_greedy_episode_is_the_single_environments(tmp_path):

@@ -193,8 +193,9 @@ class _SB3Agent:
   def _build(self):
     cls = self._algorithm_class()
     self.env = self._native(self.section.n_envs)
-    self.model = cls("MlpPolicy", self.env, seed=self.seed, device="cpu", verbose=0,
-                     **_model_kwargs(self.algorithm, self.section))
+    self.model = _without_log_folders(
+        cls("MlpPolicy", self.env, seed=self.seed, device="cpu", verbose=0,
+            **_model_kwargs(self.algorithm, self.section)))
 
   def _ensure_model(self):
     if self.model is None:
@@ -351,7 +352,18 @@ class _SB3Agent:
       raise storage.AgentFileError(f"{where}: its SB3 state does not load: {err}") from None
     _set_generators(extra)
     model.action_space.np_random.bit_generator.state = extra["action_space"]
-    self.model, self.env, self._pending = model, extra["env"], list(extra["pending"])
+    self.model, self.env = _without_log_folders(model), extra["env"]
+    self._pending = list(extra["pending"])
+
+
+def _without_log_folders(model):
+  """`model` with a logger that writes nowhere. Without one of its own, SB3 makes a
+  logger at every `learn` call, and a logger without a folder makes a new empty
+  folder (SB3-<date-time>) in the temporary directory: one per chunk of training,
+  ~170 per run of this project's tests. Its records (verbose=0) went nowhere anyway."""
+  from stable_baselines3.common.logger import Logger
+  model.set_logger(Logger(folder=None, output_formats=[]))
+  return model
 
 
 def _generators():
