@@ -35,14 +35,15 @@ print(time.process_time() - start)
 _WHOLE = """
 import sys, tempfile, time
 from hpg_mj import cli
-cli.main(["train", sys.argv[1], "--episodes", "2", "--out", tempfile.mkdtemp() + "/first",
-          "--force", "--quiet"])
+with tempfile.TemporaryDirectory() as out:
+  cli.main(["train", sys.argv[1], "--episodes", "2", "--out", out + "/first", "--force",
+            "--quiet"])
 print(time.process_time())
 """
 
 
-def _start(checkout, task, core, program):
-  env = dict(os.environ, PYTHONPATH=str(checkout), NUMBA_CACHE_DIR=tempfile.mkdtemp())
+def _start(checkout, task, core, program, cache):
+  env = dict(os.environ, PYTHONPATH=str(checkout), NUMBA_CACHE_DIR=cache)
   # cwd: `python -c` puts the working directory first on sys.path, ahead of PYTHONPATH;
   # from any other directory holding an hpg_mj (this checkout's root), both sides
   # would import that one.
@@ -62,9 +63,10 @@ def _seconds(process, checkout):
 def pair(task, reference, cores, program=_TIMED):
   """(reference's seconds, this checkout's seconds), compiled at the same time on
   `cores` (reference's first)."""
-  ref = _start(reference, task, cores[0], program)
-  this = _start(HERE, task, cores[1], program)
-  return _seconds(ref, reference), _seconds(this, HERE)
+  with tempfile.TemporaryDirectory() as a, tempfile.TemporaryDirectory() as b:
+    ref = _start(reference, task, cores[0], program, a)
+    this = _start(HERE, task, cores[1], program, b)
+    return _seconds(ref, reference), _seconds(this, HERE)
 
 
 def main(argv=None):
