@@ -39,10 +39,10 @@ class _CollectorPause(event.Listener):
   young objects once when that compile ends. numba's compiler makes hundreds of
   thousands of objects in reference cycles (IR blocks and their scopes, types); their
   allocation set off the collector, and each of its full collections walked the whole
-  heap again: ~1.7 s of the ship hybrid's first train (~9.5-12 s on two cores), and one
-  collection after the compile ~0.5 s. A collector the process turned off stays off,
-  and a compile of code outside hpg_mj is left as it is. numba compiles under one lock,
-  so the depth needs none."""
+  heap again: 1.7-1.8 s of the ship hybrid's first trains of 11.8-12.0 s (the
+  collector's own callbacks), 0.6-0.75 s in all with the pause. A collector the
+  process turned off stays off, and a compile of code outside hpg_mj is left as it
+  is. numba compiles under one lock, so the depth needs none."""
 
   def __init__(self):
     self.depth = 0
@@ -50,13 +50,14 @@ class _CollectorPause(event.Listener):
 
   def on_start(self, ev):
     self.depth += 1
+    function = getattr(ev.data.get("dispatcher"), "py_func", None)
     if self.depth == 1 and gc.isenabled() and \
-        getattr(ev.data["dispatcher"].py_func, "__module__", "").startswith("hpg_mj."):
+        (getattr(function, "__module__", None) or "").startswith("hpg_mj."):
       gc.disable()
       self.paused = True
 
   def on_end(self, ev):
-    self.depth -= 1
+    self.depth = max(self.depth - 1, 0)     # 0: registered while a compile ran
     if self.depth == 0 and self.paused:
       self.paused = False
       gc.enable()
