@@ -7,6 +7,7 @@ their own runs and checks (RUN_ELSEWHERE) are not run twice."""
 import pathlib
 import re
 import sys
+import tempfile
 
 import pytest
 
@@ -68,6 +69,9 @@ def test_the_blocks_run_elsewhere_are_run_there(heading):
 @pytest.mark.parametrize("name", sorted(SOURCES))
 def test_every_python_block_runs(name, tmp_path, monkeypatch):
   monkeypatch.chdir(tmp_path)
+  # A user's own SB3 model (getting_started's blocks) makes a log folder in the
+  # temporary directory at each `learn`: kept in this test's folder.
+  monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
   namespace = {"__name__": "doc_block"}
   for k, code in enumerate(blocks(SOURCES[name])):
     exec(compile(code, f"{name}, Python block {k + 1}", "exec"), namespace)
