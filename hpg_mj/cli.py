@@ -581,19 +581,27 @@ def _reproduce_reference(args):
   return rc
 
 
-def _cmd_demo(args):
-  """After the quick reproduction (scripts/run.sh): videos of the scripted ship and
-  taxi, the ship's verification and the environment benchmark."""
+def _demo_commands(out, seconds):
+  """The commands `hpg-mj demo` runs, as a user would type them: videos of the
+  scripted ship and taxi in `out` (the demo's own file names, replaced when it runs
+  again), the ship's verification and the environment benchmark."""
   import pathlib
-  out = pathlib.Path(args.out)
-  rc = _cmd_render(argparse.Namespace(domain="ship", task="steer", policy="scripted", seed=3,
-                                      out=out / "ship_steer_scripted.mp4", gif=False,
-                                      width=640, height=480, max_steps=None, backend="mujoco"))
-  rc |= _cmd_render(argparse.Namespace(domain="taxi", task="fuel", policy="scripted", seed=1,
-                                       out=out / "taxi_fuel_scripted.mp4", gif=False,
-                                       width=480, height=480, max_steps=None, backend="mujoco"))
-  rc |= _cmd_verify(argparse.Namespace(what="ship", controls=1000, starts=3, seed=0))
-  rc |= _cmd_bench(argparse.Namespace(what="envs", seconds=args.seconds))
+  out = pathlib.Path(out)
+  return [["render", "--domain", "ship", "--task", "steer", "--seed", "3", "--out",
+           str(out / "ship_steer_scripted.mp4"), "--force"],
+          ["render", "--domain", "taxi", "--task", "fuel", "--seed", "1", "--out",
+           str(out / "taxi_fuel_scripted.mp4"), "--width", "480", "--height", "480", "--force"],
+          ["verify", "ship"],
+          ["bench", "envs", "--seconds", repr(seconds)]]
+
+
+def _cmd_demo(args):
+  """After the quick reproduction (scripts/run.sh): `_demo_commands`, each parsed and
+  run as from the command line (so that it has every option's default)."""
+  rc = 0
+  for argv in _demo_commands(args.out, args.seconds):
+    command = _parse(build_parser(), argv)
+    rc |= command.func(command)
   return rc
 
 
@@ -814,13 +822,18 @@ def build_parser():
   return parser
 
 
-def main(argv=None):
-  import hpg_mj  # noqa: F401  (registers the Gymnasium ids)
-  from hpg_mj._render_worker import RenderingUnavailable
-  parser = build_parser()
+def _parse(parser, argv):
+  """The command line's arguments, checked, with every default filled."""
   args = parser.parse_args(argv)
   if args.command == "render":
     _check_render_args(parser, args)
+  return args
+
+
+def main(argv=None):
+  import hpg_mj  # noqa: F401  (registers the Gymnasium ids)
+  from hpg_mj._render_worker import RenderingUnavailable
+  args = _parse(build_parser(), argv)
   import warnings
 
   from hpg_mj import provenance

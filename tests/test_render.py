@@ -1,4 +1,6 @@
 """Headless videos: frames are drawn, not blank, and change; files are written."""
+import pathlib
+
 import gymnasium
 import imageio.v2 as imageio
 import numpy as np
@@ -57,3 +59,18 @@ def test_scripted_taxi_always_delivers(fuel, env_id):
       obs, reward, terminated, truncated, _ = env.step(pilot(obs))
       total += reward
     assert terminated and total >= 0, (seed, total)
+
+
+def test_the_demo_runs_every_command_and_replaces_its_own_videos(tmp_path, capsys):
+  """`hpg-mj demo` ends the README's main job (scripts/run.sh), which runs again over
+  its own earlier videos."""
+  from hpg_mj import cli
+  videos = [pathlib.Path(argv[argv.index("--out") + 1])
+            for argv in cli._demo_commands(tmp_path, 0.05) if argv[0] == "render"]
+  for path in videos:
+    path.write_bytes(b"an earlier demo's video")
+  assert cli.main(["demo", "--out", str(tmp_path), "--seconds", "0.05"]) == 0
+  for path in videos:
+    _check_frames([np.asarray(f)[..., :3] for f in imageio.mimread(path)])
+  out = capsys.readouterr().out
+  assert "bounds (< 0.25 m" in out and "Gymnasium Taxi-v4" in out    # verify, bench envs
