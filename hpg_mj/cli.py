@@ -598,9 +598,9 @@ def _demo_commands(out, seconds):
 def _cmd_demo(args):
   """After the quick reproduction (scripts/run.sh): `_demo_commands`, each parsed and
   run as from the command line (so that it has every option's default)."""
-  rc = 0
+  parser, rc = build_parser(), 0
   for argv in _demo_commands(args.out, args.seconds):
-    command = _parse(build_parser(), argv)
+    command = _parse(parser, argv)
     rc |= command.func(command)
   return rc
 
