@@ -1,0 +1,251 @@
+"""Algorithm 1 of the paper, once, for any task graph (the open machine).
+
+```
+Function HPG(Task i, State s)                         -> a call: `enter(G, i)`
+  if i is primitive: execute it, return its reward    -> `descend` returns the action;
+                                                         the world steps
+  while i has not terminated:                         -> `step`: `judge(G, i)`
+    choose a with mu^i(s, theta^i)                    -> `enter`: the learner's choose
+    R = HPG(Task a, State s)                          -> rewards summed per call
+    observe s' and internal reward G^i(s'|s, a)       -> `judge`: event and G
+    z, theta updates (Eq. 3)                          -> `resume`: the learner's observe
+                                                         (and its next choice)
+```
+
+Every subtask also returns when the episode ends (terminated or truncated). A
+subtask's *run* is a call that ended by its own termination; a call cut short by the
+end of the episode is counted as a call but no run.
+
+This module is the algorithm's text; `hierarchy.program` compiles it once per graph,
+with the graph's own operations written below it: `enter`, `resume`, `judge` and
+`chosen` (each a chain over the graph's nodes that calls the node's kinds,
+`hierarchy.kinds`), `ROOT` (the root's node) and `SEEN_STEP` (whether a node's learner
+sees -1 a primitive step, SPEC section 3, rather than its child's rewards summed). So
+a graph compiles only the kinds it holds, a user's rules and kinds among them, and the
+algorithm never asks which kind a node holds. Its state is one record of named
+arrays (`Frames`), the same on both paths: fused with the analytic ship (`run_ship`)
+and step by step under any environment (`begin`, `advance`).
+"""
+import collections
+
+import numba
+import numpy as np
+
+from hpg_mj.hierarchy import ship_rules
+from hpg_mj.learners import arrays
+from hpg_mj.worlds import ship_core as core
+
+# The machine's state, per node (a node is on the call stack at most once: the graph
+# is acyclic) and per run. `stack[d]`: the node called at depth d. Per node: its
+# `choice` (a child's index) and `action` (a continuous child's value), its call's
+# primitive `steps`, the steps and the summed `reward` of its current child's run,
+# the `origin` (the observation where the call began), its arguments (`args`, as
+# its `Child` bound them), its features (`x`: a features view's numbers), and its
+# `counters` [calls, runs, successes] in this episode. Per run: the `episode`
+# [depth of the primitive, steps, the root's last event, learning episodes], the
+# return (`total`), `flags` [learn, sample], the generator (`rng`, copied in and
+# out around a compiled call), the `fault` a boundary check wrote
+# (`hierarchy.boundary`), the observation (`obs`) and the positions sampled in the
+# ship's step (`samples`).
+Frames = collections.namedtuple("Frames", (
+    "stack", "choice", "action", "steps", "child_steps", "reward", "origin", "args", "x",
+    "counters", "episode", "total", "flags", "rng", "fault", "obs", "samples"))
+E_DEPTH, E_STEPS, E_EVENT, E_LEARNED = range(4)
+LEARN, SAMPLE = range(2)
+CALLS, RUNS, SUCCESSES = range(3)
+# A record row (as `hierarchy.machine`'s): how the episode ended, its steps, its
+# return, 0, then calls, runs and successes of each node.
+ROW_END, ROW_STEPS, ROW_RETURN, ROW_ILLEGAL, ROW_COUNTERS = range(5)
+NO_EVENT, SUCCESS = core.NO_EVENT, core.SUCCESS
+
+# Compiled without reference counting (the state is views of arrays it never frees),
+# and, but for the entry points (`_ENTRY`), without the wrappers that let Python or a
+# C caller call a function: nothing does, and each wrapper cost about a quarter of a
+# second of a graph's first compile.
+_JIT = dict(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+            no_cfunc_wrapper=True)
+_ENTRY = dict(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+
+
+# ---- the graph's operations (written per graph by `hierarchy.program`) -------------
+
+def enter(G, node):
+  """Task `node` is called in the observation G.M.obs: its learner starts (z <- 0),
+  views the state and makes its first choice."""
+  raise NotImplementedError("compiled per graph by hierarchy.program")
+
+
+def resume(G, node, signal, done, terminal):
+  """The learner of `node` takes R + G = `signal` of its child's run in s' (its view
+  of G.M.obs) and, unless `done`, makes its next choice."""
+  raise NotImplementedError("compiled per graph by hierarchy.program")
+
+
+def judge(G, node):
+  """After a child of `node` returned: (the call's event by its termination, G)."""
+  raise NotImplementedError("compiled per graph by hierarchy.program")
+
+
+def chosen(G, node):
+  """The child `node` chose: a subtask's node, its arguments bound (`G.M.args`); or
+  -1 for a primitive, whose action is then `G.M.action[node]`."""
+  raise NotImplementedError("compiled per graph by hierarchy.program")
+
+
+ROOT = 0
+SEEN_STEP = (False,)
+
+
+# ---- Algorithm 1 ----------------------------------------------------------------
+
+@numba.njit(**_JIT)
+def call(G, d, node):
+  """Task `node` is called at depth d."""
+  M = G.M
+  M.stack[d] = node
+  M.steps[node] = 0
+  M.child_steps[node] = 0
+  M.reward[node] = 0.0
+  arrays.copy_into(M.origin[node], M.obs)
+  enter(G, node)
+
+
+@numba.njit(**_JIT)
+def descend(G, d):
+  """From depth d, calls the chosen children down to a primitive; returns its action."""
+  M = G.M
+  while True:
+    child = chosen(G, M.stack[d])
+    if child < 0:
+      M.episode[E_DEPTH] = d
+      return M.action[M.stack[d]]
+    d += 1
+    call(G, d, child)
+
+
+@numba.njit(**_JIT)
+def begin(G):
+  """An episode starts in G.M.obs: the root is called; returns the first action."""
+  M = G.M
+  for i in range(M.counters.shape[0]):
+    for j in range(3):
+      M.counters[i, j] = 0.0
+  M.episode[E_STEPS] = 0
+  M.episode[E_EVENT] = NO_EVENT
+  M.total[0] = 0.0
+  call(G, 0, ROOT)
+  return descend(G, 0)
+
+
+@numba.njit(**_JIT)
+def step(G, reward, terminated, truncated):
+  """A primitive step ended in G.M.obs with `reward`. Returns (episode over, the next
+  action): each call from the primitive's parent up judges whether it has ended
+  (and, its learner having observed, returns to its parent), the first that goes on
+  chooses again and descends."""
+  M = G.M
+  learn = M.flags[LEARN]
+  depth = M.episode[E_DEPTH]
+  for level in range(depth + 1):
+    node = M.stack[level]
+    M.reward[node] += reward
+    M.steps[node] += 1
+    M.child_steps[node] += 1
+  M.episode[E_STEPS] += 1
+  M.total[0] += reward
+  over = terminated or truncated
+  d = depth
+  while True:
+    node = M.stack[d]
+    event, internal = judge(G, node)
+    done = event != NO_EVENT or over
+    terminal = terminated or event != NO_EVENT
+    seen = core.STEP_REWARD * M.child_steps[node] if SEEN_STEP[node] else M.reward[node]
+    M.reward[node] = 0.0
+    M.child_steps[node] = 0
+    resume(G, node, seen + internal, done, terminal)
+    if not done:
+      return False, descend(G, d)
+    # The call returns (Algorithm 1: return to the parent).
+    if d == 0:
+      M.episode[E_EVENT] = event
+      if learn:
+        M.episode[E_LEARNED] += 1
+      return True, 0.0
+    c = M.counters[node]
+    c[CALLS] += 1
+    if not over:
+      c[RUNS] += 1
+      c[SUCCESSES] += event == SUCCESS
+    d -= 1
+
+
+# ---- the two paths -------------------------------------------------------------
+
+@numba.njit(**_ENTRY)
+def run_ship(G, n_episodes, rng_state, world, record, fixed_start):
+  """`n_episodes` episodes of the full ship task on Equation 1 (SPEC section 2):
+  `world` = [gate reward, out-of-bounds reward, max steps]; each from `fixed_start`
+  if it has 4 numbers, else from a start drawn from the generator. Record rows as
+  ROW_END ...: passed the gate, steps, return, 0, then the nodes' counters."""
+  M = G.M
+  state, samples = M.obs, M.samples
+  arrays.copy_into(M.rng, rng_state)
+  max_steps = np.int64(world[2])
+  for episode in range(n_episodes):
+    if fixed_start.shape[0] == 4:
+      arrays.copy_into(state, fixed_start)
+    else:
+      ship_rules.sample_start(M.rng, state)
+    action = begin(G)
+    event = NO_EVENT
+    while True:
+      core.euler_control(state, action, samples)
+      event, reward = core.global_outcome(samples, world[0], world[1])
+      terminated = event != NO_EVENT
+      truncated = (not terminated) and M.episode[E_STEPS] + 1 >= max_steps
+      over, action = step(G, reward, terminated, truncated)
+      if over:
+        break
+    write_row(M, record[episode], 1.0 if event == SUCCESS else 0.0)
+  arrays.copy_into(rng_state, M.rng)
+
+
+@numba.njit(**_JIT)
+def write_row(M, row, end):
+  """The record row of the episode just ended."""
+  row[ROW_END] = end
+  row[ROW_STEPS] = M.episode[E_STEPS]
+  row[ROW_RETURN] = M.total[0]
+  row[ROW_ILLEGAL] = 0.0
+  for i in range(M.counters.shape[0]):
+    for j in range(3):
+      row[ROW_COUNTERS + 3 * i + j] = M.counters[i, j]
+
+
+@numba.njit(**_ENTRY)
+def begin_at(G, obs, rng_state):
+  """The step-by-step path: an episode starts in `obs`; returns the first action."""
+  M = G.M
+  arrays.copy_into(M.obs, obs)
+  arrays.copy_into(M.rng, rng_state)
+  action = begin(G)
+  arrays.copy_into(rng_state, M.rng)
+  return action
+
+
+@numba.njit(**_ENTRY)
+def advance(G, obs, samples, reward, terminated, truncated, rng_state):
+  """The step-by-step path: the environment stepped to `obs` (`samples`: the ship's
+  positions sampled in the step, if the environment gave them). Returns (episode
+  over, the next action)."""
+  M = G.M
+  arrays.copy_into(M.obs, obs)
+  if samples.shape[0] == M.samples.shape[0]:
+    for i in range(samples.shape[0]):
+      M.samples[i, 0] = samples[i, 0]
+      M.samples[i, 1] = samples[i, 1]
+  arrays.copy_into(M.rng, rng_state)
+  out = step(G, reward, terminated, truncated)
+  arrays.copy_into(rng_state, M.rng)
+  return out

@@ -1,0 +1,178 @@
+"""The machine's boundary with a user's code: every value a rule gives (a view's
+state or features, a termination's event, an internal reward) passes one of these
+checks before it reaches an array, on both paths (fused and step by step: the same
+compiled code).
+
+A value out of bounds or of the wrong type does not raise inside compiled code with
+its value (numba's exceptions carry constants only in code compiled without
+reference counting): the check writes what it saw into the program's `fault`
+record, [what, value, which check failed, the length given], and raises `Fault`;
+the program's Python side (`hierarchy.program`) turns that into one line naming the
+node, the value and what was expected. The checks are chosen by the value's type
+when compiled (`numba.extending.overload`), so a float where a state is due is a
+refusal, not a truncation.
+"""
+import math
+
+import numba
+import numpy as np
+from numba import types
+from numba.extending import overload
+
+# What failed (the fault record's [2]).
+OUT_OF_RANGE, NOT_AN_INTEGER, WRONG_LENGTH, NOT_FINITE, NOT_NUMBERS, NOT_AN_EVENT = range(1, 7)
+FAULT_MESSAGE = "hpg_mj: a rule's value was refused at the machine's boundary (see the fault)"
+# The type numba saw where a rule gave something that is not numbers, by check
+# (filled when the check is compiled; empty when it came from the cache).
+SEEN_TYPES = {}
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False)
+def fail(fault, what, value, code, length):
+  """Writes the fault record and raises (the Python side reads the record)."""
+  fault[0] = what
+  fault[1] = value
+  fault[2] = code
+  fault[3] = length
+  raise ValueError(FAULT_MESSAGE)
+
+
+def _number(t):
+  return isinstance(t, (types.Integer, types.Float, types.Boolean))
+
+
+def as_state(value, n_states, fault, what):
+  """`value` as a table's state: an integer in [0, n_states)."""
+
+
+@overload(as_state, inline="always")
+def _as_state(value, n_states, fault, what):
+  if isinstance(value, (types.Integer,)) and not isinstance(value, types.Boolean):
+    def state(value, n_states, fault, what):
+      s = np.int64(value)
+      if s < 0 or s >= n_states:
+        fail(fault, what, float(value), OUT_OF_RANGE, 0.0)
+      return s
+    return state
+  if isinstance(value, types.Float):
+    def not_integer(value, n_states, fault, what):
+      fail(fault, what, float(value), NOT_AN_INTEGER, 0.0)
+      return np.int64(0)
+    return not_integer
+  SEEN_TYPES[("state", str(value))] = str(value)
+
+  def not_numbers(value, n_states, fault, what):
+    fail(fault, what, np.nan, NOT_NUMBERS, 0.0)
+    return np.int64(0)
+  return not_numbers
+
+
+def as_features(value, out, fault, what):
+  """`value` (a number, or a tuple of numbers of `out`'s length) written into `out`."""
+
+
+@overload(as_features, inline="always")
+def _as_features(value, out, fault, what):
+  if _number(value):
+    def one(value, out, fault, what):
+      if out.shape[0] != 1:
+        fail(fault, what, np.nan, WRONG_LENGTH, 1.0)
+      v = float(value)
+      if not math.isfinite(v):
+        fail(fault, what, v, NOT_FINITE, 1.0)
+      out[0] = v
+    return one
+  if isinstance(value, types.UniTuple) and _number(value.dtype):
+    n = value.count
+
+    def many(value, out, fault, what):
+      if out.shape[0] != n:
+        fail(fault, what, np.nan, WRONG_LENGTH, float(n))
+      for i in range(n):
+        v = float(value[i])
+        if not math.isfinite(v):
+          fail(fault, what, v, NOT_FINITE, float(n))
+        out[i] = v
+    return many
+  if isinstance(value, types.Tuple) and all(_number(t) for t in value.types):
+    n = len(value.types)
+
+    def mixed(value, out, fault, what):
+      if out.shape[0] != n:
+        fail(fault, what, np.nan, WRONG_LENGTH, float(n))
+      k = 0
+      for v in numba.literal_unroll(value):
+        f = float(v)
+        if not math.isfinite(f):
+          fail(fault, what, f, NOT_FINITE, float(n))
+        out[k] = f
+        k += 1
+    return mixed
+
+  def not_numbers(value, out, fault, what):
+    fail(fault, what, np.nan, NOT_NUMBERS, 0.0)
+  return not_numbers
+
+
+def as_event(value, fault, what):
+  """`value` as a call's event: 0 go on, 1 success, -1 failure (a bool: True is 1)."""
+
+
+@overload(as_event, inline="always")
+def _as_event(value, fault, what):
+  if isinstance(value, types.Boolean):
+    return lambda value, fault, what: np.int64(1) if value else np.int64(0)
+  if isinstance(value, types.Integer):
+    def event(value, fault, what):
+      e = np.int64(value)
+      if e != 0 and e != 1 and e != -1:
+        fail(fault, what, float(value), NOT_AN_EVENT, 0.0)
+      return e
+    return event
+  if isinstance(value, types.Float):
+    def not_integer(value, fault, what):
+      fail(fault, what, float(value), NOT_AN_INTEGER, 0.0)
+      return np.int64(0)
+    return not_integer
+
+  def not_numbers(value, fault, what):
+    fail(fault, what, np.nan, NOT_NUMBERS, 0.0)
+    return np.int64(0)
+  return not_numbers
+
+
+def as_reward(value, fault, what):
+  """`value` as an internal reward: a finite number."""
+
+
+@overload(as_reward, inline="always")
+def _as_reward(value, fault, what):
+  if _number(value):
+    def reward(value, fault, what):
+      g = float(value)
+      if not math.isfinite(g):
+        fail(fault, what, g, NOT_FINITE, 0.0)
+      return g
+    return reward
+
+  def not_numbers(value, fault, what):
+    fail(fault, what, np.nan, NOT_NUMBERS, 0.0)
+    return 0.0
+  return not_numbers
+
+
+def explain(fault, whats):
+  """The one line for a fault record; `whats[i]` = (node, what it is, what is allowed)."""
+  node, what, allowed = whats[int(fault[0])]
+  code, value, length = int(fault[2]), float(fault[1]), int(fault[3])
+  if code == OUT_OF_RANGE or code == NOT_AN_EVENT:
+    said = f"gave {value:g}"
+  elif code == NOT_AN_INTEGER:
+    said = f"gave {value!r} (a float)"
+  elif code == WRONG_LENGTH:
+    said = f"gave {length} number{'s' if length != 1 else ''}"
+  elif code == NOT_FINITE:
+    said = f"gave {value!r}"
+  else:
+    said = "gave a value that is not numbers"
+  return f"subtask {node!r}: its {what} {said}; expected {allowed}"

@@ -1,0 +1,52 @@
+"""Block kinds: one module each (`hierarchy.kinds.base` says what a kind is), found
+through one registration. `register(kind)` adds a kind, ours or a user's; `kind_of`
+finds the kind of a block by its class (or a base class of it)."""
+from hpg_mj.hierarchy.graph import GraphError
+from hpg_mj.hierarchy.kinds import base
+
+ROLES = ("learner", "view", "termination", "reward")
+_KINDS = {}          # (role, block class) -> kind
+
+
+def register(kind):
+  """Registers `kind` (an instance of a `hierarchy.kinds.base.Kind` subclass) for the
+  blocks of its class `kind.block` in its `kind.role`; returns it. A kind registered
+  again for the same block and role replaces the earlier one (a user's module run
+  twice in a notebook)."""
+  if not isinstance(kind, base.Kind):
+    raise TypeError(f"register: {kind!r} is not a hpg_mj.hierarchy.kinds.base.Kind")
+  if kind.role not in ROLES:
+    raise ValueError(f"register: {type(kind).__name__}.role = {kind.role!r}; allowed: "
+                     f"{list(ROLES)}")
+  if not isinstance(kind.block, type):
+    raise TypeError(f"register: {type(kind).__name__}.block = {kind.block!r}: must be the "
+                    "class of the blocks it runs")
+  for op in {"learner": ("start", "choose", "observe"), "view": ("view",),
+             "termination": ("end",), "reward": ("reward",)}[kind.role]:
+    if getattr(kind, op, None) is None and not getattr(kind, "takes_settings", True) is False:
+      raise TypeError(f"register: {type(kind).__name__}.{op} is missing: a {kind.role} kind "
+                      "gives its compiled operations (hpg_mj.hierarchy.kinds.base)")
+  _KINDS[(kind.role, kind.block)] = kind
+  return kind
+
+
+def kind_of(block, role, node):
+  """The kind of `block` in `role` for subtask `node`; a one-line GraphError naming the
+  node and the registered blocks when there is none."""
+  for cls in type(block).__mro__:
+    kind = _KINDS.get((role, cls))
+    if kind is not None:
+      return kind
+  known = sorted(cls.__name__ for (r, cls) in _KINDS if r == role)
+  raise GraphError(f"subtask {node!r}: its {role} {type(block).__name__} has no kind on the "
+                   f"open machine; registered {role}s: {known} (hpg_mj.hierarchy.kinds."
+                   "register adds one)")
+
+
+def _register_shipped():
+  from hpg_mj.hierarchy.kinds import gaussian_cmac, q_table, rules
+  for kind in (q_table.QTableKind(), gaussian_cmac.GaussianCMACKind(), *rules.KINDS):
+    register(kind)
+
+
+_register_shipped()

@@ -1,0 +1,119 @@
+"""What a block kind is: the one narrow interface between Algorithm 1
+(`hierarchy.algorithm`) and the blocks a graph is built from.
+
+A *block* is the data a user puts in a `Subtask` (`QTable(n_states=400)`,
+`Features(my_rule)`); its *kind* is the one module that knows how to run it: its
+Python side (the checks made when a graph is built, its arrays by name, what it
+saves) and its compiled operations. A kind is registered once against its block's
+class (`hierarchy.kinds.register`), and the program of a graph (`hierarchy.program`)
+calls each node's kinds through the operations below, so Algorithm 1 never branches
+on which kind a node holds. Adding a kind, ours or a user's, is one new module.
+
+Roles and their compiled operations (each a `numba.njit` function; `P` the block's
+settings, a namedtuple of numbers and arrays, `L` what it learns, a namedtuple of
+arrays shared by the nodes that share the block, `N` the node's own scratch):
+
+* a **learner** (`LearnerKind`) chooses among the node's children, or draws the value
+  of its one continuous primitive:
+    start(P, L, N)                                  the subtask is called (z <- 0)
+    choose(P, L, N, x, n, rng, learn, sample)       -> the choice (float64: a child's
+                                                       index, or the action's value)
+    observe(P, L, N, x, signal, done, terminal, n, rng, learn, sample)
+                                                    -> the next choice (any value when
+                                                       `done`)
+  `x` is the node's view of the state: an int64 state (`reads = "state"`) or a
+  float64 vector (`reads = "features"`; the learner tiles it itself); in `observe`
+  it is the view of s' (when s' is `terminal`, the view of the state the choice was
+  made in: nothing bootstraps from a terminal state). `n` the node's children,
+  `rng` the run's generator (`learners.rng`: draw only from it), `signal` R + G.
+* a **view** gives the node's learner its state: `view(P, obs, call)` (or, for a
+  user's rule, `rule(obs, call)`) -> an integer state, or a tuple of numbers.
+* a **termination**: `end(P, obs, call)` -> the call's event: 0 go on, 1 success,
+  -1 failure (a bool: True is a success).
+* an **internal reward** G: `reward(P, obs, call, event)` -> a float.
+
+`call` is the call's record: its named arguments (`call.x`, as the parent's
+`Child("goto", x=...)` bound them), `call.origin` (the observation where the call
+began) and `call.steps` (the primitive steps taken in it).
+"""
+import numpy as np
+
+from hpg_mj.hierarchy.graph import GraphError
+
+
+class Kind:
+  """A block kind. `block`: the class of the blocks it runs; `role`: "learner",
+  "view", "termination" or "reward"."""
+
+  block = None
+  role = None
+
+  def settings(self, name, block):
+    """The block's settings as the compiled operations take them (a namedtuple, or
+    None for none)."""
+    return None
+
+  def operation(self, block):
+    """The compiled operation a view, termination or reward kind runs for `block`
+    (its `view`, `end` or `reward`; a user's rule: the rule itself)."""
+    return getattr(self, {"view": "view", "termination": "end", "reward": "reward"}[self.role])
+
+
+class LearnerKind(Kind):
+  """A learner kind (see the module docstring). `reads`: "state" or "features";
+  `continuous`: it draws the value of its node's one continuous primitive."""
+
+  role = "learner"
+  reads = "state"
+  continuous = False
+  start = choose = observe = None          # its compiled operations
+
+  def check(self, name, block, n_children, view_size):
+    """Refuses, naming the node, a block that cannot serve subtask `name` with
+    `n_children` children whose view gives `view_size` (the number of states of a
+    state view, None if it does not know them; the length of a features view)."""
+
+  def size(self, block):
+    """What it reads: its number of states, or the length of its features."""
+    raise NotImplementedError
+
+  def learned(self, block, n_children):
+    """A fresh `L`: the arrays it learns, by name (saved and restored by name)."""
+    raise NotImplementedError
+
+  def scratch(self, block, n_children):
+    """A fresh `N`: a node's own scratch (not saved)."""
+    raise NotImplementedError
+
+
+class ViewKind(Kind):
+  """A view kind: `gives` "state" or "features"; `view` its compiled operation."""
+
+  role = "view"
+  gives = "state"
+  view = None
+  takes_settings = True      # False: `view(obs, call)`, a user's rule
+
+  def size(self, block):
+    """The number of states it gives (None: unknown, the learner's), or the length
+    of its features (None: the learner's)."""
+    return None
+
+
+class TerminationKind(Kind):
+  role = "termination"
+  end = None
+  takes_settings = True
+
+
+class RewardKind(Kind):
+  role = "reward"
+  reward = None
+  takes_settings = True
+
+
+def check_positive_int(block, field, value, low=1):
+  """A block's integer field, refused in one line naming it and what is allowed."""
+  if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+    raise GraphError(f"{type(block).__name__}.{field} = {value!r}: must be an integer >= {low}")
+  return int(value)

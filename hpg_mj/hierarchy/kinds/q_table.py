@@ -1,0 +1,82 @@
+"""The QTable kind: Watkins's Q(lambda) on a table of states x the node's children,
+over the SMDP of its children's runs (SPEC section 3), epsilon-greedy, with
+replacing traces (`learners.qlambda`)."""
+import collections
+
+import numba
+
+from hpg_mj.hierarchy import blocks
+from hpg_mj.hierarchy.graph import GraphError
+from hpg_mj.hierarchy.kinds import base
+from hpg_mj.learners import qlambda
+
+import numpy as np
+
+Settings = collections.namedtuple("Settings", ("alpha", "gamma", "trace_decay", "epsilon"))
+# What it learns (saved by these names): the values Q(s, a) at s * n + a, and the
+# trace's live entries (index, value; count of them).
+Learned = collections.namedtuple("Learned", ("q", "trace_index", "trace_value", "trace_count"))
+# A node's scratch: [s, a], the state its last choice was made in and that choice.
+Scratch = collections.namedtuple("Scratch", ("last",))
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+def start(P, L, N):
+  qlambda.clear(L.trace_count)
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+def choose(P, L, N, x, n, rng, learn, sample):
+  a = qlambda.epsilon_greedy(L.q, x, n, P.epsilon if sample else 0.0, rng)
+  N.last[0] = x
+  N.last[1] = a
+  return float(a)
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+def observe(P, L, N, x, signal, done, terminal, n, rng, learn, sample):
+  """The child returned R + G = signal in s' (x): the next choice a' unless done,
+  then the backup of (s, a, R, s', a') (`qlambda.smdp_step`)."""
+  a = qlambda.smdp_step((L.q, L.trace_index, L.trace_value, L.trace_count), n, N.last[0],
+                        N.last[1], signal, x, n, done, terminal,
+                        P.epsilon if sample else 0.0, P.alpha, P.gamma, P.trace_decay, learn,
+                        rng)
+  N.last[0] = x
+  N.last[1] = a
+  return float(a)
+
+
+class QTableKind(base.LearnerKind):
+  block = blocks.QTable
+  reads = "state"
+
+  def check(self, name, block, n_children, view_size):
+    base.check_positive_int(block, "n_states", block.n_states)
+    base.check_positive_int(block, "trace_capacity", block.trace_capacity)
+    if block.epsilon_schedule:
+      raise GraphError(f"subtask {name!r}: QTable.epsilon_schedule is not run by the open "
+                       "machine yet (hierarchy.program); set epsilon_schedule=False")
+    if view_size is not None and view_size != block.n_states:
+      raise GraphError(f"subtask {name!r}: its view gives {view_size} states, its QTable has "
+                       f"n_states = {block.n_states}")
+
+  def size(self, block):
+    return int(block.n_states)
+
+  def settings(self, name, block):
+    for field in ("alpha", "gamma", "trace_decay", "epsilon"):
+      value = getattr(block, field)
+      if not (isinstance(value, (int, float)) and 0.0 <= value <= 1.0):
+        raise GraphError(f"subtask {name!r}: QTable.{field} = {value!r}: must be a number in "
+                         "[0, 1]")
+    return Settings(float(block.alpha), float(block.gamma), float(block.trace_decay),
+                    float(block.epsilon))
+
+  def learned(self, block, n_children):
+    index, value, count = qlambda.new_trace(int(block.trace_capacity))
+    return Learned(np.zeros(int(block.n_states) * n_children), index, value, count)
+
+  def scratch(self, block, n_children):
+    return Scratch(np.zeros(2, dtype=np.int64))
+
+  start, choose, observe = staticmethod(start), staticmethod(choose), staticmethod(observe)

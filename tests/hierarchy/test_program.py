@@ -1,0 +1,382 @@
+"""The open machine (`hierarchy.program`): a newcomer's hierarchy of their own rules
+and a subtask with arguments, compiled; fused and step by step give the same numbers
+bit for bit, and the Python executor with the step-by-step learners (the oracle)
+gives them too; its learned arrays by name; a user's own learner kind; and every
+wrong value a rule gives refused in one line naming the node, the value and what
+was expected."""
+import collections
+import math
+
+import gymnasium
+import numba
+import numpy as np
+import pytest
+
+import hpg_mj  # noqa: F401  (registers the Gymnasium ids)
+from hpg_mj.hierarchy import algorithm, blocks, executor, kinds
+from hpg_mj.hierarchy.graph import Child, GraphError, Primitive, Subtask, TaskGraph
+from hpg_mj.hierarchy.kinds import base
+from hpg_mj.hierarchy.kinds.rules import Abstraction, Features, InternalReward, Termination
+from hpg_mj.hierarchy.program import Program
+from hpg_mj.learners import rng, stepwise, tiles
+from hpg_mj.worlds import ship_core as core
+
+WAYPOINTS = ((400.0, 300.0), (200.0, 600.0), (700.0, 600.0))
+WORLD = (core.GATE_REWARD, core.OUT_OF_BOUNDS_REWARD, 400)
+
+
+@numba.njit
+def cell(obs, call):
+  """The root's state: the 50 m cell of (x, y) on the 1,000 m field."""
+  i = min(max(int(obs[0] // 50.0), 0), 19)
+  j = min(max(int(obs[1] // 50.0), 0), 19)
+  return i * 20 + j
+
+
+@numba.njit
+def aim(obs, call):
+  """goto(x, y)'s state: the heading error to its point and the turning rate."""
+  bearing = math.degrees(math.atan2(call.x - obs[0], call.y - obs[1]))
+  return ((obs[2] - bearing + 180.0) % 360.0 - 180.0, obs[3])
+
+
+@numba.njit
+def arrived(obs, call):
+  """goto's end: within 25 m of its point (success), or after `call.limit` steps."""
+  if math.hypot(call.x - obs[0], call.y - obs[1]) < 25.0:
+    return 1
+  return -1 if call.steps >= call.limit else 0
+
+
+@numba.njit
+def closer(obs, call, event):
+  """G: 10 for arriving."""
+  return 10.0 * (event == 1)
+
+
+CODER = tiles.TileCoder((-180.0, -15.0), (180.0, 15.0), (12, 6), (True, False), 5)
+
+
+def one_node_graph(view=None, end=None, reward=None, learner=None):
+  """goto alone, the root, for the boundary's checks (a program small to compile):
+  `Program(graph, root_args=GOTO)`."""
+  return TaskGraph("goto", [Primitive("turn"), Subtask(
+      "goto", children=["turn"], termination=end or Termination(arrived),
+      view=view or Features(aim), learner=learner or blocks.GaussianCMAC(CODER, alpha=0.02),
+      internal_reward=reward)])
+
+
+def table_graph(view):
+  """A root alone over three turning rates by a table, for the boundary's checks."""
+  return TaskGraph("root", [Primitive("left", -15.0), Primitive("ahead", 0.0),
+                            Primitive("right", 15.0), Subtask(
+      "root", children=["left", "ahead", "right"], termination=blocks.Never(),
+      view=view, learner=blocks.QTable(400))])
+
+
+GOTO = {"x": 500.0, "y": 400.0, "limit": 30}
+
+
+def waypoint_graph(root_view=None, goto_view=None, end=None, reward=None, learner=None):
+  """The issue's newcomer design: a root choosing among three waypoints, one shared
+  goto(x, y) subtask (integer `limit`: its steps)."""
+  goto = Subtask("goto", children=["turn"], termination=end or Termination(arrived),
+                 view=goto_view or Features(aim),
+                 learner=learner or blocks.GaussianCMAC(CODER, alpha=0.02),
+                 internal_reward=reward or InternalReward(closer), reward=blocks.STEP)
+  root = Subtask("root", children=[Child("goto", x=x, y=y, limit=80) for x, y in WAYPOINTS],
+                 termination=blocks.Never(), view=root_view or Abstraction(cell),
+                 learner=blocks.QTable(400, alpha=0.1, trace_decay=0.9, epsilon=0.2))
+  return TaskGraph("root", [Primitive("turn"), goto, root])
+
+
+def _counter(program, rows, node, what):
+  """A node's counter column of the program's rows (0 calls, 1 runs, 2 successes)."""
+  return rows[:, algorithm.ROW_COUNTERS + 3 * program.index[node] + what]
+
+
+def _start(state):
+  def draw():
+    out = np.empty(4)
+    core_start(state, out)
+    return out
+  return draw
+
+
+def core_start(state, out):
+  from hpg_mj.hierarchy import ship_rules
+  ship_rules.sample_start(state, out)
+
+
+def _gym():
+  return gymnasium.make("hpg_mj/ShipSteering-v0", backend="analytic", max_steps=WORLD[2])
+
+
+def test_fused_and_step_by_step_agree_bit_for_bit():
+  fused, stepped = Program(waypoint_graph()), Program(waypoint_graph())
+  a, b = rng.make_state(3), rng.make_state(3)
+  rows = fused.run(40, True, True, a, WORLD)
+  rows_stepped = stepped.run_stepwise(_gym(), 40, True, True, b, _start(b),
+                                      lambda last: last.info.get("event") == "gate")
+  np.testing.assert_array_equal(rows[:, 1:], rows_stepped[:, 1:])
+  np.testing.assert_array_equal(rows[:, 0], rows_stepped[:, 0])
+  np.testing.assert_array_equal(a, b)
+  assert rows[:, 1].sum() > 1000                  # it sailed
+  assert _counter(fused, rows, "goto", 0).sum() > 40    # goto called, more than once an episode
+  for name, value in fused.state().items():
+    np.testing.assert_array_equal(value, stepped.state()[name], err_msg=name)
+
+
+class _Goto:
+  """The oracle's goto(x, y): the same rules, in Python."""
+
+  @staticmethod
+  def view(call, obs):
+    return CODER.active(np.array(aim.py_func(obs, _PyCall(call))))
+
+
+class _PyCall:
+  def __init__(self, call):
+    self.x, self.y, self.limit = call.args["x"], call.args["y"], call.args["limit"]
+    self.steps, self.origin = call.steps, call.origin
+
+
+def test_the_python_executor_gives_the_same_numbers():
+  """The oracle: the executor with `learners.stepwise`'s QLambda and
+  GaussianPolicyGradient and the same rules in Python."""
+  program = Program(waypoint_graph())
+  a, b = rng.make_state(5), rng.make_state(5)
+  rows = program.run(25, True, True, a, WORLD)
+  q = stepwise.QLambda(400, 3, 0.1, 0.9, epsilon=0.2)
+  g = stepwise.GaussianPolicyGradient(CODER.size, CODER.n_tilings, 15.0, 0.02)
+  seen = collections.Counter()
+
+  def step_reward(call, step, child):
+    return core.STEP_REWARD
+
+  def end(call, step):
+    seen["end"] += 1
+    return arrived.py_func(step.obs, _PyCall(call)) != 0
+
+  def internal(call, step):
+    return closer.py_func(step.obs, _PyCall(call), arrived.py_func(step.obs, _PyCall(call)))
+
+  graph = TaskGraph("root", [
+      Primitive("turn"),
+      Subtask("goto", children=["turn"], termination=end, view=_Goto.view, learner=g,
+              internal_reward=internal, reward=step_reward),
+      Subtask("root", children=[Child("goto", x=x, y=y, limit=80) for x, y in WAYPOINTS],
+              termination=lambda call, step: False,
+              view=lambda call, obs: cell.py_func(obs, None), learner=q)])
+  run = executor.Executor(graph, executor.adapter_for(_gym()), b)
+  for i in range(25):
+    start = np.empty(4)
+    core_start(b, start)
+    total, steps, last = run.run_episode(start, learn=True, sample=True)
+    assert steps == rows[i, 1]
+    assert total == rows[i, 2]
+  np.testing.assert_array_equal(a, b)
+  params = program.parameters()
+  np.testing.assert_array_equal(params["root.q"], q.q)
+  np.testing.assert_array_equal(params["goto.theta"], g.parameters())
+  assert seen["end"] > 100
+
+
+def test_learned_arrays_by_name_save_and_restore():
+  program = Program(waypoint_graph())
+  a = rng.make_state(1)
+  program.run(20, True, True, a, WORLD)
+  saved = {k: v.copy() for k, v in program.state().items()}
+  assert {"root.q", "root.trace_index", "goto.theta", "goto.zs", "goto.values"} <= set(saved)
+  after = program.run(10, True, True, a.copy(), WORLD)
+  fresh = Program(waypoint_graph())
+  for name, value in saved.items():
+    fresh.state()[name][...] = value
+  again = fresh.run(10, True, True, a.copy(), WORLD)
+  np.testing.assert_array_equal(after, again)
+  assert not np.array_equal(saved["root.q"], program.state()["root.q"])
+
+
+def test_a_subtask_with_arguments_serves_every_point():
+  """Each waypoint's goto ends at its own point: a success only within 25 m of it."""
+  program = Program(waypoint_graph())
+  a = rng.make_state(2)
+  rows = program.run(300, True, True, a, WORLD)
+  assert _counter(program, rows, "goto", 2).sum() > 20      # arrivals
+  assert _counter(program, rows, "goto", 1).sum() > _counter(program, rows, "goto", 2).sum()
+
+
+# ---- a user's own learner kind, in the user's file --------------------------------
+
+@numba.njit
+def _roundrobin_start(P, L, N):
+  N.turn[0] = 0
+
+
+@numba.njit
+def _roundrobin_choose(P, L, N, x, n, rng_state, learn, sample):
+  L.visits[x] += 1
+  c = N.turn[0] % n
+  N.turn[0] += 1
+  return float(c)
+
+
+@numba.njit
+def _roundrobin_observe(P, L, N, x, signal, done, terminal, n, rng_state, learn, sample):
+  L.returns[0] += signal
+  if done:
+    return 0.0
+  return _roundrobin_choose(P, L, N, x, n, rng_state, learn, sample)
+
+
+class RoundRobin:
+  """A learner of the user's: its children in turn; counts the states it chose in."""
+
+  def __init__(self, n_states):
+    self.n_states = n_states
+
+
+Learned = collections.namedtuple("Learned", ("visits", "returns"))
+Scratch = collections.namedtuple("Scratch", ("turn",))
+
+
+class RoundRobinKind(base.LearnerKind):
+  block = RoundRobin
+  reads = "state"
+  start, choose, observe = (staticmethod(_roundrobin_start), staticmethod(_roundrobin_choose),
+                            staticmethod(_roundrobin_observe))
+
+  def size(self, block):
+    return block.n_states
+
+  def learned(self, block, n_children):
+    return Learned(np.zeros(block.n_states, dtype=np.int64), np.zeros(1))
+
+  def scratch(self, block, n_children):
+    return Scratch(np.zeros(1, dtype=np.int64))
+
+
+def test_a_learner_kind_of_the_users_own():
+  kinds.register(RoundRobinKind())
+  graph = waypoint_graph()
+  graph.nodes["root"].learner = RoundRobin(400)
+  program = Program(graph)
+  rows = program.run(5, True, True, rng.make_state(0), WORLD)
+  state = program.state()
+  # One choice a call of goto (the last, cut by the episode's end, counted too), and
+  # the children in turn: 0, 1, 2, 0, ...
+  assert state["root.visits"].sum() == _counter(program, rows, "goto", 0).sum()
+  assert state["root.returns"][0] == rows[:, algorithm.ROW_RETURN].sum()
+
+
+# ---- the boundary: each wrong thing a rule gives --------------------------------
+
+@numba.njit
+def _state_past_table(obs, call):
+  return 400 + int(obs[0] // 100.0)
+
+
+@numba.njit
+def _float_state(obs, call):
+  return obs[0] / 50.0
+
+
+@numba.njit
+def _two_of_three(obs, call):
+  return (obs[2], obs[3])
+
+
+@numba.njit
+def _nan_feature(obs, call):
+  return (math.nan, obs[3])
+
+
+@numba.njit
+def _event_two(obs, call):
+  return 2
+
+
+@numba.njit
+def _event_float(obs, call):
+  return 0.5
+
+
+@numba.njit
+def _reward_inf(obs, call, event):
+  return math.inf
+
+
+CODER3 = tiles.TileCoder((-180.0, -15.0, 0.0), (180.0, 15.0, 1000.0), (12, 6, 4),
+                         (True, False, False), 5)
+
+
+@pytest.mark.parametrize("graph, message", [
+    (lambda: table_graph(Abstraction(_state_past_table)),
+     "subtask 'root': its view Abstraction(_state_past_table) gave 4"),
+    (lambda: table_graph(Abstraction(_float_state)),
+     "subtask 'root': its view Abstraction(_float_state) gave "),
+    (lambda: one_node_graph(view=Features(_two_of_three), learner=blocks.GaussianCMAC(CODER3)),
+     "subtask 'goto': its view Features(_two_of_three) gave 2 numbers; expected a tuple of 3"),
+    (lambda: one_node_graph(view=Features(_nan_feature)),
+     "subtask 'goto': its view Features(_nan_feature) gave nan; expected a tuple of 2 finite"),
+    (lambda: one_node_graph(end=Termination(_event_two)),
+     "subtask 'goto': its termination Termination(_event_two) gave 2; expected 0 (go on)"),
+    (lambda: one_node_graph(end=Termination(_event_float)),
+     "subtask 'goto': its termination Termination(_event_float) gave 0.5 (a float)"),
+    (lambda: one_node_graph(reward=InternalReward(_reward_inf)),
+     "subtask 'goto': its internal reward InternalReward(_reward_inf) gave inf; expected a "
+     "finite number"),
+])
+def test_a_wrong_value_is_one_line_naming_the_node(graph, message):
+  """Fused; the step-by-step path runs the same compiled checks (below)."""
+  program = Program(graph(), root_args=GOTO)
+  with pytest.raises(ValueError) as e:
+    program.run(3, True, True, rng.make_state(0), WORLD)
+  text = str(e.value)
+  assert message in text, text
+  assert "\n" not in text
+
+
+def test_a_wrong_value_step_by_step_is_the_same_line_and_no_crash():
+  """The issue's crash: a root view giving states 400-409 for a 400-state table."""
+  program = Program(table_graph(Abstraction(_state_past_table)))
+  a = rng.make_state(0)
+  with pytest.raises(ValueError, match=r"^subtask 'root': its view "
+                                       r"Abstraction\(_state_past_table\) gave 40\d; expected "
+                                       r"an integer state in \[0, 400\)$"):
+    program.run_stepwise(_gym(), 3, True, True, a, _start(a), lambda last: 0.0)
+
+
+def _plain(obs, call):
+  return 0
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda: waypoint_graph(root_view=Features(aim)),
+     "subtask 'root': its learner QTable reads state, its view Features(aim) gives features"),
+    (lambda: waypoint_graph(goto_view=Abstraction(cell)),
+     "subtask 'goto': its learner GaussianCMAC reads features, its view Abstraction(cell) gives "
+     "state"),
+    (lambda: waypoint_graph(learner=blocks.ActorCritic(CODER, CODER)),
+     "subtask 'goto': its learner ActorCritic has no kind on the open machine"),
+    (lambda: TaskGraph("root", [Primitive("turn"), Subtask(
+        "goto", children=["turn"], termination=Termination(arrived), view=Features(aim),
+        learner=blocks.GaussianCMAC(CODER)), Subtask(
+        "root", children=[Child("goto", x=1.0, y=2.0, limit=80), Child("goto", x=1.0, limit=80)],
+        termination=blocks.Never(), view=Abstraction(cell), learner=blocks.QTable(400))]),
+     "subtask 'goto': its calls bind different arguments"),
+    (lambda: waypoint_graph(goto_view=Features(numba.njit(_plain))),
+     None),
+])
+def test_a_graph_the_machine_cannot_run_is_refused_naming_the_node(make, message):
+  if message is None:            # (a rule that fits compiles)
+    make()
+    return
+  with pytest.raises(GraphError, match="^" + message.replace("(", r"\(").replace(")", r"\)")):
+    Program(make())
+
+
+def test_a_rule_that_is_not_compiled_is_refused():
+  with pytest.raises(GraphError, match=r"Features: rule <function _plain .*> is not a "
+                                       r"@numba.njit function"):
+    Features(_plain)
