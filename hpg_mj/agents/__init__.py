@@ -39,6 +39,9 @@ def __getattr__(name):
   if name in ("ShipAgent", "ShipEnvironment"):
     from hpg_mj.agents import _ship
     return getattr(_ship, name)
+  if name in ("ShipHierarchy", "HierarchyConfig"):
+    from hpg_mj.agents import hierarchy
+    return getattr(hierarchy, name)
   if name in ("TaxiAgent", "TaxiEnvironment"):
     from hpg_mj.agents import _taxi
     return getattr(_taxi, name)

@@ -70,6 +70,14 @@ def _fingerprint(fn):
   return h.hexdigest()
 
 
+def _importable(fn):
+  """Whether another process finds `fn` again by its module's name (numba's cache
+  rebuilds a compiled function's globals by importing its module)."""
+  py = getattr(fn, "py_func", fn)
+  module = sys.modules.get(py.__module__)
+  return module is not None and getattr(module, "__file__", None) is not None
+
+
 class _Node:
   """What the program knows of one subtask while it writes its operations."""
 
@@ -87,7 +95,8 @@ class Program:
   def __init__(self, graph, root_args=None, obs_size=4):
     self.graph = graph
     self.obs_size = int(obs_size)
-    self.names = list(graph.nodes)
+    # The root last, as `hierarchy.machine` numbers them (the agents' records read so).
+    self.names = [n for n in graph.nodes if n != graph.root] + [graph.root]
     self.index = {name: i for i, name in enumerate(self.names)}
     self._functions = {}            # id -> (global name, function)
     self._whats = []                # fault record's `what` -> (node, what, allowed)
@@ -412,6 +421,11 @@ class Program:
   def _load(self):
     with open(algorithm.__file__) as f:
       text = f.read() + self._text
+    # A rule from code that no module holds (a notebook's cell, an exec'd block) is
+    # compiled anew in each process: numba's cache could not find it again.
+    self.cached = all(_importable(fn) for _, fn in self._functions.values())
+    if not self.cached:
+      text = text.replace("cache=True", "cache=False")
     header = ["from hpg_mj.hierarchy import boundary", "from hpg_mj.hierarchy import calls"]
     h = hashlib.sha256((_VERSION + text).encode())
     for global_name, fn in sorted(self._functions.values(), key=lambda p: p[0]):

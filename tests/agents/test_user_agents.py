@@ -47,9 +47,9 @@ def test_the_readme_blocks_run_as_printed(tmp_path, monkeypatch, capsys, heading
   if heading == "Write your own agent":
     value = float(printed.split(":")[-1])
     assert -200 < value < 20                        # a mean return the taxi can have
-  else:
-    assert "diagonal: 0" in printed                 # the four-way root never sails diagonally
-    assert int(re.search(r"straight runs: (\d+)", printed).group(1)) > 0
+  else:                                             # the waypoints, from scratch
+    assert int(re.search(r"arrivals: (\d+)", printed).group(1)) > 100
+    assert "['goto.theta', 'goto.values', 'root.q']" in printed
 
 
 def test_the_tutorials_user_rule_ends_the_legs(capsys):

@@ -1,0 +1,66 @@
+"""A hierarchy of one's own, from scratch: `ShipHierarchy`, the public base class of a
+user's hierarchy on the ship, run by the open machine (`hierarchy.program`).
+
+    class Waypoints(ShipHierarchy):
+      record_fields = ("passed", "steps", "return", "calls", "goto_runs")
+
+      def graph(self):
+        return TaskGraph("root", [...])      # blocks, your rules, Child arguments
+
+Its graph is compiled once (the first `train`), fused with the analytic ship and step
+by step through any Gymnasium or dm_control ship; its learned arrays are its state
+by node name (`state()`: `"goto.theta"`, ... beside the generator's `rng_state`), so
+that `hpg-mj train`, `evaluate`, `render --agent` and the runner's checkpoints save
+and restore it with no code of its own (a task file names it by `kind =
+"my_module:Waypoints"`). `parameters()` gives each learner's parameters by name.
+Its record: the fields of `record_fields` among passed, steps, return, calls (the
+calls below the root) and, per subtask, `{node}_runs`, `{node}_successes`.
+"""
+import dataclasses
+
+from hpg_mj.agents import _ship
+from hpg_mj.hierarchy import program as program_mod
+
+
+@dataclasses.dataclass(frozen=True)
+class HierarchyConfig:
+  """A ship hierarchy's task file: its [environment] (a subclass adds its own sections)."""
+  environment: _ship.ShipEnvironment = dataclasses.field(default_factory=_ship.ShipEnvironment)
+
+
+class ShipHierarchy(_ship.ShipMachineAgent):
+  """A user's hierarchy on the full ship task (see the module docstring): give
+  `graph()`; `root_args` are the root call's arguments, if its rules read any."""
+
+  Config = HierarchyConfig
+  record_fields = ("passed", "steps", "return", "calls")
+  root_args = None
+
+  @property
+  def machine(self):
+    """The program of `graph()` (built when first needed)."""
+    if self._machine is None:
+      self._machine = program_mod.Program(self.graph(), root_args=self.root_args)
+    return self._machine
+
+  def graph(self):
+    raise NotImplementedError(f"{type(self).__name__}.graph(): a ShipHierarchy gives its "
+                              "task graph of blocks (hpg_mj.hierarchy.graph.TaskGraph)")
+
+  def state(self):
+    return {"rng_state": self.rng_state, **self.machine.state()}
+
+  def parameters(self):
+    """Each learner's parameters by its first node's name (`Program.parameters`)."""
+    return self.machine.parameters()
+
+  def run_stepwise(self, env, episodes, learn=True, sample=None, start=None, on_call=None):
+    if on_call is not None:
+      raise ValueError(f"{type(self).__name__}.run_stepwise: on_call is not told of calls by "
+                       "the open machine yet; leave it None")
+    rows = self.machine.run_stepwise(env, episodes, learn, sample, self.rng_state,
+                                     lambda: self.start_state() if start is None else start,
+                                     self._ended)
+    if learn:
+      self.episodes += int(episodes)
+    return self.as_record(self._record_rows(rows))
