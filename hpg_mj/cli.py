@@ -26,6 +26,12 @@ def _cmd_verify(args):
   return 0 if ok else 1
 
 
+# Where `hpg-mj render` and `hpg-mj demo` write unless told (--out): under runs/,
+# which git ignores, so that the main job leaves a clone's `git status` clean; the
+# showcase media in videos/ are tracked and remade only on purpose (`--out videos`).
+VIDEOS_OUT = "runs/videos"
+
+
 def _video_out(args, default):
   """The video's path (--out, or `default`; .gif with --gif), checked before any
   frame is drawn."""
@@ -47,7 +53,7 @@ def _cmd_render(args):
   from hpg_mj.render import video
   if getattr(args, "agent", None) is not None:
     return _render_agent(args)
-  args.out = _video_out(args, f"videos/{args.domain}_{args.task}_{args.policy}."
+  args.out = _video_out(args, f"{VIDEOS_OUT}/{args.domain}_{args.task}_{args.policy}."
                               f"{'gif' if args.gif else 'mp4'}")
   path, summary = video.render_task(args.domain, args.task, policy=args.policy, seed=args.seed,
                                     out=args.out, gif=args.gif, width=args.width,
@@ -73,7 +79,7 @@ def _render_agent(args):
   agent, _, _ = agents.load(args.agent)
   if args.out is None:                   # a user's kind may be "module:Class"
     name = agent.name.replace(":", ".")
-    out = _video_out(args, f"videos/{name}.{'gif' if args.gif else 'mp4'}")
+    out = _video_out(args, f"{VIDEOS_OUT}/{name}.{'gif' if args.gif else 'mp4'}")
   bar = tqdm(total=None, unit="step", desc=f"filming {agent.name}", dynamic_ncols=True,
              disable=args.quiet or not sys.stderr.isatty())
 
@@ -584,7 +590,8 @@ def _reproduce_reference(args):
 def _demo_commands(out, seconds):
   """The commands `hpg-mj demo` runs, as a user would type them: videos of the
   scripted ship and taxi in `out` (the demo's own file names, replaced when it runs
-  again), the ship's verification and the environment benchmark."""
+  again; `hpg-mj demo --out videos` remakes the tracked showcase MP4 on purpose),
+  the ship's verification and the environment benchmark."""
   import pathlib
   out = pathlib.Path(out)
   return [["render", "--domain", "ship", "--task", "steer", "--seed", "3", "--out",
@@ -696,7 +703,8 @@ def build_parser():
   p.add_argument("--policy", choices=["scripted", "random"], default=None,
                  help="default scripted")
   p.add_argument("--seed", type=_seed, default=0)
-  p.add_argument("--out", default=None, help="output path (.mp4 or .gif)")
+  p.add_argument("--out", default=None, help="output path (.mp4 or .gif; default in "
+                 f"{VIDEOS_OUT}/, named after the task or the agent)")
   p.add_argument("--gif", action="store_true", help="write an animated GIF instead of MP4")
   p.add_argument("--force", action="store_true", help="replace an existing --out file")
   p.add_argument("--width", type=_at_least(16), default=None,
@@ -816,8 +824,11 @@ def build_parser():
   p.set_defaults(func=_cmd_doctor)
 
   p = sub.add_parser("demo", help="the README's main job: videos, verification, benchmark")
-  p.add_argument("--out", default="videos")
-  p.add_argument("--seconds", type=_positive_seconds, default=1.0)
+  p.add_argument("--out", default=VIDEOS_OUT,
+                 help=f"the videos' folder (default {VIDEOS_OUT}, not tracked by git; "
+                      "--out videos remakes the repository's showcase videos on purpose)")
+  p.add_argument("--seconds", type=_positive_seconds, default=1.0,
+                 help="measuring time per row of the environment benchmark")
   p.set_defaults(func=_cmd_demo)
   return parser
 

@@ -74,3 +74,36 @@ def test_the_demo_runs_every_command_and_replaces_its_own_videos(tmp_path, capsy
     _check_frames([np.asarray(f)[..., :3] for f in imageio.mimread(path)])
   out = capsys.readouterr().out
   assert "bounds (< 0.25 m" in out and "Gymnasium Taxi-v4" in out    # verify, bench envs
+
+
+def test_the_main_job_writes_only_where_git_does_not_look():
+  """scripts/run.sh (the README's main job) and `hpg-mj render` without --out write
+  only to folders git ignores: a fresh clone's `git status` stays clean after them
+  (the demo had written its video over the tracked videos/ship_steer_scripted.mp4)."""
+  import shlex
+  import shutil
+  import subprocess
+
+  from hpg_mj import cli
+  root = pathlib.Path(__file__).resolve().parents[1]
+  if shutil.which("git") is None or not (root / ".git").exists():
+    pytest.skip("not a git checkout")
+  parser, outputs = cli.build_parser(), []
+  commands = [line.split("hpg-mj", 1)[1] for line in (root / "scripts" / "run.sh").read_text()
+              .splitlines() if "/hpg-mj " in line and not line.lstrip().startswith("#")]
+  assert [shlex.split(c)[0] for c in commands] == ["reproduce", "demo"]
+  for command in commands:
+    args = cli._parse(parser, [a for a in shlex.split(command) if a != "$@"])
+    if args.command == "demo":
+      outputs += [argv[argv.index("--out") + 1]
+                  for argv in cli._demo_commands(args.out, 1.0) if "--out" in argv]
+    else:
+      outputs.append(f"{args.out}/fig6_quick/REPORT.md")
+  defaults = cli._parse(parser, ["demo"])
+  outputs += [argv[argv.index("--out") + 1]
+              for argv in cli._demo_commands(defaults.out, 1.0) if "--out" in argv]
+  outputs += [f"{cli.VIDEOS_OUT}/ship_steer_scripted.mp4", f"{cli.VIDEOS_OUT}/ship_hybrid.gif"]
+  assert len(outputs) == 7
+  for path in outputs:
+    ignored = subprocess.run(["git", "check-ignore", "-q", path], cwd=root)
+    assert ignored.returncode == 0, f"{path} is tracked or not ignored by git"
