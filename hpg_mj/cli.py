@@ -53,6 +53,7 @@ def _cmd_render(args):
   from hpg_mj.render import video
   if getattr(args, "agent", None) is not None:
     return _render_agent(args)
+  _check_frame_size(f"{args.domain}.xml", args)
   args.out = _video_out(args, f"{VIDEOS_OUT}/{args.domain}_{args.task}_{args.policy}."
                               f"{'gif' if args.gif else 'mp4'}")
   path, summary = video.render_task(args.domain, args.task, policy=args.policy, seed=args.seed,
@@ -77,6 +78,11 @@ def _render_agent(args):
   if args.out is not None:
     out = _video_out(args, None)         # before the agent is loaded, as without --agent
   agent, _, _ = agents.load(args.agent)
+  env = agent.make_env("gymnasium", backend=args.backend)     # which model draws it
+  model_file = getattr(env.unwrapped, "model_file", None)
+  env.close()
+  if model_file is not None:
+    _check_frame_size(model_file, args)
   if args.out is None:                   # a user's kind may be "module:Class"
     name = agent.name.replace(":", ".")
     out = _video_out(args, f"{VIDEOS_OUT}/{name}.{'gif' if args.gif else 'mp4'}")
@@ -101,6 +107,14 @@ def _render_agent(args):
         + (f", gate passed: {bool(summary['gate_pass_rate'])}" if "gate_pass_rate" in summary
            else ""))
   return 0
+
+
+def _check_frame_size(model_file, args):
+  """Refuses --width or --height beyond the model's offscreen buffer before any
+  frame is drawn, in the options' names (MuJoCo's refusal, from the render worker,
+  read as a missing OpenGL library)."""
+  from hpg_mj import _assets
+  _assets.check_frame_size(model_file, args.width, args.height, options=("--width", "--height"))
 
 
 # `hpg-mj render` options that film a task's scripted or random policy, not an agent.
@@ -174,11 +188,12 @@ def _bench_experiments(args):
   """Times the paper's protocols from scratch, in a temporary folder, on all cores."""
   import contextlib
   import io
-  import os
   import tempfile
   import time
-  print(f"{'':<28}  {'seconds':>8}  {'limit':>6}   ({os.cpu_count()} cores, "
-        f"{args.workers or os.cpu_count()} workers)", flush=True)
+
+  from hpg_mj.experiments import cores
+  print(f"{'':<28}  {'seconds':>8}  {'limit':>6}   ({cores.available()} cores, "
+        f"{args.workers or cores.available()} workers)", flush=True)
   for label, names, quick, limit in EXPERIMENT_BENCHES:
     with tempfile.TemporaryDirectory() as out:
       start = time.perf_counter()
@@ -618,7 +633,8 @@ def _add_run_options(p):
   p.add_argument("--quick", action="store_true", help="fewer runs and episodes")
   p.add_argument("--out", default="runs", help="output folder (one subfolder per experiment)")
   p.add_argument("--workers", type=_at_least(1), default=None,
-                 help="processes (default: all cores)")
+                 help="processes (default and most: the cores here, and never more than "
+                      "the runs to do; with --executor ray --address, the cluster's CPUs)")
   p.add_argument("--executor", choices=["process", "ray"], default="process",
                  help="a local process pool, or Ray (pip install 'hpg_mj[ray]')")
   p.add_argument("--address", default=None,
@@ -752,8 +768,8 @@ def build_parser():
   p.add_argument("--seeds", default=None,
                  help="comma-separated tuning seeds (default: each file's tuning_seeds)")
   p.add_argument("--workers", type=_at_least(1), default=1,
-                 help="runs at a time, each in its own process (default 1; the results "
-                      "do not depend on it)")
+                 help="runs at a time, each in its own process (default 1, at most the "
+                      "cores here; the results do not depend on it)")
   p.add_argument("--json", default=None, help="write the results to this JSON file")
   p.add_argument("--quiet", action="store_true", help="no line per run on stderr")
   p.set_defaults(func=_cmd_tune)
@@ -833,11 +849,29 @@ def build_parser():
   return parser
 
 
+def _check_workers(parser, args):
+  """Refuses more --workers than the cores here (a mistyped count would start that
+  many processes), except for a Ray cluster (--address), whose CPUs bound it; fewer
+  runs to do than workers is no error (the pool is sized to the runs)."""
+  from hpg_mj.experiments import cores
+  requested = getattr(args, "workers", None)
+  if requested is None or (getattr(args, "executor", None) == "ray" and args.address):
+    return
+  here = cores.available()
+  if requested > here:
+    cluster = (", or more on a Ray cluster (--executor ray --address ADDRESS)"
+               if hasattr(args, "executor") else "")
+    parser.exit(2, f"{parser.prog} {args.command}: error: --workers {requested} is more than "
+                   f"the {here} cores this process may use; allowed: 1..{here}{cluster} (see "
+                   f"{parser.prog} {args.command} --help)\n")
+
+
 def _parse(parser, argv):
   """The command line's arguments, checked, with every default filled."""
   args = parser.parse_args(argv)
   if args.command == "render":
     _check_render_args(parser, args)
+  _check_workers(parser, args)
   return args
 
 

@@ -25,11 +25,12 @@ per core); each seed's numbers are the same on any number of them.
 """
 import concurrent.futures
 import json
-import os
 import pathlib
 import time
 
 import numpy as np
+
+from hpg_mj.experiments import cores
 
 TASK = "ship_patrol_average_reward"
 # Drawn fresh for issue 24, declared before the design's first run on them; 100-119
@@ -83,7 +84,7 @@ def run(out, quick=False, progress=None, protocols=None, workers=None):
   say = progress or (lambda line: None)
   root = pathlib.Path(out) / ("beyond_quick" if quick else "beyond")
   root.mkdir(parents=True, exist_ok=True)
-  workers = workers or os.cpu_count() or 1
+  workers = cores.pool_size(workers, None)     # at most the cores here (_in_order: the seeds)
   lines = _patrol(root, patrol, quick, say, workers)
   lines += _route(root, route, say, workers)
   lines += _subtasks(root, subtask, say, workers)

@@ -66,7 +66,6 @@ folder is locked while a process writes it (`hpg_mj.experiments.locks`): a
 second command on the same folder waits for the runs another holds, or refuses.
 """
 import concurrent.futures
-import os
 import pathlib
 import sys
 import time
@@ -76,6 +75,7 @@ import numpy as np
 from hpg_mj import _paths
 from hpg_mj import agents
 from hpg_mj.experiments import locks
+from hpg_mj.experiments import cores
 from hpg_mj.experiments import runs
 from hpg_mj import taskfile
 from hpg_mj.learners import rng
@@ -396,7 +396,8 @@ def run_experiment(experiment, out, quick=False, workers=None, progress=None, on
   options = {"checkpoint_every": checkpoint_every, "wait": wait,
              "command": command or locks.command_line(),
              "greedy_at": tuple(p for p in experiment.get("greedy_at", ()) if p < episodes)}
-  workers = workers or os.cpu_count() or 1
+  # never more processes than runs to do, nor (without a cluster) than cores here
+  workers = cores.pool_size(workers, len(todo), address if executor == "ray" else None)
   poll = _Poller(all_jobs, progress)
   on_finished = on_finished or (lambda job: None)
   start = time.perf_counter()
