@@ -309,7 +309,7 @@ def _cmd_train(args):
     bar.close()
   compiled = sum(compile_seconds, 0.0)
   metrics = agent.metrics(record)
-  metrics.update(window.described(agent))       # the rows the online metrics are over
+  metrics.update(window.described(agent, len(record)))   # the rows the metrics are over
   metrics.update(bounds.normalized(bounds.task_name(agent), metrics))   # SPEC section 7.1
   metrics.update(agent.final_metrics(record))    # e.g. a continuing agent's comparisons
   metrics.update({"task": str(task.path), "seed": seed, "episodes": episodes,
@@ -357,7 +357,7 @@ def _cmd_evaluate(args):
   # SPEC section 7.1: every score also normalized (none for a subtask or the patrol)
   metrics.update(bounds.normalized(bounds.task_name(agent), metrics))
   metrics.update({"agent_dir": str(args.agent_dir), "episodes": args.episodes,
-                  "evaluation_window": f"{window.phrase(agent)} of the evaluation",
+                  "evaluation_window": window.over(agent, len(record), "the evaluation"),
                   "backend": backend, "policy": policy, "starts": starts,
                   "wall_seconds": round(time.perf_counter() - start, 3)})
   _print_metrics(metrics, args.json)
