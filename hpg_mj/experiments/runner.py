@@ -66,6 +66,7 @@ folder is locked while a process writes it (`hpg_mj.experiments.locks`): a
 second command on the same folder waits for the runs another holds, or refuses.
 """
 import concurrent.futures
+import os
 import pathlib
 import sys
 import time
@@ -335,7 +336,18 @@ def _run_ray(todo, workers, options, poll, on_finished, address):
   started = not ray.is_initialized()
   if started:
     kwargs = {"address": address} if address else {"num_cpus": workers}
-    ray.init(include_dashboard=False, log_to_driver=False, logging_level="ERROR", **kwargs)
+    try:
+      ray.init(include_dashboard=False, log_to_driver=False, logging_level="ERROR", **kwargs)
+    except ConnectionError as err:
+      if not address or os.environ.get("RAY_AUTH_MODE"):
+        raise
+      # Ray 2.60: `ray start --head` turns token authentication on where a token exists
+      # (~/.ray/auth_token, which a local ray.init() writes), but a process joining
+      # with an explicit address turns it on only if told (docs/experiments.md).
+      raise ConnectionError(f"--address {address}: {err}; a cluster with token "
+                            "authentication refuses a process that joins without "
+                            "RAY_AUTH_MODE=token in its environment (and the cluster's token "
+                            "in ~/.ray/auth_token or RAY_AUTH_TOKEN)") from None
   try:
     remote = ray.remote(num_cpus=1)(_run_on_ray)
     refs = {remote.remote(*job, **options): job for job in todo}
