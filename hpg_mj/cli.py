@@ -178,7 +178,7 @@ def _cmd_bench(args):
   return 0
 
 
-# (what, shipped experiments, --quick, the limit in seconds: issue 10, 20 runs per learner)
+# (what, shipped experiments, --quick, the limit in seconds, 20 runs per learner)
 EXPERIMENT_BENCHES = (("Figure 6, full protocol", ("fig6",), False, 60),
                       ("Figures 7-11, full protocol", ("fig7_11",), False, 360),
                       ("reproduce all --quick", ("fig6", "fig7_11", "fig12"), True, 120))
@@ -581,7 +581,7 @@ def _reproduce_beyond(args):
 
 
 def _reproduce_reference(args):
-  """Issue 21's sample-efficiency figures and "Reference scores" table
+  """The reference sample-efficiency figures and "Reference scores" table
   (hpg_mj.experiments.reference): runs the reference experiments (resuming
   unfinished runs; with --existing none), draws them from the runs finished, then
   OUT/REPORT.md with a reference section beside the other reports there."""
@@ -685,7 +685,7 @@ def _at_least(low):
 
 
 class _Parser(argparse.ArgumentParser):
-  """Refuses a bad option in one line, naming it and what is allowed (issue 23),
+  """Refuses a bad option in one line, naming it and what is allowed,
   instead of argparse's usage block."""
 
   def error(self, message):
@@ -777,7 +777,7 @@ def build_parser():
   p = sub.add_parser("reproduce", help="the paper's figures from the shipped experiments")
   p.add_argument("figure", nargs="?", default="all",
                  help="all, fig6, fig7, ..., fig12, beyond (SPEC section 8), or reference "
-                      "(issue 21: the reference scores and sample-efficiency figures)")
+                      "(the reference scores and sample-efficiency figures)")
   _add_run_options(p)
   p.add_argument("--existing", action="store_true",
                  help="reference only: draw from the runs already finished under --out, "

@@ -1,4 +1,4 @@
-"""The window a record's online metrics are over, named (issue 23): every agent's
+"""The window a record's online metrics are over, named: every agent's
 `metrics(record)` measures its last `metric_window` record rows (an episodic
 agent: the last 1,000 episodes; ship_patrol, continuing: the last 125 hours), and
 `hpg-mj train --json` says which beside the numbers."""
