@@ -3,6 +3,8 @@
 An installed hpg_mj carries `assets/` inside the wheel as the `hpg_mj.assets`
 package; a source checkout that was not installed reads the top-level folder.
 """
+import functools
+import numbers
 import pathlib
 
 _PACKAGED_ASSETS = pathlib.Path(__file__).resolve().parent / "assets"
@@ -27,3 +29,31 @@ def read_model(name: str) -> str:
     available = sorted(p.name for p in assets_dir().glob("*.xml"))
     raise FileNotFoundError(f"no MJCF model {name!r} in {assets_dir()}; available: {available}")
   return path.read_text()
+
+
+@functools.lru_cache(maxsize=None)
+def offscreen_buffer(name: str) -> tuple:
+  """(width, height): the largest frame in pixels MuJoCo can draw of `assets/<name>`,
+  its offscreen buffer (`<visual><global offwidth offheight>`, read from the
+  compiled model, so MuJoCo's own default where the file says nothing)."""
+  import mujoco
+  model = mujoco.MjModel.from_xml_string(read_model(name))
+  return int(model.vis.global_.offwidth), int(model.vis.global_.offheight)
+
+
+def check_frame_size(name: str, width, height, who=None, options=("width", "height")):
+  """Refuses a frame of `width` x `height` pixels that `assets/<name>`'s offscreen
+  buffer cannot hold, before anything is drawn (MuJoCo's own refusal comes from the
+  render worker, after it has tried every OpenGL backend, and reads as a missing
+  library); `who` begins the message, and `options` name the two sizes, as the
+  caller's user knows them."""
+  who = f"{who}: " if who else ""
+  for option, value, limit, attribute in zip(options, (width, height), offscreen_buffer(name),
+                                             ("offwidth", "offheight")):
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
+      raise ValueError(f"{who}{option} must be a positive integer number of pixels, "
+                       f"got {value!r}")
+    if value > limit:
+      raise ValueError(f"{who}{option} {value} is more than the {name} model's offscreen "
+                       f"buffer holds (its <visual><global {attribute}>); allowed: at most "
+                       f"{limit} pixels")

@@ -1,5 +1,5 @@
 """What a user's files and options may name on disk, checked before anything is
-written (issue 23).
+written.
 
 Names read from a file that become a folder or file name under `--out` (an
 experiment's name, a figure's name, a task file's name in an experiment) are one

@@ -26,6 +26,12 @@ def _cmd_verify(args):
   return 0 if ok else 1
 
 
+# Where `hpg-mj render` and `hpg-mj demo` write unless told (--out): under runs/,
+# which git ignores, so that the main job leaves a clone's `git status` clean; the
+# showcase media in videos/ are tracked and remade only on purpose (`--out videos`).
+VIDEOS_OUT = "runs/videos"
+
+
 def _video_out(args, default):
   """The video's path (--out, or `default`; .gif with --gif), checked before any
   frame is drawn."""
@@ -47,7 +53,8 @@ def _cmd_render(args):
   from hpg_mj.render import video
   if getattr(args, "agent", None) is not None:
     return _render_agent(args)
-  args.out = _video_out(args, f"videos/{args.domain}_{args.task}_{args.policy}."
+  _check_frame_size(f"{args.domain}.xml", args)
+  args.out = _video_out(args, f"{VIDEOS_OUT}/{args.domain}_{args.task}_{args.policy}."
                               f"{'gif' if args.gif else 'mp4'}")
   path, summary = video.render_task(args.domain, args.task, policy=args.policy, seed=args.seed,
                                     out=args.out, gif=args.gif, width=args.width,
@@ -71,9 +78,14 @@ def _render_agent(args):
   if args.out is not None:
     out = _video_out(args, None)         # before the agent is loaded, as without --agent
   agent, _, _ = agents.load(args.agent)
+  env = agent.make_env("gymnasium", backend=args.backend)     # which model draws it
+  model_file = getattr(env.unwrapped, "model_file", None)
+  env.close()
+  if model_file is not None:
+    _check_frame_size(model_file, args)
   if args.out is None:                   # a user's kind may be "module:Class"
     name = agent.name.replace(":", ".")
-    out = _video_out(args, f"videos/{name}.{'gif' if args.gif else 'mp4'}")
+    out = _video_out(args, f"{VIDEOS_OUT}/{name}.{'gif' if args.gif else 'mp4'}")
   bar = tqdm(total=None, unit="step", desc=f"filming {agent.name}", dynamic_ncols=True,
              disable=args.quiet or not sys.stderr.isatty())
 
@@ -95,6 +107,14 @@ def _render_agent(args):
         + (f", gate passed: {bool(summary['gate_pass_rate'])}" if "gate_pass_rate" in summary
            else ""))
   return 0
+
+
+def _check_frame_size(model_file, args):
+  """Refuses --width or --height beyond the model's offscreen buffer before any
+  frame is drawn, in the options' names (MuJoCo's refusal, from the render worker,
+  read as a missing OpenGL library)."""
+  from hpg_mj import _assets
+  _assets.check_frame_size(model_file, args.width, args.height, options=("--width", "--height"))
 
 
 # `hpg-mj render` options that film a task's scripted or random policy, not an agent.
@@ -158,7 +178,7 @@ def _cmd_bench(args):
   return 0
 
 
-# (what, shipped experiments, --quick, the limit in seconds: issue 10, 20 runs per learner)
+# (what, shipped experiments, --quick, the limit in seconds, 20 runs per learner)
 EXPERIMENT_BENCHES = (("Figure 6, full protocol", ("fig6",), False, 60),
                       ("Figures 7-11, full protocol", ("fig7_11",), False, 360),
                       ("reproduce all --quick", ("fig6", "fig7_11", "fig12"), True, 120))
@@ -168,11 +188,12 @@ def _bench_experiments(args):
   """Times the paper's protocols from scratch, in a temporary folder, on all cores."""
   import contextlib
   import io
-  import os
   import tempfile
   import time
-  print(f"{'':<28}  {'seconds':>8}  {'limit':>6}   ({os.cpu_count()} cores, "
-        f"{args.workers or os.cpu_count()} workers)", flush=True)
+
+  from hpg_mj.experiments import cores
+  print(f"{'':<28}  {'seconds':>8}  {'limit':>6}   ({cores.available()} cores, "
+        f"{args.workers or cores.available()} workers)", flush=True)
   for label, names, quick, limit in EXPERIMENT_BENCHES:
     with tempfile.TemporaryDirectory() as out:
       start = time.perf_counter()
@@ -288,7 +309,7 @@ def _cmd_train(args):
     bar.close()
   compiled = sum(compile_seconds, 0.0)
   metrics = agent.metrics(record)
-  metrics.update(window.described(agent))       # the rows the online metrics are over
+  metrics.update(window.described(agent, len(record)))   # the rows the metrics are over
   metrics.update(bounds.normalized(bounds.task_name(agent), metrics))   # SPEC section 7.1
   metrics.update(agent.final_metrics(record))    # e.g. a continuing agent's comparisons
   metrics.update({"task": str(task.path), "seed": seed, "episodes": episodes,
@@ -336,7 +357,7 @@ def _cmd_evaluate(args):
   # SPEC section 7.1: every score also normalized (none for a subtask or the patrol)
   metrics.update(bounds.normalized(bounds.task_name(agent), metrics))
   metrics.update({"agent_dir": str(args.agent_dir), "episodes": args.episodes,
-                  "evaluation_window": f"{window.phrase(agent)} of the evaluation",
+                  "evaluation_window": window.over(agent, len(record), "the evaluation"),
                   "backend": backend, "policy": policy, "starts": starts,
                   "wall_seconds": round(time.perf_counter() - start, 3)})
   _print_metrics(metrics, args.json)
@@ -560,7 +581,7 @@ def _reproduce_beyond(args):
 
 
 def _reproduce_reference(args):
-  """Issue 21's sample-efficiency figures and "Reference scores" table
+  """The reference sample-efficiency figures and "Reference scores" table
   (hpg_mj.experiments.reference): runs the reference experiments (resuming
   unfinished runs; with --existing none), draws them from the runs finished, then
   OUT/REPORT.md with a reference section beside the other reports there."""
@@ -584,7 +605,8 @@ def _reproduce_reference(args):
 def _demo_commands(out, seconds):
   """The commands `hpg-mj demo` runs, as a user would type them: videos of the
   scripted ship and taxi in `out` (the demo's own file names, replaced when it runs
-  again), the ship's verification and the environment benchmark."""
+  again; `hpg-mj demo --out videos` remakes the tracked showcase MP4 on purpose),
+  the ship's verification and the environment benchmark."""
   import pathlib
   out = pathlib.Path(out)
   return [["render", "--domain", "ship", "--task", "steer", "--seed", "3", "--out",
@@ -611,7 +633,8 @@ def _add_run_options(p):
   p.add_argument("--quick", action="store_true", help="fewer runs and episodes")
   p.add_argument("--out", default="runs", help="output folder (one subfolder per experiment)")
   p.add_argument("--workers", type=_at_least(1), default=None,
-                 help="processes (default: all cores)")
+                 help="processes (default and most: the cores here, and never more than "
+                      "the runs to do; with --executor ray --address, the cluster's CPUs)")
   p.add_argument("--executor", choices=["process", "ray"], default="process",
                  help="a local process pool, or Ray (pip install 'hpg_mj[ray]')")
   p.add_argument("--address", default=None,
@@ -662,7 +685,7 @@ def _at_least(low):
 
 
 class _Parser(argparse.ArgumentParser):
-  """Refuses a bad option in one line, naming it and what is allowed (issue 23),
+  """Refuses a bad option in one line, naming it and what is allowed,
   instead of argparse's usage block."""
 
   def error(self, message):
@@ -696,7 +719,8 @@ def build_parser():
   p.add_argument("--policy", choices=["scripted", "random"], default=None,
                  help="default scripted")
   p.add_argument("--seed", type=_seed, default=0)
-  p.add_argument("--out", default=None, help="output path (.mp4 or .gif)")
+  p.add_argument("--out", default=None, help="output path (.mp4 or .gif; default in "
+                 f"{VIDEOS_OUT}/, named after the task or the agent)")
   p.add_argument("--gif", action="store_true", help="write an animated GIF instead of MP4")
   p.add_argument("--force", action="store_true", help="replace an existing --out file")
   p.add_argument("--width", type=_at_least(16), default=None,
@@ -744,8 +768,8 @@ def build_parser():
   p.add_argument("--seeds", default=None,
                  help="comma-separated tuning seeds (default: each file's tuning_seeds)")
   p.add_argument("--workers", type=_at_least(1), default=1,
-                 help="runs at a time, each in its own process (default 1; the results "
-                      "do not depend on it)")
+                 help="runs at a time, each in its own process (default 1, at most the "
+                      "cores here; the results do not depend on it)")
   p.add_argument("--json", default=None, help="write the results to this JSON file")
   p.add_argument("--quiet", action="store_true", help="no line per run on stderr")
   p.set_defaults(func=_cmd_tune)
@@ -753,7 +777,7 @@ def build_parser():
   p = sub.add_parser("reproduce", help="the paper's figures from the shipped experiments")
   p.add_argument("figure", nargs="?", default="all",
                  help="all, fig6, fig7, ..., fig12, beyond (SPEC section 8), or reference "
-                      "(issue 21: the reference scores and sample-efficiency figures)")
+                      "(the reference scores and sample-efficiency figures)")
   _add_run_options(p)
   p.add_argument("--existing", action="store_true",
                  help="reference only: draw from the runs already finished under --out, "
@@ -816,10 +840,30 @@ def build_parser():
   p.set_defaults(func=_cmd_doctor)
 
   p = sub.add_parser("demo", help="the README's main job: videos, verification, benchmark")
-  p.add_argument("--out", default="videos")
-  p.add_argument("--seconds", type=_positive_seconds, default=1.0)
+  p.add_argument("--out", default=VIDEOS_OUT,
+                 help=f"the videos' folder (default {VIDEOS_OUT}, not tracked by git; "
+                      "--out videos remakes the repository's showcase videos on purpose)")
+  p.add_argument("--seconds", type=_positive_seconds, default=1.0,
+                 help="measuring time per row of the environment benchmark")
   p.set_defaults(func=_cmd_demo)
   return parser
+
+
+def _check_workers(parser, args):
+  """Refuses more --workers than the cores here (a mistyped count would start that
+  many processes), except for a Ray cluster (--address), whose CPUs bound it; fewer
+  runs to do than workers is no error (the pool is sized to the runs)."""
+  from hpg_mj.experiments import cores
+  requested = getattr(args, "workers", None)
+  if requested is None or (getattr(args, "executor", None) == "ray" and args.address):
+    return
+  here = cores.available()
+  if requested > here:
+    cluster = (", or more on a Ray cluster (--executor ray --address ADDRESS)"
+               if hasattr(args, "executor") else "")
+    parser.exit(2, f"{parser.prog} {args.command}: error: --workers {requested} is more than "
+                   f"the {here} cores this process may use; allowed: 1..{here}{cluster} (see "
+                   f"{parser.prog} {args.command} --help)\n")
 
 
 def _parse(parser, argv):
@@ -827,6 +871,7 @@ def _parse(parser, argv):
   args = parser.parse_args(argv)
   if args.command == "render":
     _check_render_args(parser, args)
+  _check_workers(parser, args)
   return args
 
 

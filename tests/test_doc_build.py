@@ -62,3 +62,32 @@ def test_the_learner_contract_and_the_api_are_documented(site):
   assert "hpg_mj.hierarchy.graph.Learner" in interfaces and "observe" in interfaces
   api = (site / "api" / "hpg_mj.hierarchy.html").read_text()
   assert "hpg_mj.hierarchy.machine.Machine" in api and "hpg_mj.hierarchy.blocks" in api
+
+
+def test_the_front_page_installs_runs_and_scores_and_every_task_page_links_to_scoring(site):
+  """The front page: the install, the README's two commands and a five-line example
+  (load a task, step it, score a policy; tests/test_doc_blocks.py runs it). "Score
+  any policy" shows a plain function and an SB3 model once, and every task page
+  links to it."""
+  import html
+  import re
+
+  if str(REPO / "docs" / "_ext") not in sys.path:
+    sys.path.insert(0, str(REPO / "docs" / "_ext"))
+  import task_pages      # docs/_ext: the pages' list
+  front = html.unescape(re.sub(r"<[^>]+>", "", (site / "index.html").read_text()))
+  for text in ("pip install", "bash scripts/run.sh", "bash scripts/test.sh",
+               "hpg_mj/ShipSteering-v0", "env.step", "benchmark.evaluate"):
+    assert text in front, text
+  five = re.search(r"## In five lines\n.*?```python\n(.*?)```",
+                   (REPO / "docs" / "index.md").read_text(), re.S).group(1)
+  assert len(five.strip().splitlines()) == 5
+  guide = (REPO / "docs" / "getting_started.md").read_text()
+  section = guide.split("## Score any policy\n", 1)[1].split("\n## ", 1)[0]
+  assert section.count("```python") == 1 and "{include}" not in section
+  shown = re.sub(r"^<!--.*-->\n", "", section, flags=re.M)    # less the tests' reductions
+  assert shown.count("steer = lambda") == 1 and shown.count("PPO(") == 1
+  assert guide.count("benchmark.evaluate(steer") == 1
+  for domain, task in task_pages.TASKS:
+    page = (site / "tasks" / f"{task_pages.page_name(domain, task)}.html").read_text()
+    assert 'href="../getting_started.html#score-any-policy"' in page, (domain, task)

@@ -67,3 +67,26 @@ def test_every_relative_link_of_the_readme_exists():
   links = [link.split("#")[0] for link in re.findall(r"\]\(([^)]+)\)", readme)
            if "://" not in link]
   assert links and [link for link in links if not (REPO / link).exists()] == []
+
+
+def _pages():
+  """Every documentation page's source: docs/*.md, the README, and the files they
+  include (the committed reports)."""
+  pages = {}
+  for path in [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]:
+    text = path.read_text()
+    pages[path.relative_to(REPO).as_posix()] = text
+    for included in re.findall(r"^```\{include\} (\S+)", text, flags=re.M):
+      target = (path.parent / included).resolve()
+      pages[target.relative_to(REPO).as_posix()] = target.read_text()
+  return pages
+
+
+def test_no_page_says_a_tracker_number_for_the_thing_itself():
+  """A reader has no tracker: "issue 24" tells them nothing that "the unseen seeds
+  that had shown the failure" does not (an outside project's issue, "mujoco issue
+  #644", is a citation, and stays)."""
+  pages = _pages()
+  assert "figures/REPORT.md" in pages and "docs/changelog.md" in pages
+  found = {name: re.findall(r"(?i)\bissues? \d+[^.;,)]*", text) for name, text in pages.items()}
+  assert {name: hits for name, hits in found.items() if hits} == {}

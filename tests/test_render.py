@@ -74,3 +74,75 @@ def test_the_demo_runs_every_command_and_replaces_its_own_videos(tmp_path, capsy
     _check_frames([np.asarray(f)[..., :3] for f in imageio.mimread(path)])
   out = capsys.readouterr().out
   assert "bounds (< 0.25 m" in out and "Gymnasium Taxi-v4" in out    # verify, bench envs
+
+
+def test_the_main_job_writes_only_where_git_does_not_look():
+  """scripts/run.sh (the README's main job) and `hpg-mj render` without --out write
+  only to folders git ignores: a fresh clone's `git status` stays clean after them
+  (the demo had written its video over the tracked videos/ship_steer_scripted.mp4)."""
+  import shlex
+  import shutil
+  import subprocess
+
+  from hpg_mj import cli
+  root = pathlib.Path(__file__).resolve().parents[1]
+  if shutil.which("git") is None or not (root / ".git").exists():
+    pytest.skip("not a git checkout")
+  parser, outputs = cli.build_parser(), []
+  commands = [line.split("hpg-mj", 1)[1] for line in (root / "scripts" / "run.sh").read_text()
+              .splitlines() if "/hpg-mj " in line and not line.lstrip().startswith("#")]
+  assert [shlex.split(c)[0] for c in commands] == ["reproduce", "demo"]
+  for command in commands:
+    args = cli._parse(parser, [a for a in shlex.split(command) if a != "$@"])
+    if args.command == "demo":
+      outputs += [argv[argv.index("--out") + 1]
+                  for argv in cli._demo_commands(args.out, 1.0) if "--out" in argv]
+    else:
+      outputs.append(f"{args.out}/fig6_quick/REPORT.md")
+  defaults = cli._parse(parser, ["demo"])
+  outputs += [argv[argv.index("--out") + 1]
+              for argv in cli._demo_commands(defaults.out, 1.0) if "--out" in argv]
+  outputs += [f"{cli.VIDEOS_OUT}/ship_steer_scripted.mp4", f"{cli.VIDEOS_OUT}/ship_hybrid.gif"]
+  assert len(outputs) == 7
+  for path in outputs:
+    ignored = subprocess.run(["git", "check-ignore", "-q", path], cwd=root)
+    assert ignored.returncode == 0, f"{path} is tracked or not ignored by git"
+
+
+def test_a_frame_larger_than_the_offscreen_buffer_is_refused_up_front(tmp_path, capsys):
+  """`hpg-mj render --width 5000` had failed in the render worker, after trying every
+  OpenGL backend, with advice to install OSMesa; the size is refused first, naming
+  the option, the value and the model's limit."""
+  from hpg_mj import _assets, cli
+  from hpg_mj.envs import taxi
+  assert _assets.offscreen_buffer("ship.xml") == (1280, 960)      # assets/ship.xml
+  assert taxi.TaxiEnv._MAX_FRAME == _assets.offscreen_buffer("taxi.xml")
+  for argv, option, value, name, limit in (
+      (["--width", "5000", "--height", "5000"], "--width", 5000, "ship.xml", 1280),
+      (["--height", "961"], "--height", 961, "ship.xml", 960),
+      (["--domain", "taxi", "--width", "1281"], "--width", 1281, "taxi.xml", 1280)):
+    out = tmp_path / "clip.mp4"
+    assert cli.main(["render", "--out", str(out)] + argv) == 2
+    attribute = "offwidth" if option == "--width" else "offheight"
+    assert capsys.readouterr().err == (
+        f"hpg-mj render: error: {option} {value} is more than the {name} model's offscreen "
+        f"buffer holds (its <visual><global {attribute}>); allowed: at most {limit} pixels\n")
+    assert not out.exists()
+  with pytest.raises(ValueError, match=r"ShipSteering\(steer, backend=analytic\): height 1000 "
+                     r"is more than the ship.xml model's .* at most 960 pixels"):
+    gymnasium.make("hpg_mj/ShipSteering-v0", backend="analytic", render_mode="rgb_array",
+                   height=1000)
+  gymnasium.make("hpg_mj/ShipSteering-v0", height=1000)    # no frames: no limit
+
+
+def test_an_agents_video_larger_than_the_buffer_is_refused_before_its_episode(tmp_path, capsys):
+  from hpg_mj import cli
+  assert cli.main(["train", "taxi_fuel_flat_q", "--episodes", "5", "--quiet",
+                   "--out", str(tmp_path / "agent")]) == 0
+  capsys.readouterr()
+  assert cli.main(["render", "--agent", str(tmp_path / "agent"), "--height", "5000",
+                   "--out", str(tmp_path / "a.mp4"), "--quiet"]) == 2
+  assert capsys.readouterr().err == (
+      "hpg-mj render: error: --height 5000 is more than the taxi.xml model's offscreen buffer "
+      "holds (its <visual><global offheight>); allowed: at most 960 pixels\n")
+  assert not (tmp_path / "a.mp4").exists()

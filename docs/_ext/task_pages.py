@@ -114,6 +114,23 @@ def _spec_lines(spec):
       spec, dict) else [f"`{spec!r}`"]
 
 
+# dm_control (domain, task) -> its name in hpg_mj.benchmark (the tasks it scores)
+_BENCHMARK = {("ship", "steer"): "ship", ("taxi", "fuel"): "taxi_fuel",
+              ("taxi", "classic"): "taxi"}
+SCORE_ANY_POLICY = "../getting_started.md#score-any-policy"
+
+
+def _scoring(domain, task):
+  """The page's line on scoring a policy: the call, and the section that shows it."""
+  name = _BENCHMARK.get((domain, task))
+  link = f"[Score any policy]({SCORE_ANY_POLICY})"
+  if name is None:
+    return (f"{link}: `hpg_mj.benchmark.evaluate` scores a function, an SB3 model or an "
+            f"agent on {', '.join(f'`{n}`' for n in _BENCHMARK.values())}")
+  return (f"`hpg_mj.benchmark.evaluate(policy, {name!r})`: {link} (a function, an SB3 "
+          "model, an agent)")
+
+
 def render(domain, task):
   """The Markdown of one task's page."""
   env_id, picture, caption = TASKS[(domain, task)]
@@ -135,6 +152,7 @@ def render(domain, task):
         ("dm_control observation spec", "<br>".join(_spec_lines(dm_env.observation_spec()))),
         ("dm_control tags", ", ".join(sorted(
             tag for tag in module.SUITE.tags() if task in module.SUITE.tagged(tag))) or "none"),
+        ("score a policy", _scoring(domain, task)),
     ]
   finally:
     env.close()

@@ -1,4 +1,4 @@
-"""The window a record's online metrics are over, named (issue 23): every agent's
+"""The window a record's online metrics are over, named: every agent's
 `metrics(record)` measures its last `metric_window` record rows (an episodic
 agent: the last 1,000 episodes; ship_patrol, continuing: the last 125 hours), and
 `hpg-mj train --json` says which beside the numbers."""
@@ -20,7 +20,18 @@ def phrase(agent):
   return f"last {agent.metric_window:,} {unit(agent)}"
 
 
-def described(agent):
-  """The keys `hpg-mj train --json` adds: the window, in words and in rows."""
-  return {"online_window": f"{phrase(agent)} of training",
-          "online_window_rows": int(agent.metric_window)}
+def over(agent, rows, of):
+  """The window of a record of `rows` rows (`of`: "training", "the evaluation") in
+  words: "last 1,000 episodes of training", or, when fewer rows were run than the
+  window holds, "all 500 episodes of training (fewer than the window, the last 1,000)"."""
+  if rows >= agent.metric_window:
+    return f"{phrase(agent)} of {of}"
+  return f"all {rows:,} {unit(agent)} of {of} (fewer than the window, the last " \
+         f"{agent.metric_window:,})"
+
+
+def described(agent, rows):
+  """The keys `hpg-mj train --json` adds for a training record of `rows` rows: the
+  window, in words and in the rows it holds (never more than were run)."""
+  return {"online_window": over(agent, rows, "training"),
+          "online_window_rows": min(int(agent.metric_window), int(rows))}

@@ -3,6 +3,7 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
+from hpg_mj import _assets
 from hpg_mj import _validation
 from hpg_mj.worlds import ship_core as core
 from hpg_mj.worlds import ship_task
@@ -152,6 +153,7 @@ class ShipSteeringEnv(gymnasium.Env):
   """
 
   metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
+  model_file = "ship.xml"      # the MJCF model its frames are drawn from (assets/)
 
   def __init__(self, task="steer", backend="mujoco", render_mode=None, strict=False,
                max_steps=None, width=640, height=480, camera=None,
@@ -165,6 +167,8 @@ class ShipSteeringEnv(gymnasium.Env):
     self.render_mode = render_mode
     self._name = f"ShipSteering({task}, backend={backend})"
     self.observation_space, self.action_space = spaces_of(self.rules)
+    if render_mode is not None:      # refused here, not by the render worker later
+      _assets.check_frame_size(self.model_file, width, height, self._name)
     self._width, self._height = int(width), int(height)
     self._camera = camera or ("top" if task in ("steer", "patrol") else "local")
     self._renderer = None

@@ -149,7 +149,8 @@ class TaxiEnv(gymnasium.Env):
 
   metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
 
-  _MAX_FRAME = (1280, 960)   # the offscreen buffer of assets/taxi.xml
+  model_file = "taxi.xml"    # the MJCF model its frames are drawn from (assets/)
+  _MAX_FRAME = (1280, 960)   # the offscreen buffer of assets/taxi.xml (a test checks it)
 
   def __init__(self, render_mode=None, fuel=True, width=480, height=480, camera="top",
                strict=True, max_steps=taxi_core.MAX_STEPS, fuel_station=taxi_core.FUEL_STATION,

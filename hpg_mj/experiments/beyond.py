@@ -25,15 +25,16 @@ per core); each seed's numbers are the same on any number of them.
 """
 import concurrent.futures
 import json
-import os
 import pathlib
 import time
 
 import numpy as np
 
+from hpg_mj.experiments import cores
+
 TASK = "ship_patrol_average_reward"
-# Drawn fresh for issue 24, declared before the design's first run on them; 100-119
-# were looked at while the design before was chosen.
+# Drawn fresh when the root's planning was designed, declared before the design's
+# first run on them; 100-119 were looked at while the design before was chosen.
 SEEDS = tuple(range(10001, 10021))
 # (seeds, training hours, block hours, greedy hours per point, hybrid episodes (0:
 # its file's), final evaluation hours)
@@ -45,7 +46,7 @@ HELD_OUT = tuple(range(100, 120))       # 20 seeds outside the tuning seeds 0-9
 # (seeds, episodes: None for the task file's protocol)
 ROUTE_FULL = (HELD_OUT, None)
 ROUTE_QUICK = (HELD_OUT[:2], 20000)
-ROUTE_BAR = 220.0                       # issue 12: <= 220 control steps, gate >= 0.95
+ROUTE_BAR = 220.0                       # the route's target: <= 220 control steps, gate >= 0.95
 STRAIGHT_LINE = 205.0                   # SPEC section 2: ~205 steps over uniform starts
 # (seeds, calls per run); the greedy success is over 1,000 fixed local starts
 SUBTASK_FULL = (HELD_OUT, 15000)
@@ -53,18 +54,18 @@ SUBTASK_QUICK = (HELD_OUT[:3], 3000)
 # Which seeds each part's design looked at (SPEC section 7: reported seeds are others).
 LOOKED_AT = {
     "patrol": "tuning seeds 0-9 (every configuration) and, for the diagnosis only, 4004 "
-              "and 5004 (issue 24); the design before it also 100-119, 4001-4009 and "
-              "5000-5009",
+              "and 5004 (the unseen seeds that had shown the failure); the design before it "
+              "also 100-119, 4001-4009 and 5000-5009",
     "route": "tuning seeds 0-3, and 100-119 once before the last choice (200,000 against "
              "300,000 episodes)",
     "subtasks": "seed 0 (the step size and clip) and seed 100 (the width's measurement)"}
-# What the continuing task's report said before issue 24 (the design before: 50 m
+# What the continuing task's report said before the root planned (the design before: 50 m
 # cells everywhere, no planning).
 PATROL_HISTORY = (
     "History: the design before (50 m cells everywhere, no planning) was reported on seeds "
     "100-119, which were looked at while its design and settings were chosen: greedy root "
     "188.8 [168.1, 209.4], episodic hybrid 150.4 [118.0, 179.0], paired +38.4 [+5.3, "
-    "+73.3], ahead on 16 of 20. On 19 seeds no one had looked at (issue 24: 4001-4009, "
+    "+73.3], ahead on 16 of 20. On 19 seeds no one had looked at (4001-4009, "
     "5000-5009) it gave +5.3 [-26.5, +37.8], ahead on 11 of 19 (not distinguishable), and "
     "its greedy root passed 0 an hour on seed 4004 and 115 on 4003, below the helmsman. "
     "Why, and the fix: README.md and patrol_diagnosis.txt.")
@@ -83,7 +84,7 @@ def run(out, quick=False, progress=None, protocols=None, workers=None):
   say = progress or (lambda line: None)
   root = pathlib.Path(out) / ("beyond_quick" if quick else "beyond")
   root.mkdir(parents=True, exist_ok=True)
-  workers = workers or os.cpu_count() or 1
+  workers = cores.pool_size(workers, None)     # at most the cores here (_in_order: the seeds)
   lines = _patrol(root, patrol, quick, say, workers)
   lines += _route(root, route, say, workers)
   lines += _subtasks(root, subtask, say, workers)

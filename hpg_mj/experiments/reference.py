@@ -1,4 +1,4 @@
-"""`hpg-mj reproduce reference` (issue 21): where the flat deep RL that users bring
+"""`hpg-mj reproduce reference`: where the flat deep RL that users bring
 stands beside the paper's learners, as one sample-efficiency figure per world and
 one "Reference scores" table.
 
@@ -170,15 +170,15 @@ def write(out, quick=False, earlier=None):
   root = folder(out, quick)
   root.mkdir(parents=True, exist_ok=True)
   found = collect(out, quick, earlier=earlier)
-  lines = ["# reference: Reference scores for the methods people bring (issue 21)", "",
+  lines = ["# reference: Reference scores for the methods people bring", "",
            "Each learner trained on held-out seeds (those its row names; never a tuning seed), then "
            "measured greedily (no exploration, no learning) on the fixed seeded set of "
            "1,000 starts of every report (SPEC section 7). Each cell: the mean over runs "
            "[95% bootstrap confidence interval of the mean]. Wall-clock: training seconds "
            "of one run on one core of the machine named under Provenance (compiling "
            "included, the greedy measures not). **The budgets below are what was run**; "
-           "each experiment file (tasks/experiments/) says what its issue asked for and "
-           "why this machine ran less.", ""]
+           "each experiment file (tasks/experiments/) says what budget a reference "
+           "deserves and why this machine ran less.", ""]
   if quick:
     lines += ["**QUICK protocol** (`--quick`): fewer runs and steps, not for publication.", ""]
   tables, made = [], {}

@@ -76,6 +76,7 @@ import numpy as np
 from hpg_mj import _paths
 from hpg_mj import agents
 from hpg_mj.experiments import locks
+from hpg_mj.experiments import cores
 from hpg_mj.experiments import runs
 from hpg_mj import taskfile
 from hpg_mj.learners import rng
@@ -335,7 +336,18 @@ def _run_ray(todo, workers, options, poll, on_finished, address):
   started = not ray.is_initialized()
   if started:
     kwargs = {"address": address} if address else {"num_cpus": workers}
-    ray.init(include_dashboard=False, log_to_driver=False, logging_level="ERROR", **kwargs)
+    try:
+      ray.init(include_dashboard=False, log_to_driver=False, logging_level="ERROR", **kwargs)
+    except ConnectionError as err:
+      if not address or os.environ.get("RAY_AUTH_MODE"):
+        raise
+      # Ray 2.60: `ray start --head` turns token authentication on where a token exists
+      # (~/.ray/auth_token, which a local ray.init() writes), but a process joining
+      # with an explicit address turns it on only if told (docs/experiments.md).
+      raise ConnectionError(f"--address {address}: {err}; a cluster with token "
+                            "authentication refuses a process that joins without "
+                            "RAY_AUTH_MODE=token in its environment (and the cluster's token "
+                            "in ~/.ray/auth_token or RAY_AUTH_TOKEN)") from None
   try:
     remote = ray.remote(num_cpus=1)(_run_on_ray)
     refs = {remote.remote(*job, **options): job for job in todo}
@@ -396,7 +408,8 @@ def run_experiment(experiment, out, quick=False, workers=None, progress=None, on
   options = {"checkpoint_every": checkpoint_every, "wait": wait,
              "command": command or locks.command_line(),
              "greedy_at": tuple(p for p in experiment.get("greedy_at", ()) if p < episodes)}
-  workers = workers or os.cpu_count() or 1
+  # never more processes than runs to do, nor (without a cluster) than cores here
+  workers = cores.pool_size(workers, len(todo), address if executor == "ray" else None)
   poll = _Poller(all_jobs, progress)
   on_finished = on_finished or (lambda job: None)
   start = time.perf_counter()

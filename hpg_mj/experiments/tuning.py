@@ -16,6 +16,7 @@ import time
 import numpy as np
 
 from hpg_mj import agents
+from hpg_mj.experiments import cores
 
 DRAW_SEED = 0      # the generator that draws a budget's configurations from a larger grid
 SCORES_EXTRA = ("steps_to_95",)   # taxi: primitive steps until the trailing 1,000-episode
@@ -116,6 +117,7 @@ def tune(task, budget=None, episodes=None, seeds=None, progress=None, workers=1)
       progress(job[0], chosen[job[0]], job[1], value, seconds)
 
   arguments = [(str(task.path), chosen[k], seed, episodes, spec["score"]) for k, seed in jobs]
+  workers = cores.pool_size(workers, len(jobs))      # at most the runs, and the cores here
   if workers == 1:
     for job, args in zip(jobs, arguments):
       finished(job, *_one_run(*args))

@@ -148,7 +148,9 @@ def write_video(frames, path, fps=20):
 
 def render_task(domain, task, policy="scripted", seed=0, out=None, gif=False, width=640,
                 height=480, max_steps=None, backend="mujoco", fps=20, frame_every=None):
-  """Renders one episode of a task to a video file; returns (path, summary)."""
+  """Renders one episode of a task to a video file; returns (path, summary).
+  `out`: default `runs/videos/<domain>_<task>_<policy>.mp4` (or .gif), in a folder
+  git ignores, never over the repository's showcase videos."""
   import gymnasium
 
   import hpg_mj  # noqa: F401  (registers the ids)
@@ -176,7 +178,7 @@ def render_task(domain, task, policy="scripted", seed=0, out=None, gif=False, wi
   finally:
     env.close()
   if out is None:
-    out = pathlib.Path("videos") / f"{domain}_{task}_{policy}.{'gif' if gif else 'mp4'}"
+    out = pathlib.Path("runs", "videos") / f"{domain}_{task}_{policy}.{'gif' if gif else 'mp4'}"
   out = pathlib.Path(out)
   if gif and out.suffix.lower() != ".gif":
     out = out.with_suffix(".gif")

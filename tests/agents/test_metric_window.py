@@ -97,12 +97,28 @@ def test_train_names_the_window_and_reports_compile_time_apart(tmp_path, capsys)
     assert cli.main(["train", str(task), "--episodes", "20", "--json", "--quiet",
                      "--out", str(tmp_path / f"a{k}")]) == 0
     metrics = json.loads(capsys.readouterr().out)
-    assert metrics["online_window"] == "last 1,000 episodes of training"
-    assert metrics["online_window_rows"] == 1000 and metrics["episodes_measured"] == 20
+    # 20 episodes run: the window holds those, not the 1,000 it would hold
+    assert metrics["online_window"] == ("all 20 episodes of training (fewer than the window, "
+                                        "the last 1,000)")
+    assert metrics["online_window_rows"] == 20 == metrics["episodes_measured"]
     assert metrics["wall_seconds"] == pytest.approx(
         metrics["compile_seconds"] + metrics["train_seconds"], abs=0.0015)
     seconds.append(metrics["compile_seconds"])
   assert seconds[0] > 0.0 and seconds[1] == 0.0     # compiled once, in the first train
+
+
+def test_the_window_never_claims_more_rows_than_were_run():
+  """`hpg-mj train TASK --episodes 500 --json` had reported online_window_rows 1000."""
+  hybrid, patrol = agents.lookup("ship_hybrid"), agents.lookup("ship_patrol")
+  assert window.described(hybrid, 500) == {
+      "online_window": "all 500 episodes of training (fewer than the window, the last 1,000)",
+      "online_window_rows": 500}
+  for rows in (1000, 1001, 50000):
+    assert window.described(hybrid, rows) == {"online_window": "last 1,000 episodes of training",
+                                              "online_window_rows": 1000}
+  assert window.described(patrol, 3)["online_window_rows"] == 3
+  assert window.over(patrol, 3, "the evaluation") == (
+      "all 3 hours of the evaluation (fewer than the window, the last 125)")
 
 
 def test_evaluate_names_its_window_too(tmp_path, capsys):
@@ -113,3 +129,8 @@ def test_evaluate_names_its_window_too(tmp_path, capsys):
   metrics = json.loads(capsys.readouterr().out)
   assert metrics["evaluation_window"] == "last 1,000 episodes of the evaluation"
   assert metrics["episodes_measured"] == 1000 and metrics["episodes"] == 1200
+  assert cli.main(["evaluate", str(tmp_path / "a"), "--episodes", "7", "--json"]) == 0
+  metrics = json.loads(capsys.readouterr().out)
+  assert metrics["evaluation_window"] == ("all 7 episodes of the evaluation (fewer than the "
+                                          "window, the last 1,000)")
+  assert metrics["episodes_measured"] == 7

@@ -207,3 +207,22 @@ def test_every_shipped_experiment_loads():
   for name in ("fig6", "fig7_11", "fig12"):
     experiment = runner.load_experiment(name)
     assert experiment["figures"]
+
+
+def test_joining_a_token_cluster_without_the_token_setting_says_what_is_missing(monkeypatch):
+  """Ray 2.60: a process joining `ray start --head` by its address is refused unless
+  RAY_AUTH_MODE=token (checked by hand against a local head; here Ray's refusal
+  is stood in for)."""
+  ray = pytest.importorskip("ray")
+
+  def refused(**kwargs):
+    raise ConnectionError(f"Failed to connect to Ray cluster at {kwargs['address']}")
+  monkeypatch.setattr(ray, "is_initialized", lambda: False)
+  monkeypatch.setattr(ray, "init", refused)
+  monkeypatch.delenv("RAY_AUTH_MODE", raising=False)
+  with pytest.raises(ConnectionError, match=r"^--address 10.0.0.1:6379: Failed to connect to "
+                     r"Ray cluster at 10.0.0.1:6379; .* without RAY_AUTH_MODE=token"):
+    runner._run_ray([], 1, {}, lambda: None, None, "10.0.0.1:6379")
+  monkeypatch.setenv("RAY_AUTH_MODE", "token")    # set, and still refused: Ray's own words
+  with pytest.raises(ConnectionError, match=r"^Failed to connect to Ray cluster at 10.0.0.1"):
+    runner._run_ray([], 1, {}, lambda: None, None, "10.0.0.1:6379")
