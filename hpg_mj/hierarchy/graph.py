@@ -134,9 +134,13 @@ class GraphError(ValueError):
 
 
 def _check_learner(node):
-  """A Python learner meets the `Learner` contract (a block is the machine's)."""
+  """A Python learner meets the `Learner` contract (a block is the machine's, and so is
+  a learner of a registered kind, `hierarchy.kinds`)."""
   learner = node.learner
   if type(learner).__module__ == "hpg_mj.hierarchy.blocks":
+    return
+  from hpg_mj.hierarchy import kinds      # (which imports this module)
+  if kinds.has_kind(learner, "learner"):
     return
   missing = [m for m in ("start", "act", "observe") if not callable(getattr(learner, m, None))]
   if missing:
@@ -144,7 +148,8 @@ def _check_learner(node):
                      f"{', '.join(missing)}; a learner answers start(), act(features, mask, "
                      "rng_state, sample) and observe(signal, next_features, done, terminal, "
                      "learn) (hpg_mj.hierarchy.graph.Learner), or is a block of "
-                     "hpg_mj.hierarchy.blocks")
+                     "hpg_mj.hierarchy.blocks or of a kind registered with "
+                     "hpg_mj.hierarchy.kinds.register")
   n_actions = getattr(learner, "n_actions", None)
   if n_actions is not None and int(n_actions) != len(node.children):
     raise GraphError(f"subtask {node.name!r}: its learner {type(learner).__name__} chooses "

@@ -30,6 +30,11 @@ def register(kind):
   return kind
 
 
+def has_kind(block, role):
+  """Whether a kind is registered for `block` in `role`."""
+  return any((role, cls) in _KINDS for cls in type(block).__mro__)
+
+
 def kind_of(block, role, node):
   """The kind of `block` in `role` for subtask `node`; a one-line GraphError naming the
   node and the registered blocks when there is none."""
