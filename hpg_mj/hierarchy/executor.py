@@ -154,7 +154,10 @@ class Executor:
                         dtype=np.bool_)
         if not mask.any():
           raise RuntimeError(f"subtask {node.name!r} has no available child in state {obs!r}")
-      choice = learner.act(node.view(call, obs), mask, self.rng_state, self._sample)
+      try:
+        choice = learner.act(node.view(call, obs), mask, self.rng_state, self._sample)
+      except ValueError as e:          # a view's value refused by its learner
+        raise ValueError(f"subtask {node.name!r}: {e}") from None
       if len(children) == 1 and isinstance(self.graph.nodes[children[0].node], Primitive) \
           and self.graph.nodes[children[0].node].action is None:
         child_reward, step = self._primitive(call, choice)
@@ -176,8 +179,11 @@ class Executor:
       seen = node.reward(call, step, child_reward) if node.reward is not None else child_reward
       done_here = node.termination(call, step)
       done = done_here or self._over
-      learner.observe(seen + internal, None if step.terminated else node.view(call, obs),
-                      done, step.terminated or done_here, self._learn)
+      try:
+        learner.observe(seen + internal, None if step.terminated else node.view(call, obs),
+                        done, step.terminated or done_here, self._learn)
+      except ValueError as e:
+        raise ValueError(f"subtask {node.name!r}: {e}") from None
       total += child_reward
       if done:
         break

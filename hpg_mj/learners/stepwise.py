@@ -20,6 +20,33 @@ from hpg_mj.learners import policies
 from hpg_mj.learners import qlambda
 
 
+def table_state(features, n_states, who):
+  """A view's value as a table's state: an integer in [0, n_states), else one line
+  saying what was given and what is allowed (a float is not truncated; a state past
+  the table never reaches its array)."""
+  if isinstance(features, np.ndarray) and features.ndim == 0:
+    features = features[()]
+  if isinstance(features, (bool, np.bool_)) or not isinstance(features, (int, np.integer)):
+    raise ValueError(f"{who}: the view gave {features!r} ({type(features).__name__}); "
+                     f"expected an integer state in [0, {n_states})")
+  if not 0 <= features < n_states:
+    raise ValueError(f"{who}: the view gave state {features}; expected an integer state in "
+                     f"[0, {n_states})")
+  return int(features)
+
+
+def tile_indices(features, n_active, n_weights, who):
+  """A view's value as the active tiles of a CMAC: `n_active` integers in [0, n_weights)."""
+  tiles = np.asarray(features)
+  if tiles.shape != (n_active,) or not np.issubdtype(tiles.dtype, np.integer):
+    raise ValueError(f"{who}: the view gave {tiles.size} value(s) of {tiles.dtype} with shape "
+                     f"{tiles.shape}; expected {n_active} integer tile indices (one a tiling)")
+  if tiles.min() < 0 or tiles.max() >= n_weights:
+    raise ValueError(f"{who}: the view gave tile {int(tiles.max() if tiles.max() >= n_weights else tiles.min())}; "
+                     f"expected tile indices in [0, {n_weights})")
+  return tiles
+
+
 class _PolicyGradient:
   """Eq. 3 (SPEC section 3): z <- 0 on start; z <- gamma z + psi; theta <- theta + alpha (R + G) z.
 
@@ -67,10 +94,11 @@ class SoftmaxPolicyGradient(_PolicyGradient):
 
   def act(self, features, mask, rng_state, sample):
     mask = self._all if mask is None else mask
+    s = table_state(features, self.n_states, "SoftmaxPolicyGradient")
     if sample:
-      return policies.softmax_act(self.trace, int(features), self.n_actions, mask,
+      return policies.softmax_act(self.trace, s, self.n_actions, mask,
                                   rng_state, self._probs, self._index, self._psi)
-    return policies.softmax_greedy(self.trace, int(features), self.n_actions, mask)
+    return policies.softmax_greedy(self.trace, s, self.n_actions, mask)
 
 
 class GaussianPolicyGradient(_PolicyGradient):
@@ -105,7 +133,8 @@ class GaussianPolicyGradient(_PolicyGradient):
       el.reset(self.width)
 
   def act(self, features, mask, rng_state, sample):
-    self._tiles[:] = features               # the view's array is reused for the next state
+    self._tiles[:] = tile_indices(features, self._tiles.shape[0], self.values.shape[0],
+                                  "GaussianPolicyGradient")   # (the view's array is reused)
     # (Its baseline's -alpha b(s) psi waits for `observe`, which knows whether it learns:
     # the same numbers as `policies.gaussian_choose`, which makes it at once.)
     return policies.gaussian_choose(self.trace, self.values, self._tiles, self._psi, self.alpha,
@@ -120,8 +149,9 @@ class GaussianPolicyGradient(_PolicyGradient):
         if self.width is not None:
           policies.subtract_baseline(self.width.theta, self.values, self._tiles,
                                      self.width_alpha, self._psi_width)
-      policies.gaussian_learn(self.trace, self.values, self._tiles,
-                              self._tiles if done else next_features, self.alpha, self.gamma,
+      following = self._tiles if done else tile_indices(
+          next_features, self._tiles.shape[0], self.values.shape[0], "GaussianPolicyGradient")
+      policies.gaussian_learn(self.trace, self.values, self._tiles, following, self.alpha, self.gamma,
                               self.baseline, signal, done, self.width, self.width_alpha)
       if self.reset_states is not None and not done and self.reset_states(next_features):
         el.reset(self.trace)
@@ -161,7 +191,7 @@ class QLambda:
 
   # What differs between the table and the tiles (TiledQLambda).
   def _state(self, features):
-    return int(features)
+    return table_state(features, self.n_states, "QLambda")
 
   def _choose(self, s, epsilon, rng_state):
     return qlambda.epsilon_greedy(self.q, s, self.n_actions, epsilon, rng_state)
