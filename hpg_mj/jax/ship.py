@@ -23,6 +23,8 @@ action is not refused (it makes the state NaN); an action of the wrong shape or
 kind is refused when the step is traced. `step` resets an ended episode in the
 same call (gymnax's auto-reset); `step_env` does not.
 """
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -213,14 +215,12 @@ class ShipSteering(environment.Environment):
   def _draw_start(self, key):
     """SPEC section 2: x, y, heading and turning rate uniform over their ranges (the
     subtasks: at the local start, heading and turning rate uniform)."""
-    dtype = environment.float_dtype()
-    kx, ky, ktheta, krate = jax.random.split(key, 4)
-    theta = jax.random.uniform(ktheta, (), dtype, -180.0, 180.0)
-    rate = jax.random.uniform(krate, (), dtype, -core.MAX_TURN_RATE, core.MAX_TURN_RATE)
-    if self.start is None:
-      x = jax.random.uniform(kx, (), dtype, 0.0, self.size)
-      y = jax.random.uniform(ky, (), dtype, 0.0, self.size)
-    else:
+    # One draw of four uniforms: each call of the generator is compiled on its own.
+    size = self.size if self.start is None else 0.0
+    low = jnp.array([0.0, 0.0, -180.0, -core.MAX_TURN_RATE], environment.float_dtype())
+    high = jnp.array([size, size, 180.0, core.MAX_TURN_RATE], environment.float_dtype())
+    x, y, theta, rate = jax.random.uniform(key, (4,), low.dtype, low, high)
+    if self.start is not None:
       x, y = self.start
     return self._state(x, y, theta, rate)
 
@@ -238,6 +238,10 @@ class ShipSteering(environment.Environment):
                        f"theta_dot_deg] of shape (4,), got shape {arr.shape}")
     if environment.is_concrete(arr):
       core.check_state(np.asarray(arr, dtype=np.float64), self.env_id, 0.0, self.size)
+    return self._start_at(arr)
+
+  @functools.partial(jax.jit, static_argnames=("self",))
+  def _start_at(self, arr):
     state = self._state(arr[0], arr[1], arr[2], arr[3])
     return self.get_obs(state), state
 

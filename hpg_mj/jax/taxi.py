@@ -16,6 +16,8 @@ wrong shape or kind is refused when the step is traced); gymnax has no
 MultiDiscrete, so the observation space is an integer `Box`; there is no
 `action_mask` in the info.
 """
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -145,13 +147,14 @@ class Taxi(environment.Environment):
     """SPEC section 5 (`taxi_core.sample_initial_state`): the taxi on a uniform
     square, the passenger at a uniform station, the destination uniformly one of
     the other three, the fuel uniform in start_fuel_min..start_fuel_max."""
-    k_square, k_station, k_other, k_fuel = jax.random.split(key, 4)
-    square = jax.random.randint(k_square, (), 0, core.GRID_SIZE * core.GRID_SIZE)
-    station = jax.random.randint(k_station, (), 0, 4)
-    other = jax.random.randint(k_other, (), 0, 3)
-    fuel = core.CLASSIC_FUEL
-    if self.fuel_enabled:
-      fuel = jax.random.randint(k_fuel, (), params.start_fuel_min, params.start_fuel_max + 1)
+    # One draw of four integers: each call of the generator is compiled on its own.
+    fuel_low, fuel_high = params.start_fuel_min, params.start_fuel_max + 1
+    if not self.fuel_enabled:
+      fuel_low, fuel_high = core.CLASSIC_FUEL, core.CLASSIC_FUEL + 1
+    low = jnp.stack([jnp.asarray(v, jnp.int32) for v in (0, 0, 0, fuel_low)])
+    high = jnp.stack([jnp.asarray(v, jnp.int32) for v in
+                      (core.GRID_SIZE * core.GRID_SIZE, 4, 3, fuel_high)])
+    square, station, other, fuel = jax.random.randint(key, (4,), low, high, jnp.int32)
     state = self._state(square // core.GRID_SIZE, square % core.GRID_SIZE, station,
                         (station + 1 + other) % 4, fuel)
     return self.get_obs(state), state
@@ -170,6 +173,10 @@ class Taxi(environment.Environment):
     if environment.is_concrete(arr) and environment.is_concrete(params.capacity):
       core.state_from_vector(np.asarray(arr), fuel_enabled=self.fuel_enabled,
                              capacity=int(params.capacity), who=self.env_id)
+    return self._start_at(arr)
+
+  @functools.partial(jax.jit, static_argnames=("self",))
+  def _start_at(self, arr):
     fuel = arr[4] if self.fuel_enabled else core.CLASSIC_FUEL
     state = self._state(arr[0], arr[1], arr[2], arr[3], fuel)
     return self.get_obs(state), state
