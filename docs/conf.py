@@ -48,7 +48,7 @@ nitpicky = True
 nitpick_ignore_regex = [
     ("py:.*", r"(numpy|np|gymnasium|dm_control|dm_env|mujoco|numba|torch|"
               r"stable_baselines3|scipy|ray|collections|typing|dataclasses|pathlib|"
-              r"concurrent|multiprocessing|subprocess|enum|abc|os|io)(\..*)?"),
+              r"concurrent|multiprocessing|subprocess|enum|abc|os|io|jax|gymnax)(\..*)?"),
     # napoleon's types in prose ("optional int", "observation"); gymnasium's type
     # variables; the private base classes of public ones (not in the reference).
     ("py:class", r"[a-z][a-z ]*|ObsType|ActType|types\.\w+|Any|Callable|Sequence|Optional"),

@@ -20,6 +20,8 @@ ALLOWED = {
                "_paths", "taskfile", "storage"},
     "experiments": {"agents", "hierarchy", "learners", "worlds", "envs", "suite", "render",
                     "provenance", "_paths", "taskfile", "storage"},
+    # The JAX worlds (the `jax` extra) take the numba worlds' constants, nothing else.
+    "jax": {"worlds"},
 }
 
 
@@ -45,6 +47,27 @@ def test_a_folder_imports_only_the_layers_below_it(folder):
     bad = _imports(path) - ALLOWED[folder] - {folder}
     # `import hpg_mj` (for the Gymnasium ids) is not a folder
     assert not bad, f"{path.relative_to(PACKAGE.parent)} imports {sorted(bad)}"
+
+
+def _third_party_imports(path):
+  """The top-level names of the outside packages a file imports, lazy imports included."""
+  found = set()
+  for node in ast.walk(ast.parse(path.read_text())):
+    if isinstance(node, ast.Import):
+      found.update(a.name.split(".")[0] for a in node.names)
+    elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+      found.add(node.module.split(".")[0])
+  return found
+
+
+def test_only_hpg_mj_jax_imports_jax():
+  """JAX is an optional extra (`pip install hpg_mj[jax]`): no module outside
+  hpg_mj/jax imports it (nor gymnax), so that the core never needs it."""
+  inside = PACKAGE / "jax"
+  users = [str(p.relative_to(PACKAGE.parent)) for p in sorted(PACKAGE.rglob("*.py"))
+           if inside not in p.parents and {"jax", "jaxlib", "gymnax"} & _third_party_imports(p)]
+  assert users == []
+  assert "jax" in _third_party_imports(inside / "ship.py")     # the rule sees imports
 
 
 def test_there_is_no_folder_level_cycle():

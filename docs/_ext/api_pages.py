@@ -15,19 +15,31 @@ PACKAGE = "hpg_mj"
 OUT = "api"          # under docs/, written at build time (not tracked)
 
 
+def _walk():
+  """Every public module of the package, by name, in order -> whether it is a package.
+  pkgutil imports the packages to walk them, not the modules: hpg_mj.jax's modules
+  import JAX, whose threads must not be running when Sphinx forks its parallel
+  readers (where autodoc imports them)."""
+  package = importlib.import_module(PACKAGE)
+  found = {PACKAGE: True}
+  found.update((info.name, info.ispkg)
+               for info in pkgutil.walk_packages(package.__path__, PACKAGE + "."))
+  return {n: found[n] for n in sorted(found)
+          if not any(part.startswith("_") for part in n.split("."))}
+
+
 def modules():
   """Every public module of the package, by name, in order."""
-  package = importlib.import_module(PACKAGE)
-  names = [PACKAGE] + [info.name for info in pkgutil.walk_packages(package.__path__, PACKAGE + ".")]
-  return sorted(n for n in names if not any(part.startswith("_") for part in n.split(".")))
+  return list(_walk())
 
 
 def pages():
   """page name -> its modules: a subpackage with everything under it; the package
   itself with its top-level modules."""
   grouped = {}
-  packages = {n for n in modules() if hasattr(importlib.import_module(n), "__path__")}
-  for name in modules():
+  found = _walk()
+  packages = {n for n, is_package in found.items() if is_package}
+  for name in found:
     parts = name.split(".")
     page = ".".join(parts[:2]) if len(parts) > 1 and ".".join(parts[:2]) in packages else PACKAGE
     grouped.setdefault(page, []).append(name)

@@ -1,0 +1,71 @@
+"""The ship and the taxi as pure-JAX environments, with gymnax's functional interface
+(the optional extra: `pip install hpg_mj[jax]`).
+
+    env, params = hpg_mj.jax.make("ShipSteering-v0")
+    obs, state = env.reset(key, params)
+    obs, state, reward, done, info = env.step(key, state, action, params)
+
+Every function is jit-, vmap- and scan-able, and float64 is there with
+`jax.config.update("jax_enable_x64", True)`. The ids are the Gymnasium ids of
+`hpg_mj.envs` (`hpg_mj/ShipSteering-v0`, ...), with or without the `hpg_mj/`
+prefix. In float64 the JAX worlds equal the analytic numba worlds step by step
+(SPEC sections 1-3, 5 and 8; tests/jax); those, the dm_control and the Gymnasium
+tasks stay the reference. See docs/jax.md.
+
+Nothing else in hpg_mj imports JAX, and this module imports it only in `make`
+(the environments' modules import it when loaded), so the registry below is
+readable without it.
+"""
+import importlib
+
+# id -> (module:class, constructor arguments): the Gymnasium ids of hpg_mj.envs.ENV_IDS.
+ENV_IDS = {
+    "hpg_mj/ShipSteering-v0": ("hpg_mj.jax.ship:ShipSteering", {"task": "steer"}),
+    "hpg_mj/ShipSteeringDiagonal-v0": ("hpg_mj.jax.ship:ShipSteering", {"task": "diagonal"}),
+    "hpg_mj/ShipSteeringStraight-v0": ("hpg_mj.jax.ship:ShipSteering", {"task": "straight"}),
+    "hpg_mj/ShipPatrol-v0": ("hpg_mj.jax.ship:ShipSteering", {"task": "patrol"}),
+    "hpg_mj/TaxiFuel-v0": ("hpg_mj.jax.taxi:Taxi", {"fuel": True}),
+    "hpg_mj/Taxi-v0": ("hpg_mj.jax.taxi:Taxi", {"fuel": False}),
+}
+
+PREFIX = "hpg_mj/"
+INSTALL = "pip install hpg_mj[jax]"
+
+
+def canonical_id(env_id):
+  """The registered id of `env_id`, given with or without the `hpg_mj/` prefix."""
+  name = env_id if not isinstance(env_id, str) or env_id.startswith(PREFIX) else PREFIX + env_id
+  if name not in ENV_IDS:
+    short = sorted(i[len(PREFIX):] for i in ENV_IDS)
+    raise ValueError(f"unknown hpg_mj.jax environment id {env_id!r}; valid ids: {short} "
+                     f"(with or without the {PREFIX!r} prefix)")
+  return name
+
+
+def _require_jax():
+  try:
+    import jax  # noqa: F401
+    import jax.numpy  # noqa: F401
+  except ImportError as error:
+    raise ImportError(f"hpg_mj.jax needs JAX, which is not installed: {INSTALL}") from error
+
+
+def make(env_id, **params):
+  """`(env, params)` for an hpg_mj id, as `gymnax.make`: the environment and its
+  default `EnvParams`, with `params` (field names of its `EnvParams`, for example
+  `max_steps_in_episode=1000` or `out_of_bounds_reward=-300.0`) replacing defaults.
+
+  Raises ValueError naming the id or parameter and what is allowed, ImportError
+  naming the extra to install where JAX is missing.
+  """
+  name = canonical_id(env_id)
+  _require_jax()
+  path, kwargs = ENV_IDS[name]
+  module, cls = path.split(":")
+  env = getattr(importlib.import_module(module), cls)(env_id=name, **kwargs)
+  defaults = env.default_params
+  allowed = list(type(defaults).__dataclass_fields__)
+  unknown = sorted(set(params) - set(allowed))
+  if unknown:
+    raise ValueError(f"{name}: unknown parameter(s) {unknown}; allowed: {allowed}")
+  return env, defaults.replace(**params)

@@ -1,0 +1,156 @@
+"""gymnax's functional environment interface, without gymnax: the base class of the
+JAX tasks, their spaces and their state and parameter records.
+
+An environment is pure functions over an `EnvState` and an `EnvParams` record, as
+gymnax's (`gymnax/environments/environment.py`, the interface of PureJaxRL and
+rejax): `reset(key, params)` -> `(obs, state)`, `step(key, state, action, params)`
+-> `(obs, state, reward, done, info)`, where `step` resets an episode that ended,
+in the same call, from the second half of its key (gymnax's auto-reset), and
+`done` is `terminated or truncated`. `step_env` and `reset_env` are the task's own,
+without the auto-reset. Everything is jit-, vmap- and scan-able.
+
+gymnax itself is not a dependency (it brings flax, orbax and seaborn, and rejax
+0.1.3 needs gymnax < 1): the records are frozen dataclasses registered as JAX
+pytrees, and the spaces are gymnax's two kinds written again. Where gymnax is
+installed (it comes with rejax) the spaces are subclasses of gymnax's own, so that
+code that asks `isinstance(space, gymnax.environments.spaces.Discrete)` (rejax
+does, to tell discrete from continuous actions) sees what it expects.
+"""
+import dataclasses
+import functools
+
+import jax
+import jax.numpy as jnp
+
+try:   # gymnax's spaces as bases, only where gymnax is installed (module docstring)
+  from gymnax.environments import spaces as _gymnax_spaces
+  _DiscreteBase, _BoxBase = _gymnax_spaces.Discrete, _gymnax_spaces.Box
+except Exception:   # noqa: BLE001  absent, or an old gymnax that no longer imports
+  _DiscreteBase = _BoxBase = object   # under a new JAX: the spaces stay plain
+
+
+def record(cls):
+  """A frozen dataclass that is a JAX pytree of all its fields (flax.struct's
+  `dataclass`, which gymnax uses, without flax), with flax's `replace`."""
+  cls = dataclasses.dataclass(frozen=True)(cls)
+  names = [f.name for f in dataclasses.fields(cls)]
+  cls.replace = lambda self, **changes: dataclasses.replace(self, **changes)
+  return jax.tree_util.register_dataclass(cls, data_fields=names, meta_fields=[])
+
+
+class Discrete(_DiscreteBase):
+  """Actions 0..n-1 (gymnax's `Discrete`): `n`, shape `()`, `sample(key)`, `contains(x)`."""
+
+  def __init__(self, num_categories):
+    self.n = int(num_categories)
+    self.shape = ()
+    self.dtype = jax.dtypes.canonicalize_dtype(jnp.int64)   # gymnax's jnp.int_, no warning
+
+  def sample(self, key):
+    return jax.random.randint(key, self.shape, 0, self.n).astype(self.dtype)
+
+  def contains(self, x):
+    return jnp.logical_and(x >= 0, x < self.n)
+
+  def __repr__(self):
+    return f"Discrete({self.n})"
+
+
+class Box(_BoxBase):
+  """An array in [low, high] (gymnax's `Box`): `low`, `high`, `shape`, `dtype`,
+  `sample(key)` (uniform), `contains(x)`."""
+
+  def __init__(self, low, high, shape, dtype=jnp.float32):
+    self.low = low
+    self.high = high
+    self.shape = tuple(shape)
+    self.dtype = dtype
+
+  def sample(self, key):
+    return jax.random.uniform(key, self.shape, minval=self.low,
+                              maxval=self.high).astype(self.dtype)
+
+  def contains(self, x):
+    return jnp.logical_and(jnp.all(x >= self.low), jnp.all(x <= self.high))
+
+  def __repr__(self):
+    return f"Box({self.low}, {self.high}, {self.shape}, {jnp.dtype(self.dtype).name})"
+
+
+class Environment:
+  """gymnax's `Environment`: a task is a subclass with `default_params`,
+  `step_env`, `reset_env`, `get_obs`, `is_terminal`, `action_space`,
+  `observation_space` and `num_actions`. The instance holds only what fixes array
+  shapes (which task); everything a user may change per call is in `EnvParams`.
+  """
+
+  @property
+  def default_params(self):
+    raise NotImplementedError
+
+  @functools.partial(jax.jit, static_argnames=("self",))
+  def step(self, key, state, action, params=None):
+    """One step, and a reset in the same call where the episode ended (gymnax's
+    auto-reset): the observation and state returned are then the new episode's
+    start, drawn from the second half of `key`; the reward and `done` are the last
+    step's, and `info` its own (`terminated`, `truncated`, `discount`, ...)."""
+    if params is None:
+      params = self.default_params
+    key_step, key_reset = jax.random.split(key)
+    obs_st, state_st, reward, done, info = self.step_env(key_step, state, action, params)
+    obs_re, state_re = self.reset_env(key_reset, params)
+    state = jax.tree.map(lambda x, y: jax.lax.select(done, x, y), state_re, state_st)
+    obs = jax.lax.select(done, obs_re, obs_st)
+    return obs, state, reward, done, info
+
+  @functools.partial(jax.jit, static_argnames=("self",))
+  def reset(self, key, params=None):
+    """A start drawn from `key`: `(obs, state)`."""
+    if params is None:
+      params = self.default_params
+    return self.reset_env(key, params)
+
+  def step_env(self, key, state, action, params):
+    raise NotImplementedError
+
+  def reset_env(self, key, params):
+    raise NotImplementedError
+
+  def get_obs(self, state, params=None, key=None):
+    raise NotImplementedError
+
+  def is_terminal(self, state, params):
+    raise NotImplementedError
+
+  def discount(self, state, params):
+    """0 where the episode has ended, 1 otherwise (gymnax's)."""
+    return jax.lax.select(self.is_terminal(state, params), 0.0, 1.0)
+
+  @property
+  def name(self):
+    return type(self).__name__
+
+  @property
+  def num_actions(self):
+    raise NotImplementedError
+
+  def action_space(self, params=None):
+    raise NotImplementedError
+
+  def observation_space(self, params=None):
+    raise NotImplementedError
+
+  def state_space(self, params=None):
+    raise NotImplementedError
+
+
+def float_dtype():
+  """The default float: float64 with `jax.config.update("jax_enable_x64", True)`,
+  float32 otherwise (JAX's default)."""
+  return jax.dtypes.canonicalize_dtype(jnp.float64)
+
+
+def is_concrete(x):
+  """Whether `x` holds values now (not a tracer under jit or vmap), so that they
+  can be checked before the call."""
+  return not isinstance(x, jax.core.Tracer)

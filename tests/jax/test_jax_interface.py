@@ -1,0 +1,164 @@
+"""`hpg_mj.jax` keeps gymnax's interface (issue 42): `make` by the Gymnasium ids,
+`reset(key, params)` and `step(key, state, action, params)` jitted, vmapped and
+scanned, the auto-reset of gymnax's `step`, float64 on request, one-line errors for
+bad input; and the rest of hpg_mj never imports JAX."""
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+pytest.importorskip("jax.numpy")   # not `jax`: tests/ is on sys.path and holds tests/jax
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+
+import hpg_mj.jax as hpg_jax  # noqa: E402
+from hpg_mj.jax import environment  # noqa: E402
+from hpg_mj.worlds import ship_core  # noqa: E402
+
+SHORT_IDS = sorted(i.split("/", 1)[1] for i in hpg_jax.ENV_IDS)
+
+
+@pytest.fixture
+def x64():
+  previous = jax.config.jax_enable_x64
+  jax.config.update("jax_enable_x64", True)
+  yield
+  jax.config.update("jax_enable_x64", previous)
+
+
+def test_the_ids_are_the_gymnasium_ids():
+  from hpg_mj import envs
+  assert set(hpg_jax.ENV_IDS) == set(envs.ENV_IDS)
+  env, params = hpg_jax.make("ShipSteering-v0")
+  same, same_params = hpg_jax.make("hpg_mj/ShipSteering-v0")
+  assert env.name == same.name == "hpg_mj/ShipSteering-v0" and params == same_params
+  assert params.max_steps_in_episode == ship_core.STEER_MAX_STEPS
+  assert hpg_jax.make("ShipPatrol-v0")[1].max_steps_in_episode == ship_core.HOUR_STEPS
+  _, changed = hpg_jax.make("ShipSteering-v0", out_of_bounds_reward=-300.0)
+  assert changed.out_of_bounds_reward == -300.0 and changed.gate_reward == 100.0
+
+
+def test_bad_ids_and_parameters_are_refused_in_one_line():
+  with pytest.raises(ValueError, match=r"unknown hpg_mj.jax environment id 'ShipSteering'; "
+                                       r"valid ids: \['ShipPatrol-v0'"):
+    hpg_jax.make("ShipSteering")
+  with pytest.raises(ValueError, match=r"hpg_mj/Taxi-v0: unknown parameter\(s\) \['fuel'\]; "
+                                       r"allowed: \['max_steps_in_episode'"):
+    hpg_jax.make("Taxi-v0", fuel=False)
+
+
+def test_bad_actions_and_states_are_refused_naming_what_is_allowed():
+  key = jax.random.PRNGKey(0)
+  ship, params = hpg_jax.make("ShipSteering-v0")
+  _, state = ship.reset(key, params)
+  with pytest.raises(ValueError, match=r"ShipSteering-v0: the action is the turning rate r in "
+                                       r"deg/s, a number of shape \(1,\) or \(\), got shape \(2,\)"):
+    ship.step(key, state, jnp.zeros(2), params)
+  with pytest.raises(ValueError, match=r"state theta_dot_deg=20.0 is outside the allowed"):
+    ship.reset_to(np.array([500.0, 500.0, 0.0, 20.0]), params)
+  with pytest.raises(ValueError, match=r"reset_to takes a ship state .* shape \(4,\), got"):
+    ship.reset_to(np.zeros(3), params)
+  taxi, params = hpg_jax.make("Taxi-v0")
+  _, state = taxi.reset(key, params)
+  with pytest.raises(ValueError, match=r"Taxi-v0: the action is one integer, shape \(\) or "
+                                       r"\(1,\) \(0 South, .*, 5 Dropoff\), got shape \(\) of "
+                                       r"dtype float32"):
+    taxi.step(key, state, jnp.float32(1.0), params)
+  with pytest.raises(ValueError, match=r"state passenger=1 waits at its own destination"):
+    taxi.reset_to(np.array([0, 0, 1, 1]), params)
+
+
+# One compile each (seconds): the continuing ship (its restarts inside a step) and
+# the taxi; the steering task resets in the test below, and every task steps inside
+# the scans of test_jax_ship.py and test_jax_taxi.py.
+@pytest.mark.parametrize("env_id", ["ShipPatrol-v0", "TaxiFuel-v0"])
+def test_reset_and_step_jit_vmap_and_scan_with_gymnaxs_auto_reset(env_id):
+  env, params = hpg_jax.make(env_id)
+  params = params.replace(max_steps_in_episode=40)   # every episode ends in the scan
+  keys = jax.random.split(jax.random.PRNGKey(1), 64)
+  obs, state = jax.vmap(env.reset, in_axes=(0, None))(keys, params)
+  space = env.observation_space(params)
+  assert obs.shape == (64, *space.shape) and bool(jax.vmap(space.contains)(obs).all())
+
+  @jax.jit
+  def rollout(state, key):
+    def body(state, key):
+      act_key, step_key = jax.random.split(key)
+      actions = jax.vmap(env.action_space(params).sample)(jax.random.split(act_key, 64))
+      obs, state, reward, done, info = jax.vmap(env.step, in_axes=(0, 0, 0, None))(
+          jax.random.split(step_key, 64), state, actions, params)
+      return state, (obs, state.time, reward, done, info["terminated"], info["truncated"])
+    return jax.lax.scan(body, state, jax.random.split(key, 100))
+
+  _, (obs, time, reward, done, terminated, truncated) = rollout(state, jax.random.PRNGKey(2))
+  done = np.asarray(done)
+  assert done.any(axis=0).all()                       # every copy ended at least once
+  assert np.array_equal(done, np.asarray(terminated | truncated))
+  assert (np.asarray(time)[done] == 0).all()          # auto-reset: the new episode's start
+  assert (np.asarray(time)[~done] > 0).all() and np.isfinite(np.asarray(reward)).all()
+  assert bool(jax.vmap(jax.vmap(space.contains))(obs).all())
+
+
+def test_step_resets_from_the_second_half_of_its_key_as_gymnax():
+  env, params = hpg_jax.make("ShipSteering-v0")
+  _, state = env.reset_to(jnp.array([1.0, 500.0, -90.0, 0.0]), params)   # leaves at once
+  key = jax.random.PRNGKey(3)
+  obs, new, reward, done, info = env.step(key, state, jnp.zeros(1), params)
+  start_obs, start = env.reset(jax.random.split(key)[1], params)
+  assert bool(done) and int(info["event"]) == ship_core.FAILURE and float(reward) == -101.0
+  assert float(info["discount"]) == 0.0 and bool(info["terminated"])
+  assert np.array_equal(obs, start_obs) and int(new.time) == 0
+
+
+def test_float64_on_request(x64):
+  # The types of reset and step, traced and not compiled (jax.eval_shape).
+  key = jax.random.PRNGKey(0)
+  for env_id, obs_dtype in (("ShipSteering-v0", jnp.float64), ("TaxiFuel-v0", jnp.int32)):
+    env, params = hpg_jax.make(env_id)
+    obs, state = jax.eval_shape(env.reset, key, params)
+    action = jax.eval_shape(env.action_space(params).sample, key)
+    _, _, reward, _, info = jax.eval_shape(env.step, key, state, action, params)
+    assert obs.dtype == env.observation_space(params).dtype == obs_dtype
+    assert reward.dtype == info["discount"].dtype == jnp.float64
+  assert state.fuel.dtype == jnp.int32
+
+
+def test_the_spaces_are_gymnaxs_two_kinds():
+  ship, params = hpg_jax.make("ShipSteeringDiagonal-v0")
+  box = ship.action_space(params)
+  assert isinstance(box, environment.Box) and box.shape == (1,) and ship.num_actions == 1
+  assert (box.low, box.high) == (-15.0, 15.0)
+  taxi, params = hpg_jax.make("TaxiFuel-v0")
+  discrete = taxi.action_space(params)
+  assert isinstance(discrete, environment.Discrete) and discrete.n == 7 == taxi.num_actions
+  samples = jax.vmap(discrete.sample)(jax.random.split(jax.random.PRNGKey(0), 500))
+  assert set(np.asarray(samples).tolist()) == set(range(7))
+  assert hpg_jax.make("Taxi-v0")[0].action_space().n == 6
+
+
+def _run(code):
+  done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+  assert done.returncode == 0, done.stderr[-3000:]
+  return done.stdout
+
+
+def test_the_core_never_imports_jax():
+  out = _run("import sys, hpg_mj, hpg_mj.envs.vector, hpg_mj.worlds.ship_task, "
+             "hpg_mj.worlds.taxi_rules, hpg_mj.benchmark, hpg_mj.cli, hpg_mj.jax\n"
+             "print(sorted(m for m in sys.modules if m == 'jax' or m.startswith('jax.')))")
+  assert out.strip() == "[]"
+
+
+def test_without_jax_make_names_the_extra_in_one_line():
+  out = _run("import sys\nsys.modules['jax'] = None\nimport hpg_mj.jax\n"
+             "print(len(hpg_mj.jax.ENV_IDS))\n"
+             "try:\n  hpg_mj.jax.make('TaxiFuel-v0')\nexcept ImportError as e:\n  print(e)")
+  assert out.splitlines() == ["6", "hpg_mj.jax needs JAX, which is not installed: "
+                                   "pip install hpg_mj[jax]"]
+
+
+def test_with_gymnax_installed_the_spaces_are_gymnaxs():
+  spaces = pytest.importorskip("gymnax.environments.spaces")
+  assert isinstance(hpg_jax.make("Taxi-v0")[0].action_space(), spaces.Discrete)
+  assert isinstance(hpg_jax.make("ShipSteering-v0")[0].action_space(), spaces.Box)
