@@ -41,7 +41,8 @@ def test_every_subpackage_is_in_the_wheel():
   import tomllib
   listed = set(tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
                ["packages"])
-  found = {"hpg_mj." + p.parent.name for p in (REPO / "hpg_mj").glob("*/__init__.py")}
+  found = {".".join(p.parent.relative_to(REPO).parts)
+           for p in (REPO / "hpg_mj").glob("**/__init__.py") if p.parent != REPO / "hpg_mj"}
   assert found | {"hpg_mj", "hpg_mj.assets", "hpg_mj.tasks", "hpg_mj.tasks.experiments",
                  "hpg_mj.golden"} == listed
 
