@@ -1,6 +1,7 @@
 """Block kinds: one module each (`hierarchy.kinds.base` says what a kind is), found
 through one registration. `register(kind)` adds a kind, ours or a user's; `kind_of`
 finds the kind of a block by its class (or a base class of it)."""
+from hpg_mj.hierarchy import graph
 from hpg_mj.hierarchy.graph import GraphError
 from hpg_mj.hierarchy.kinds import base
 
@@ -27,12 +28,9 @@ def register(kind):
       raise TypeError(f"register: {type(kind).__name__}.{op} is missing: a {kind.role} kind "
                       "gives its compiled operations (hpg_mj.hierarchy.kinds.base)")
   _KINDS[(kind.role, kind.block)] = kind
+  if kind.role == "learner":
+    graph.MACHINE_LEARNERS.add(kind.block)
   return kind
-
-
-def has_kind(block, role):
-  """Whether a kind is registered for `block` in `role`."""
-  return any((role, cls) in _KINDS for cls in type(block).__mro__)
 
 
 def kind_of(block, role, node):
