@@ -92,6 +92,22 @@ def chosen(G, node):
   raise NotImplementedError("compiled per graph by hierarchy.program")
 
 
+def schedule_run(G, node, success):
+  """A run of `node` ended (its success): the exploration schedule notes it, if it
+  watches `node`."""
+  raise NotImplementedError("compiled per graph by hierarchy.program")
+
+
+def schedule_episode(G, learned):
+  """The episode ended, the `learned`-th learning episode: the schedule's step."""
+  raise NotImplementedError("compiled per graph by hierarchy.program")
+
+
+def schedule_decided(G):
+  """The root's child returned: a schedule counted in decisions steps."""
+  raise NotImplementedError("compiled per graph by hierarchy.program")
+
+
 ROOT = 0
 SEEN_STEP = (False,)
 
@@ -163,6 +179,8 @@ def step(G, reward, terminated, truncated):
     seen = core.STEP_REWARD * M.child_steps[node] if SEEN_STEP[node] else M.reward[node]
     M.reward[node] = 0.0
     M.child_steps[node] = 0
+    if d == 0 and learn:
+      schedule_decided(G)
     resume(G, node, seen + internal, done, terminal)
     if not done:
       return False, descend(G, d)
@@ -171,12 +189,15 @@ def step(G, reward, terminated, truncated):
       M.episode[E_EVENT] = event
       if learn:
         M.episode[E_LEARNED] += 1
+        schedule_episode(G, M.episode[E_LEARNED])
       return True, 0.0
     c = M.counters[node]
     c[CALLS] += 1
     if not over:
       c[RUNS] += 1
       c[SUCCESSES] += event == SUCCESS
+      if learn:
+        schedule_run(G, node, event == SUCCESS)
     d -= 1
 
 

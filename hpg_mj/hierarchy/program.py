@@ -35,6 +35,7 @@ from hpg_mj.hierarchy import calls
 from hpg_mj.hierarchy import kinds as kinds_mod
 from hpg_mj.hierarchy.graph import GraphError, Primitive
 from hpg_mj.hierarchy.kinds import rules as rules_mod
+from hpg_mj.learners import banks
 from hpg_mj.learners import eligibility as el
 from hpg_mj.worlds import ship_core as core
 
@@ -105,6 +106,7 @@ class Program:
     self._records = []              # (field of G, value)
     self._lines = []
     self._arguments = self._collect_arguments(root_args or {})
+    self._schedule()
     self._subtasks = [_Node(name, self.index[name], n) for name, n in graph.nodes.items()
                       if not isinstance(n, Primitive)]
     for s in self._subtasks:
@@ -112,9 +114,11 @@ class Program:
     self._write()
     self._frames()
     self._module = self._load()
-    Graph = self._module.Graph
-    self.G = Graph(self.frames, *[value for _, value in self._records])
-    self._entries = self._module
+    # Each record, and the graph of them, as a struct the compiled code takes by
+    # reference (`learners.banks`): passed by value, the hybrid's ~80 arrays were copied
+    # at every call of the graph's operations, and it trained at a third of its speed.
+    records = banks.as_structs(self.frames, *[value for _, value in self._records])
+    self.G = banks.as_structs(self._module.Graph(*records))[0]
 
   # -- the graph, checked against its kinds --
 
@@ -171,6 +175,19 @@ class Program:
     self._root_args = dict(root_args)
     return out
 
+  def _schedule(self):
+    """The graph's exploration schedule (a held epsilon of 0.1 by default, as
+    `hierarchy.machine`'s), its watched subtasks checked."""
+    from hpg_mj.hierarchy import blocks
+    block = self.graph.schedule or blocks.HeldEpsilon()
+    self.schedule_block = block
+    self.schedule_kind = kinds_mod.kind_of(block, "schedule", "the graph's schedule")
+    for name in self.schedule_kind.watch(block):
+      if name not in self.graph.nodes or isinstance(self.graph.nodes[name], Primitive):
+        raise GraphError(f"the epsilon schedule watches {name!r}, which is not a subtask of the "
+                         f"graph; subtasks: {sorted(n.name for n in self.graph.subtasks())}")
+    self.schedule = self.schedule_kind.record(block)
+
   def _resolve(self, s):
     """The node's kinds, checked against each other and its children."""
     node, name = s.node, s.name
@@ -208,6 +225,15 @@ class Program:
       raise GraphError(f"subtask {name!r}: its learner {type(node.learner).__name__} reads "
                        f"{s.learner.reads}, its view {rules_mod.rule_name(node.view)} gives "
                        f"{s.view.gives}")
+    arguments = self._arguments.get(name, {})
+    s.view.check(name, node.view, arguments)
+    s.end.check(name, node.termination, arguments)
+    if s.reward is not None:
+      s.reward.check(name, node.internal_reward, arguments)
+      if s.reward.from_termination and not s.end.gives_internal:
+        raise GraphError(f"subtask {name!r}: its internal reward {type(node.internal_reward).__name__}"
+                         f" is the G of its termination, and {type(node.termination).__name__} "
+                         "gives none")
     size = s.view.size(node.view)
     s.learner.check(name, node.learner, s.n_children, size)
     s.size = s.learner.size(node.learner)
@@ -251,7 +277,8 @@ class Program:
   def _view_text(self, s, L):
     node = s.node
     fn, settings = self._op(s.view, node.view, "V", s)
-    args = ", ".join(([settings] if settings else []) + ["M.obs", f"call_{s.index}(M)"])
+    args = ", ".join([settings, "M.obs", f"call_{s.index}(M)", "M.samples"] if settings else
+                     ["M.obs", f"call_{s.index}(M)"])
     name = rules_mod.rule_name(node.view)
     L.append("@numba.njit(**_JIT)")
     L.append(f"def view_{s.index}(G):")
@@ -284,7 +311,7 @@ class Program:
       slot = len(self._learner_blocks)
       self._learners[id(block)] = slot
       self._learner_blocks.append((block, s.learner, s.name))
-      self._record(f"P{slot}", s.learner.settings(s.name, block))
+      self._record(f"P{slot}", s.learner.settings(s.name, block, self.schedule))
       self._record(f"L{slot}", s.learner.learned(block, s.n_children))
     else:
       slot = self._learners[id(block)]
@@ -321,22 +348,48 @@ class Program:
   def _judge_text(self, s, L):
     node = s.node
     end, end_settings = self._op(s.end, node.termination, "T", s)
-    args = ", ".join(([end_settings] if end_settings else []) + ["M.obs", "call"])
+    args = ", ".join([end_settings, "M.obs", "call", "M.samples"] if end_settings else
+                     ["M.obs", "call"])
     what = self._what(s.name, f"termination {rules_mod.rule_name(node.termination)}",
                       "0 (go on), 1 (success), -1 (failure) or a bool")
     L += ["@numba.njit(**_JIT)", f"def judge_{s.index}(G):",
           f'  """Subtask {s.name!r}: (its event, G) after a child returned."""',
-          "  M = G.M", f"  call = call_{s.index}(M)",
-          f"  event = boundary.as_event({end}({args}), M.fault, {what})"]
+          "  M = G.M", f"  call = call_{s.index}(M)"]
+    if s.end.gives_internal:
+      L.append(f"  said, shaped = {end}({args})")
+    else:
+      L.append(f"  said = {end}({args})")
+    L.append(f"  event = boundary.as_event(said, M.fault, {what})")
     if s.reward is None:
       L.append("  return event, 0.0")
+    elif s.reward.from_termination:
+      L.append("  return event, shaped")
     else:
       fn, settings = self._op(s.reward, node.internal_reward, "R", s)
-      args = ", ".join(([settings] if settings else []) + ["M.obs", "call", "event"])
+      args = ", ".join([settings, "M.obs", "call", "event", "M.samples"] if settings else
+                       ["M.obs", "call", "event"])
       what = self._what(s.name, f"internal reward {rules_mod.rule_name(node.internal_reward)}",
                         "a finite number")
       L.append(f"  return event, boundary.as_reward({fn}({args}), M.fault, {what})")
     L += ["", ""]
+
+  def _schedule_text(self, L):
+    """The schedule's hooks: a watched subtask's run ended, the episode, a decision."""
+    kind = self.schedule_kind
+    S = self._record("S", self.schedule)
+    run, episode, decided = (self._function(f) for f in (kind.run_ended, kind.episode_ended,
+                                                          kind.decided))
+    L += ["@numba.njit(**_JIT)", "def schedule_run(G, node, success):",
+          '  """A subtask\'s run ended: the schedule notes it if it watches the subtask."""']
+    watched = kind.watch(self.schedule_block)
+    for k, name in enumerate(watched):
+      L.append(f"  {'if' if k == 0 else 'elif'} node == {self.index[name]}:")
+      L.append(f"    {run}({S}, {k}, success)")
+    L += ["  return None", "", "",
+          "@numba.njit(**_JIT)", "def schedule_episode(G, learned):",
+          f"  {episode}({S}, learned)", "", "",
+          "@numba.njit(**_JIT)", "def schedule_decided(G):",
+          f"  {decided}({S})", "", ""]
 
   def _chosen_text(self, s, L):
     L += ["@numba.njit(**_JIT)", f"def chosen_{s.index}(G):",
@@ -379,6 +432,7 @@ class Program:
     self._dispatch(L, "resume", ", signal, done, terminal", ", signal, done, terminal")
     self._dispatch(L, "judge", "", "")
     self._dispatch(L, "chosen", "", "")
+    self._schedule_text(L)
     seen = tuple(bool(getattr(s, "seen_step", False)) for s in self._by_index())
     L.append(f"ROOT = {self.index[self.graph.root]}")
     L.append(f"SEEN_STEP = {seen!r}")
@@ -476,7 +530,10 @@ class Program:
       raise
 
   def start_schedule(self, learned_episodes):
-    """(No schedule on the open machine yet; kept for the agents' interface.)"""
+    """The schedule where it stands after `learned_episodes` learning episodes (the
+    agent's count, which a run resumes from); a held epsilon keeps its own state."""
+    self.frames.episode[algorithm.E_LEARNED] = int(learned_episodes)
+    self.schedule_kind.start(self.schedule, self.schedule_block, learned_episodes)
 
   def run(self, episodes, learn, sample, rng_state, world, start=None):
     """`episodes` episodes fused with the analytic ship; `world` = (gate reward,
@@ -552,21 +609,24 @@ class Program:
     them restores a checkpoint)."""
     out = {}
     for slot, (block, kind, first) in enumerate(self._learner_blocks):
-      learned = self.G[self._field_index(f"L{slot}")]
+      learned = self._field(f"L{slot}")
       for field, value in learned._asdict().items():
         if isinstance(value, np.ndarray):
           out[f"{first}.{field}"] = value
+    for field in ("state", "outcomes", "counts"):
+      out[f"schedule.{field}"] = getattr(self.schedule, field)
     return out
 
-  def _field_index(self, field):
-    return 1 + [f for f, _ in self._records].index(field)
+  def _field(self, field):
+    """A record of the graph by its field (`L0`, `S`, ...)."""
+    return dict(self._records)[field]
 
   def parameters(self):
     """Each learner's parameters by its first node's name (copies): a table's values
     (`q`), a policy's theta with its pending Eq. 3 updates applied (`theta`)."""
     out = {}
     for slot, (block, kind, first) in enumerate(self._learner_blocks):
-      learned = self.G[self._field_index(f"L{slot}")]
+      learned = self._field(f"L{slot}")
       fields = learned._fields
       if all(f in fields for f in el.Trace._fields):
         out[f"{first}.theta"] = el.parameters(el.Trace(*[getattr(learned, f)

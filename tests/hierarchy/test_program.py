@@ -380,3 +380,33 @@ def test_a_rule_that_is_not_compiled_is_refused():
   with pytest.raises(GraphError, match=r"Features: rule <function _plain .*> is not a "
                                        r"@numba.njit function"):
     Features(_plain)
+
+
+# ---- the shipped kinds: the hybrid's graph (Figure 3) --------------------------------
+
+def test_the_hybrids_graph_gives_the_old_machines_numbers_bit_for_bit():
+  """Figure 3 (GridCell root, LocalTiles and LocalGoal with Shaping below, the held
+  epsilon) on the open machine and on `hierarchy.machine`: fused, then step by step
+  through the Gymnasium ship, every record and learned array the same."""
+  from hpg_mj import agents
+  from hpg_mj.learners import eligibility as el
+  task = agents.load_task("ship_hybrid")
+  old, new = agents.build(task, seed=4), agents.build(task, seed=4)
+  new._machine = Program(new.graph())
+  a, b = old.train(400), new.train(400)
+  for field in a.dtype.names:
+    np.testing.assert_array_equal(a[field], b[field], err_msg=field)
+  env = old.make_env("gymnasium")
+  a = old.train_stepwise(env, 4)
+  rows = new.machine.run_stepwise(env, 4, True, True, new.rng_state, new.start_state,
+                                  new._ended)
+  b = new.as_record(new._record_rows(rows))
+  for field in a.dtype.names:
+    np.testing.assert_array_equal(a[field], b[field], err_msg=field)
+  state = new.machine.state()
+  np.testing.assert_array_equal(old.machine.q_arrays(old.root)[0], state["root.q"])
+  for k, name in enumerate(("diagonal", "straight")):
+    trace, values = old.machine.gaussian_arrays(old.low[k])
+    np.testing.assert_array_equal(el.parameters(trace), new.machine.parameters()[f"{name}.theta"])
+  np.testing.assert_array_equal(old.machine.epsilon_schedule[0], state["schedule.state"])
+  np.testing.assert_array_equal(old.machine.epsilon_schedule[1], state["schedule.outcomes"])

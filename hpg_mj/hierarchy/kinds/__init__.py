@@ -5,7 +5,7 @@ from hpg_mj.hierarchy import graph
 from hpg_mj.hierarchy.graph import GraphError
 from hpg_mj.hierarchy.kinds import base
 
-ROLES = ("learner", "view", "termination", "reward")
+ROLES = ("learner", "view", "termination", "reward", "schedule")
 _KINDS = {}          # (role, block class) -> kind
 
 
@@ -22,9 +22,10 @@ def register(kind):
   if not isinstance(kind.block, type):
     raise TypeError(f"register: {type(kind).__name__}.block = {kind.block!r}: must be the "
                     "class of the blocks it runs")
-  for op in {"learner": ("start", "choose", "observe"), "view": ("view",),
-             "termination": ("end",), "reward": ("reward",)}[kind.role]:
-    if getattr(kind, op, None) is None and not getattr(kind, "takes_settings", True) is False:
+  ops = {"learner": ("start", "choose", "observe"), "schedule": ("run_ended", "episode_ended",
+                                                                  "decided")}.get(kind.role, ())
+  for op in ops:
+    if getattr(kind, op, None) is None:
       raise TypeError(f"register: {type(kind).__name__}.{op} is missing: a {kind.role} kind "
                       "gives its compiled operations (hpg_mj.hierarchy.kinds.base)")
   _KINDS[(kind.role, kind.block)] = kind
@@ -47,8 +48,10 @@ def kind_of(block, role, node):
 
 
 def _register_shipped():
-  from hpg_mj.hierarchy.kinds import gaussian_cmac, q_table, rules
-  for kind in (q_table.QTableKind(), gaussian_cmac.GaussianCMACKind(), *rules.KINDS):
+  from hpg_mj.hierarchy.kinds import epsilon, gaussian_cmac, grid_cell, local_frame, q_table, rules
+  for kind in (q_table.QTableKind(), gaussian_cmac.GaussianCMACKind(), *rules.KINDS,
+               grid_cell.GridCellKind(), local_frame.LocalTilesKind(), local_frame.LocalGoalKind(),
+               local_frame.ShapingKind(), epsilon.HeldEpsilonKind(), epsilon.LinearEpsilonKind()):
     register(kind)
 
 

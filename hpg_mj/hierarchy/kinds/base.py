@@ -26,11 +26,18 @@ arrays shared by the nodes that share the block, `N` the node's own scratch):
   it is the view of s' (when s' is `terminal`, the view of the state the choice was
   made in: nothing bootstraps from a terminal state). `n` the node's children,
   `rng` the run's generator (`learners.rng`: draw only from it), `signal` R + G.
-* a **view** gives the node's learner its state: `view(P, obs, call)` (or, for a
-  user's rule, `rule(obs, call)`) -> an integer state, or a tuple of numbers.
-* a **termination**: `end(P, obs, call)` -> the call's event: 0 go on, 1 success,
-  -1 failure (a bool: True is a success).
-* an **internal reward** G: `reward(P, obs, call, event)` -> a float.
+* a **view** gives the node's learner its state: `view(P, obs, call, samples)` (or,
+  for a user's rule, `rule(obs, call)`) -> an integer state, or a tuple of numbers.
+* a **termination**: `end(P, obs, call, samples)` (a user's rule: `rule(obs, call)`)
+  -> the call's event: 0 go on, 1 success, -1 failure (a bool: True is a success);
+  a kind with `gives_internal` returns (event, G), its G taken by a `Shaping` reward.
+* an **internal reward** G: `reward(P, obs, call, event, samples)` (a user's rule:
+  `rule(obs, call, event)`) -> a float.
+* a graph's **schedule** of exploration (`hierarchy.kinds.epsilon`): its learners with
+  `epsilon_schedule=True` read its `epsilon`.
+
+`samples` are the positions the ship's step sampled (the ship's local ends judge each
+sampled segment); `P` of a view, termination or reward is the node's own.
 
 `call` is the call's record: its named arguments (`call.x`, as the parent's
 `Child("goto", x=...)` bound them), `call.origin` (the observation where the call
@@ -73,6 +80,12 @@ class LearnerKind(Kind):
     `n_children` children whose view gives `view_size` (the number of states of a
     state view, None if it does not know them; the length of a features view)."""
 
+  def settings(self, name, block, schedule=None):
+    """Its settings (`P`); `schedule` is the graph's schedule record
+    (`hierarchy.kinds.epsilon.Schedule`), whose `epsilon` array a learner that follows
+    it keeps in its settings."""
+    return None
+
   def size(self, block):
     """What it reads: its number of states, or the length of its features."""
     raise NotImplementedError
@@ -86,7 +99,15 @@ class LearnerKind(Kind):
     raise NotImplementedError
 
 
-class ViewKind(Kind):
+class NodeKind(Kind):
+  """A view, termination or reward kind."""
+
+  def check(self, name, block, arguments):
+    """Refuses, naming the node, a block that cannot serve subtask `name`, whose
+    calls bind `arguments` ({name: whether an integer})."""
+
+
+class ViewKind(NodeKind):
   """A view kind: `gives` "state" or "features"; `view` its compiled operation."""
 
   role = "view"
@@ -100,16 +121,18 @@ class ViewKind(Kind):
     return None
 
 
-class TerminationKind(Kind):
+class TerminationKind(NodeKind):
   role = "termination"
   end = None
   takes_settings = True
+  gives_internal = False     # its `end` returns (event, G)
 
 
-class RewardKind(Kind):
+class RewardKind(NodeKind):
   role = "reward"
   reward = None
   takes_settings = True
+  from_termination = False   # G is its node's termination's (a `gives_internal` one)
 
 
 def check_positive_int(block, field, value, low=1):

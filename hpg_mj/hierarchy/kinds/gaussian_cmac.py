@@ -78,7 +78,7 @@ class GaussianCMACKind(base.LearnerKind):
   def size(self, block):
     return len(block.coder.low)
 
-  def settings(self, name, block):
+  def settings(self, name, block, schedule=None):
     for field, low in (("alpha", 0.0), ("trace_gamma", 0.0), ("baseline", 0.0), ("r_max", 0.0)):
       value = getattr(block, field)
       if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= low):

@@ -12,6 +12,7 @@ from hpg_mj.learners import qlambda
 
 import numpy as np
 
+# `epsilon`: float64[1], its own or the graph's schedule's (`epsilon_schedule=True`).
 Settings = collections.namedtuple("Settings", ("alpha", "gamma", "trace_decay", "epsilon"))
 # What it learns (saved by these names): the values Q(s, a) at s * n + a, and the
 # trace's live entries (index, value; count of them).
@@ -27,7 +28,7 @@ def start(P, L, N):
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
 def choose(P, L, N, x, n, rng, learn, sample):
-  a = qlambda.epsilon_greedy(L.q, x, n, P.epsilon if sample else 0.0, rng)
+  a = qlambda.epsilon_greedy(L.q, x, n, P.epsilon[0] if sample else 0.0, rng)
   N.last[0] = x
   N.last[1] = a
   return float(a)
@@ -39,7 +40,7 @@ def observe(P, L, N, x, signal, done, terminal, n, rng, learn, sample):
   then the backup of (s, a, R, s', a') (`qlambda.smdp_step`)."""
   a = qlambda.smdp_step((L.q, L.trace_index, L.trace_value, L.trace_count), n, N.last[0],
                         N.last[1], signal, x, n, done, terminal,
-                        P.epsilon if sample else 0.0, P.alpha, P.gamma, P.trace_decay, learn,
+                        P.epsilon[0] if sample else 0.0, P.alpha, P.gamma, P.trace_decay, learn,
                         rng)
   N.last[0] = x
   N.last[1] = a
@@ -53,9 +54,6 @@ class QTableKind(base.LearnerKind):
   def check(self, name, block, n_children, view_size):
     base.check_positive_int(block, "n_states", block.n_states)
     base.check_positive_int(block, "trace_capacity", block.trace_capacity)
-    if block.epsilon_schedule:
-      raise GraphError(f"subtask {name!r}: QTable.epsilon_schedule is not run by the open "
-                       "machine yet (hierarchy.program); set epsilon_schedule=False")
     if view_size is not None and view_size != block.n_states:
       raise GraphError(f"subtask {name!r}: its view gives {view_size} states, its QTable has "
                        f"n_states = {block.n_states}")
@@ -63,14 +61,14 @@ class QTableKind(base.LearnerKind):
   def size(self, block):
     return int(block.n_states)
 
-  def settings(self, name, block):
+  def settings(self, name, block, schedule=None):
     for field in ("alpha", "gamma", "trace_decay", "epsilon"):
       value = getattr(block, field)
       if not (isinstance(value, (int, float)) and 0.0 <= value <= 1.0):
         raise GraphError(f"subtask {name!r}: QTable.{field} = {value!r}: must be a number in "
                          "[0, 1]")
-    return Settings(float(block.alpha), float(block.gamma), float(block.trace_decay),
-                    float(block.epsilon))
+    epsilon = schedule.epsilon if block.epsilon_schedule else np.array([float(block.epsilon)])
+    return Settings(float(block.alpha), float(block.gamma), float(block.trace_decay), epsilon)
 
   def learned(self, block, n_children):
     index, value, count = qlambda.new_trace(int(block.trace_capacity))

@@ -104,7 +104,7 @@ class InternalRewardKind(base.RewardKind):
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
-def never(P, obs, call):
+def never(P, obs, call, samples):
   return 0
 
 
