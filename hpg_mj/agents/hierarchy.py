@@ -55,12 +55,9 @@ class ShipHierarchy(_ship.ShipMachineAgent):
     return self.machine.parameters()
 
   def run_stepwise(self, env, episodes, learn=True, sample=None, start=None, on_call=None):
-    if on_call is not None:
-      raise ValueError(f"{type(self).__name__}.run_stepwise: on_call is not told of calls by "
-                       "the open machine yet; leave it None")
     rows = self.machine.run_stepwise(env, episodes, learn, sample, self.rng_state,
                                      lambda: self.start_state() if start is None else start,
-                                     self._ended)
+                                     self._ended, on_call)
     if learn:
       self.episodes += int(episodes)
     return self.as_record(self._record_rows(rows))

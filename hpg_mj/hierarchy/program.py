@@ -579,9 +579,26 @@ class Program:
   def episode_return(self):
     return float(self.frames.total[0])
 
-  def run_stepwise(self, env, episodes, learn, sample, rng_state, start, ended):
+  def calls_begun(self):
+    """The calls below the root that have just begun (no step taken in them), as
+    `graph.Call`s with their arguments by name."""
+    from hpg_mj.hierarchy.graph import Call
+    M = self.frames
+    out = []
+    for d in range(1, int(M.episode[algorithm.E_DEPTH]) + 1):
+      node = int(M.stack[d])
+      if M.steps[node] == 0:
+        name = self.names[node]
+        args = {arg: (int(M.args[node, k]) if is_int else float(M.args[node, k]))
+                for k, (arg, is_int) in enumerate(self._arguments.get(name, {}).items())}
+        out.append(Call(name, args, M.origin[node].copy()))
+    return out
+
+  def run_stepwise(self, env, episodes, learn, sample, rng_state, start, ended, on_call=None):
     """`episodes` episodes through `env` (any Gymnasium or dm_control environment),
-    each from `start()`; `ended(last step)` gives the row's end. Rows as `run`'s."""
+    each from `start()`; `ended(last step)` gives the row's end. Rows as `run`'s.
+    `on_call(call)`, if given, is told of every subtask called below the root (a
+    `graph.Call`: its node, its arguments, the observation where it was called)."""
     from hpg_mj.hierarchy import executor
     adapter = executor.adapter_for(env)
     step = executor.step_values(adapter)
@@ -592,6 +609,9 @@ class Program:
       action = self.begin(obs, learn, sample, rng_state)
       over = False
       while not over:
+        if on_call is not None:
+          for call in self.calls_begun():
+            on_call(call)
         obs, reward, terminated, truncated, info = step(action)
         over, action = self.advance(obs, reward, terminated, truncated, info, learn, sample,
                                     rng_state)

@@ -397,9 +397,14 @@ def test_the_hybrids_graph_gives_the_old_machines_numbers_bit_for_bit():
   for field in a.dtype.names:
     np.testing.assert_array_equal(a[field], b[field], err_msg=field)
   env = old.make_env("gymnasium")
-  a = old.train_stepwise(env, 4)
+  told = {"old": [], "new": []}
+  a = old.run_stepwise(env, 4, on_call=told["old"].append)
   rows = new.machine.run_stepwise(env, 4, True, True, new.rng_state, new.start_state,
-                                  new._ended)
+                                  new._ended, on_call=told["new"].append)
+  assert len(told["old"]) == len(told["new"]) > 8
+  for x, y in zip(told["old"], told["new"]):
+    assert (x.node, x.args) == (y.node, y.args)
+    np.testing.assert_array_equal(x.origin, y.origin[:2])      # (the new: the whole observation)
   b = new.as_record(new._record_rows(rows))
   for field in a.dtype.names:
     np.testing.assert_array_equal(a[field], b[field], err_msg=field)
