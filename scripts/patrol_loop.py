@@ -169,11 +169,11 @@ def main():
     if args.episodic:
       episodic_task = agents.load_task(config.comparison.episodic_task)
       episodic, _, _ = agents.train(episodic_task, seed=seed)
-      low = low_arrays(episodic)
+      low = episodic.low_arrays()
       print(f"seed {seed}, the episodic hybrid ({episodic_task.path.name}, "
             f"{episodic_task.protocol.episodes} episodes) on the continuing task; its root's "
             f"values are discounted returns of episodes that end at the gate", flush=True)
-      report(agent, episodic.parameters()["root_q"], low, (1, 0.0, 25.0), None, None, args)
+      report(agent, episodic.parameters()["root.q"], low, (1, 0.0, 25.0), None, None, args)
       continue
     # In blocks of 100 hours (the same process as one call): the hour each Q(s, a)
     # last moved.
@@ -196,8 +196,8 @@ def main():
 
 
 def low_arrays(agent):
-  """(diagonal trace, its baseline, straight trace, its baseline) of a hybrid-shaped
-  agent on the machine (the episodic hybrid, the patrol)."""
+  """(diagonal trace, its baseline, straight trace, its baseline) of the patrol (the
+  episodic hybrid gives its own: `ShipHybrid.low_arrays`)."""
   return tuple(x for k in (rules.DIAGONAL, rules.STRAIGHT)
                for x in agent.machine.gaussian_arrays(agent.low[k]))
 

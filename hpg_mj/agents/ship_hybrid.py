@@ -3,13 +3,15 @@ SPEC sections 2-3): a Q(lambda) root over eight directions on a 20 x 20 grid of
 50 m cells, and two shared low-level subtasks (diagonal, straight) that steer
 with a Gaussian-with-sigmoid CMAC policy learned by Eq. 3.
 
-The agent is its Config, Figure 3's graph of blocks (`graph`) and its metrics:
-`hierarchy.machine` runs the graph on both paths, fused with the analytic ship and
-step by step through any ship environment, with the same compiled functions.
+The agent is its Config, Figure 3's graph of blocks (`graph`) and its metrics: the
+open machine (`hierarchy.program`) runs the graph on both paths, fused with the
+analytic ship and step by step through any ship environment, with the same
+compiled functions.
 """
 import dataclasses
 
 from hpg_mj.agents import _ship
+from hpg_mj.agents import hierarchy
 from hpg_mj import taskfile
 from hpg_mj.taskfile import param
 from hpg_mj.hierarchy import blocks
@@ -88,8 +90,10 @@ def figure3(root, view, termination, low, coder, max_steps, epsilon, per_decisio
                                  epsilon.epsilon_every, epsilon.epsilon_divisor, per_decision))
 
 
-class ShipHybrid(_ship.ShipMachineAgent):
-  """Figure 3's graph of blocks, run by `hierarchy.machine` on both paths."""
+class ShipHybrid(hierarchy.ShipHierarchy):
+  """Figure 3's graph of blocks, run by the open machine (`hierarchy.program`) on both
+  paths; its state is the program's, by node name (`root.q`, `diagonal.theta`, ...,
+  `schedule.state`), and `parameters()` its learners' (`ShipHierarchy`)."""
 
   name = "ship_hybrid"
   Config = Config
@@ -114,40 +118,16 @@ class ShipHybrid(_ship.ShipMachineAgent):
                    blocks.Never(), self.low, self.coder, self.config.low_level.max_steps,
                    self.config.root)
 
-  def state(self):
-    m = self.machine
-    out = {"rng_state": self.rng_state}
-    q, index, value, count = m.q_arrays(self.root)
-    out.update({"root_q": q, "root_trace_index": index, "root_trace_value": value,
-                "root_trace_count": count})
-    eps, outcomes, counts = m.epsilon_schedule
-    out.update({"epsilon_schedule": eps, "subtask_outcomes": outcomes,
-                "subtask_counts": counts})
-    for name, learner in (("diagonal", self.low[0]), ("straight", self.low[1])):
-      if id(learner) not in m._slot_of:
-        continue
-      trace, values = m.gaussian_arrays(learner)
-      for key, value in trace._asdict().items():
-        out[f"{name}_{key}"] = value
-      out[f"{name}_baseline"] = values
-    return out
-
-  def parameters(self):
-    """Root Q-values and both low-level weight vectors (pending updates applied)."""
-    m = self.machine
-    return {"root_q": m.q_arrays(self.root)[0].copy(),
-            "diagonal_w": el.parameters(m.gaussian_arrays(self.low[rules.DIAGONAL])[0]),
-            "straight_w": el.parameters(m.gaussian_arrays(self.low[rules.STRAIGHT])[0])}
-
   def baselines(self):
-    """The two subtasks' baseline values b over their tiles."""
-    return [self.machine.gaussian_arrays(low)[1] for low in self.low]
+    """The two subtasks' baseline values b over their tiles (the live arrays)."""
+    state = self.machine.state()
+    return [state["diagonal.values"], state["straight.values"]]
 
   def low_arrays(self):
     """(diagonal trace, its baseline, straight trace, its baseline): the live arrays."""
-    m = self.machine
-    return (*m.gaussian_arrays(self.low[rules.DIAGONAL]),
-            *m.gaussian_arrays(self.low[rules.STRAIGHT]))
+    state = self.machine.state()
+    return tuple(x for name in ("diagonal", "straight") for x in (
+        el.Trace(*[state[f"{name}.{f}"] for f in el.Trace._fields]), state[f"{name}.values"]))
 
   # ---- metrics ------------------------------------------------------------------
 

@@ -184,10 +184,11 @@ class ShipPatrol(_ship.ContinuingShipAgent):
       cfg = self.config
       agent = ShipPatrol(dataclasses.replace(cfg, root=dataclasses.replace(
           cfg.root, heading_sectors=1, near_gate_m=0.0, planning_every=0)), seed=self.seed)
-      agent.q[:] = other.parameters()["root_q"]       # the hybrid's 50 m cells: the same table
-      for mine, theirs in zip(agent.low, other.low):
-        (trace, values), (their_trace, their_values) = (agent.machine.gaussian_arrays(mine),
-                                                        other.machine.gaussian_arrays(theirs))
+      agent.q[:] = other.parameters()["root.q"]       # the hybrid's 50 m cells: the same table
+      theirs = other.low_arrays()
+      for k, mine in enumerate(agent.low):
+        trace, values = agent.machine.gaussian_arrays(mine)
+        their_trace, their_values = theirs[2 * k], theirs[2 * k + 1]
         for a, b in zip((*trace, values), (*their_trace, their_values)):
           a[...] = b
     return agent.as_record(agent.compiled(hours, False, False, ship, rng_state))
