@@ -8,4 +8,12 @@ bash scripts/setup.sh test
 # tests import the installed hpg_mj and its packaged assets.
 # One worker a core (at most 4: each compiles the numba code a cold cache lacks), a test
 # file to one worker, so that a file's module-level set-up is made once.
-exec .venv/bin/pytest -q -p no:cacheprovider -n auto --maxprocesses 4 --dist loadfile "$@"
+PYTEST=(.venv/bin/pytest -q -p no:cacheprovider -n auto --maxprocesses 4 --dist loadfile)
+if [ "$#" -gt 0 ]; then
+  exec "${PYTEST[@]}" "$@"
+fi
+# The JAX environments' tests run on their own: JAX starts threads when it is
+# imported, and a worker that had imported it would then fork the runs' processes
+# (the process pool, Ray), which may deadlock.
+"${PYTEST[@]}" --ignore=tests/jax
+exec "${PYTEST[@]}" tests/jax
