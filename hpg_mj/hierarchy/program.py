@@ -294,7 +294,10 @@ class Program:
                         f"a tuple of {s.size} finite numbers (its "
                         f"{type(node.learner).__name__} reads {s.size})")
       L.append(f"  x = M.x[{s.index}, :{s.size}]")
-      L.append(f"  boundary.as_features({fn}({args}), x, M.fault, {what})")
+      if s.view.writes:
+        L.append(f"  {fn}({args}, x)")
+      else:
+        L.append(f"  boundary.as_features({fn}({args}), x, M.fault, {what})")
       L.append("  return 0")
     L.append("")
     L.append("")
@@ -311,7 +314,9 @@ class Program:
       slot = len(self._learner_blocks)
       self._learners[id(block)] = slot
       self._learner_blocks.append((block, s.learner, s.name))
-      self._record(f"P{slot}", s.learner.settings(s.name, block, self.schedule))
+      follows = "schedule" in inspect.signature(s.learner.settings).parameters
+      self._record(f"P{slot}", s.learner.settings(s.name, block, self.schedule) if follows
+                   else s.learner.settings(s.name, block))
       self._record(f"L{slot}", s.learner.learned(block, s.n_children))
     else:
       slot = self._learners[id(block)]

@@ -384,34 +384,40 @@ def test_a_rule_that_is_not_compiled_is_refused():
 
 # ---- the shipped kinds: the hybrid's graph (Figure 3) --------------------------------
 
-def test_the_hybrids_graph_gives_the_old_machines_numbers_bit_for_bit():
+@pytest.mark.parametrize("task", ["ship_hybrid", "ship_flat_pg"])
+def test_a_shipped_graph_gives_the_old_machines_numbers_bit_for_bit(task):
   """Figure 3 (GridCell root, LocalTiles and LocalGoal with Shaping below, the held
-  epsilon) on the open machine and on `hierarchy.machine`: fused, then step by step
-  through the Gymnasium ship, every record and learned array the same."""
+  epsilon) and flat PGRL (StateTiles) on the open machine and on `hierarchy.machine`:
+  fused, then step by step through the Gymnasium ship (each subtask called told),
+  every record and learned array the same."""
   from hpg_mj import agents
+  from hpg_mj.hierarchy import machine
   from hpg_mj.learners import eligibility as el
-  task = agents.load_task("ship_hybrid")
-  old, new = agents.build(task, seed=4), agents.build(task, seed=4)
-  new._machine = Program(new.graph())
-  a, b = old.train(400), new.train(400)
+  old, new = (agents.build(agents.load_task(task), seed=4) for _ in range(2))
+  old._machine, new._machine = machine.Machine(old.graph()), Program(new.graph())
+  a, b = old.train(300), new.train(300)
   for field in a.dtype.names:
     np.testing.assert_array_equal(a[field], b[field], err_msg=field)
   env = old.make_env("gymnasium")
   told = {"old": [], "new": []}
-  a = old.run_stepwise(env, 4, on_call=told["old"].append)
-  rows = new.machine.run_stepwise(env, 4, True, True, new.rng_state, new.start_state,
-                                  new._ended, on_call=told["new"].append)
-  assert len(told["old"]) == len(told["new"]) > 8
+  rows_old = machine.run_stepwise(old.machine, env, 4, True, True, old.rng_state,
+                                  old.start_state, old._ended, on_call=told["old"].append)
+  rows_new = new.machine.run_stepwise(env, 4, True, True, new.rng_state, new.start_state,
+                                      new._ended, on_call=told["new"].append)
+  np.testing.assert_array_equal(rows_old, rows_new)
+  assert len(told["old"]) == len(told["new"])
   for x, y in zip(told["old"], told["new"]):
     assert (x.node, x.args) == (y.node, y.args)
     np.testing.assert_array_equal(x.origin, y.origin[:2])      # (the new: the whole observation)
-  b = new.as_record(new._record_rows(rows))
-  for field in a.dtype.names:
-    np.testing.assert_array_equal(a[field], b[field], err_msg=field)
   state = new.machine.state()
-  np.testing.assert_array_equal(old.machine.q_arrays(old.root)[0], state["root.q"])
-  for k, name in enumerate(("diagonal", "straight")):
-    trace, values = old.machine.gaussian_arrays(old.low[k])
-    np.testing.assert_array_equal(el.parameters(trace), new.machine.parameters()[f"{name}.theta"])
+  for name, node in old.graph().nodes.items():          # (the old machine's blocks)
+    learner = getattr(node, "learner", None)
+    if isinstance(learner, blocks.QTable):
+      np.testing.assert_array_equal(old.machine.q_arrays(learner)[0], state[f"{name}.q"])
+    elif isinstance(learner, blocks.GaussianCMAC):
+      trace, values = old.machine.gaussian_arrays(learner)
+      np.testing.assert_array_equal(el.parameters(trace),
+                                    new.machine.parameters()[f"{name}.theta"])
+      np.testing.assert_array_equal(values, state[f"{name}.values"])
   np.testing.assert_array_equal(old.machine.epsilon_schedule[0], state["schedule.state"])
   np.testing.assert_array_equal(old.machine.epsilon_schedule[1], state["schedule.outcomes"])

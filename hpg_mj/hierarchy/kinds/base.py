@@ -27,7 +27,9 @@ arrays shared by the nodes that share the block, `N` the node's own scratch):
   made in: nothing bootstraps from a terminal state). `n` the node's children,
   `rng` the run's generator (`learners.rng`: draw only from it), `signal` R + G.
 * a **view** gives the node's learner its state: `view(P, obs, call, samples)` (or,
-  for a user's rule, `rule(obs, call)`) -> an integer state, or a tuple of numbers.
+  for a user's rule, `rule(obs, call)`) -> an integer state, or a tuple of numbers; a
+  features kind with `writes` writes its numbers instead: `view(P, obs, call,
+  samples, out)`, `out` as long as its learner reads.
 * a **termination**: `end(P, obs, call, samples)` (a user's rule: `rule(obs, call)`)
   -> the call's event: 0 go on, 1 success, -1 failure (a bool: True is a success);
   a kind with `gives_internal` returns (event, G), its G taken by a `Shaping` reward.
@@ -81,9 +83,10 @@ class LearnerKind(Kind):
     state view, None if it does not know them; the length of a features view)."""
 
   def settings(self, name, block, schedule=None):
-    """Its settings (`P`); `schedule` is the graph's schedule record
+    """Its settings (`P`: a namedtuple of arrays and 64-bit numbers). A kind whose
+    `settings` takes a `schedule` parameter is given the graph's schedule record
     (`hierarchy.kinds.epsilon.Schedule`), whose `epsilon` array a learner that follows
-    it keeps in its settings."""
+    it keeps in its settings; `settings(self, name, block)` is enough for the rest."""
     return None
 
   def size(self, block):
@@ -112,6 +115,7 @@ class ViewKind(NodeKind):
 
   role = "view"
   gives = "state"
+  writes = False             # a features view that writes into `out` (see above)
   view = None
   takes_settings = True      # False: `view(obs, call)`, a user's rule
 

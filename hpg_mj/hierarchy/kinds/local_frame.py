@@ -22,15 +22,12 @@ from hpg_mj.hierarchy.kinds import base
 from hpg_mj.worlds import ship_core as core
 
 # Scratch of the frame's numbers: the local state, the local samples.
-ViewSettings = collections.namedtuple("ViewSettings", ("local",))
 EndSettings = collections.namedtuple("EndSettings", ("max_steps", "local", "local_samples"))
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
-def view(P, obs, call, samples):
-  local = P.local
-  core.global_to_local(obs, call.origin, call.direction, local)
-  return (local[0], local[1], local[2], local[3])
+def view(P, obs, call, samples, out):
+  core.global_to_local(obs, call.origin, call.direction, out)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
@@ -49,6 +46,7 @@ def _direction(name, arguments):
 class LocalTilesKind(base.ViewKind):
   block = blocks.LocalTiles
   gives = "features"
+  writes = True
   view = staticmethod(view)
 
   def size(self, block):
@@ -56,10 +54,6 @@ class LocalTilesKind(base.ViewKind):
 
   def check(self, name, block, arguments):
     _direction(name, arguments)
-
-  def settings(self, name, block):
-    return ViewSettings(np.zeros(4))
-
 
 class LocalGoalKind(base.TerminationKind):
   block = blocks.LocalGoal
