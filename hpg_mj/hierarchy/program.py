@@ -426,7 +426,6 @@ class Program:
 
   def _write(self):
     L = ["", "", "# ---- the graph's operations (hierarchy.program) ----", ""]
-    root_args = self._arguments.get(self.graph.root, {})
     for s in self._subtasks:
       self._call_record(s, L)
       self._view_text(s, L)
@@ -443,7 +442,6 @@ class Program:
     L.append(f"SEEN_STEP = {seen!r}")
     fields = ["M"] + [f for f, _ in self._records]
     L.append(f"Graph = collections.namedtuple('Graph', {tuple(fields)!r})")
-    L.append(f"ROOT_ARGS = {[float(self._root_args[a]) for a in root_args]!r}")
     self._text = "\n".join(L) + "\n"
 
   def _by_index(self):
