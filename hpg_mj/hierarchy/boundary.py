@@ -27,7 +27,8 @@ FAULT_MESSAGE = "hpg_mj: a rule's value was refused at the machine's boundary (s
 SEEN_TYPES = {}
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def fail(fault, what, value, code, length):
   """Writes the fault record and raises (the Python side reads the record)."""
   fault[0] = what

@@ -27,6 +27,7 @@ import inspect
 import os
 import sys
 
+import numba
 import numpy as np
 
 from hpg_mj.hierarchy import algorithm
@@ -40,6 +41,8 @@ from hpg_mj.learners import eligibility as el
 from hpg_mj.worlds import ship_core as core
 
 _VERSION = "1"        # of the generated text's layout
+_F64 = np.dtype(np.float64)
+_VECTOR, _ROWS_OF_XY = (8,), (16, 8)          # the strides of a float64 vector, of rows of (x, y)
 
 
 def cache_folder():
@@ -254,18 +257,19 @@ class Program:
     self._whats.append((node, what, allowed))
     return len(self._whats) - 1
 
-  def _call_record(self, s, L):
+  # Each operation is one function whose branch for each node holds that node's code
+  # (its variables suffixed with the node's number): written as functions of their
+  # own, a node's pieces were ~6 a node more for numba to type and LLVM to compile,
+  # a third of a graph's first compile.
+
+  def _call_text(self, s):
+    """The text of the call record of subtask `s` (its arguments, origin, steps)."""
     args = self._arguments.get(s.name, {})
     cls = f"calls.{calls.name_of(tuple(args))}" if args else "calls.Call"
-    L.append("@numba.njit(**_JIT)")
-    L.append(f"def call_{s.index}(M):")
-    L.append(f'  """The call record of subtask {s.name!r}."""')
     values = [f"np.int64(M.args[{s.index}, {k}])" if is_int else f"M.args[{s.index}, {k}]"
               for k, is_int in enumerate(args.values())]
     values += [f"M.origin[{s.index}]", f"M.steps[{s.index}]"]
-    L.append(f"  return {cls}({', '.join(values)})")
-    L.append("")
-    L.append("")
+    return f"{cls}({', '.join(values)})"
 
   def _op(self, kind, block, field, s):
     """(the function's global name, its settings' text or None) of a view, end or reward."""
@@ -274,41 +278,33 @@ class Program:
       return fn, None
     return fn, self._record(f"{field}{s.index}", kind.settings(s.name, block))
 
-  def _view_text(self, s, L):
-    node = s.node
-    fn, settings = self._op(s.view, node.view, "V", s)
-    args = ", ".join([settings, "M.obs", f"call_{s.index}(M)", "M.samples"] if settings else
-                     ["M.obs", f"call_{s.index}(M)"])
-    name = rules_mod.rule_name(node.view)
-    L.append("@numba.njit(**_JIT)")
-    L.append(f"def view_{s.index}(G):")
-    L.append(f'  """Subtask {s.name!r} views the state ({name})."""')
-    L.append("  M = G.M")
+  def _view_lines(self, s):
+    """Lines that view the state into `x<i>` (a state), or into M.x[i] (features)."""
+    node, i = s.node, s.index
+    if not hasattr(s, "_view_op"):
+      s._view_op = self._op(s.view, node.view, "V", s)
+      name = rules_mod.rule_name(node.view)
+      s._view_what = self._what(
+          s.name, f"view {name}", f"an integer state in [0, {s.size})" if s.view.gives == "state"
+          else f"a tuple of {s.size} finite numbers (its {type(node.learner).__name__} reads "
+          f"{s.size})")
+    fn, settings = s._view_op
+    call = self._call_text(s)
+    args = ", ".join([settings, "M.obs", call, "M.samples"] if settings else ["M.obs", call])
     if s.view.gives == "state":
-      what = self._what(s.name, f"view {name}", f"an integer state in [0, {s.size})")
-      L.append(f"  x = boundary.as_state({fn}({args}), {s.size}, M.fault, {what})")
-      L.append(f"  M.x[{s.index}, 0] = x")
-      L.append("  return x")
-    else:
-      what = self._what(s.name, f"view {name}",
-                        f"a tuple of {s.size} finite numbers (its "
-                        f"{type(node.learner).__name__} reads {s.size})")
-      L.append(f"  x = M.x[{s.index}, :{s.size}]")
-      if s.view.writes:
-        L.append(f"  {fn}({args}, x)")
-      else:
-        L.append(f"  boundary.as_features({fn}({args}), x, M.fault, {what})")
-      L.append("  return 0")
-    L.append("")
-    L.append("")
+      return [f"x{i} = boundary.as_state({fn}({args}), {s.size}, M.fault, {s._view_what})",
+              f"M.x[{i}, 0] = x{i}"]
+    if s.view.writes:
+      return [f"{fn}({args}, M.x[{i}, :{s.size}])"]
+    return [f"boundary.as_features({fn}({args}), M.x[{i}, :{s.size}], M.fault, "
+            f"{s._view_what})"]
 
-  def _x_text(self, s, fresh):
-    """The text of the node's view of the state now (`fresh`), or as it last took it."""
-    if s.view.gives == "state":
-      return f"view_{s.index}(G)" if fresh else f"np.int64(G.M.x[{s.index}, 0])"
-    return f"G.M.x[{s.index}, :{s.size}]"
+  def _x(self, s):
+    """The node's view as its learner reads it (after `_view_lines`)."""
+    return f"x{s.index}" if s.view.gives == "state" else f"M.x[{s.index}, :{s.size}]"
 
-  def _learner_text(self, s, L):
+  def _learner(self, s):
+    """(P, L, N) texts of the node's learner, its records made once per block."""
     block = s.node.learner
     if id(block) not in self._learners:
       slot = len(self._learner_blocks)
@@ -322,61 +318,85 @@ class Program:
       slot = self._learners[id(block)]
       first = self._learner_blocks[slot][2]
       fresh = s.learner.learned(block, s.n_children)
-      same = self._records[[f for f, _ in self._records].index(f"L{slot}")][1]
+      same = dict(self._records)[f"L{slot}"]
       if any(np.shape(a) != np.shape(b) for a, b in zip(fresh, same)):
         raise GraphError(f"subtask {s.name!r} shares its learner with {first!r}, which has "
                          "another number of children or states; a shared learner serves "
                          "nodes of the same shape")
     self._record(f"N{s.index}", s.learner.scratch(block, s.n_children))
-    start = self._function(s.learner.start)
-    choose = self._function(s.learner.choose)
-    observe = self._function(s.learner.observe)
-    P, Lr, N = f"G.P{slot}", f"G.L{slot}", f"G.N{s.index}"
-    settle = (f"  M.action[{s.index}] = v" if s.learner.continuous else
-              f"  M.choice[{s.index}] = np.int64(v)")
-    L += ["@numba.njit(**_JIT)", f"def enter_{s.index}(G):",
-          f'  """Subtask {s.name!r} is called: z <- 0, its view, its first choice."""',
-          "  M = G.M", f"  {start}({P}, {Lr}, {N})",
-          *([] if s.view.gives == "state" else [f"  view_{s.index}(G)"]),
-          f"  v = {choose}({P}, {Lr}, {N}, {self._x_text(s, True)}, {s.n_children}, M.rng, "
-          "M.flags[0], M.flags[1])", settle, "", "",
-          "@numba.njit(**_JIT)", f"def resume_{s.index}(G, signal, done, terminal):",
-          f'  """Subtask {s.name!r}\'s learner takes R + G in s\' and chooses again."""',
-          "  M = G.M",
-          *([f"  x = {self._x_text(s, False)} if terminal else view_{s.index}(G)"]
-            if s.view.gives == "state" else
-            ["  if not terminal:", f"    view_{s.index}(G)", f"  x = {self._x_text(s, False)}"]),
-          f"  v = {observe}({P}, {Lr}, {N}, x, signal, done, terminal, {s.n_children}, M.rng, "
-          "M.flags[0], M.flags[1])",
-          "  if not done:", "  " + settle, "", ""]
+    return f"G.P{slot}", f"G.L{slot}", f"G.N{s.index}"
 
-  def _judge_text(self, s, L):
-    node = s.node
+  def _settle(self, s):
+    return (f"M.action[{s.index}] = v{s.index}" if s.learner.continuous else
+            f"M.choice[{s.index}] = np.int64(v{s.index})")
+
+  def _enter_lines(self, s):
+    i, (P, Lr, N) = s.index, s._records
+    start, choose = self._function(s.learner.start), self._function(s.learner.choose)
+    return [f"# {s.name}: z <- 0, its view, its first choice", f"{start}({P}, {Lr}, {N})",
+            *self._view_lines(s),
+            f"v{i} = {choose}({P}, {Lr}, {N}, {self._x(s)}, {s.n_children}, M.rng, "
+            "M.flags[0], M.flags[1])", self._settle(s)]
+
+  def _resume_lines(self, s):
+    i, (P, Lr, N) = s.index, s._records
+    observe = self._function(s.learner.observe)
+    if s.view.gives == "state":
+      view = [f"x{i} = np.int64(M.x[{i}, 0])", "if not terminal:",
+              *["  " + line for line in self._view_lines(s)]]
+    else:
+      view = ["if not terminal:", *["  " + line for line in self._view_lines(s)]]
+    return [f"# {s.name}: its learner takes R + G in s' and, unless done, chooses again",
+            *view,
+            f"v{i} = {observe}({P}, {Lr}, {N}, {self._x(s)}, signal, done, terminal, "
+            f"{s.n_children}, M.rng, M.flags[0], M.flags[1])",
+            "if not done:", "  " + self._settle(s)]
+
+  def _judge_lines(self, s):
+    node, i = s.node, s.index
     end, end_settings = self._op(s.end, node.termination, "T", s)
-    args = ", ".join([end_settings, "M.obs", "call", "M.samples"] if end_settings else
-                     ["M.obs", "call"])
+    args = ", ".join([end_settings, "M.obs", f"call{i}", "M.samples"] if end_settings else
+                     ["M.obs", f"call{i}"])
     what = self._what(s.name, f"termination {rules_mod.rule_name(node.termination)}",
                       "0 (go on), 1 (success), -1 (failure) or a bool")
-    L += ["@numba.njit(**_JIT)", f"def judge_{s.index}(G):",
-          f'  """Subtask {s.name!r}: (its event, G) after a child returned."""',
-          "  M = G.M", f"  call = call_{s.index}(M)"]
-    if s.end.gives_internal:
-      L.append(f"  said, shaped = {end}({args})")
-    else:
-      L.append(f"  said = {end}({args})")
-    L.append(f"  event = boundary.as_event(said, M.fault, {what})")
+    lines = [f"# {s.name}: its event and G after a child returned",
+             f"call{i} = {self._call_text(s)}",
+             f"said{i}, shaped{i} = {end}({args})" if s.end.gives_internal else
+             f"said{i} = {end}({args})",
+             f"event{i} = boundary.as_event(said{i}, M.fault, {what})"]
     if s.reward is None:
-      L.append("  return event, 0.0")
-    elif s.reward.from_termination:
-      L.append("  return event, shaped")
-    else:
-      fn, settings = self._op(s.reward, node.internal_reward, "R", s)
-      args = ", ".join([settings, "M.obs", "call", "event", "M.samples"] if settings else
-                       ["M.obs", "call", "event"])
-      what = self._what(s.name, f"internal reward {rules_mod.rule_name(node.internal_reward)}",
-                        "a finite number")
-      L.append(f"  return event, boundary.as_reward({fn}({args}), M.fault, {what})")
-    L += ["", ""]
+      return lines + [f"return event{i}, 0.0"]
+    if s.reward.from_termination:
+      return lines + [f"return event{i}, shaped{i}"]
+    fn, settings = self._op(s.reward, node.internal_reward, "R", s)
+    args = ", ".join([settings, "M.obs", f"call{i}", f"event{i}", "M.samples"] if settings else
+                     ["M.obs", f"call{i}", f"event{i}"])
+    what = self._what(s.name, f"internal reward {rules_mod.rule_name(node.internal_reward)}",
+                      "a finite number")
+    return lines + [f"return event{i}, boundary.as_reward({fn}({args}), M.fault, {what})"]
+
+  def _chosen_lines(self, s):
+    if s.learner.continuous:
+      return [f"# {s.name}: its continuous primitive", "return -1"]
+    lines = [f"# {s.name}: the child it chose, its arguments bound"]
+    for k, ref in enumerate(self.graph.children(s.name)):
+      child = self.graph.nodes[ref.node]
+      lines.append(f"{'if' if k == 0 else 'elif'} M.choice[{s.index}] == {k}:")
+      if isinstance(child, Primitive):
+        lines += [f"  M.action[{s.index}] = {float(child.action)!r}", "  return -1"]
+        continue
+      c = self.index[ref.node]
+      lines += [f"  M.args[{c}, {j}] = {float(ref.args[arg])!r}"
+                for j, arg in enumerate(self._arguments.get(ref.node, {}))]
+      lines.append(f"  return {c}")
+    return lines + ["return -1"]
+
+  def _operation(self, L, op, params, doc, lines_of, otherwise):
+    L += ["@numba.njit(**_JIT)", f"def {op}(G, node{params}):", f'  """{doc}"""', "  M = G.M"]
+    for k, s in enumerate(self._subtasks):
+      L.append(f"  {'if' if k == 0 else 'elif'} node == {s.index}:")
+      L += ["    " + line for line in lines_of(s)]
+    L += [f"  return {otherwise}", "", ""]
 
   def _schedule_text(self, L):
     """The schedule's hooks: a watched subtask's run ended, the episode, a decision."""
@@ -386,8 +406,7 @@ class Program:
                                                           kind.decided))
     L += ["@numba.njit(**_JIT)", "def schedule_run(G, node, success):",
           '  """A subtask\'s run ended: the schedule notes it if it watches the subtask."""']
-    watched = kind.watch(self.schedule_block)
-    for k, name in enumerate(watched):
+    for k, name in enumerate(kind.watch(self.schedule_block)):
       L.append(f"  {'if' if k == 0 else 'elif'} node == {self.index[name]}:")
       L.append(f"    {run}({S}, {k}, success)")
     L += ["  return None", "", "",
@@ -396,46 +415,19 @@ class Program:
           "@numba.njit(**_JIT)", "def schedule_decided(G):",
           f"  {decided}({S})", "", ""]
 
-  def _chosen_text(self, s, L):
-    L += ["@numba.njit(**_JIT)", f"def chosen_{s.index}(G):",
-          f'  """The child subtask {s.name!r} chose, its arguments bound."""', "  M = G.M"]
-    if s.learner.continuous:
-      L += ["  return -1", "", ""]
-      return
-    L.append(f"  c = M.choice[{s.index}]")
-    for k, ref in enumerate(self.graph.children(s.name)):
-      child = self.graph.nodes[ref.node]
-      L.append(f"  {'if' if k == 0 else 'elif'} c == {k}:")
-      if isinstance(child, Primitive):
-        L.append(f"    M.action[{s.index}] = {float(child.action)!r}")
-        L.append("    return -1")
-        continue
-      c = self.index[ref.node]
-      for j, arg in enumerate(self._arguments.get(ref.node, {})):
-        L.append(f"    M.args[{c}, {j}] = {float(ref.args[arg])!r}")
-      L.append(f"    return {c}")
-    L += ["  return -1", "", ""]
-
-  def _dispatch(self, L, op, params, call):
-    L += ["@numba.njit(**_JIT)", f"def {op}(G, node{params}):"]
-    for k, s in enumerate(self._subtasks):
-      L.append(f"  {'if' if k == 0 else 'elif'} node == {s.index}:")
-      L.append(f"    return {op}_{s.index}(G{call})")
-    L += [f"  return {'(0, 0.0)' if op == 'judge' else '-1' if op == 'chosen' else 'None'}",
-          "", ""]
-
   def _write(self):
     L = ["", "", "# ---- the graph's operations (hierarchy.program) ----", ""]
     for s in self._subtasks:
-      self._call_record(s, L)
-      self._view_text(s, L)
-      self._learner_text(s, L)
-      self._judge_text(s, L)
-      self._chosen_text(s, L)
-    self._dispatch(L, "enter", "", "")
-    self._dispatch(L, "resume", ", signal, done, terminal", ", signal, done, terminal")
-    self._dispatch(L, "judge", "", "")
-    self._dispatch(L, "chosen", "", "")
+      s._records = self._learner(s)
+    self._operation(L, "enter", "", "The call of `node` begins: z <- 0, its view, its first "
+                    "choice.", self._enter_lines, "None")
+    self._operation(L, "resume", ", signal, done, terminal", "The learner of `node` takes "
+                    "R + G = `signal` in s' and, unless `done`, chooses again.",
+                    self._resume_lines, "None")
+    self._operation(L, "judge", "", "After a child of `node` returned: (its event, G).",
+                    self._judge_lines, "(0, 0.0)")
+    self._operation(L, "chosen", "", "The child `node` chose (-1: a primitive, its action in "
+                    "M.action[node]), its arguments bound.", self._chosen_lines, "-1")
     self._schedule_text(L)
     seen = tuple(bool(getattr(s, "seen_step", False)) for s in self._by_index())
     L.append(f"ROOT = {self.index[self.graph.root]}")
@@ -520,8 +512,12 @@ class Program:
   # -- running --
 
   def _flags(self, learn, sample):
-    self.frames.flags[0] = bool(learn)
-    self.frames.flags[1] = bool(sample)
+    if (learn, sample) != self._flags_set:
+      self.frames.flags[0] = bool(learn)
+      self.frames.flags[1] = bool(sample)
+      self._flags_set = (learn, sample)
+
+  _flags_set = (None, None)
 
   def _run(self, fn, *args):
     """A compiled entry point, a boundary fault raised as its one line."""
@@ -531,6 +527,34 @@ class Program:
       if str(e) == boundary.FAULT_MESSAGE:
         raise ValueError(boundary.explain(self.frames.fault, self._whats)) from None
       raise
+
+  def _stepwise(self, fn, *args):
+    """`_run` of a step-by-step entry point, after its first call straight through the
+    machine code numba compiled for these arguments' types: the dispatcher types every
+    argument at each call (the graph's struct among them), a seventh of a control step
+    through the MuJoCo ship. Only for arguments of the kinds `_arrays` makes (float64
+    arrays in C order, Python's float and bool) and the generator state last seen (its
+    kind read once): any other goes through the dispatcher."""
+    rng_state = args[-1]
+    entry = self._entry_points.get(fn) if rng_state is self._rng_seen else None
+    if entry is None:
+      out = self._run(fn, *args)
+      found = fn.overloads.get(tuple(numba.typeof(a) for a in (self.G, *args)))
+      if found is not None and rng_state.flags.c_contiguous and rng_state.flags.writeable:
+        if rng_state is not self._rng_seen:
+          self._entry_points = {}
+          self._rng_seen = rng_state
+        self._entry_points[fn] = found.entry_point
+      return out
+    try:
+      return entry(self.G, *args)
+    except ValueError as e:
+      if str(e) == boundary.FAULT_MESSAGE:
+        raise ValueError(boundary.explain(self.frames.fault, self._whats)) from None
+      raise
+
+  _entry_points = {}
+  _rng_seen = None
 
   def start_schedule(self, learned_episodes):
     """The schedule where it stands after `learned_episodes` learning episodes (the
@@ -549,7 +573,10 @@ class Program:
     return rows
 
   def _observation(self, obs):
-    obs = np.asarray(obs, dtype=np.float64).reshape(-1)
+    """`obs` as a float64 vector in C order of the program's length (as it is, if it
+    is one), else a one-line refusal."""
+    if type(obs) is not np.ndarray or obs.dtype is not _F64 or obs.strides != _VECTOR:
+      obs = np.ascontiguousarray(obs, dtype=np.float64).reshape(-1)
     if obs.shape[0] != self.obs_size:
       raise ValueError(f"Program: an observation of {obs.shape[0]} numbers; this program was "
                        f"built for obs_size = {self.obs_size}")
@@ -558,18 +585,28 @@ class Program:
   def begin(self, obs, learn, sample, rng_state):
     """The step-by-step path: an episode starts in `obs`; returns the first action."""
     self._flags(learn, sample)
-    return self._run(self._module.begin_at, self._observation(obs), rng_state)
+    return self._stepwise(self._module.begin_at, self._observation(obs), rng_state)
 
   _no_samples = np.zeros((0, 2))
 
   def advance(self, obs, reward, terminated, truncated, info, learn, sample, rng_state):
     """The step-by-step path: the environment's step gave (obs, reward, terminated,
-    truncated, info); returns (episode over, the next action)."""
+    truncated, info); returns (episode over, the next action). The positions sampled
+    in the step (`info["positions"]`, the ship's) reach the graph's kinds."""
     self._flags(learn, sample)
-    positions = (info or {}).get("positions") if isinstance(info, dict) else None
-    samples = self._no_samples if positions is None else np.asarray(positions, np.float64)
-    return self._run(self._module.advance, self._observation(obs), samples, float(reward),
-                     bool(terminated), bool(truncated), rng_state)
+    samples = self._no_samples
+    if info:
+      positions = info.get("positions")
+      if positions is not None:
+        samples = positions
+        if type(samples) is not np.ndarray or samples.dtype is not _F64 or \
+            samples.strides != _ROWS_OF_XY:
+          samples = np.ascontiguousarray(positions, dtype=np.float64)
+        if samples.ndim != 2 or samples.shape[1] != 2:
+          raise ValueError("Program: info['positions'] must be rows of (x, y) of numbers, got "
+                           f"shape {samples.shape}")
+    return self._stepwise(self._module.advance, self._observation(obs), samples, float(reward),
+                          bool(terminated), bool(truncated), rng_state)
 
   def counters(self):
     return self.frames.counters.reshape(-1).copy()

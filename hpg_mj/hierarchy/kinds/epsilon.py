@@ -29,40 +29,47 @@ Schedule = collections.namedtuple("Schedule", ("epsilon", "state", "outcomes", "
                                                "settings"))
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def held_run_ended(S, watched, success):
   schedules.record_run(S.outcomes, S.counts, watched, success)
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def _held_step(S):
   schedules.end_episode(S.state, S.outcomes, S.counts, S.settings[0], np.int64(S.settings[1]),
                         S.settings[2])
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def held_episode_ended(S, learned):
   if S.settings[3] == 0.0:
     _held_step(S)
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def held_decided(S):
   if S.settings[3] != 0.0:
     _held_step(S)
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def linear_run_ended(S, watched, success):
   pass
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def linear_episode_ended(S, learned):
   S.epsilon[0] = schedules.linear(learned, S.settings[0], S.settings[1], S.settings[2])
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def linear_decided(S):
   pass
 

@@ -31,12 +31,14 @@ def _trace(L):
   return el.Trace(L.theta, L.zs, L.y, L.touched, L.marked, L.count, L.acc)
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def start(P, L, N):
   el.reset(_trace(L))                        # Eq. 3: z <- 0
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def choose(P, L, N, x, n, rng, learn, sample):
   """u ~ Normal(m(s), 1), its score added to z (`policies.gaussian_choose`)."""
   tiles = N.tiles[0]
@@ -45,7 +47,8 @@ def choose(P, L, N, x, n, rng, learn, sample):
                                   P.r_max, learn, sample, rng)
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def observe(P, L, N, x, signal, done, terminal, n, rng, learn, sample):
   """Eq. 3 with R + G (`policies.gaussian_learn`), then, unless done, the next draw
   in s' (x)."""

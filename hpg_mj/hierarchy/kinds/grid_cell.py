@@ -19,7 +19,8 @@ def grid_cell(x, y, cell_m, grid):
   return i * grid + j
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def view(P, obs, call, samples):
   return grid_cell(obs[0], obs[1], P.cell_m, P.grid)
 

@@ -25,12 +25,14 @@ from hpg_mj.worlds import ship_core as core
 EndSettings = collections.namedtuple("EndSettings", ("max_steps", "local", "local_samples"))
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def view(P, obs, call, samples, out):
   core.global_to_local(obs, call.origin, call.direction, out)
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def end(P, obs, call, samples):
   """(event, G: the shaping and the local +100 / -100)."""
   return core.low_level_outcome(samples, obs, call.origin, call.direction, call.steps,

@@ -21,12 +21,14 @@ Learned = collections.namedtuple("Learned", ("q", "trace_index", "trace_value", 
 Scratch = collections.namedtuple("Scratch", ("last",))
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def start(P, L, N):
   qlambda.clear(L.trace_count)
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def choose(P, L, N, x, n, rng, learn, sample):
   a = qlambda.epsilon_greedy(L.q, x, n, P.epsilon[0] if sample else 0.0, rng)
   N.last[0] = x
@@ -34,7 +36,8 @@ def choose(P, L, N, x, n, rng, learn, sample):
   return float(a)
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def observe(P, L, N, x, signal, done, terminal, n, rng, learn, sample):
   """The child returned R + G = signal in s' (x): the next choice a' unless done,
   then the backup of (s, a, R, s', a') (`qlambda.smdp_step`)."""

@@ -103,7 +103,8 @@ class InternalRewardKind(base.RewardKind):
     return block.rule
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def never(P, obs, call, samples):
   return 0
 

@@ -7,7 +7,8 @@ from hpg_mj.hierarchy.graph import GraphError
 from hpg_mj.hierarchy.kinds import base
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def view(P, obs, call, samples, out):
   for i in range(out.shape[0]):
     out[i] = obs[i]
