@@ -524,9 +524,13 @@ class Program:
     try:
       return fn(self.G, *args)
     except ValueError as e:
-      if str(e) == boundary.FAULT_MESSAGE:
-        raise ValueError(boundary.explain(self.frames.fault, self._whats)) from None
-      raise
+      self._explain(e)
+
+  def _explain(self, error):
+    """Raises a boundary fault (`hierarchy.boundary`) as its one line; else `error`."""
+    if str(error) == boundary.FAULT_MESSAGE:
+      raise ValueError(boundary.explain(self.frames.fault, self._whats)) from None
+    raise error
 
   def _stepwise(self, fn, *args):
     """`_run` of a step-by-step entry point, after its first call straight through the
@@ -549,9 +553,7 @@ class Program:
     try:
       return entry(self.G, *args)
     except ValueError as e:
-      if str(e) == boundary.FAULT_MESSAGE:
-        raise ValueError(boundary.explain(self.frames.fault, self._whats)) from None
-      raise
+      self._explain(e)
 
   _entry_points = {}
   _rng_seen = None
