@@ -1,5 +1,5 @@
 """Reference agents from an outside library: Stable-Baselines3's PPO and SAC on the
-ship, PPO and DQN on taxi-fuel (issue 21), registered like every agent, so that
+ship, PPO and DQN on taxi-fuel, registered like every agent, so that
 `hpg-mj train`, `hpg-mj run` (checkpoints, resume), `hpg-mj evaluate`, the
 figures and REPORT.md take them. They need the extra: `pip install 'hpg_mj[sb3]'`;
 torch and SB3 are imported only when such an agent is built, so hpg_mj without

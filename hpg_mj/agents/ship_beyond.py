@@ -1,4 +1,4 @@
-"""A route past the paper's (SPEC section 8; issue 12, item 4): a root that sees
+"""A route past the paper's (SPEC section 8): a root that sees
 its cell and the ship's coarse heading, and chooses a point to steer to; one
 low-level subtask, *aim*, that steers straight to a continuous target.
 

@@ -12,7 +12,7 @@ the gain rho, the reward per control step, by average-reward SMDP Q-learning
 Ghavamzadeh & Mahadevan 2001, 2002); and its state is the 50 m cell and, with
 `heading_sectors` > 1, the ship's heading (`root_state`): passing the gate again
 is a U-turn that only pays from a cell when the ship points away from the gate.
-With `planning_every` > 0 the root also plans (`average_reward.plan`, issue 24):
+With `planning_every` > 0 the root also plans (`average_reward.plan`):
 the cells the process meets only after a rare departure keep values learned
 while the gain was low unless their latest calls are backed up again with
 today's gain.

@@ -7,7 +7,7 @@ of `ship_hybrid`), and, as an option, a learned exploration width
 The subtask is a one-node graph of blocks that the compiled machine runs on its
 own (`hierarchy.machine`, `root_args`), as it runs it inside the hierarchy.
 
-This is the experiment of issue 12, item 3 (`hpg-mj`-free: `train_subtask` and
+This is the experiment of a subtask trained on its own (`hpg-mj`-free: `train_subtask` and
 `scripts/subtask_width.py`), not a task-file agent: the subtasks are parts of the
 hierarchy (so this module lives in its layer, beside the blocks it is made of), and
 their stand-alone environments are the Gymnasium ids

@@ -33,7 +33,7 @@ today's rho (as the differential Dyna of Wan, Naik & Sutton 2021, "Learning and
 planning in average-reward Markov decision processes"). A continuing process
 that has settled in one part of its states meets the rest rarely; their values
 keep the level of the gain when they were last met, and sweeping their kept
-transitions brings them to today's (issue 24).
+transitions brings them to today's.
 """
 import numba
 import numpy as np
