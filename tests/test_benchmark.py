@@ -12,6 +12,7 @@ from hpg_mj import agents
 from hpg_mj import benchmark
 from hpg_mj import cli
 from hpg_mj.agents import base
+from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import policies
 from hpg_mj.learners import tiles as tiles_mod
 from hpg_mj.worlds import ship_core
@@ -33,7 +34,8 @@ def _flat_pg(max_steps=400, episodes=60, seed=3):
 def _greedy_steering(agent):
   """The flat agent's greedy policy as a plain function of one observation."""
   tiling = agent.coder.arrays()
-  trace, _ = agent.machine.gaussian_arrays(agent.learner)
+  state = agent.state()                    # the policy's trace, by name
+  trace = el.Trace(*[state[f"policy.{field}"] for field in el.Trace._fields])
   active = np.empty(tiling.offsets.shape[0], dtype=np.int64)
 
   def steer(obs):

@@ -6,16 +6,16 @@ section 2's rewards. A baseline of the hierarchy (tag "baseline").
 Every step touches only the 9 active tiles: the trace is applied lazily
 (`learners.eligibility`), so a step's cost does not grow with the episode or the
 number of weights. The agent is its Config and a one-node graph of blocks, which
-`hierarchy.machine` runs on both paths.
+the open machine (`hierarchy.program`) runs on both paths.
 """
 import dataclasses
 
 from hpg_mj.agents import _ship
+from hpg_mj.agents import hierarchy
 from hpg_mj import taskfile
 from hpg_mj.taskfile import param
 from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy.graph import Primitive, Subtask, TaskGraph
-from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import tiles as tiles_mod
 from hpg_mj.worlds import ship_core as core
 
@@ -43,8 +43,11 @@ class Config:
   policy: Policy = dataclasses.field(default_factory=Policy)
 
 
-class ShipFlatPG(_ship.ShipMachineAgent):
-  """Flat PGRL: a one-node graph whose Eq. 3 learner sees the whole state's tiles."""
+class ShipFlatPG(hierarchy.ShipHierarchy):
+  """Flat PGRL: a one-node graph whose Eq. 3 learner sees the whole state's tiles, run
+  by the open machine; its state by node name (`policy.theta`, ...), its
+  `parameters()` the policy's weights with pending updates applied (`policy.theta`)
+  and its baseline's values (`policy.values`, zero: it has none)."""
 
   name = "ship_flat_pg"
   Config = Config
@@ -57,16 +60,6 @@ class ShipFlatPG(_ship.ShipMachineAgent):
     self.coder = actor_coder(pol.tilings, pol.tiles)
     self.learner = blocks.GaussianCMAC(self.coder, pol.alpha, pol.trace_gamma, 0.0,
                                        core.MAX_TURN_RATE)
-
-  def state(self):
-    trace, _ = self.machine.gaussian_arrays(self.learner)
-    out = {"rng_state": self.rng_state}
-    out.update({f"policy_{k}": v for k, v in trace._asdict().items()})
-    return out
-
-  def parameters(self):
-    """The policy's weights w (pending updates applied)."""
-    return {"policy_w": el.parameters(self.machine.gaussian_arrays(self.learner)[0])}
 
   def graph(self):
     """One node over the whole task: Eq. 3 with the episode's rewards (z <- 0 at

@@ -675,8 +675,9 @@ class Program:
       for field, value in learned._asdict().items():
         if isinstance(value, np.ndarray):
           out[f"{first}.{field}"] = value
-    for field in ("state", "outcomes", "counts"):
-      out[f"schedule.{field}"] = getattr(self.schedule, field)
+    if self.graph.schedule is not None:         # (a graph without one has the default's)
+      for field in ("state", "outcomes", "counts"):
+        out[f"schedule.{field}"] = getattr(self.schedule, field)
     return out
 
   def _field(self, field):

@@ -30,7 +30,7 @@ def test_stepwise_and_compiled_agree_bit_for_bit(make):
   assert ra["steps"].sum() > 1000
   for name, value in a.state().items():
     np.testing.assert_array_equal(value, b.state()[name])
-  weights = [v for k, v in a.state().items() if k.endswith(("_w", "_theta"))]
+  weights = [v for k, v in a.state().items() if k.endswith(("_w", "_theta", ".theta"))]
   assert weights and all(np.any(w != 0) for w in weights)
 
 

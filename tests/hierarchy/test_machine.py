@@ -400,7 +400,7 @@ def test_an_argument_of_another_kind_is_not_read_as_the_contiguous_one():
   a contiguous copy and comes back). Both draws, from the same state, give the same
   action and leave the same state; a read-only observation is taken too."""
   from hpg_mj import agents
-  m = agents.build(agents.load_task("ship_flat_pg"), seed=0).machine
+  m = agents.build(agents.load_task("ship_actor_critic"), seed=0).machine
   obs = np.array([400.0, 300.0, 10.0, 0.0])
   state = rng.make_state(7)
   strided = np.zeros(8, dtype=np.uint64)
@@ -423,7 +423,7 @@ def test_observations_of_any_kind_are_read_as_their_values():
   away); an observation that is not a vector, or not of the episode's length, is
   refused, by name."""
   from hpg_mj import agents
-  m = agents.build(agents.load_task("ship_flat_pg"), seed=0).machine
+  m = agents.build(agents.load_task("ship_actor_critic"), seed=0).machine
   state = rng.make_state(3)
   obs = np.array([400.0, 300.0, 10.0, 2.0])
   positions = np.array([[399.0, 298.5], [399.3, 299.0], [399.6, 299.5], [400.0, 300.0]])
@@ -456,7 +456,7 @@ def test_an_observation_of_another_length_leaves_the_fused_loop_as_it_was():
   made again for it); the fused loop then sails on the ship's four numbers, and trains
   as a machine that never saw it."""
   from hpg_mj import agents
-  task = agents.load_task("ship_flat_pg")
+  task = agents.load_task("ship_actor_critic")
   seen, fresh = (agents.build(task, seed=0) for _ in range(2))
   state = rng.make_state(5)
   wide = np.array([400.0, 300.0, 10.0, 2.0, 7.0, 9.0])

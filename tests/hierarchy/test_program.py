@@ -419,5 +419,6 @@ def test_a_shipped_graph_gives_the_old_machines_numbers_bit_for_bit(task):
       np.testing.assert_array_equal(el.parameters(trace),
                                     new.machine.parameters()[f"{name}.theta"])
       np.testing.assert_array_equal(values, state[f"{name}.values"])
-  np.testing.assert_array_equal(old.machine.epsilon_schedule[0], state["schedule.state"])
-  np.testing.assert_array_equal(old.machine.epsilon_schedule[1], state["schedule.outcomes"])
+  if "schedule.state" in state:            # (a graph with a schedule of its own)
+    np.testing.assert_array_equal(old.machine.epsilon_schedule[0], state["schedule.state"])
+    np.testing.assert_array_equal(old.machine.epsilon_schedule[1], state["schedule.outcomes"])

@@ -79,7 +79,7 @@ def test_flat_policy_gradient_single_step_by_hand():
   u = 0.0 + rng.normal(probe)                          # m = 0 for zero weights
   record = agent.as_record(agent.compiled(1, True, True, start=start))
   assert record["steps"][0] == 1 and record["return"][0] == -1.0
-  w = agent.parameters()["policy_w"]
+  w = agent.parameters()["policy.theta"]
   np.testing.assert_allclose(w[tiles], 0.01 * -1.0 * u / 9, rtol=1e-12)
   assert np.count_nonzero(w) == 9
 
