@@ -357,7 +357,7 @@ def _cmd_evaluate(args):
   # SPEC section 7.1: every score also normalized (none for a subtask or the patrol)
   metrics.update(bounds.normalized(bounds.task_name(agent), metrics))
   metrics.update({"agent_dir": str(args.agent_dir), "episodes": args.episodes,
-                  "evaluation_window": window.over(agent, len(record), "the evaluation"),
+                  "evaluation_window": window.evaluated(agent, len(record)),
                   "backend": backend, "policy": policy, "starts": starts,
                   "wall_seconds": round(time.perf_counter() - start, 3)})
   _print_metrics(metrics, args.json)

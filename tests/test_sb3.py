@@ -246,6 +246,8 @@ def test_cli_trains_and_evaluates_an_sb3_agent(tmp_path, capsys):
   assert cli.main(["evaluate", str(out), "--episodes", "7", "--json"]) == 0
   evaluated = json.loads(capsys.readouterr().out)
   assert evaluated["episodes_measured"] == 7 and evaluated["policy"] == "greedy"
+  # measured whole, a row an episode: not "rows of 1,000 control steps", nor "the last 100"
+  assert evaluated["evaluation_window"] == "all 7 episodes of the evaluation"
 
 
 def test_the_task_files_load_without_importing_torch():

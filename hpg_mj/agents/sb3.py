@@ -151,6 +151,8 @@ class _SB3Agent:
   # The online metrics are over the last 100 rows (1,000 control steps each): the
   # episodes that ended in the last 100,000 control steps of training.
   metric_window = 100
+  # An evaluation's record is a row an episode, measured whole (`_window`).
+  measures_evaluation_whole = True
   # Rows of control steps, but scores over the benchmark task's episodes: they
   # are normalized against its bounds (SPEC section 7.1) like every episodic agent's.
   per_episode_scores = True

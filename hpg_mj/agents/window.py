@@ -35,3 +35,13 @@ def described(agent, rows):
   window, in words and in the rows it holds (never more than were run)."""
   return {"online_window": over(agent, rows, "training"),
           "online_window_rows": min(int(agent.metric_window), int(rows))}
+
+
+def evaluated(agent, rows):
+  """The window of an evaluation's record of `rows` rows in words: an agent that
+  measures an evaluation whole, a row an episode (`measures_evaluation_whole`: the
+  Stable-Baselines3 agents, whose training rows are control steps), says so; any
+  other as `over` says."""
+  if getattr(agent, "measures_evaluation_whole", False):
+    return f"all {rows:,} episodes of the evaluation"
+  return over(agent, rows, "the evaluation")
