@@ -182,6 +182,14 @@ class TaskGraph:
     """The node's children as `Child` references."""
     return self._children[name]
 
+  def depth(self, name=None):
+    """The calls on the stack at most below `name` (the root): its own and its
+    subtasks' (a primitive: 0)."""
+    node = self.nodes[self.root if name is None else name]
+    if isinstance(node, Primitive):
+      return 0
+    return 1 + max(self.depth(ref.node) for ref in self._children[node.name])
+
   def subtasks(self):
     return [n for n in self.nodes.values() if isinstance(n, Subtask)]
 

@@ -1148,7 +1148,7 @@ class Machine:
                          if widths else None) if g else None
     self.tile_bank = self._tile_bank()
     k = int(self.tile_bank.n_tilings.max())
-    depth = self._depth(graph.root)
+    depth = graph.depth()
     sb = self.schedule_block
     for name in getattr(sb, "watch", ()):
       if name not in index or isinstance(graph.nodes[name], Primitive):
@@ -1478,12 +1478,6 @@ class Machine:
     return TileBank(low, width, n_tiles, wrap, offsets,
                     np.array([c.n_tilings for c in coders], dtype=np.int64),
                     np.array([len(c.low) for c in coders], dtype=np.int64))
-
-  def _depth(self, name):
-    node = self.graph.nodes[name]
-    if isinstance(node, Primitive):
-      return 0
-    return 1 + max(self._depth(ref.node) for ref in self.graph.children(name))
 
   def _gibbs_bank(self):
     """The GibbsTables' bank, or None in a machine without one (whose code then holds

@@ -37,7 +37,6 @@ from hpg_mj.hierarchy import kinds as kinds_mod
 from hpg_mj.hierarchy.graph import GraphError, Primitive
 from hpg_mj.hierarchy.kinds import rules as rules_mod
 from hpg_mj.learners import banks
-from hpg_mj.learners import eligibility as el
 from hpg_mj.worlds import ship_core as core
 
 _VERSION = "1"        # of the generated text's layout
@@ -80,6 +79,16 @@ def _importable(fn):
   py = getattr(fn, "py_func", fn)
   module = sys.modules.get(py.__module__)
   return module is not None and getattr(module, "__file__", None) is not None
+
+
+def _check_argument(where, arg, value):
+  """A call's argument: a finite int or float named by an identifier; else one line."""
+  if not str(arg).isidentifier():
+    raise GraphError(f"{where} {arg!r}: must be a Python identifier")
+  if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+    raise GraphError(f"{where} {arg} = {value!r}: must be a number (int or float)")
+  if not np.isfinite(value):
+    raise GraphError(f"{where} {arg} = {value!r}: must be finite")
 
 
 class _Node:
@@ -128,39 +137,25 @@ class Program:
   def _collect_arguments(self, root_args):
     """node -> {argument: (is integer)}; the bindings per (parent, choice)."""
     bound = {}
-    self._bindings = {}
     for name, node in self.graph.nodes.items():
       if isinstance(node, Primitive):
         continue
-      for k, ref in enumerate(self.graph.children(name)):
+      for ref in self.graph.children(name):
         if ref.bind is not None:
           raise GraphError(f"subtask {name!r}: its child {ref.node!r} binds its arguments "
                            "by a Python function (Child(bind=...)), which the open machine "
                            "cannot compile; give the arguments as numbers: "
                            f"Child({ref.node!r}, x=..., y=...)")
         for arg, value in ref.args.items():
-          if not str(arg).isidentifier():
-            raise GraphError(f"subtask {name!r}: its child {ref.node!r}'s argument {arg!r}: "
-                             "must be a Python identifier")
-          if isinstance(value, bool) or not isinstance(value, (int, float, np.integer,
-                                                               np.floating)):
-            raise GraphError(f"subtask {name!r}: its child {ref.node!r}'s argument "
-                             f"{arg} = {value!r}: must be a number (int or float)")
-          if not np.isfinite(value):
-            raise GraphError(f"subtask {name!r}: its child {ref.node!r}'s argument "
-                             f"{arg} = {value!r}: must be finite")
+          _check_argument(f"subtask {name!r}: its child {ref.node!r}'s argument", arg, value)
         if isinstance(self.graph.nodes[ref.node], Primitive):
           if ref.args:
             raise GraphError(f"subtask {name!r}: its child {ref.node!r} is a primitive, "
                              f"which takes no arguments; got {sorted(ref.args)}")
           continue
         bound.setdefault(ref.node, []).append((name, ref.args))
-        self._bindings[(name, k)] = ref.args
     for arg, value in dict(root_args).items():
-      if not str(arg).isidentifier() or isinstance(value, bool) or not isinstance(
-          value, (int, float, np.integer, np.floating)) or not np.isfinite(value):
-        raise GraphError(f"root_args: {arg} = {value!r}: an argument is a finite number named "
-                         "by a Python identifier")
+      _check_argument("root_args: the argument", arg, value)
     bound.setdefault(self.graph.root, []).append(("the root call", dict(root_args)))
     out = {}
     for child, calls in bound.items():
@@ -444,7 +439,7 @@ class Program:
 
   def _frames(self):
     n = len(self.names)
-    depth = self._depth(self.graph.root)
+    depth = self.graph.depth()
     n_args = max([len(a) for a in self._arguments.values()] + [1])
     size = max([s.size if s.view.gives == "features" else 1 for s in self._subtasks] + [1])
     self.frames = algorithm.Frames(
@@ -460,12 +455,6 @@ class Program:
     root = self.index[self.graph.root]
     for j, arg in enumerate(self._arguments.get(self.graph.root, {})):
       self.frames.args[root, j] = float(self._root_args[arg])
-
-  def _depth(self, name):
-    node = self.graph.nodes[name]
-    if isinstance(node, Primitive):
-      return 0
-    return 1 + max(self._depth(r.node) for r in self.graph.children(name))
 
   def _load(self):
     with open(algorithm.__file__) as f:
@@ -689,15 +678,6 @@ class Program:
     (`q`), a policy's theta with its pending Eq. 3 updates applied (`theta`)."""
     out = {}
     for slot, (block, kind, first) in enumerate(self._learner_blocks):
-      learned = self._field(f"L{slot}")
-      fields = learned._fields
-      if all(f in fields for f in el.Trace._fields):
-        out[f"{first}.theta"] = el.parameters(el.Trace(*[getattr(learned, f)
-                                                         for f in el.Trace._fields]))
-      for field in fields:
-        if field in el.Trace._fields:
-          continue
-        if field.startswith("trace_"):
-          continue
-        out[f"{first}.{field}"] = np.array(getattr(learned, field))
+      for field, value in kind.parameters(self._field(f"L{slot}")).items():
+        out[f"{first}.{field}"] = value
     return out

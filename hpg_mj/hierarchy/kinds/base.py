@@ -101,6 +101,12 @@ class LearnerKind(Kind):
     """A fresh `N`: a node's own scratch (not saved)."""
     raise NotImplementedError
 
+  def parameters(self, learned):
+    """Its parameters by name, copies (`Program.parameters`): by default every array
+    it learns."""
+    return {field: np.array(value) for field, value in learned._asdict().items()
+            if isinstance(value, np.ndarray)}
+
 
 class NodeKind(Kind):
   """A view, termination or reward kind."""

@@ -93,6 +93,10 @@ class GaussianCMACKind(base.LearnerKind):
   def learned(self, block, n_children):
     return Learned(*el.new_trace(block.coder.size), np.zeros(block.coder.size))
 
+  def parameters(self, learned):
+    """theta with its pending Eq. 3 updates applied, and the baseline's values."""
+    return {"theta": el.parameters(_trace(learned)), "values": learned.values.copy()}
+
   def scratch(self, block, n_children):
     k = block.coder.n_tilings
     return Scratch(np.zeros((2, k), dtype=np.int64), np.zeros(k))

@@ -77,6 +77,10 @@ class QTableKind(base.LearnerKind):
     index, value, count = qlambda.new_trace(int(block.trace_capacity))
     return Learned(np.zeros(int(block.n_states) * n_children), index, value, count)
 
+  def parameters(self, learned):
+    """The values Q(s, a) (the trace is no parameter)."""
+    return {"q": learned.q.copy()}
+
   def scratch(self, block, n_children):
     return Scratch(np.zeros(2, dtype=np.int64))
 

@@ -69,38 +69,30 @@ def rule_name(block):
   return f"{type(block).__name__}({name})" if name else type(block).__name__
 
 
-class AbstractionKind(base.ViewKind):
+class _Rule:
+  """A kind whose operation is the user's rule itself (of (obs, call)), with no settings."""
+  takes_settings = False
+
+  def operation(self, block):
+    return block.rule
+
+
+class AbstractionKind(_Rule, base.ViewKind):
   block = Abstraction
   gives = "state"
-  takes_settings = False
-
-  def operation(self, block):
-    return block.rule
 
 
-class FeaturesKind(base.ViewKind):
+class FeaturesKind(_Rule, base.ViewKind):
   block = Features
   gives = "features"
-  takes_settings = False
-
-  def operation(self, block):
-    return block.rule
 
 
-class TerminationRuleKind(base.TerminationKind):
+class TerminationRuleKind(_Rule, base.TerminationKind):
   block = Termination
-  takes_settings = False
-
-  def operation(self, block):
-    return block.rule
 
 
-class InternalRewardKind(base.RewardKind):
+class InternalRewardKind(_Rule, base.RewardKind):
   block = InternalReward
-  takes_settings = False
-
-  def operation(self, block):
-    return block.rule
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
@@ -112,9 +104,6 @@ def never(P, obs, call, samples):
 class NeverKind(base.TerminationKind):
   block = blocks.Never
   end = staticmethod(never)
-
-  def operation(self, block):
-    return never
 
 
 KINDS = (AbstractionKind(), FeaturesKind(), TerminationRuleKind(), InternalRewardKind(),
