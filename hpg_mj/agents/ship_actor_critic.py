@@ -6,13 +6,14 @@ TD(lambda) (SARSA-style on the actions taken). Acts every 0.6 s with SPEC
 section 2's rewards. A baseline of the hierarchy (tag "baseline").
 
 The agent is its Config and a one-node graph of blocks (`blocks.ActorCritic`), which
-`hierarchy.machine` runs on both paths. Per step, with a = (u, r) drawn from the
+the open machine (`hierarchy.program`) runs on both paths. Per step, with a = (u, r) drawn from the
 actor in s and a' in s': delta = R + Q(s', a') - Q(s, a) (no Q(s', a') at a
 terminal state), then `learners.actor_critic.learn`.
 """
 import dataclasses
 
 from hpg_mj.agents import _ship
+from hpg_mj.agents import hierarchy
 from hpg_mj import taskfile
 from hpg_mj.taskfile import param
 from hpg_mj.agents.ship_flat_pg import actor_coder
@@ -56,8 +57,11 @@ class Config:
   critic: Critic = dataclasses.field(default_factory=Critic)
 
 
-class ShipActorCritic(_ship.ShipMachineAgent):
-  """The actor-critic: a one-node graph whose learner is Konda's actor-critic."""
+class ShipActorCritic(hierarchy.ShipHierarchy):
+  """The actor-critic: a one-node graph whose learner is Konda's actor-critic, run by
+  the open machine; its state by node name (`policy.actor_w`, `policy.critic_theta`,
+  ...), its `parameters()` the actor's weights and the critic's with pending updates
+  applied."""
 
   name = "ship_actor_critic"
   Config = Config
@@ -71,12 +75,6 @@ class ShipActorCritic(_ship.ShipMachineAgent):
     self.critic_coder = critic_coder(critic.tilings, critic.tiles)
     self.learner = blocks.ActorCritic(self.actor_coder, self.critic_coder, actor.alpha,
                                       critic.alpha, critic.trace_decay, core.MAX_TURN_RATE)
-
-  def state(self):
-    actor_w, critic = self.machine.actor_critic_arrays(self.learner)
-    out = {"rng_state": self.rng_state, "actor_w": actor_w}
-    out.update({f"critic_{k}": v for k, v in critic._asdict().items()})
-    return out
 
   def graph(self):
     """One node over the whole task: the actor over the state's tiles, acting every

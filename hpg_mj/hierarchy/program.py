@@ -567,7 +567,9 @@ class Program:
     """`obs` as a float64 vector in C order of the program's length (as it is, if it
     is one), else a one-line refusal."""
     if type(obs) is not np.ndarray or obs.dtype is not _F64 or obs.strides != _VECTOR:
-      obs = np.ascontiguousarray(obs, dtype=np.float64).reshape(-1)
+      obs = np.ascontiguousarray(obs, dtype=np.float64)
+      if obs.ndim != 1:
+        raise ValueError(f"Program: obs must be a vector of numbers, got shape {obs.shape}")
     if obs.shape[0] != self.obs_size:
       raise ValueError(f"Program: an observation of {obs.shape[0]} numbers; this program was "
                        f"built for obs_size = {self.obs_size}")

@@ -393,82 +393,6 @@ def test_a_subtask_alone_is_the_same_fused_and_through_its_environment(task, env
   assert runs[0][0][:, 0].sum() > 0                                 # some calls succeeded
 
 
-def test_an_argument_of_another_kind_is_not_read_as_the_contiguous_one():
-  """`Machine._compiled` calls numba's entry point for the argument kinds it has seen,
-  which checks no types: a generator state of another layout (a strided view) must
-  not be read as the contiguous one (the compiled code takes C arrays: it goes in as
-  a contiguous copy and comes back). Both draws, from the same state, give the same
-  action and leave the same state; a read-only observation is taken too."""
-  from hpg_mj import agents
-  m = agents.build(agents.load_task("ship_actor_critic"), seed=0).machine
-  obs = np.array([400.0, 300.0, 10.0, 0.0])
-  state = rng.make_state(7)
-  strided = np.zeros(8, dtype=np.uint64)
-  strided[::2] = state
-  first = m.begin(obs, False, True, state)
-  second = m.begin(obs, False, True, strided[::2])
-  assert first == second
-  np.testing.assert_array_equal(strided[::2], state)
-  assert strided[1::2].sum() == 0
-  obs.flags.writeable = False
-  assert m.begin(obs, False, False, state) == m.begin(obs.copy(), False, False, state)
-
-
-def test_observations_of_any_kind_are_read_as_their_values():
-  """`Machine.advance` passes a float64 observation and sampled positions in C order to
-  the compiled code as they are, and `_observation` and `_positions` copy any other
-  into arrays of the machine's own, whose kind never changes: a float32, integer, strided or list
-  observation, and strided positions, give what their float64 values give, on the
-  first step (through `_compiled`) and the next (its entry point, called straight
-  away); an observation that is not a vector, or not of the episode's length, is
-  refused, by name."""
-  from hpg_mj import agents
-  m = agents.build(agents.load_task("ship_actor_critic"), seed=0).machine
-  state = rng.make_state(3)
-  obs = np.array([400.0, 300.0, 10.0, 2.0])
-  positions = np.array([[399.0, 298.5], [399.3, 299.0], [399.6, 299.5], [400.0, 300.0]])
-  def episode(start, after, samples):
-    s = state.copy()
-    first = m.begin(start, False, True, s)
-    return first, [m.advance(after, -1.0, False, False, {"positions": samples}, False, True, s)
-                   for _ in range(3)]
-  expected = episode(obs, obs + 1.5, positions)
-  wide = np.zeros((4, 4))
-  wide[:, ::2] = positions
-  for start, after, samples in ((obs.astype(np.float32), (obs + 1.5).astype(np.float32),
-                                 positions.astype(np.float32)),
-                                (np.repeat(obs, 2)[::2], list(obs + 1.5), wide[:, ::2])):
-    assert episode(start, after, samples) == expected
-  assert episode(np.array([400, 300, 10, 2]), obs + 1.5, positions) == expected
-  with pytest.raises(ValueError, match="obs must be a vector"):
-    m.begin(obs.reshape(2, 2), False, True, state)
-  with pytest.raises(ValueError, match=r"info\['positions'\] must be rows of \(x, y\)"):
-    m.advance(obs, -1.0, False, False, {"positions": positions.ravel()}, False, True, state)
-  for longer in (np.append(obs, 1.0), [*obs, 1.0]):       # as it is / copied
-    m.begin(obs, False, True, state)
-    m.advance(obs, -1.0, False, False, {}, False, True, state)
-    with pytest.raises(ValueError, match="obs is not of the length of the episode's first"):
-      m.advance(longer, -1.0, False, False, {}, False, True, state)
-
-
-def test_an_observation_of_another_length_leaves_the_fused_loop_as_it_was():
-  """The step-by-step path takes an observation of any length (the stack's `obs` is
-  made again for it); the fused loop then sails on the ship's four numbers, and trains
-  as a machine that never saw it."""
-  from hpg_mj import agents
-  task = agents.load_task("ship_actor_critic")
-  seen, fresh = (agents.build(task, seed=0) for _ in range(2))
-  state = rng.make_state(5)
-  wide = np.array([400.0, 300.0, 10.0, 2.0, 7.0, 9.0])
-  seen.machine.begin(wide, False, False, state)
-  seen.machine.advance(wide + 1.0, -1.0, False, False, {}, False, False, state)
-  assert seen.machine.banks.stack.obs.shape == (6,)
-  a, b = seen.train(5), fresh.train(5)
-  for field in a.dtype.names:
-    np.testing.assert_array_equal(a[field], b[field])
-  assert seen.machine.banks.stack.obs.shape == (4,)
-
-
 _TAXI_LOADS = """
 import json
 from hpg_mj import agents
@@ -498,7 +422,7 @@ def test_the_machine_compiles_its_functions_once_leaves_first(tmp_path):
   loop calls, for the types it calls them with: each compiles once."""
   compile_order.assert_each_compiles_once(tmp_path, """
 from hpg_mj import agents
-agent = agents.build(agents.load_task("ship_actor_critic"), 0)
+agent = agents.build(agents.load_task("ship_hybrid_beyond"), 0)
 agent.train(2)
 listed = agent.machine._bottom_up()
 """)

@@ -422,3 +422,82 @@ def test_a_shipped_graph_gives_the_old_machines_numbers_bit_for_bit(task):
   if "schedule.state" in state:            # (a graph with a schedule of its own)
     np.testing.assert_array_equal(old.machine.epsilon_schedule[0], state["schedule.state"])
     np.testing.assert_array_equal(old.machine.epsilon_schedule[1], state["schedule.outcomes"])
+
+
+# ---- the step-by-step path's inputs -------------------------------------------------
+
+def test_an_argument_of_another_kind_is_not_read_as_the_contiguous_one():
+  """`Program._stepwise` calls numba's entry point for the argument kinds it has seen,
+  which checks no types: a generator state of another layout (a strided view) must
+  not be read as the contiguous one (the compiled code takes C arrays: it goes in as
+  a contiguous copy and comes back). Both draws, from the same state, give the same
+  action and leave the same state; a read-only observation is taken too."""
+  from hpg_mj import agents
+  m = agents.build(agents.load_task("ship_actor_critic"), seed=0).machine
+  obs = np.array([400.0, 300.0, 10.0, 0.0])
+  state = rng.make_state(7)
+  strided = np.zeros(8, dtype=np.uint64)
+  strided[::2] = state
+  first = m.begin(obs, False, True, state)
+  second = m.begin(obs, False, True, strided[::2])
+  assert first == second
+  np.testing.assert_array_equal(strided[::2], state)
+  assert strided[1::2].sum() == 0
+  obs.flags.writeable = False
+  assert m.begin(obs, False, False, state) == m.begin(obs.copy(), False, False, state)
+
+
+def test_observations_of_any_kind_are_read_as_their_values():
+  """`Program.advance` passes a float64 observation and sampled positions in C order to
+  the compiled code as they are, and copies any other into float64 arrays in C order:
+  a float32, integer, strided or list observation, and strided positions, give what
+  their float64 values give, on the first step (through the dispatcher) and the next
+  (its entry point, called straight away); an observation that is not a vector, or not
+  of the program's length, is refused, by name."""
+  from hpg_mj import agents
+  m = agents.build(agents.load_task("ship_actor_critic"), seed=0).machine
+  state = rng.make_state(3)
+  obs = np.array([400.0, 300.0, 10.0, 2.0])
+  positions = np.array([[399.0, 298.5], [399.3, 299.0], [399.6, 299.5], [400.0, 300.0]])
+  def episode(start, after, samples):
+    s = state.copy()
+    first = m.begin(start, False, True, s)
+    return first, [m.advance(after, -1.0, False, False, {"positions": samples}, False, True, s)
+                   for _ in range(3)]
+  expected = episode(obs, obs + 1.5, positions)
+  wide = np.zeros((4, 4))
+  wide[:, ::2] = positions
+  for start, after, samples in ((obs.astype(np.float32), (obs + 1.5).astype(np.float32),
+                                 positions.astype(np.float32)),
+                                (np.repeat(obs, 2)[::2], list(obs + 1.5), wide[:, ::2])):
+    assert episode(start, after, samples) == expected
+  assert episode(np.array([400, 300, 10, 2]), obs + 1.5, positions) == expected
+  with pytest.raises(ValueError, match="Program: obs must be a vector"):
+    m.begin(obs.reshape(2, 2), False, True, state)
+  with pytest.raises(ValueError, match=r"Program: info\['positions'\] must be rows of \(x, y\)"):
+    m.advance(obs, -1.0, False, False, {"positions": positions.ravel()}, False, True, state)
+  for longer in (np.append(obs, 1.0), [*obs, 1.0]):       # as it is / copied
+    m.begin(obs, False, True, state)
+    m.advance(obs, -1.0, False, False, {}, False, True, state)
+    with pytest.raises(ValueError, match="an observation of 5 numbers; this program was built "
+                                         "for obs_size = 4"):
+      m.advance(longer, -1.0, False, False, {}, False, True, state)
+
+
+def test_an_observation_of_another_length_is_refused_and_changes_nothing():
+  """An observation of another length than the program's is refused in one line, on
+  the first step and within an episode, and the fused loop then trains as a program
+  that never saw it."""
+  from hpg_mj import agents
+  task = agents.load_task("ship_actor_critic")
+  seen, fresh = (agents.build(task, seed=0) for _ in range(2))
+  state = rng.make_state(5)
+  wide = np.array([400.0, 300.0, 10.0, 2.0, 7.0, 9.0])
+  with pytest.raises(ValueError, match="an observation of 6 numbers"):
+    seen.machine.begin(wide, False, False, state)
+  seen.machine.begin(wide[:4], False, False, state)
+  with pytest.raises(ValueError, match="an observation of 6 numbers"):
+    seen.machine.advance(wide + 1.0, -1.0, False, False, {}, False, False, state)
+  a, b = seen.train(5), fresh.train(5)
+  for field in a.dtype.names:
+    np.testing.assert_array_equal(a[field], b[field])

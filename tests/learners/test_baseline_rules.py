@@ -90,8 +90,8 @@ def test_actor_critic_single_step_by_hand():
       c, environment=dataclasses.replace(c.environment, max_steps=1),
       actor=ship_actor_critic.Actor(alpha=0.1),
       critic=ship_actor_critic.Critic(alpha=0.5, trace_decay=0.9)), seed=4)
-  actor_w, critic_trace = agent.machine.actor_critic_arrays(agent.learner)
-  critic_trace.theta[:] = 0.25               # Q(s, a) = 9 * 0.25 = 2.25 for every (s, a)
+  state = agent.state()                      # the live arrays, by node name
+  state["policy.critic_theta"][:] = 0.25     # Q(s, a) = 9 * 0.25 = 2.25 for every (s, a)
   probe = agent.rng_state.copy()
   start = np.array([200.0, 700.0, -45.0, 0.0])
   a_tiles = ship_flat_pg.actor_coder().active(start)
@@ -100,10 +100,12 @@ def test_actor_critic_single_step_by_hand():
   c_tiles = ship_actor_critic.critic_coder().active([*start, r])
   agent.compiled(1, True, True, start=start)
   # Truncated after one step: delta = R + Q(s', a') - Q(s, a) = -1 + 2.25 - 2.25.
-  critic = el.parameters(critic_trace)                   # pending trace updates applied
+  parameters = agent.parameters()            # pending trace updates applied
+  critic = parameters["policy.critic_theta"]
   np.testing.assert_allclose(critic[c_tiles], 0.25 + 0.5 * -1.0, rtol=1e-12)
   assert np.count_nonzero(critic != 0.25) == 9
-  np.testing.assert_allclose(actor_w[a_tiles], 0.1 * 2.25 * u / 9, rtol=1e-12)
+  np.testing.assert_allclose(parameters["policy.actor_w"][a_tiles], 0.1 * 2.25 * u / 9,
+                             rtol=1e-12)
 
 
 def test_flat_q_learning_is_q_lambda_with_lambda_zero():
