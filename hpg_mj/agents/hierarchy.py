@@ -19,6 +19,7 @@ calls below the root) and, per subtask, `{node}_runs`, `{node}_successes`.
 import dataclasses
 
 from hpg_mj.agents import _ship
+from hpg_mj.agents import _taxi
 from hpg_mj.hierarchy import program as program_mod
 
 
@@ -28,23 +29,25 @@ class HierarchyConfig:
   environment: _ship.ShipEnvironment = dataclasses.field(default_factory=_ship.ShipEnvironment)
 
 
-class ShipHierarchy(_ship.ShipMachineAgent):
-  """A user's hierarchy on the full ship task (see the module docstring): give
-  `graph()`; `root_args` are the root call's arguments, if its rules read any."""
+class ProgramAgent:
+  """What an agent run by the open machine has (mixed in before its world's machine
+  agent, `_ship.ShipMachineAgent` or `_taxi.TaxiMachineAgent`): its program, its
+  state and parameters by node name, its step-by-step path. `root_args` are the root
+  call's arguments, if its rules read any."""
 
-  Config = HierarchyConfig
-  record_fields = ("passed", "steps", "return", "calls")
   root_args = None
+  obs_size = 4                     # the observation's length (the taxi's: 5, or 4 classic)
 
   @property
   def machine(self):
     """The program of `graph()` (built when first needed)."""
     if self._machine is None:
-      self._machine = program_mod.Program(self.graph(), root_args=self.root_args)
+      self._machine = program_mod.Program(self.graph(), root_args=self.root_args,
+                                          obs_size=self.obs_size, world=self.machine_world)
     return self._machine
 
   def graph(self):
-    raise NotImplementedError(f"{type(self).__name__}.graph(): a ShipHierarchy gives its "
+    raise NotImplementedError(f"{type(self).__name__}.graph(): a hierarchy gives its "
                               "task graph of blocks (hpg_mj.hierarchy.graph.TaskGraph)")
 
   def state(self):
@@ -55,9 +58,31 @@ class ShipHierarchy(_ship.ShipMachineAgent):
     return self.machine.parameters()
 
   def run_stepwise(self, env, episodes, learn=True, sample=None, start=None, on_call=None):
+    self.machine.start_schedule(self.episodes)
     rows = self.machine.run_stepwise(env, episodes, learn, sample, self.rng_state,
                                      lambda: self.start_state() if start is None else start,
                                      self._ended, on_call)
     if learn:
       self.episodes += int(episodes)
     return self.as_record(self._record_rows(rows))
+
+
+class ShipHierarchy(ProgramAgent, _ship.ShipMachineAgent):
+  """A user's hierarchy on the full ship task (see the module docstring): give
+  `graph()`; `root_args` are the root call's arguments, if its rules read any."""
+
+  Config = HierarchyConfig
+  record_fields = ("passed", "steps", "return", "calls")
+
+
+class TaxiHierarchy(ProgramAgent, _taxi.TaxiMachineAgent):
+  """A hierarchy on the taxi (SPEC section 5), fused with the taxi's rules
+  (`Program.run_taxi`) and step by step through any taxi environment: give
+  `graph()`. Its kinds read the task's world (`taxi_rules.world_config`); its
+  observation is (row, col, passenger, destination[, fuel])."""
+
+  record_fields = ("return", "steps", "outcome")
+
+  @property
+  def obs_size(self):
+    return 5 if self.rules.fuel_enabled else 4

@@ -1,12 +1,14 @@
 """Flat Q-learning on taxi-fuel over the full state (SPEC section 5): a baseline
 of HPG (tag "baseline"). One-step Watkins Q-learning (Q(0), undiscounted),
 epsilon-greedy with a linear decay over the learning episodes. The agent is its
-Config and a one-node graph of blocks, which `hierarchy.machine` runs on both
-paths (fused with the taxi's rules; step by step through any taxi environment)."""
+Config and a one-node graph of blocks, which the open machine (`hierarchy.program`)
+runs on both paths (fused with the taxi's rules; step by step through any taxi
+environment)."""
 
 import dataclasses
 
 from hpg_mj.agents import _taxi
+from hpg_mj.agents import hierarchy
 from hpg_mj import taskfile
 from hpg_mj.taskfile import param
 from hpg_mj.hierarchy import blocks
@@ -31,8 +33,9 @@ class Config:
   policy: Policy = dataclasses.field(default_factory=Policy)
 
 
-class TaxiFlatQ(_taxi.TaxiMachineAgent):
-  """Flat Q-learning: a one-node graph whose QTable sees the whole state."""
+class TaxiFlatQ(hierarchy.TaxiHierarchy):
+  """Flat Q-learning: a one-node graph whose QTable sees the whole state; its state
+  by node name (`policy.q`, `policy.trace_index`, ...)."""
 
   name = "taxi_flat_q"
   Config = Config
@@ -46,13 +49,7 @@ class TaxiFlatQ(_taxi.TaxiMachineAgent):
     self.learner = blocks.QTable(core.num_states(self.rules.fuel_enabled, self.rules.capacity),
                                  pol.alpha, trace_decay=0.0, gamma=1.0, epsilon_schedule=True,
                                  trace_capacity=16)
-    q, *_ = self.machine.q_arrays(self.learner)
-    q[:] = pol.initial
-
-  def state(self):
-    q, index, value, count = self.machine.q_arrays(self.learner)
-    return {"rng_state": self.rng_state, "q": q, "trace_index": index, "trace_value": value,
-            "trace_count": count}
+    self.machine.state()["policy.q"][:] = pol.initial
 
   def graph(self):
     """One node over the primitives, ending with the episode; epsilon decays linearly."""

@@ -24,7 +24,8 @@ sees -1 a primitive step, SPEC section 3, rather than its child's rewards summed
 a graph compiles only the kinds it holds, a user's rules and kinds among them, and the
 algorithm never asks which kind a node holds. Its state is one record of named
 arrays (`Frames`), the same on both paths: fused with the analytic ship (`run_ship`)
-and step by step under any environment (`begin`, `advance`).
+or the taxi's rules (`run_taxi`), and step by step under any environment (`begin`,
+`advance`).
 """
 import collections
 
@@ -32,8 +33,10 @@ import numba
 import numpy as np
 
 from hpg_mj.hierarchy import ship_rules
+from hpg_mj.hierarchy import taxi_subtasks
 from hpg_mj.learners import arrays
 from hpg_mj.worlds import ship_core as core
+from hpg_mj.worlds import taxi_rules
 
 # The machine's state, per node (a node is on the call stack at most once: the graph
 # is acyclic) and per run. `stack[d]`: the node called at depth d. Per node: its
@@ -45,11 +48,12 @@ from hpg_mj.worlds import ship_core as core
 # [depth of the primitive, steps, the root's last event, learning episodes], the
 # return (`total`), `flags` [learn, sample], the generator (`rng`, copied in and
 # out around a compiled call), the `fault` a boundary check wrote
-# (`hierarchy.boundary`), the observation (`obs`) and the positions sampled in the
-# ship's step (`samples`).
+# (`hierarchy.boundary`), the observation (`obs`), the positions sampled in the
+# ship's step (`samples`) and the taxi's own state in its fused loop (`board`:
+# taxi_rules' int64 state, then its episode's steps, outcome and illegal moves).
 Frames = collections.namedtuple("Frames", (
     "stack", "choice", "action", "steps", "child_steps", "reward", "origin", "args", "x",
-    "counters", "episode", "total", "flags", "rng", "fault", "obs", "samples"))
+    "counters", "episode", "total", "flags", "rng", "fault", "obs", "samples", "board"))
 E_DEPTH, E_STEPS, E_EVENT, E_LEARNED = range(4)
 LEARN, SAMPLE = range(2)
 CALLS, RUNS, SUCCESSES = range(3)
@@ -228,17 +232,54 @@ def run_ship(G, n_episodes, rng_state, world, record, fixed_start):
       over, action = step(G, reward, terminated, truncated)
       if over:
         break
-    write_row(M, record[episode], 1.0 if event == SUCCESS else 0.0)
+    write_row(M, record[episode], 1.0 if event == SUCCESS else 0.0, 0.0)
+  arrays.copy_into(rng_state, M.rng)
+
+
+@numba.njit(**_ENTRY)
+def run_taxi(G, n_episodes, rng_state, world, record, starts):
+  """`n_episodes` episodes of the taxi task `world` (`taxi_rules.world_config`; SPEC
+  section 5), each from a start drawn from the generator (`taxi_subtasks.sample_start`)
+  or, with starts int64[k, 5] (k > 0), from starts[e % k]. The graph sees the state
+  as numbers (G.M.obs: its first 5, or 4 in the classic task); the world steps it as
+  taxi_rules' int64 state. Record rows as `run_ship`'s, with the episode's outcome
+  (`taxi_rules`: DELIVERED, OUT_OF_FUEL, TRUNCATED) and its illegal Pickups and
+  Dropoffs."""
+  M = G.M
+  state, episode, obs = M.board[0:5], M.board[5:8], M.obs
+  arrays.copy_into(M.rng, rng_state)
+  for e in range(n_episodes):
+    if starts.shape[0] > 0:
+      for i in range(5):
+        state[i] = starts[e % starts.shape[0], i]
+    else:
+      taxi_subtasks.sample_start(M.rng, world, state)
+    for i in range(3):
+      episode[i] = 0
+    for i in range(obs.shape[0]):
+      obs[i] = state[i]
+    action = begin(G)
+    while True:
+      reward = taxi_rules.primitive_step(state, episode, np.int64(action), world)
+      for i in range(obs.shape[0]):
+        obs[i] = state[i]
+      outcome = episode[taxi_rules.E_OUTCOME]
+      truncated = outcome == taxi_rules.TRUNCATED
+      terminated = outcome != taxi_rules.RUNNING and not truncated
+      over, action = step(G, reward, terminated, truncated)
+      if over:
+        break
+    write_row(M, record[e], episode[taxi_rules.E_OUTCOME], episode[taxi_rules.E_ILLEGAL])
   arrays.copy_into(rng_state, M.rng)
 
 
 @numba.njit(**_JIT)
-def write_row(M, row, end):
+def write_row(M, row, end, illegal):
   """The record row of the episode just ended."""
   row[ROW_END] = end
   row[ROW_STEPS] = M.episode[E_STEPS]
   row[ROW_RETURN] = M.total[0]
-  row[ROW_ILLEGAL] = 0.0
+  row[ROW_ILLEGAL] = illegal
   for i in range(M.counters.shape[0]):
     for j in range(3):
       row[ROW_COUNTERS + 3 * i + j] = M.counters[i, j]

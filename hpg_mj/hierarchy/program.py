@@ -103,11 +103,15 @@ class Program:
   """A task graph of blocks compiled by the open machine (see the module docstring).
 
   `root_args`: the root call's arguments, by name. `obs_size`: the length of the
-  observation it runs on (4: the ship's x, y, theta, theta rate)."""
+  observation it runs on (4: the ship's x, y, theta, theta rate). `world`: the
+  world's own settings, given to the kinds that read it (a kind whose `settings`
+  takes a `world` parameter: the taxi's, `taxi_rules.world_config`), and to
+  `run_taxi`."""
 
-  def __init__(self, graph, root_args=None, obs_size=4):
+  def __init__(self, graph, root_args=None, obs_size=4, world=None):
     self.graph = graph
     self.obs_size = int(obs_size)
+    self.world = world
     # The root last, as `hierarchy.machine` numbers them (the agents' records read so).
     self.names = [n for n in graph.nodes if n != graph.root] + [graph.root]
     self.index = {name: i for i, name in enumerate(self.names)}
@@ -232,7 +236,7 @@ class Program:
         raise GraphError(f"subtask {name!r}: its internal reward {type(node.internal_reward).__name__}"
                          f" is the G of its termination, and {type(node.termination).__name__} "
                          "gives none")
-    size = s.view.size(node.view)
+    size = self._given(s.view.size, name, node.view, node.view)
     s.learner.check(name, node.learner, s.n_children, size)
     s.size = s.learner.size(node.learner)
 
@@ -266,12 +270,28 @@ class Program:
     values += [f"M.origin[{s.index}]", f"M.steps[{s.index}]"]
     return f"{cls}({', '.join(values)})"
 
+  def _given(self, method, name, block, *args):
+    """`method(*args)` of a kind; one whose parameters include `schedule` or `world`
+    is given the graph's schedule record or the program's world."""
+    given = {"schedule": self.schedule, "world": self.world}
+    asked = inspect.signature(method).parameters
+    extra = {key: value for key, value in given.items() if key in asked}
+    if "world" in extra and self.world is None:
+      raise GraphError(f"subtask {name!r}: its {type(block).__name__} reads the world's "
+                       "settings, and this program was built without them (Program(graph, "
+                       "world=...): the taxi's taxi_rules.world_config)")
+    return method(*args, **extra)
+
+  def _settings(self, kind, name, block):
+    """A kind's settings for `block` at subtask `name` (`_given`)."""
+    return self._given(kind.settings, name, block, name, block)
+
   def _op(self, kind, block, field, s):
     """(the function's global name, its settings' text or None) of a view, end or reward."""
     fn = self._function(kind.operation(block))
     if not kind.takes_settings:
       return fn, None
-    return fn, self._record(f"{field}{s.index}", kind.settings(s.name, block))
+    return fn, self._record(f"{field}{s.index}", self._settings(kind, s.name, block))
 
   def _view_lines(self, s):
     """Lines that view the state into `x<i>` (a state), or into M.x[i] (features)."""
@@ -305,9 +325,7 @@ class Program:
       slot = len(self._learner_blocks)
       self._learners[id(block)] = slot
       self._learner_blocks.append((block, s.learner, s.name))
-      follows = "schedule" in inspect.signature(s.learner.settings).parameters
-      self._record(f"P{slot}", s.learner.settings(s.name, block, self.schedule) if follows
-                   else s.learner.settings(s.name, block))
+      self._record(f"P{slot}", self._settings(s.learner, s.name, block))
       self._record(f"L{slot}", s.learner.learned(block, s.n_children))
     else:
       slot = self._learners[id(block)]
@@ -451,7 +469,7 @@ class Program:
         episode=np.zeros(4, dtype=np.int64), total=np.zeros(1),
         flags=np.zeros(2, dtype=np.bool_), rng=np.zeros(4, dtype=np.uint64),
         fault=np.zeros(4), obs=np.zeros(self.obs_size),
-        samples=np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)))
+        samples=np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)), board=np.zeros(8, dtype=np.int64))
     root = self.index[self.graph.root]
     for j, arg in enumerate(self._arguments.get(self.graph.root, {})):
       self.frames.args[root, j] = float(self._root_args[arg])
@@ -561,6 +579,23 @@ class Program:
     fixed = np.zeros(0) if start is None else np.asarray(start, dtype=np.float64)
     self._run(self._module.run_ship, np.int64(episodes), rng_state,
               np.asarray(world, dtype=np.float64), rows, fixed)
+    return rows
+
+  def run_taxi(self, episodes, learn, sample, rng_state, starts=None):
+    """`episodes` episodes fused with the taxi of the program's `world`
+    (`taxi_rules.world_config`), from `starts` (rows of taxi_rules' state, used in
+    turn; None: drawn). Rows as `run`'s, ROW_END the outcome, ROW_ILLEGAL the illegal
+    Pickups and Dropoffs."""
+    if self.world is None or self.obs_size not in (4, 5):
+      raise GraphError("Program.run_taxi: this program was built without a taxi world "
+                       "(Program(graph, obs_size=5, world=taxi_rules.world_config(...)); 4 "
+                       "in the classic task)")
+    self._flags(learn, sample)
+    rows = np.zeros((int(episodes), algorithm.ROW_COUNTERS + 3 * len(self.names)))
+    starts = np.zeros((0, 5), dtype=np.int64) if starts is None else \
+        np.ascontiguousarray(starts, dtype=np.int64).reshape(-1, 5)
+    self._run(self._module.run_taxi, np.int64(episodes), rng_state,
+              np.ascontiguousarray(self.world, dtype=np.int64), rows, starts)
     return rows
 
   def _observation(self, obs):

@@ -351,6 +351,10 @@ def _plain(obs, call):
   return 0
 
 
+class _Unregistered:
+  """A learner block no kind is registered for."""
+
+
 @pytest.mark.parametrize("make, message", [
     (lambda: waypoint_graph(root_view=Features(aim)),
      "subtask 'root': its learner QTable reads state, its view Features(aim) gives features"),
@@ -358,7 +362,11 @@ def _plain(obs, call):
      "subtask 'goto': its learner GaussianCMAC reads features, its view Abstraction(cell) gives "
      "state"),
     (lambda: waypoint_graph(learner=blocks.ActorCritic(CODER, CODER)),
-     "subtask 'goto': its learner ActorCritic has no kind on the open machine"),
+     "subtask 'goto': an ActorCritic's critic_coder tiles 2 numbers; it must tile 3: the 2 "
+     "the actor_coder tiles, then the action r"),
+    (lambda: waypoint_graph(learner=_Unregistered()),
+     "subtask 'goto': its learner _Unregistered has no start, act, observe; a learner "
+     "answers start()"),
     (lambda: TaskGraph("root", [Primitive("turn"), Subtask(
         "goto", children=["turn"], termination=Termination(arrived), view=Features(aim),
         learner=blocks.GaussianCMAC(CODER)), Subtask(

@@ -58,11 +58,12 @@ _EARLIER_RULES = {"CellRule": "Abstraction(rule) with rule(obs, call)",
 
 def _register_shipped():
   from hpg_mj.hierarchy.kinds import (actor_critic, epsilon, gaussian_cmac, grid_cell,
-                                      local_frame, q_table, rules, state_tiles)
+                                      local_frame, q_table, rules, state_tiles, taxi)
   for kind in (q_table.QTableKind(), gaussian_cmac.GaussianCMACKind(),
                actor_critic.ActorCriticKind(), *rules.KINDS,
                grid_cell.GridCellKind(), local_frame.LocalTilesKind(), local_frame.LocalGoalKind(),
-               local_frame.ShapingKind(), state_tiles.StateTilesKind(), epsilon.HeldEpsilonKind(),
+               local_frame.ShapingKind(), state_tiles.StateTilesKind(), taxi.TaxiStateKind(),
+               epsilon.HeldEpsilonKind(),
                epsilon.LinearEpsilonKind()):
     register(kind)
 

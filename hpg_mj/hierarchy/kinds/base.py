@@ -59,7 +59,9 @@ class Kind:
 
   def settings(self, name, block):
     """The block's settings as the compiled operations take them (a namedtuple, or
-    None for none)."""
+    None for none). A kind that reads the world's own settings (the taxi's
+    `taxi_rules.world_config`) takes a `world` parameter, `settings(self, name, block,
+    world)`, and is given the program's (`Program(graph, world=...)`); `size` too."""
     return None
 
   def operation(self, block):
