@@ -1,7 +1,8 @@
 """Tabular HPG (Algorithm 1) on taxi-fuel (SPEC section 5, paper section 5.1): its
 configuration and its graph of blocks (`hierarchy.blocks`: a `GibbsTable` per
 subtask over the taxi's abstractions, children, terminations and Navigate's
-binding, `hierarchy.taxi_subtasks`), which `hierarchy.machine` runs on both paths.
+binding, `hierarchy.taxi_subtasks`), which the open machine (`hierarchy.program`)
+runs on both paths.
 
 Every non-primitive subtask of the task graph (`taxi_rules`) holds one policy
 parameter per (abstract state, child) and acts with a softmax (Gibbs) policy;
@@ -29,12 +30,12 @@ its reward-to-go (REINFORCE's baseline), which adds to the rule above
 import dataclasses
 
 from hpg_mj.agents import _taxi
+from hpg_mj.agents import hierarchy
 from hpg_mj import taskfile
 from hpg_mj.taskfile import param
 from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy import taxi_subtasks
 from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
-from hpg_mj.learners import eligibility as el
 from hpg_mj.worlds import taxi_core as core
 
 
@@ -108,8 +109,9 @@ class Config:
   navigate: Navigate = dataclasses.field(default_factory=Navigate)
 
 
-class TaxiHPG(_taxi.TaxiMachineAgent):
-  """HPG's Gibbs tables and baselines: the taxi hierarchy as a graph of blocks."""
+class TaxiHPG(hierarchy.TaxiHierarchy):
+  """HPG's Gibbs tables and baselines: the taxi hierarchy as a graph of blocks; its
+  state by node name (`root.theta`, ..., `navigate.baseline`)."""
 
   name = "taxi_hpg"
   Config = Config
@@ -124,22 +126,16 @@ class TaxiHPG(_taxi.TaxiMachineAgent):
                                           level.start_fraction, level.delay, level.ramp)
                         for n, level in zip(sizes, levels))
 
-  def state(self):
-    out = {"rng_state": self.rng_state}
-    for name, table in zip(blocks.TAXI_SUBTASKS, self.tables):
-      trace, values = self.machine.gibbs_arrays(table)
-      out.update({f"{name}_{k}": v for k, v in trace._asdict().items()})
-      out[f"{name}_baseline"] = values
-    return out
-
   def policy_tables(self):
     """Each subtask's current parameters, an (abstract states, children) table."""
-    return tuple(el.parameters(self.machine.gibbs_arrays(t)[0]).reshape(t.n_states, -1)
-                 for t in self.tables)
+    parameters = self.parameters()
+    return tuple(parameters[f"{name}.theta"].reshape(t.n_states, -1)
+                 for name, t in zip(blocks.TAXI_SUBTASKS, self.tables))
 
   def baselines(self):
-    """Each subtask's baseline b(s), by abstract state (views)."""
-    return tuple(self.machine.gibbs_arrays(t)[1] for t in self.tables)
+    """Each subtask's baseline b(s), by abstract state (the live arrays)."""
+    state = self.machine.state()
+    return tuple(state[f"{name}.baseline"] for name in blocks.TAXI_SUBTASKS)
 
   def graph(self):
     """Root -> {Get, Put, Refuel}; each of those -> {Navigate(t), its primitive};

@@ -49,11 +49,13 @@ from hpg_mj.worlds import taxi_rules
 # return (`total`), `flags` [learn, sample], the generator (`rng`, copied in and
 # out around a compiled call), the `fault` a boundary check wrote
 # (`hierarchy.boundary`), the observation (`obs`), the positions sampled in the
-# ship's step (`samples`) and the taxi's own state in its fused loop (`board`:
-# taxi_rules' int64 state, then its episode's steps, outcome and illegal moves).
+# ship's step (`samples`), the taxi's own state in its fused loop (`board`:
+# taxi_rules' int64 state, then its episode's steps, outcome and illegal moves) and,
+# per node, the children it may choose now (`mask`: its `available`'s, else all).
 Frames = collections.namedtuple("Frames", (
     "stack", "choice", "action", "steps", "child_steps", "reward", "origin", "args", "x",
-    "counters", "episode", "total", "flags", "rng", "fault", "obs", "samples", "board"))
+    "counters", "episode", "total", "flags", "rng", "fault", "obs", "samples", "board",
+    "mask"))
 E_DEPTH, E_STEPS, E_EVENT, E_LEARNED = range(4)
 LEARN, SAMPLE = range(2)
 CALLS, RUNS, SUCCESSES = range(3)

@@ -122,7 +122,8 @@ def as_event(value, fault, what):
 @overload(as_event, inline="always")
 def _as_event(value, fault, what):
   if isinstance(value, types.Boolean):
-    return lambda value, fault, what: np.int64(1) if value else np.int64(0)
+    # True is 1 (no branch: a conditional here made numba's inlining warn of its phi)
+    return lambda value, fault, what: np.int64(value)
   if isinstance(value, types.Integer):
     def event(value, fault, what):
       e = np.int64(value)

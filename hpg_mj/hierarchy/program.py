@@ -127,8 +127,8 @@ class Program:
                       if not isinstance(n, Primitive)]
     for s in self._subtasks:
       self._resolve(s)
-    self._write()
     self._frames()
+    self._write()
     self._module = self._load()
     # Each record, and the graph of them, as a struct the compiled code takes by
     # reference (`learners.banks`): passed by value, the hybrid's ~80 arrays were copied
@@ -145,19 +145,21 @@ class Program:
       if isinstance(node, Primitive):
         continue
       for ref in self.graph.children(name):
-        if ref.bind is not None:
-          raise GraphError(f"subtask {name!r}: its child {ref.node!r} binds its arguments "
-                           "by a Python function (Child(bind=...)), which the open machine "
-                           "cannot compile; give the arguments as numbers: "
-                           f"Child({ref.node!r}, x=..., y=...)")
         for arg, value in ref.args.items():
           _check_argument(f"subtask {name!r}: its child {ref.node!r}'s argument", arg, value)
+        args = dict(ref.args)
+        if ref.bind is not None:
+          for arg, is_int in self._binding(name, ref)[1].items():
+            if arg in args:
+              raise GraphError(f"subtask {name!r}: its child {ref.node!r} gives {arg!r} "
+                               "twice, as a number and by its binding; give it once")
+            args[arg] = 0 if is_int else 0.0
         if isinstance(self.graph.nodes[ref.node], Primitive):
-          if ref.args:
+          if args:
             raise GraphError(f"subtask {name!r}: its child {ref.node!r} is a primitive, "
-                             f"which takes no arguments; got {sorted(ref.args)}")
+                             f"which takes no arguments; got {sorted(args)}")
           continue
-        bound.setdefault(ref.node, []).append((name, ref.args))
+        bound.setdefault(ref.node, []).append((name, args))
     for arg, value in dict(root_args).items():
       _check_argument("root_args: the argument", arg, value)
     bound.setdefault(self.graph.root, []).append(("the root call", dict(root_args)))
@@ -176,6 +178,21 @@ class Program:
                            "call's own field); rename it")
     self._root_args = dict(root_args)
     return out
+
+  def _binding(self, name, ref):
+    """(the kind, its arguments {name: whether an integer}) of a `Child`'s binding."""
+    if callable(ref.bind) and not isinstance(ref.bind, type):
+      try:
+        kind = kinds_mod.kind_of(ref.bind, "binding", name)
+      except GraphError:
+        raise GraphError(f"subtask {name!r}: its child {ref.node!r} binds its arguments by a "
+                         "Python function (Child(bind=...)), which the open machine cannot "
+                         "compile; give the arguments as numbers, Child("
+                         f"{ref.node!r}, x=..., y=...), or bind them by a block whose kind "
+                         "is registered (hpg_mj.hierarchy.kinds.base.BindingKind)") from None
+    else:
+      kind = kinds_mod.kind_of(ref.bind, "binding", name)
+    return kind, dict(kind.names(ref.bind))
 
   def _schedule(self):
     """The graph's exploration schedule (a held epsilon of 0.1 by default, as
@@ -200,9 +217,12 @@ class Program:
     s.end = kinds_mod.kind_of(node.termination, "termination", name)
     s.reward = (None if node.internal_reward is None else
                 kinds_mod.kind_of(node.internal_reward, "reward", name))
-    if node.available is not None:
-      raise GraphError(f"subtask {name!r}: `available` is not run by the open machine yet; "
-                       "leave it None")
+    s.offer = (None if node.available is None else
+               kinds_mod.kind_of(node.available, "available", name))
+    if s.offer is not None and not s.learner.masked:
+      raise GraphError(f"subtask {name!r}: its learner {type(node.learner).__name__} chooses "
+                       "among all its children; an `available` needs a learner that reads "
+                       "a mask of them (a kind with masked = True: GibbsTable)")
     if node.on_exit is not None:
       raise GraphError(f"subtask {name!r}: `on_exit` is a Python function, which the open "
                        "machine cannot compile; leave it None")
@@ -228,6 +248,8 @@ class Program:
                        f"{s.learner.reads}, its view {rules_mod.rule_name(node.view)} gives "
                        f"{s.view.gives}")
     arguments = self._arguments.get(name, {})
+    if s.offer is not None:
+      s.offer.check(name, node.available, arguments)
     s.view.check(name, node.view, arguments)
     s.end.check(name, node.termination, arguments)
     if s.reward is not None:
@@ -271,11 +293,13 @@ class Program:
     return f"{cls}({', '.join(values)})"
 
   def _given(self, method, name, block, *args):
-    """`method(*args)` of a kind; one whose parameters include `schedule` or `world`
-    is given the graph's schedule record or the program's world."""
-    given = {"schedule": self.schedule, "world": self.world}
+    """`method(*args)` of a kind; one whose parameters include `schedule`, `world` or
+    `learned_episodes` is given the graph's schedule record, the program's world, or
+    the live count of learning episodes ended (an int64[1]: a step size's warm-up)."""
+    given = {"schedule": lambda: self.schedule, "world": lambda: self.world,
+             "learned_episodes": lambda: self.frames.episode[algorithm.E_LEARNED:][:1]}
     asked = inspect.signature(method).parameters
-    extra = {key: value for key, value in given.items() if key in asked}
+    extra = {key: value() for key, value in given.items() if key in asked}
     if "world" in extra and self.world is None:
       raise GraphError(f"subtask {name!r}: its {type(block).__name__} reads the world's "
                        "settings, and this program was built without them (Program(graph, "
@@ -343,12 +367,28 @@ class Program:
     return (f"M.action[{s.index}] = v{s.index}" if s.learner.continuous else
             f"M.choice[{s.index}] = np.int64(v{s.index})")
 
+  def _offer_lines(self, s):
+    """Lines that write the children `s` may choose now into its mask (its `available`)."""
+    if s.offer is None:
+      return []
+    if not hasattr(s, "_offer_op"):
+      s._offer_op = self._op(s.offer, s.node.available, "A", s)
+    fn, settings = s._offer_op
+    args = ", ".join(([settings] if settings else []) +
+                     ["M.obs", self._call_text(s), f"M.mask[{s.index}, :{s.n_children}]"])
+    return [f"{fn}({args})"]
+
+  def _n(self, s):
+    """The learner's `n` (its number of children), and its mask if it reads one."""
+    return (f"{s.n_children}, M.mask[{s.index}, :{s.n_children}]" if s.learner.masked else
+            f"{s.n_children}")
+
   def _enter_lines(self, s):
     i, (P, Lr, N) = s.index, s._records
     start, choose = self._function(s.learner.start), self._function(s.learner.choose)
     return [f"# {s.name}: z <- 0, its view, its first choice", f"{start}({P}, {Lr}, {N})",
-            *self._view_lines(s),
-            f"v{i} = {choose}({P}, {Lr}, {N}, {self._x(s)}, {s.n_children}, M.rng, "
+            *self._view_lines(s), *self._offer_lines(s),
+            f"v{i} = {choose}({P}, {Lr}, {N}, {self._x(s)}, {self._n(s)}, M.rng, "
             "M.flags[0], M.flags[1])", self._settle(s)]
 
   def _resume_lines(self, s):
@@ -359,10 +399,12 @@ class Program:
               *["  " + line for line in self._view_lines(s)]]
     else:
       view = ["if not terminal:", *["  " + line for line in self._view_lines(s)]]
+    offer = self._offer_lines(s)
+    view += ["if not done:", *["  " + line for line in offer]] if offer else []
     return [f"# {s.name}: its learner takes R + G in s' and, unless done, chooses again",
             *view,
             f"v{i} = {observe}({P}, {Lr}, {N}, {self._x(s)}, signal, done, terminal, "
-            f"{s.n_children}, M.rng, M.flags[0], M.flags[1])",
+            f"{self._n(s)}, M.rng, M.flags[0], M.flags[1])",
             "if not done:", "  " + self._settle(s)]
 
   def _judge_lines(self, s):
@@ -399,7 +441,15 @@ class Program:
         lines += [f"  M.action[{s.index}] = {float(child.action)!r}", "  return -1"]
         continue
       c = self.index[ref.node]
-      lines += [f"  M.args[{c}, {j}] = {float(ref.args[arg])!r}"
+      names = []
+      if ref.bind is not None:
+        kind, names = self._binding(s.name, ref)
+        fn, settings = self._op(kind, ref.bind, f"B{s.index}_{k}_", s)
+        args = ", ".join(([settings] if settings else []) + ["M.obs", self._call_text(s)])
+        lines.append(f"  bound = {fn}({args})")
+        names = list(names)
+      lines += [f"  M.args[{c}, {j}] = {float(ref.args[arg])!r}" if arg in ref.args else
+                f"  M.args[{c}, {j}] = bound[{names.index(arg)}]"
                 for j, arg in enumerate(self._arguments.get(ref.node, {}))]
       lines.append(f"  return {c}")
     return lines + ["return -1"]
@@ -469,7 +519,8 @@ class Program:
         episode=np.zeros(4, dtype=np.int64), total=np.zeros(1),
         flags=np.zeros(2, dtype=np.bool_), rng=np.zeros(4, dtype=np.uint64),
         fault=np.zeros(4), obs=np.zeros(self.obs_size),
-        samples=np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)), board=np.zeros(8, dtype=np.int64))
+        samples=np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)), board=np.zeros(8, dtype=np.int64),
+        mask=np.ones((n, max([s.n_children for s in self._subtasks] + [1])), dtype=np.bool_))
     root = self.index[self.graph.root]
     for j, arg in enumerate(self._arguments.get(self.graph.root, {})):
       self.frames.args[root, j] = float(self._root_args[arg])

@@ -41,6 +41,14 @@ Trace = collections.namedtuple("Trace", ("theta", "zs", "y", "touched", "marked"
                                          "acc"))
 
 
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+def trace_of(record):
+  """The Trace of a record that holds its fields by name (a learner kind's learned
+  arrays: the trace's, and more)."""
+  return Trace(record.theta, record.zs, record.y, record.touched, record.marked, record.count,
+               record.acc)
+
+
 def new_trace(n_weights: int, initial=0.0) -> Trace:
   """The trace of a fresh Eq. 3 learner with `n_weights` parameters."""
   return Trace(theta=np.full(n_weights, float(initial)), zs=np.zeros(n_weights),
@@ -50,7 +58,8 @@ def new_trace(n_weights: int, initial=0.0) -> Trace:
 
 
 def parameters(t: Trace) -> np.ndarray:
-  """theta with the pending updates applied (a copy)."""
+  """theta with the pending updates applied (a copy); `t` a Trace or any record that
+  holds its fields by name."""
   return t.theta + t.zs * t.acc[0] - t.y
 
 

@@ -393,30 +393,6 @@ def test_a_subtask_alone_is_the_same_fused_and_through_its_environment(task, env
   assert runs[0][0][:, 0].sum() > 0                                 # some calls succeeded
 
 
-_TAXI_LOADS = """
-import json
-from hpg_mj import agents
-from hpg_mj.hierarchy import machine as M
-agent = agents.build(agents.load_task("taxi_fuel_hpg"), seed=0)
-record = agent.train(30)
-print(json.dumps({"returns": record["return"].tolist(), "loaded": [
-    f.py_func.__name__ for f in (M.step, M._view, M._observe, M._gibbs_choose, M._call,
-                                 M._descend) if f.overloads]}))
-"""
-
-
-def test_the_taxi_loop_loads_only_what_it_calls_through_addresses():
-  """With the taxi's fused loop in numba's cache (the first process leaves it there), a
-  new process loads it and the two functions it calls through their addresses, not
-  the four it links into its own code (`Machine._link_taxi_loop`), and trains the same."""
-  import json, subprocess, sys
-  runs = [json.loads(subprocess.run([sys.executable, "-c", _TAXI_LOADS], capture_output=True,
-                                    text=True, timeout=600, check=True).stdout.splitlines()[-1])
-          for _ in range(2)]
-  assert runs[1]["loaded"] == ["_call", "_descend"]
-  assert runs[1]["returns"] == runs[0]["returns"]
-
-
 def test_the_machine_compiles_its_functions_once_leaves_first(tmp_path):
   """The functions `Machine._bottom_up` compiles before the fused loop are those the
   loop calls, for the types it calls them with: each compiles once."""

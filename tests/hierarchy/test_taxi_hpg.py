@@ -7,12 +7,13 @@ import collections
 
 import numpy as np
 import pytest
-import compile_order
 from taxi_grid import moves_from
 
 from hpg_mj.agents import taxi_hpg as tcp
 from hpg_mj.taskfile import updated
-from hpg_mj.hierarchy import machine
+from hpg_mj.hierarchy import blocks
+from hpg_mj.hierarchy.graph import GraphError
+from hpg_mj.hierarchy.program import Program
 from hpg_mj.hierarchy import taxi_subtasks as tr
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import policies
@@ -200,9 +201,9 @@ def _agent(seed, config=None):
 def test_optimal_hierarchy_earns_v_star_exactly():
   values = tv.taxi_values(True)
   agent = _agent(0)
-  for table, optimal in zip(agent.tables, optimal_tables()):
-    trace, _ = agent.machine.gibbs_arrays(table)
-    trace.theta[:] = optimal.ravel()
+  state = agent.machine.state()                       # the live arrays, by node name
+  for name, optimal in zip(blocks.TAXI_SUBTASKS, optimal_tables()):
+    state[f"{name}.theta"][:] = optimal.ravel()
   starts, expected = [], []
   for square in range(25):
     for destination in range(4):
@@ -278,10 +279,15 @@ def test_classic_task_never_refuels():
 
 
 def _step_sizes(agent, learned_episodes):
-  """The GibbsTables' step sizes in an episode after `learned_episodes` learning ones."""
+  """The GibbsTables' step sizes in episodes after `learned_episodes` learning ones
+  (each node's, set when it is called: 30 episodes sampled from the fresh uniform
+  tables call every subtask)."""
   agent.episodes = learned_episodes
-  agent.evaluate(1)
-  return agent.machine.banks.gibbs.alpha.copy()
+  m = agent.machine
+  for name in blocks.TAXI_SUBTASKS:
+    m._field(f"N{m.index[name]}").alpha[0] = np.nan
+  agent.compiled(30, False, True)
+  return np.array([m._field(f"N{m.index[name]}").alpha[0] for name in blocks.TAXI_SUBTASKS])
 
 
 def test_step_size_warm_up():
@@ -384,20 +390,9 @@ def test_hpg_reaches_95_percent_of_optimal():
   assert min(last) >= tv.performance_threshold(optimal, 0.90)
 
 
-def test_the_machines_functions_compile_first_for_the_taxi(tmp_path):
-  """`Machine._bottom_up` for a taxi graph (its GibbsTables' choice too) lists the
-  functions the fused loop calls, for the types it calls them with: with an empty
-  numba cache each compiles once."""
-  compile_order.assert_each_compiles_once(tmp_path, """
-from hpg_mj.agents import taxi_hpg
-agent = taxi_hpg.TaxiHPG(seed=0)
-agent.train(20)
-listed = agent.machine._bottom_up()
-""")
-
-
 def test_taxi_blocks_need_the_taxi_world():
   agent = _agent(0)
-  with pytest.raises(machine.GraphError, match="subtask 'root': a Taxi[A-Za-z]+ needs the "
-                     r"machine's taxi world \(Machine\(graph, world="):
-    machine.Machine(agent.graph())
+  with pytest.raises(GraphError, match="subtask 'root': its Taxi[A-Za-z]+ reads the world's "
+                     r"settings, and this program was built without them \(Program\(graph, "
+                     "world="):
+    Program(agent.graph(), obs_size=5)

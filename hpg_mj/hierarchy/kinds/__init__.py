@@ -5,7 +5,7 @@ from hpg_mj.hierarchy import graph
 from hpg_mj.hierarchy.graph import GraphError
 from hpg_mj.hierarchy.kinds import base
 
-ROLES = ("learner", "view", "termination", "reward", "schedule")
+ROLES = ("learner", "view", "termination", "reward", "available", "binding", "schedule")
 _KINDS = {}          # (role, block class) -> kind
 
 
@@ -57,14 +57,13 @@ _EARLIER_RULES = {"CellRule": "Abstraction(rule) with rule(obs, call)",
 
 
 def _register_shipped():
-  from hpg_mj.hierarchy.kinds import (actor_critic, epsilon, gaussian_cmac, grid_cell,
-                                      local_frame, q_table, rules, state_tiles, taxi)
+  from hpg_mj.hierarchy.kinds import (actor_critic, epsilon, gaussian_cmac, gibbs_table,
+                                      grid_cell, local_frame, q_table, rules, state_tiles, taxi)
   for kind in (q_table.QTableKind(), gaussian_cmac.GaussianCMACKind(),
-               actor_critic.ActorCriticKind(), *rules.KINDS,
+               actor_critic.ActorCriticKind(), gibbs_table.GibbsTableKind(), *rules.KINDS,
                grid_cell.GridCellKind(), local_frame.LocalTilesKind(), local_frame.LocalGoalKind(),
-               local_frame.ShapingKind(), state_tiles.StateTilesKind(), taxi.TaxiStateKind(),
-               epsilon.HeldEpsilonKind(),
-               epsilon.LinearEpsilonKind()):
+               local_frame.ShapingKind(), state_tiles.StateTilesKind(), *taxi.KINDS,
+               epsilon.HeldEpsilonKind(), epsilon.LinearEpsilonKind()):
     register(kind)
 
 

@@ -35,8 +35,20 @@ arrays shared by the nodes that share the block, `N` the node's own scratch):
   a kind with `gives_internal` returns (event, G), its G taken by a `Shaping` reward.
 * an **internal reward** G: `reward(P, obs, call, event, samples)` (a user's rule:
   `rule(obs, call, event)`) -> a float.
+* a node's **available** children: `offer(P, obs, call, mask)` writes True for each
+  child it may choose now; its learner is a kind with `masked = True`, whose choose
+  and observe take the mask after `n`: choose(P, L, N, x, n, mask, rng, learn,
+  sample) (the taxi's GibbsTable).
+* a `Child`'s **binding**, arguments decided when the parent calls it
+  (`Child("navigate", bind=TaxiTarget("get"))`): `bind(P, obs, call)` -> a tuple of
+  the values of `names(block)`, `call` the parent's.
 * a graph's **schedule** of exploration (`hierarchy.kinds.epsilon`): its learners with
   `epsilon_schedule=True` read its `epsilon`.
+
+A kind whose `settings` (or `size`) takes a parameter `world`, `schedule` or
+`learned_episodes` is given the program's world (the taxi's
+`taxi_rules.world_config`), the graph's schedule record, or the live count of
+learning episodes ended (int64[1]: a step size's warm-up).
 
 `samples` are the positions the ship's step sampled (the ship's local ends judge each
 sampled segment); `P` of a view, termination or reward is the node's own.
@@ -67,7 +79,8 @@ class Kind:
   def operation(self, block):
     """The compiled operation a view, termination or reward kind runs for `block`
     (its `view`, `end` or `reward`; a user's rule: the rule itself)."""
-    return getattr(self, {"view": "view", "termination": "end", "reward": "reward"}[self.role])
+    return getattr(self, {"view": "view", "termination": "end", "reward": "reward",
+                          "available": "offer", "binding": "bind"}[self.role])
 
 
 class LearnerKind(Kind):
@@ -77,6 +90,7 @@ class LearnerKind(Kind):
   role = "learner"
   reads = "state"
   continuous = False
+  masked = False         # its choose and observe take the children's mask after `n`
   start = choose = observe = None          # its compiled operations
 
   def check(self, name, block, n_children, view_size):
@@ -131,6 +145,26 @@ class ViewKind(NodeKind):
     """The number of states it gives (None: unknown, the learner's), or the length
     of its features (None: the learner's)."""
     return None
+
+
+class AvailableKind(NodeKind):
+  """The children a node may choose in a state (its `available`): `offer(P, obs, call,
+  mask)` writes True for each child offered (a learner with `masked` reads it)."""
+  role = "available"
+  offer = None
+  takes_settings = True
+
+
+class BindingKind(NodeKind):
+  """A `Child`'s arguments decided when the parent calls it (`Child("navigate",
+  bind=block)`): `bind(P, obs, call)` -> a tuple of the arguments' values, in the
+  order of `names(block)` ({argument: whether an integer}); `call` is the parent's."""
+  role = "binding"
+  bind = None
+  takes_settings = True
+
+  def names(self, block):
+    raise NotImplementedError
 
 
 class TerminationKind(NodeKind):

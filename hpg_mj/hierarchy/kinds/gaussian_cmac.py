@@ -26,15 +26,10 @@ Learned = collections.namedtuple("Learned", el.Trace._fields + ("values",))
 Scratch = collections.namedtuple("Scratch", ("tiles", "psi"))
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
-def _trace(L):
-  return el.Trace(L.theta, L.zs, L.y, L.touched, L.marked, L.count, L.acc)
-
-
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def start(P, L, N):
-  el.reset(_trace(L))                        # Eq. 3: z <- 0
+  el.reset(el.trace_of(L))                        # Eq. 3: z <- 0
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
@@ -43,7 +38,7 @@ def choose(P, L, N, x, n, rng, learn, sample):
   """u ~ Normal(m(s), 1), its score added to z (`policies.gaussian_choose`)."""
   tiles = N.tiles[0]
   tiles_mod.active_tiles(x, P.tiling, tiles)
-  return policies.gaussian_choose(_trace(L), L.values, tiles, N.psi, P.alpha, P.baseline,
+  return policies.gaussian_choose(el.trace_of(L), L.values, tiles, N.psi, P.alpha, P.baseline,
                                   P.r_max, learn, sample, rng)
 
 
@@ -55,12 +50,12 @@ def observe(P, L, N, x, signal, done, terminal, n, rng, learn, sample):
   if not done:
     tiles_mod.active_tiles(x, P.tiling, N.tiles[1])
   if learn:
-    policies.gaussian_learn(_trace(L), L.values, N.tiles[0], N.tiles[1], P.alpha,
+    policies.gaussian_learn(el.trace_of(L), L.values, N.tiles[0], N.tiles[1], P.alpha,
                             P.trace_gamma, P.baseline, signal, done)
   if done:
     return 0.0
   arrays.copy_into(N.tiles[0], N.tiles[1])
-  return policies.gaussian_choose(_trace(L), L.values, N.tiles[0], N.psi, P.alpha,
+  return policies.gaussian_choose(el.trace_of(L), L.values, N.tiles[0], N.psi, P.alpha,
                                   P.baseline, P.r_max, learn, sample, rng)
 
 
@@ -95,7 +90,7 @@ class GaussianCMACKind(base.LearnerKind):
 
   def parameters(self, learned):
     """theta with its pending Eq. 3 updates applied, and the baseline's values."""
-    return {"theta": el.parameters(_trace(learned)), "values": learned.values.copy()}
+    return {"theta": el.parameters(learned), "values": learned.values.copy()}
 
   def scratch(self, block, n_children):
     k = block.coder.n_tilings
