@@ -69,7 +69,7 @@ def _targets(agent):
 def initial_error(agent, start):
   """|heading error| (deg) from a start to its first greedy call's target (ties: the
   first of the best)."""
-  q = agent.machine.q_arrays(agent.root)[0]
+  q = agent.parameters()["root.q"]
   n = ship_rules.N_TARGETS
   tiles = agent.root_coder.active(start[:3])
   within = abs(start[1] - ship_rules.GATE_Y) <= agent.config.root.approach_within_m
@@ -81,7 +81,7 @@ def initial_error(agent, start):
 
 def helmsman_report(agent, fixed, record):
   saved = agent.rng_state.copy()
-  q = agent.machine.q_arrays(agent.root)[0]
+  q = agent.parameters()["root.q"]
   tiling = agent.root_coder.arrays()
   rows = [helmsman_episode(start.copy(), q, tiling, agent.rng_state,
                            agent.config.root.approach_within_m, _targets(agent),

@@ -31,17 +31,18 @@ frames. Only the -1s, the gate's reward and the field's penalty
 reach the root (Watkins's Q(lambda) over the SMDP of calls, as the hybrid's).
 
 Its compiled rules are `hpg_mj.hierarchy.ship_rules`' (the targets, the aim state
-and its end), run as blocks by `hpg_mj.hierarchy.machine`.
+and its end), run as blocks (kinds `tiled_q`, `gate_route`) by the open machine
+(`hierarchy.program`).
 """
 import dataclasses
 import math
 
 from hpg_mj.agents import _ship
+from hpg_mj.agents import hierarchy
 from hpg_mj.taskfile import param
 from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy import ship_rules
 from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
-from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import tiles as tiles_mod
 from hpg_mj.worlds import ship_core as core
 
@@ -137,8 +138,9 @@ def aim_coder(low):
                              tuple(low.tiles), (not reflected, False, False), low.tilings)
 
 
-class ShipBeyond(_ship.ShipMachineAgent):
-  """A root over (cell, heading) that picks points; an aim subtask that steers there."""
+class ShipBeyond(hierarchy.ShipHierarchy):
+  """A root over (cell, heading) that picks points; an aim subtask that steers there.
+  Its state by node name (`root.q`, `aim.theta`, `aim.values`, `schedule.state`, ...)."""
 
   name = "ship_beyond"
   Config = Config
@@ -174,27 +176,6 @@ class ShipBeyond(_ship.ShipMachineAgent):
     ], schedule=blocks.HeldEpsilon(root.epsilon, ("aim",), root.epsilon_threshold,
                                    root.epsilon_window, root.epsilon_every,
                                    root.epsilon_divisor))
-
-  def state(self):
-    m = self.machine
-    q, index, value, count = m.q_arrays(self.root)
-    eps, outcomes, counts = m.epsilon_schedule
-    trace, values = m.gaussian_arrays(self.low)
-    out = {"rng_state": self.rng_state, "root_q": q, "root_trace_index": index,
-           "root_trace_value": value, "root_trace_count": count, "epsilon_schedule": eps,
-           "subtask_outcomes": outcomes, "subtask_counts": counts, "aim_baseline": values}
-    out.update({f"aim_{key}": v for key, v in trace._asdict().items()})
-    width = m.width_trace(self.low)
-    if width is not None:
-      out.update({f"aim_width_{key}": v for key, v in width._asdict().items()})
-    return out
-
-  def parameters(self):
-    m = self.machine
-    width = m.width_trace(self.low)
-    return {"root_q": m.q_arrays(self.root)[0].copy(),
-            "aim_w": el.parameters(m.gaussian_arrays(self.low)[0]),
-            **({} if width is None else {"aim_log_sigma": el.parameters(width)})}
 
   def metrics(self, record):
     out = super().metrics(record)

@@ -223,6 +223,11 @@ class Program:
       raise GraphError(f"subtask {name!r}: its learner {type(node.learner).__name__} chooses "
                        "among all its children; an `available` needs a learner that reads "
                        "a mask of them (a kind with masked = True: GibbsTable)")
+    if s.offer is not None and s.learner.masked == "prefix" and not s.offer.prefix:
+      raise GraphError(f"subtask {name!r}: its learner {type(node.learner).__name__} offers a "
+                       "state's first k children, and its available "
+                       f"{type(node.available).__name__} may offer any (a kind with prefix = "
+                       "True: NearGateLine)")
     if node.on_exit is not None:
       raise GraphError(f"subtask {name!r}: `on_exit` is a Python function, which the open "
                        "machine cannot compile; leave it None")
@@ -297,7 +302,8 @@ class Program:
     `learned_episodes` is given the graph's schedule record, the program's world, or
     the live count of learning episodes ended (an int64[1]: a step size's warm-up)."""
     given = {"schedule": lambda: self.schedule, "world": lambda: self.world,
-             "learned_episodes": lambda: self.frames.episode[algorithm.E_LEARNED:][:1]}
+             "learned_episodes": lambda: self.frames.episode[algorithm.E_LEARNED:][:1],
+             "node": lambda: self.graph.nodes[name]}
     asked = inspect.signature(method).parameters
     extra = {key: value() for key, value in given.items() if key in asked}
     if "world" in extra and self.world is None:
@@ -334,7 +340,7 @@ class Program:
       return [f"x{i} = boundary.as_state({fn}({args}), {s.size}, M.fault, {s._view_what})",
               f"M.x[{i}, 0] = x{i}"]
     if s.view.writes:
-      return [f"{fn}({args}, M.x[{i}, :{s.size}])"]
+      return [f"{fn}({args}, M.x[{i}, :{s.size + s.view.reflects}])"]
     return [f"boundary.as_features({fn}({args}), M.x[{i}, :{s.size}], M.fault, "
             f"{s._view_what})"]
 
@@ -364,6 +370,8 @@ class Program:
     return f"G.P{slot}", f"G.L{slot}", f"G.N{s.index}"
 
   def _settle(self, s):
+    if s.learner.continuous and s.view.reflects:          # the action's sign, at x[size]
+      return f"M.action[{s.index}] = v{s.index} * M.x[{s.index}, {s.size}]"
     return (f"M.action[{s.index}] = v{s.index}" if s.learner.continuous else
             f"M.choice[{s.index}] = np.int64(v{s.index})")
 
@@ -509,7 +517,8 @@ class Program:
     n = len(self.names)
     depth = self.graph.depth()
     n_args = max([len(a) for a in self._arguments.values()] + [1])
-    size = max([s.size if s.view.gives == "features" else 1 for s in self._subtasks] + [1])
+    size = max([s.size + s.view.reflects if s.view.gives == "features" else 1
+                for s in self._subtasks] + [1])
     self.frames = algorithm.Frames(
         stack=np.zeros(depth, dtype=np.int64), choice=np.zeros(n, dtype=np.int64),
         action=np.zeros(n), steps=np.zeros(n, dtype=np.int64),

@@ -166,7 +166,7 @@ def test_the_learned_width_runs_on_both_paths_and_bad_widths_are_refused():
       c, low_level=dataclasses.replace(c.low_level, width_alpha=0.003)), seed=0)
   assert len(agent.train(5)) == 5
   assert len(agent.run_stepwise(agent.make_env("gymnasium"), 1)) == 1
-  assert "aim_log_sigma" in agent.parameters()
+  assert "aim.log_sigma" in agent.parameters()
   with pytest.raises(ValueError, match=r"sigma_low = 2.0, sigma_high = 4.0: need"):
     sb.ShipBeyond(dataclasses.replace(
         c, low_level=dataclasses.replace(c.low_level, sigma_low=2.0, sigma_high=4.0)))

@@ -398,7 +398,7 @@ def test_the_machine_compiles_its_functions_once_leaves_first(tmp_path):
   loop calls, for the types it calls them with: each compiles once."""
   compile_order.assert_each_compiles_once(tmp_path, """
 from hpg_mj import agents
-agent = agents.build(agents.load_task("ship_hybrid_beyond"), 0)
+agent = agents.build(agents.load_task("ship_patrol_average_reward"), 0)
 agent.train(2)
 listed = agent.machine._bottom_up()
 """)

@@ -392,7 +392,19 @@ def test_a_rule_that_is_not_compiled_is_refused():
 
 # ---- the shipped kinds: the hybrid's graph (Figure 3) --------------------------------
 
-@pytest.mark.parametrize("task", ["ship_hybrid", "ship_flat_pg"])
+def _near_line_route(seed):
+  """The route with its approach points offered only within 150 m of the gate line and
+  its shaping halved (the task file offers them everywhere, with weight 1)."""
+  from hpg_mj import agents
+  from hpg_mj.agents import ship_beyond
+  from hpg_mj.taskfile import updated
+  config = agents.build(agents.load_task("ship_hybrid_beyond"), seed=seed).config
+  return ship_beyond.ShipBeyond(updated(config, root={"approach_within_m": 150.0},
+                                        low_level={"shaping": 0.5}), seed=seed)
+
+
+@pytest.mark.parametrize("task", ["ship_hybrid", "ship_flat_pg", "ship_hybrid_beyond",
+                                  _near_line_route])
 def test_a_shipped_graph_gives_the_old_machines_numbers_bit_for_bit(task):
   """Figure 3 (GridCell root, LocalTiles and LocalGoal with Shaping below, the held
   epsilon) and flat PGRL (StateTiles) on the open machine and on `hierarchy.machine`:
@@ -401,7 +413,8 @@ def test_a_shipped_graph_gives_the_old_machines_numbers_bit_for_bit(task):
   from hpg_mj import agents
   from hpg_mj.hierarchy import machine
   from hpg_mj.learners import eligibility as el
-  old, new = (agents.build(agents.load_task(task), seed=4) for _ in range(2))
+  old, new = (task(4) if callable(task) else agents.build(agents.load_task(task), seed=4)
+              for _ in range(2))
   old._machine, new._machine = machine.Machine(old.graph()), Program(new.graph())
   a, b = old.train(300), new.train(300)
   for field in a.dtype.names:

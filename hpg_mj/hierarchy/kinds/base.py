@@ -45,10 +45,11 @@ arrays shared by the nodes that share the block, `N` the node's own scratch):
 * a graph's **schedule** of exploration (`hierarchy.kinds.epsilon`): its learners with
   `epsilon_schedule=True` read its `epsilon`.
 
-A kind whose `settings` (or `size`) takes a parameter `world`, `schedule` or
-`learned_episodes` is given the program's world (the taxi's
-`taxi_rules.world_config`), the graph's schedule record, or the live count of
-learning episodes ended (int64[1]: a step size's warm-up).
+A kind whose `settings` (or `size`) takes a parameter `world`, `schedule`,
+`learned_episodes` or `node` is given the program's world (the taxi's
+`taxi_rules.world_config`), the graph's schedule record, the live count of
+learning episodes ended (int64[1]: a step size's warm-up), or its node (the
+`Subtask`, whose other blocks it may read).
 
 `samples` are the positions the ship's step sampled (the ship's local ends judge each
 sampled segment); `P` of a view, termination or reward is the node's own.
@@ -91,6 +92,7 @@ class LearnerKind(Kind):
   reads = "state"
   continuous = False
   masked = False         # its choose and observe take the children's mask after `n`
+                         # ("prefix": a mask that offers the first k children)
   start = choose = observe = None          # its compiled operations
 
   def check(self, name, block, n_children, view_size):
@@ -138,6 +140,8 @@ class ViewKind(NodeKind):
   role = "view"
   gives = "state"
   writes = False             # a features view that writes into `out` (see above)
+  reflects = False           # it also writes, at out[size], the sign of its learner's
+                             # continuous action (a view reflected: `kinds.gate_route`)
   view = None
   takes_settings = True      # False: `view(obs, call)`, a user's rule
 
@@ -153,6 +157,7 @@ class AvailableKind(NodeKind):
   role = "available"
   offer = None
   takes_settings = True
+  prefix = False             # it offers a state's first k children (a TiledQTable's kind)
 
 
 class BindingKind(NodeKind):

@@ -65,17 +65,17 @@ class LocalGoalKind(base.TerminationKind):
   def check(self, name, block, arguments):
     _direction(name, arguments)
 
-  def settings(self, name, block):
+  def settings(self, name, block, node):
+    shaping = node.internal_reward
+    if isinstance(shaping, blocks.Shaping) and shaping.weight != 1.0:
+      raise GraphError(f"subtask {name!r}: a LocalGoal's Shaping has weight 1; got "
+                       f"{shaping.weight!r}")
     return EndSettings(np.int64(base.check_positive_int(block, "max_steps", block.max_steps)),
                        np.zeros(4), np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)))
 
 
 class ShapingKind(base.RewardKind):
-  """G from the node's termination (a LocalGoal's): its shaping and +100 / -100."""
+  """G from the node's termination (a LocalGoal's, a TargetReached's): its shaping
+  (times the weight, which the termination reads from its node) and +100 / -100."""
   block = blocks.Shaping
   from_termination = True
-
-  def check(self, name, block, arguments):
-    if block.weight != 1.0:
-      raise GraphError(f"subtask {name!r}: a LocalGoal's Shaping has weight 1; got "
-                       f"{block.weight!r}")
