@@ -50,6 +50,18 @@ def observe(P, L, N, x, signal, done, terminal, n, rng, learn, sample):
   return float(a)
 
 
+def rates(name, block, schedule):
+  """(alpha, gamma, trace_decay, epsilon) of a Q(lambda) block (a QTable, a
+  TiledQTable), each in [0, 1]; epsilon a float64[1], its own or the schedule's."""
+  for field in ("alpha", "gamma", "trace_decay", "epsilon"):
+    value = getattr(block, field)
+    if not (isinstance(value, (int, float)) and 0.0 <= value <= 1.0):
+      raise GraphError(f"subtask {name!r}: {type(block).__name__}.{field} = {value!r}: must "
+                       "be a number in [0, 1]")
+  epsilon = schedule.epsilon if block.epsilon_schedule else np.array([float(block.epsilon)])
+  return float(block.alpha), float(block.gamma), float(block.trace_decay), epsilon
+
+
 class QTableKind(base.LearnerKind):
   block = blocks.QTable
   reads = "state"
@@ -65,13 +77,7 @@ class QTableKind(base.LearnerKind):
     return int(block.n_states)
 
   def settings(self, name, block, schedule=None):
-    for field in ("alpha", "gamma", "trace_decay", "epsilon"):
-      value = getattr(block, field)
-      if not (isinstance(value, (int, float)) and 0.0 <= value <= 1.0):
-        raise GraphError(f"subtask {name!r}: QTable.{field} = {value!r}: must be a number in "
-                         "[0, 1]")
-    epsilon = schedule.epsilon if block.epsilon_schedule else np.array([float(block.epsilon)])
-    return Settings(float(block.alpha), float(block.gamma), float(block.trace_decay), epsilon)
+    return Settings(*rates(name, block, schedule))
 
   def learned(self, block, n_children):
     index, value, count = qlambda.new_trace(int(block.trace_capacity))

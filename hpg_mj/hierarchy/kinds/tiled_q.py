@@ -11,6 +11,7 @@ import numpy as np
 from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy.graph import GraphError
 from hpg_mj.hierarchy.kinds import base
+from hpg_mj.hierarchy.kinds import q_table
 from hpg_mj.learners import arrays
 from hpg_mj.learners import qlambda
 from hpg_mj.learners import tiles as tiles_mod
@@ -32,12 +33,6 @@ def offered(mask):
   while k < mask.shape[0] and mask[k]:
     k += 1
   return np.int64(k)
-
-
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
-             no_cfunc_wrapper=True)
-def start(P, L, N):
-  qlambda.clear(L.trace_count)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
@@ -82,14 +77,7 @@ class TiledQTableKind(base.LearnerKind):
     return len(block.coder.low)
 
   def settings(self, name, block, schedule=None):
-    for field in ("alpha", "gamma", "trace_decay", "epsilon"):
-      value = getattr(block, field)
-      if not (isinstance(value, (int, float)) and 0.0 <= value <= 1.0):
-        raise GraphError(f"subtask {name!r}: TiledQTable.{field} = {value!r}: must be a "
-                         "number in [0, 1]")
-    epsilon = schedule.epsilon if block.epsilon_schedule else np.array([float(block.epsilon)])
-    return Settings(float(block.alpha), float(block.gamma), float(block.trace_decay), epsilon,
-                    block.coder.arrays())
+    return Settings(*q_table.rates(name, block, schedule), block.coder.arrays())
 
   def learned(self, block, n_children):
     size = block.coder.size * n_children
@@ -105,4 +93,5 @@ class TiledQTableKind(base.LearnerKind):
     return Scratch(np.zeros((2, block.coder.n_tilings), dtype=np.int64),
                    np.zeros(1, dtype=np.int64))
 
-  start, choose, observe = staticmethod(start), staticmethod(choose), staticmethod(observe)
+  start = staticmethod(q_table.start)               # the trace cleared
+  choose, observe = staticmethod(choose), staticmethod(observe)
