@@ -239,6 +239,27 @@ def run_ship(G, n_episodes, rng_state, world, record, fixed_start):
 
 
 @numba.njit(**_ENTRY)
+def run_alone(G, n_episodes, rng_state, direction, record):
+  """`n_episodes` calls of the root on its own, a stand-alone subtask of the ship
+  (SPEC section 8): each from a start drawn at the local start of `direction`
+  (`ship_rules.sample_local_start`), -1 a step, ended by the root's own termination.
+  Record rows as `run_ship`'s, ROW_END the root's success."""
+  M = G.M
+  state, samples = M.obs, M.samples
+  arrays.copy_into(M.rng, rng_state)
+  for episode in range(n_episodes):
+    ship_rules.sample_local_start(M.rng, direction, state)
+    action = begin(G)
+    while True:
+      core.euler_control(state, action, samples)
+      over, action = step(G, core.STEP_REWARD, False, False)
+      if over:
+        break
+    write_row(M, record[episode], 1.0 if M.episode[E_EVENT] == SUCCESS else 0.0, 0.0)
+  arrays.copy_into(rng_state, M.rng)
+
+
+@numba.njit(**_ENTRY)
 def run_taxi(G, n_episodes, rng_state, world, record, starts):
   """`n_episodes` episodes of the taxi task `world` (`taxi_rules.world_config`; SPEC
   section 5), each from a start drawn from the generator (`taxi_subtasks.sample_start`)

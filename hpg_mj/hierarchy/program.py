@@ -641,6 +641,19 @@ class Program:
               np.asarray(world, dtype=np.float64), rows, fixed)
     return rows
 
+  def run_alone(self, episodes, learn, sample, rng_state):
+    """`episodes` calls of the root as a stand-alone subtask of the ship, from the local
+    starts of its `direction` argument (`root_args`). Rows as `run`'s, ROW_END the
+    root's success."""
+    direction = self._root_args.get("direction")
+    if not isinstance(direction, (int, np.integer)) or not 0 <= direction < 8:
+      raise GraphError("Program.run_alone: the root runs alone from the local start of its "
+                       f"integer argument 'direction' (0-7); root_args = {self._root_args}")
+    self._flags(learn, sample)
+    rows = np.zeros((int(episodes), algorithm.ROW_COUNTERS + 3 * len(self.names)))
+    self._run(self._module.run_alone, np.int64(episodes), rng_state, np.int64(direction), rows)
+    return rows
+
   def run_taxi(self, episodes, learn, sample, rng_state, starts=None):
     """`episodes` episodes fused with the taxi of the program's `world`
     (`taxi_rules.world_config`), from `starts` (rows of taxi_rules' state, used in

@@ -4,8 +4,8 @@ with a uniform heading and turning rate, the CMAC Gaussian-with-sigmoid policy
 learned by Eq. 3 with R + G (the discounted trace and the learned baseline b(s)
 of `ship_hybrid`), and, as an option, a learned exploration width
 (`policies.gaussian_width_act`; `width_alpha = 0` is the paper's sigma = 1).
-The subtask is a one-node graph of blocks that the compiled machine runs on its
-own (`hierarchy.machine`, `root_args`), as it runs it inside the hierarchy.
+The subtask is a one-node graph of blocks that the open machine runs on its own
+(`hierarchy.program`, `Program.run_alone`), as it runs it inside the hierarchy.
 
 This is the experiment of a subtask trained on its own (`hpg-mj`-free: `train_subtask` and
 `scripts/subtask_width.py`), not a task-file agent: the subtasks are parts of the
@@ -16,15 +16,13 @@ their stand-alone environments are the Gymnasium ids
 import numpy as np
 
 from hpg_mj.hierarchy import blocks
-from hpg_mj.hierarchy import machine
+from hpg_mj.hierarchy import program
 from hpg_mj.hierarchy.graph import Primitive, Subtask, TaskGraph
-from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import rng
 from hpg_mj.learners import tiles as tiles_mod
 from hpg_mj.worlds import ship_core as core
 
 TASKS = {"diagonal": 1, "straight": 2}     # the compass direction whose frame is the global one
-ALONE = (0.0, 0.0, 0.0, 1.0)               # `machine.run_ship`'s world: the root on its own
 
 
 def paper_coder(n_tilings=9, n_tiles=(5, 5, 36, 5)):
@@ -57,18 +55,18 @@ def train_subtask(task, episodes, seed, alpha=0.01, trace_gamma=0.99, baseline=0
   learner = blocks.GaussianCMAC(paper_coder(), float(alpha), float(trace_gamma),
                                 float(baseline), core.MAX_TURN_RATE, float(width_alpha),
                                 float(sigma_low), float(sigma_high))
-  m = machine.Machine(graph(task, learner, int(max_steps)), root_args={"direction": TASKS[task]})
+  m = program.Program(graph(task, learner, int(max_steps)), root_args={"direction": TASKS[task]})
   state = rng.make_state(int(seed))
   rows, greedy = [], []
   chunk = greedy_every or episodes
   for start in range(0, episodes, chunk):
-    rows.append(m.run(min(chunk, episodes - start), True, True, state, ALONE))
+    rows.append(m.run_alone(min(chunk, episodes - start), True, True, state))
     if greedy_every:
       probe = rng.make_state(10_000)
-      greedy.append(m.run(greedy_episodes, False, False, probe, ALONE)[:, 0].mean())
+      greedy.append(m.run_alone(greedy_episodes, False, False, probe)[:, 0].mean())
   rows = np.concatenate(rows) if rows else np.zeros((0, 3))
-  width = m.width_trace(learner)
-  sigma = (np.ones(learner.coder.size) if width is None else
-           np.exp(np.clip(el.parameters(width), np.log(sigma_low), np.log(sigma_high))))
+  log_sigma = m.parameters().get(f"{task}.log_sigma")
+  sigma = (np.ones(learner.coder.size) if log_sigma is None else
+           np.exp(np.clip(log_sigma, np.log(sigma_low), np.log(sigma_high))))
   return {"success": rows[:, 0], "steps": rows[:, 1], "greedy": np.array(greedy),
           "sigma": sigma}

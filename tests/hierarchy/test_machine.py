@@ -362,37 +362,6 @@ def test_a_shared_qtable_needs_one_number_of_children():
     machine.Machine(TaskGraph("root", nodes))
 
 
-@pytest.mark.parametrize("task, env_id", [("diagonal", "hpg_mj/ShipSteeringDiagonal-v0"),
-                                          ("straight", "hpg_mj/ShipSteeringStraight-v0")])
-def test_a_subtask_alone_is_the_same_fused_and_through_its_environment(task, env_id):
-  """The stand-alone subtask (`ship_subtask`: the root alone, `root_args`) fused with
-  the analytic ship and step by step through its Gymnasium environment: the same
-  episodes, ends and learned parameters (its environment's reward holds G too,
-  so only the return column differs)."""
-  from hpg_mj.hierarchy import ship_subtask
-  direction = ship_subtask.TASKS[task]
-  runs = []
-  for fused in (True, False):
-    learner = blocks.GaussianCMAC(ship_subtask.paper_coder(), 0.01, 0.99, 0.3, 15.0, 0.003)
-    m = machine.Machine(ship_subtask.graph(task, learner, 300), root_args={"direction": direction})
-    state = rng.make_state(7)
-    if fused:
-      rows = m.run(60, True, True, state, ship_subtask.ALONE)
-    else:
-      def start():
-        out = np.empty(4)
-        ship_rules.sample_local_start(state, direction, out)
-        return out
-      rows = machine.run_stepwise(m, gymnasium.make(env_id, backend="analytic"), 60, True, True,
-                                  state, start, lambda last: last.info.get("event") == "goal")
-    trace, values = m.gaussian_arrays(learner)
-    runs.append((np.delete(rows, 2, axis=1), el.parameters(trace), values,
-                 el.parameters(m.width_trace(learner))))
-  for a, b in zip(*runs):
-    np.testing.assert_array_equal(a, b)
-  assert runs[0][0][:, 0].sum() > 0                                 # some calls succeeded
-
-
 def test_the_machine_compiles_its_functions_once_leaves_first(tmp_path):
   """The functions `Machine._bottom_up` compiles before the fused loop are those the
   loop calls, for the types it calls them with: each compiles once."""

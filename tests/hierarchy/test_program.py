@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import hpg_mj  # noqa: F401  (registers the Gymnasium ids)
-from hpg_mj.hierarchy import algorithm, blocks, executor, kinds
+from hpg_mj.hierarchy import algorithm, blocks, executor, kinds, ship_rules
 from hpg_mj.hierarchy.graph import Child, GraphError, Primitive, Subtask, TaskGraph
 from hpg_mj.hierarchy.kinds import base
 from hpg_mj.hierarchy.kinds.rules import Abstraction, Features, InternalReward, Termination
@@ -104,7 +104,6 @@ def _start(state):
 
 
 def core_start(state, out):
-  from hpg_mj.hierarchy import ship_rules
   ship_rules.sample_start(state, out)
 
 
@@ -443,6 +442,36 @@ def test_a_shipped_graph_gives_the_old_machines_numbers_bit_for_bit(task):
   if "schedule.state" in state:            # (a graph with a schedule of its own)
     np.testing.assert_array_equal(old.machine.epsilon_schedule[0], state["schedule.state"])
     np.testing.assert_array_equal(old.machine.epsilon_schedule[1], state["schedule.outcomes"])
+
+
+@pytest.mark.parametrize("task, env_id", [("diagonal", "hpg_mj/ShipSteeringDiagonal-v0"),
+                                          ("straight", "hpg_mj/ShipSteeringStraight-v0")])
+def test_a_subtask_alone_is_the_same_fused_and_through_its_environment(task, env_id):
+  """The stand-alone subtask (`ship_subtask`: the root alone, `Program.run_alone`) fused with
+  the analytic ship and step by step through its Gymnasium environment: the same
+  episodes, ends and learned parameters (its environment's reward holds G too,
+  so only the return column differs)."""
+  from hpg_mj.hierarchy import ship_subtask
+  direction = ship_subtask.TASKS[task]
+  runs = []
+  for fused in (True, False):
+    learner = blocks.GaussianCMAC(ship_subtask.paper_coder(), 0.01, 0.99, 0.3, 15.0, 0.003)
+    m = Program(ship_subtask.graph(task, learner, 300), root_args={"direction": direction})
+    state = rng.make_state(7)
+    if fused:
+      rows = m.run_alone(60, True, True, state)
+    else:
+      def start():
+        out = np.empty(4)
+        ship_rules.sample_local_start(state, direction, out)
+        return out
+      rows = m.run_stepwise(gymnasium.make(env_id, backend="analytic"), 60, True, True, state,
+                            start, lambda last: last.info.get("event") == "goal")
+    runs.append((np.delete(rows, 2, axis=1), *m.parameters().values()))
+  for a, b in zip(*runs):
+    np.testing.assert_array_equal(a, b)
+  assert runs[0][0][:, 0].sum() > 0                                 # some calls succeeded
+
 
 
 # ---- the step-by-step path's inputs -------------------------------------------------
