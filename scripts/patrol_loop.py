@@ -188,7 +188,7 @@ def main():
     print(f"seed {seed}: learned gain rho {agent.gain[0]:+.4f}/step = "
           f"{(agent.gain[0] + 1) / 100 * core.HOUR_STEPS:.1f} gates/h equivalent; online last "
           f"125 h {agent.metrics(record[-125:])['gates_per_hour']:.1f} gates/h; epsilon "
-          f"{agent.machine.epsilon_schedule[0][0]:.3f}", flush=True)
+          f"{agent.machine.state()['schedule.state'][0]:.3f}", flush=True)
     view = (int(config.root.heading_sectors), float(config.root.near_gate_m),
             float(config.root.near_gate_cell_m))
     report(agent, agent.q, low_arrays(agent), view, agent.gain[0], moved, args)
@@ -198,8 +198,8 @@ def main():
 def low_arrays(agent):
   """(diagonal trace, its baseline, straight trace, its baseline) of the patrol (the
   episodic hybrid gives its own: `ShipHybrid.low_arrays`)."""
-  return tuple(x for k in (rules.DIAGONAL, rules.STRAIGHT)
-               for x in agent.machine.gaussian_arrays(agent.low[k]))
+  from hpg_mj.agents import ship_hybrid
+  return ship_hybrid.low_arrays(agent)
 
 
 def report(agent, q, low, view, rho, moved, args):
@@ -295,7 +295,7 @@ def rollouts(tiling, q, loop, view, s, low, scratch, args):
 
 def subtasks(agent, record):
   tail = record[-125:]
-  rates = [agent.machine.epsilon_schedule[1][k].mean() for k in range(2)]
+  rates = [agent.machine.state()["schedule.outcomes"][k].mean() for k in range(2)]
   print(f"  subtasks, last 1,000 runs: diagonal {rates[0]:.2f}, straight {rates[1]:.2f}; last "
         f"125 h: diagonal {tail['diagonal_successes'].sum() / tail['diagonal_runs'].sum():.2f}"
         f", straight {tail['straight_successes'].sum() / tail['straight_runs'].sum():.2f}",

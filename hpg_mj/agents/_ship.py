@@ -9,7 +9,7 @@ import numpy as np
 from hpg_mj.agents import base
 from hpg_mj import taskfile
 from hpg_mj.taskfile import param
-from hpg_mj.hierarchy import machine as machine_mod
+from hpg_mj.hierarchy import algorithm
 from hpg_mj.hierarchy import ship_rules as rules
 from hpg_mj.hierarchy.patrol import NEVER, AgentRestarts
 from hpg_mj.worlds import ship_core as core
@@ -180,12 +180,12 @@ class ContinuingShipAgent(ShipMachineAgent):
   `blocks.Clock`: one process that never ends (each gate pass pays and the ship sails
   on; a departure pays and the ship restarts at a start drawn from the agent's
   generator), one record row per `record_steps` control steps (an hour). Both paths
-  are the machine: fused with the analytic ship (`Machine.run_continuing`) and step
+  are the machine: fused with the analytic ship (`Program.run_continuing`) and step
   by step through the Gymnasium patrol without its truncation (`AgentRestarts`);
   for a fixed seed they give the same rows. Its Config needs an `environment:
   ContinuingEnvironment`; its record the fields steps, gates, departures, return."""
 
-  end_field, illegal_field = "gates", "departures"    # a continuing row's (machine.run_ship)
+  end_field, illegal_field = "gates", "departures"    # a continuing row's (algorithm.run_continuing)
   record_steps = core.HOUR_STEPS       # one record row per hour
 
   def __init__(self, config=None, seed=0, task=None):
@@ -194,7 +194,7 @@ class ContinuingShipAgent(ShipMachineAgent):
     self.started = np.zeros(1)         # 1 once the process has its first start
 
   def state(self):
-    return {"rng_state": self.rng_state, "ship_state": self.ship, "ship_started": self.started}
+    return {**super().state(), "ship_state": self.ship, "ship_started": self.started}
 
   def make_env(self, api="gymnasium", backend="analytic", **kwargs):
     env = self.config.environment
@@ -254,10 +254,10 @@ class ContinuingShipAgent(ShipMachineAgent):
     ship = self._process(learn, start)
 
     def row():
-      rows = machine_mod.run_stepwise(self.machine, adapter, 1, learn, sample, self.rng_state,
-                                      lambda: ship.copy(), lambda last: adapter.gates,
-                                      on_call=on_call)
-      rows[0, machine_mod.ROW_ILLEGAL] = adapter.departures
+      rows = self.machine.run_stepwise(adapter, 1, learn, sample, self.rng_state,
+                                       lambda: ship.copy(), lambda last: adapter.gates,
+                                       on_call=on_call)
+      rows[0, algorithm.ROW_ILLEGAL] = adapter.departures
       ship[:] = adapter.last_obs                # the next row sails on from here
       return rows
     out = self._rows(episodes, row)

@@ -47,7 +47,8 @@ environment.
 import numpy as np
 
 from hpg_mj.hierarchy import executor as executor_mod
-from hpg_mj.hierarchy import machine as machine_mod
+from hpg_mj.hierarchy import algorithm
+from hpg_mj.hierarchy import program as program_mod
 from hpg_mj.learners import rng
 
 BACKENDS = ("analytic", "mujoco")
@@ -271,51 +272,68 @@ class Agent:
 
 
 class MachineAgent(Agent):
-  """An agent whose `graph()` is made of blocks: `hierarchy.machine` runs it on both
-  paths (fused with the compiled world in the subclass's `compiled`; step by step
-  through any environment of its task). Its record fields may be the row's end
-  (`end_field`: the ship's passed, the taxi's outcome), steps, return, illegal, calls
-  (the calls below the root) and, per subtask, `{node}_runs` and `{node}_successes`
-  (a run: a call that ended by the subtask's own termination, not by the episode's
-  end). A subclass gives `_ended(last step)`, the row's end on the step-by-step path."""
+  """An agent whose `graph()` is made of blocks: the open machine (`hierarchy.program`)
+  runs it on both paths (fused with the compiled world in the subclass's `compiled`;
+  step by step through any environment of its task). Its state is the program's
+  learned arrays by node name (`"<node>.<field>"`, beside the generator's
+  `rng_state`), its `parameters()` each learner's. Its record fields may be the row's
+  end (`end_field`: the ship's passed, the taxi's outcome), steps, return, illegal,
+  calls (the calls below the root) and, per subtask, `{node}_runs` and
+  `{node}_successes` (a run: a call that ended by the subtask's own termination, not
+  by the episode's end). A subclass gives `_ended(last step)`, the row's end on the
+  step-by-step path; `root_args`, the root call's arguments, if its rules read any."""
 
   _machine = None
   end_field = "passed"
-  illegal_field = "illegal"          # the field of machine.ROW_ILLEGAL (a patrol: departures)
-  machine_world = None               # the machine's `world` (the taxi's), if any
+  illegal_field = "illegal"          # the field of ROW_ILLEGAL (a patrol: departures)
+  machine_world = None               # the program's `world` (the taxi's), if any
+  root_args = None
+  obs_size = 4                       # the observation's length (the taxi's: 5, or 4 classic)
 
   @property
   def machine(self):
-    """The compiled machine over `graph()` (built when first needed, so that a
-    subclass's graph is the one it runs)."""
+    """The program of `graph()` (built when first needed, so that a subclass's graph
+    is the one it runs)."""
     if self._machine is None:
-      self._machine = machine_mod.Machine(self.graph(), world=self.machine_world)
+      self._machine = program_mod.Program(self.graph(), root_args=self.root_args,
+                                          obs_size=self.obs_size, world=self.machine_world)
     return self._machine
+
+  def graph(self):
+    raise NotImplementedError(f"{type(self).__name__}.graph(): a hierarchy gives its "
+                              "task graph of blocks (hpg_mj.hierarchy.graph.TaskGraph)")
+
+  def state(self):
+    return {"rng_state": self.rng_state, **self.machine.state()}
+
+  def parameters(self):
+    """Each learner's parameters by its first node's name (`Program.parameters`)."""
+    return self.machine.parameters()
 
   def run_stepwise(self, env, episodes, learn=True, sample=None, start=None, on_call=None):
     self.machine.start_schedule(self.episodes)
-    rows = machine_mod.run_stepwise(self.machine, env, episodes, learn, sample, self.rng_state,
-                                    lambda: self.start_state() if start is None else start,
-                                    self._ended, on_call=on_call)
+    rows = self.machine.run_stepwise(env, episodes, learn, sample, self.rng_state,
+                                     lambda: self.start_state() if start is None else start,
+                                     self._ended, on_call)
     if learn:
       self.episodes += int(episodes)
     return self.as_record(self._record_rows(rows))
 
   def _record_rows(self, rows):
-    """The machine's rows (`machine.ROW_END` ...) as this agent's record."""
+    """The program's rows (`algorithm.ROW_END` ...) as this agent's record."""
     m = self.machine
     fields = self.record_fields
     out = np.zeros((rows.shape[0], len(fields)))
-    for name, k in ((self.end_field, machine_mod.ROW_END), ("steps", machine_mod.ROW_STEPS),
-                    ("return", machine_mod.ROW_RETURN),
-                    (self.illegal_field, machine_mod.ROW_ILLEGAL)):
+    for name, k in ((self.end_field, algorithm.ROW_END), ("steps", algorithm.ROW_STEPS),
+                    ("return", algorithm.ROW_RETURN),
+                    (self.illegal_field, algorithm.ROW_ILLEGAL)):
       if name in fields:
         out[:, fields.index(name)] = rows[:, k]
     for name in m.names[:-1]:
-      col = machine_mod.ROW_COUNTERS + 3 * m.index[name]
+      col = algorithm.ROW_COUNTERS + 3 * m.index[name]
       if "calls" in fields:
-        out[:, fields.index("calls")] += rows[:, col + machine_mod.CALLS]
-      for what, k in (("runs", machine_mod.RUNS), ("successes", machine_mod.SUCCESSES)):
+        out[:, fields.index("calls")] += rows[:, col + algorithm.CALLS]
+      for what, k in (("runs", algorithm.RUNS), ("successes", algorithm.SUCCESSES)):
         if f"{name}_{what}" in fields:
           out[:, fields.index(f"{name}_{what}")] = rows[:, col + k]
     return out

@@ -20,7 +20,6 @@ import dataclasses
 
 from hpg_mj.agents import _ship
 from hpg_mj.agents import _taxi
-from hpg_mj.hierarchy import program as program_mod
 
 
 @dataclasses.dataclass(frozen=True)
@@ -29,45 +28,7 @@ class HierarchyConfig:
   environment: _ship.ShipEnvironment = dataclasses.field(default_factory=_ship.ShipEnvironment)
 
 
-class ProgramAgent:
-  """What an agent run by the open machine has (mixed in before its world's machine
-  agent, `_ship.ShipMachineAgent` or `_taxi.TaxiMachineAgent`): its program, its
-  state and parameters by node name, its step-by-step path. `root_args` are the root
-  call's arguments, if its rules read any."""
-
-  root_args = None
-  obs_size = 4                     # the observation's length (the taxi's: 5, or 4 classic)
-
-  @property
-  def machine(self):
-    """The program of `graph()` (built when first needed)."""
-    if self._machine is None:
-      self._machine = program_mod.Program(self.graph(), root_args=self.root_args,
-                                          obs_size=self.obs_size, world=self.machine_world)
-    return self._machine
-
-  def graph(self):
-    raise NotImplementedError(f"{type(self).__name__}.graph(): a hierarchy gives its "
-                              "task graph of blocks (hpg_mj.hierarchy.graph.TaskGraph)")
-
-  def state(self):
-    return {"rng_state": self.rng_state, **self.machine.state()}
-
-  def parameters(self):
-    """Each learner's parameters by its first node's name (`Program.parameters`)."""
-    return self.machine.parameters()
-
-  def run_stepwise(self, env, episodes, learn=True, sample=None, start=None, on_call=None):
-    self.machine.start_schedule(self.episodes)
-    rows = self.machine.run_stepwise(env, episodes, learn, sample, self.rng_state,
-                                     lambda: self.start_state() if start is None else start,
-                                     self._ended, on_call)
-    if learn:
-      self.episodes += int(episodes)
-    return self.as_record(self._record_rows(rows))
-
-
-class ShipHierarchy(ProgramAgent, _ship.ShipMachineAgent):
+class ShipHierarchy(_ship.ShipMachineAgent):
   """A user's hierarchy on the full ship task (see the module docstring): give
   `graph()`; `root_args` are the root call's arguments, if its rules read any."""
 
@@ -75,7 +36,7 @@ class ShipHierarchy(ProgramAgent, _ship.ShipMachineAgent):
   record_fields = ("passed", "steps", "return", "calls")
 
 
-class TaxiHierarchy(ProgramAgent, _taxi.TaxiMachineAgent):
+class TaxiHierarchy(_taxi.TaxiMachineAgent):
   """A hierarchy on the taxi (SPEC section 5), fused with the taxi's rules
   (`Program.run_taxi`) and step by step through any taxi environment: give
   `graph()`. Its kinds read the task's world (`taxi_rules.world_config`); its

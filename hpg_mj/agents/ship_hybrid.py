@@ -90,6 +90,14 @@ def figure3(root, view, termination, low, coder, max_steps, epsilon, per_decisio
                                  epsilon.epsilon_every, epsilon.epsilon_divisor, per_decision))
 
 
+def low_arrays(agent):
+  """(diagonal trace, its baseline, straight trace, its baseline) of an agent with
+  Figure 3's subtasks (the hybrid's, the patrol's): the live arrays."""
+  state = agent.machine.state()
+  return tuple(x for name in ("diagonal", "straight") for x in (
+      el.Trace(*[state[f"{name}.{f}"] for f in el.Trace._fields]), state[f"{name}.values"]))
+
+
 class ShipHybrid(hierarchy.ShipHierarchy):
   """Figure 3's graph of blocks, run by the open machine (`hierarchy.program`) on both
   paths; its state is the program's, by node name (`root.q`, `diagonal.theta`, ...,
@@ -125,9 +133,7 @@ class ShipHybrid(hierarchy.ShipHierarchy):
 
   def low_arrays(self):
     """(diagonal trace, its baseline, straight trace, its baseline): the live arrays."""
-    state = self.machine.state()
-    return tuple(x for name in ("diagonal", "straight") for x in (
-        el.Trace(*[state[f"{name}.{f}"] for f in el.Trace._fields]), state[f"{name}.values"]))
+    return low_arrays(self)
 
   # ---- metrics ------------------------------------------------------------------
 

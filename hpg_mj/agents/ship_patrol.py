@@ -26,9 +26,11 @@ greedily, on the same hours from the same starts, this agent, the episodic
 hybrid (tasks/ship_hybrid.toml's agent, trained on its own protocol with this
 run's seed) and the scripted figure-eight helmsman (`ship_core.patrol_pilot_target`).
 
-Both paths are the compiled machine over the graph of blocks (`graph`), fused and
-step by step on either backend (`_ship.ContinuingShipAgent`); for a fixed seed they
-give the same records and arrays.
+Both paths are the open machine over the graph of blocks (`graph`; kinds
+`hierarchy.kinds.patrol`), fused and step by step on either backend
+(`_ship.ContinuingShipAgent`); for a fixed seed they give the same records and
+arrays. Its state by node name (`root.q`, `root.gain`, `root.model_next`, ...,
+`diagonal.theta`, ..., `schedule.state`).
 """
 import dataclasses
 
@@ -41,7 +43,6 @@ from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy import ship_rules as rules
 from hpg_mj.hierarchy.patrol import N_RECORD, scripted
 from hpg_mj.learners import average_reward
-from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import rng
 from hpg_mj.worlds import ship_core as core
 
@@ -129,37 +130,19 @@ class ShipPatrol(_ship.ContinuingShipAgent):
 
   @property
   def q(self):
-    """The root's relative values Q (a view)."""
-    return self.machine.r_learning_arrays(self.root)[0]
+    """The root's relative values Q (the live array)."""
+    return self.machine.state()["root.q"]
 
   @property
   def gain(self):
-    """The root's gain [rho, greedy transitions seen] (a view)."""
-    return self.machine.r_learning_arrays(self.root)[1]
+    """The root's gain [rho, greedy transitions seen] (the live array)."""
+    return self.machine.state()["root.gain"]
 
   @property
   def model(self):
-    """The root's planning model (next, reward, steps, [count]; views)."""
-    return self.machine.r_learning_arrays(self.root)[2]
-
-  def state(self):
-    m = self.machine
-    q, gain, model = m.r_learning_arrays(self.root)
-    eps, outcomes, counts = m.epsilon_schedule
-    out = {**super().state(), "root_q": q, "root_gain": gain,
-           **{f"root_model_{k}": v for k, v in zip(("next", "reward", "steps", "count"), model)},
-           "epsilon_schedule": eps, "subtask_outcomes": outcomes, "subtask_counts": counts}
-    for name, learner in zip(("diagonal", "straight"), self.low):
-      trace, values = m.gaussian_arrays(learner)
-      out.update({f"{name}_{key}": value for key, value in trace._asdict().items()})
-      out[f"{name}_baseline"] = values
-    return out
-
-  def parameters(self):
-    m = self.machine
-    return {"root_q": self.q.copy(), "root_gain": self.gain.copy(),
-            **{f"{name}_w": el.parameters(m.gaussian_arrays(learner)[0])
-               for name, learner in zip(("diagonal", "straight"), self.low)}}
+    """The root's planning model (next, reward, steps, [count]; the live arrays)."""
+    state = self.machine.state()
+    return tuple(state[f"root.model_{k}"] for k in ("next", "reward", "steps", "count"))
 
   def finish_row(self, row):
     row[self.record_fields.index("gain")] = self.gain[average_reward.RHO]
@@ -184,13 +167,11 @@ class ShipPatrol(_ship.ContinuingShipAgent):
       cfg = self.config
       agent = ShipPatrol(dataclasses.replace(cfg, root=dataclasses.replace(
           cfg.root, heading_sectors=1, near_gate_m=0.0, planning_every=0)), seed=self.seed)
-      agent.q[:] = other.parameters()["root.q"]       # the hybrid's 50 m cells: the same table
-      theirs = other.low_arrays()
-      for k, mine in enumerate(agent.low):
-        trace, values = agent.machine.gaussian_arrays(mine)
-        their_trace, their_values = theirs[2 * k], theirs[2 * k + 1]
-        for a, b in zip((*trace, values), (*their_trace, their_values)):
-          a[...] = b
+      mine, theirs = agent.machine.state(), other.machine.state()
+      mine["root.q"][:] = theirs["root.q"]     # the hybrid's 50 m cells: the same table
+      for key in mine:                         # its subtasks' arrays, by the same names
+        if key.startswith(("diagonal.", "straight.")):
+          mine[key][...] = theirs[key]
     return agent.as_record(agent.compiled(hours, False, False, ship, rng_state))
 
   # ---- metrics -------------------------------------------------------------------

@@ -19,8 +19,10 @@ end of the episode is counted as a call but no run.
 This module is the algorithm's text; `hierarchy.program` compiles it once per graph,
 with the graph's own operations written below it: `enter`, `resume`, `judge` and
 `chosen` (each a chain over the graph's nodes that calls the node's kinds,
-`hierarchy.kinds`), `ROOT` (the root's node) and `SEEN_STEP` (whether a node's learner
-sees -1 a primitive step, SPEC section 3, rather than its child's rewards summed). So
+`hierarchy.kinds`), `ROOT` (the root's node), `SEEN_STEP` (whether a node's learner
+sees -1 a primitive step, SPEC section 3, rather than its child's rewards summed) and
+`CONTINUING` (whether the root is a continuing task's, SPEC section 8: the world's
+events end its children's calls only, and it ends by its own termination). So
 a graph compiles only the kinds it holds, a user's rules and kinds among them, and the
 algorithm never asks which kind a node holds. Its state is one record of named
 arrays (`Frames`), the same on both paths: fused with the analytic ship (`run_ship`)
@@ -45,18 +47,20 @@ from hpg_mj.worlds import taxi_rules
 # the `origin` (the observation where the call began), its arguments (`args`, as
 # its `Child` bound them), its features (`x`: a features view's numbers), and its
 # `counters` [calls, runs, successes] in this episode. Per run: the `episode`
-# [depth of the primitive, steps, the root's last event, learning episodes], the
+# [depth of the primitive, steps, the root's last event, learning episodes, a
+# restart pending (a continuing root's: it sees `restart` next)], the
 # return (`total`), `flags` [learn, sample], the generator (`rng`, copied in and
 # out around a compiled call), the `fault` a boundary check wrote
 # (`hierarchy.boundary`), the observation (`obs`), the positions sampled in the
 # ship's step (`samples`), the taxi's own state in its fused loop (`board`:
 # taxi_rules' int64 state, then its episode's steps, outcome and illegal moves) and,
-# per node, the children it may choose now (`mask`: its `available`'s, else all).
+# per node, the children it may choose now (`mask`: its `available`'s, else all);
+# the continuing ship's state after a departure (`restart`).
 Frames = collections.namedtuple("Frames", (
     "stack", "choice", "action", "steps", "child_steps", "reward", "origin", "args", "x",
     "counters", "episode", "total", "flags", "rng", "fault", "obs", "samples", "board",
-    "mask"))
-E_DEPTH, E_STEPS, E_EVENT, E_LEARNED = range(4)
+    "mask", "restart"))
+E_DEPTH, E_STEPS, E_EVENT, E_LEARNED, E_RESTART = range(5)
 LEARN, SAMPLE = range(2)
 CALLS, RUNS, SUCCESSES = range(3)
 # A record row (as `hierarchy.machine`'s): how the episode ended, its steps, its
@@ -116,6 +120,7 @@ def schedule_decided(G):
 
 ROOT = 0
 SEEN_STEP = (False,)
+CONTINUING = False
 
 
 # ---- Algorithm 1 ----------------------------------------------------------------
@@ -182,12 +187,18 @@ def step(G, reward, terminated, truncated):
     event, internal = judge(G, node)
     done = event != NO_EVENT or over
     terminal = terminated or event != NO_EVENT
+    if CONTINUING and d == 0:      # the world's events end the children's calls only
+      done = event != NO_EVENT
+      terminal = False
+      if M.episode[E_RESTART] != 0:          # after a departure, it sees the restart
+        M.episode[E_RESTART] = 0
+        arrays.copy_into(M.obs, M.restart)
     seen = core.STEP_REWARD * M.child_steps[node] if SEEN_STEP[node] else M.reward[node]
     M.reward[node] = 0.0
-    M.child_steps[node] = 0
     if d == 0 and learn:
       schedule_decided(G)
     resume(G, node, seen + internal, done, terminal)
+    M.child_steps[node] = 0        # (after `resume`: a learner may read its tau)
     if not done:
       return False, descend(G, d)
     # The call returns (Algorithm 1: return to the parent).
@@ -235,6 +246,38 @@ def run_ship(G, n_episodes, rng_state, world, record, fixed_start):
       if over:
         break
     write_row(M, record[episode], 1.0 if event == SUCCESS else 0.0, 0.0)
+  arrays.copy_into(rng_state, M.rng)
+
+
+@numba.njit(**_ENTRY)
+def run_continuing(G, n_rows, rng_state, world, record, ship):
+  """`n_rows` record rows of the continuing ship task (SPEC section 8; a root whose
+  termination is a continuing one, a Clock): the ship sails on from `ship` (the
+  process's state, written back); each gate pass pays `world[0]` and it sails on;
+  each departure pays `world[1]` and it restarts at a start drawn from the
+  generator, which the root sees (the children's calls end at either). Record rows
+  as `run_ship`'s, ROW_END the row's gate passes and ROW_ILLEGAL its departures."""
+  M = G.M
+  state, samples = M.obs, M.samples
+  arrays.copy_into(M.rng, rng_state)
+  arrays.copy_into(state, ship)
+  for row in range(n_rows):
+    passes, departures = 0.0, 0.0
+    action = begin(G)
+    while True:
+      core.euler_control(state, action, samples)
+      event, reward = core.global_outcome(samples, world[0], world[1])
+      if event == SUCCESS:
+        passes += 1.0
+      elif event != NO_EVENT:                  # SPEC section 8: a fresh start, sail on
+        departures += 1.0
+        ship_rules.sample_start(M.rng, M.restart)
+        M.episode[E_RESTART] = 1
+      over, action = step(G, reward, event != NO_EVENT, False)
+      if over:
+        break
+    write_row(M, record[row], passes, departures)
+  arrays.copy_into(ship, state)
   arrays.copy_into(rng_state, M.rng)
 
 

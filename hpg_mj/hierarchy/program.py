@@ -303,7 +303,8 @@ class Program:
     the live count of learning episodes ended (an int64[1]: a step size's warm-up)."""
     given = {"schedule": lambda: self.schedule, "world": lambda: self.world,
              "learned_episodes": lambda: self.frames.episode[algorithm.E_LEARNED:][:1],
-             "node": lambda: self.graph.nodes[name]}
+             "node": lambda: self.graph.nodes[name],
+             "child_steps": lambda: self.frames.child_steps[self.index[name]:][:1]}
     asked = inspect.signature(method).parameters
     extra = {key: value() for key, value in given.items() if key in asked}
     if "world" in extra and self.world is None:
@@ -366,7 +367,8 @@ class Program:
         raise GraphError(f"subtask {s.name!r} shares its learner with {first!r}, which has "
                          "another number of children or states; a shared learner serves "
                          "nodes of the same shape")
-    self._record(f"N{s.index}", s.learner.scratch(block, s.n_children))
+    self._record(f"N{s.index}", self._given(s.learner.scratch, s.name, block, block,
+                                            s.n_children))
     return f"G.P{slot}", f"G.L{slot}", f"G.N{s.index}"
 
   def _settle(self, s):
@@ -503,6 +505,8 @@ class Program:
     seen = tuple(bool(getattr(s, "seen_step", False)) for s in self._by_index())
     L.append(f"ROOT = {self.index[self.graph.root]}")
     L.append(f"SEEN_STEP = {seen!r}")
+    root = next(s for s in self._subtasks if s.name == self.graph.root)
+    L.append(f"CONTINUING = {bool(root.end.continuing)!r}")
     fields = ["M"] + [f for f, _ in self._records]
     L.append(f"Graph = collections.namedtuple('Graph', {tuple(fields)!r})")
     self._text = "\n".join(L) + "\n"
@@ -525,11 +529,12 @@ class Program:
         child_steps=np.zeros(n, dtype=np.int64), reward=np.zeros(n),
         origin=np.zeros((n, self.obs_size)), args=np.zeros((n, n_args)),
         x=np.zeros((n, size)), counters=np.zeros((n, 3)),
-        episode=np.zeros(4, dtype=np.int64), total=np.zeros(1),
+        episode=np.zeros(5, dtype=np.int64), total=np.zeros(1),
         flags=np.zeros(2, dtype=np.bool_), rng=np.zeros(4, dtype=np.uint64),
         fault=np.zeros(4), obs=np.zeros(self.obs_size),
         samples=np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)), board=np.zeros(8, dtype=np.int64),
-        mask=np.ones((n, max([s.n_children for s in self._subtasks] + [1])), dtype=np.bool_))
+        mask=np.ones((n, max([s.n_children for s in self._subtasks] + [1])), dtype=np.bool_),
+        restart=np.zeros(self.obs_size))
     root = self.index[self.graph.root]
     for j, arg in enumerate(self._arguments.get(self.graph.root, {})):
       self.frames.args[root, j] = float(self._root_args[arg])
@@ -641,6 +646,24 @@ class Program:
               np.asarray(world, dtype=np.float64), rows, fixed)
     return rows
 
+  def run_continuing(self, rows, learn, sample, rng_state, world, ship):
+    """`rows` record rows of the continuing ship task (`algorithm.run_continuing`; a
+    root whose termination is continuing, a Clock) from `ship`, the process's state
+    (float64[4], sailed on in place); `world` = (gate reward, out-of-bounds reward)."""
+    if not self._continuing:
+      raise GraphError("Program.run_continuing: the root's termination "
+                       f"{type(self.graph.nodes[self.graph.root].termination).__name__} is "
+                       "not a continuing one (a Clock)")
+    self._flags(learn, sample)
+    out = np.zeros((int(rows), algorithm.ROW_COUNTERS + 3 * len(self.names)))
+    self._run(self._module.run_continuing, np.int64(rows), rng_state,
+              np.asarray(world, dtype=np.float64), out, ship)
+    return out
+
+  @property
+  def _continuing(self):
+    return bool(self._module.CONTINUING)
+
   def run_alone(self, episodes, learn, sample, rng_state):
     """`episodes` calls of the root as a stand-alone subtask of the ship, from the local
     starts of its `direction` argument (`root_args`). Rows as `run`'s, ROW_END the
@@ -706,6 +729,11 @@ class Program:
         if samples.ndim != 2 or samples.shape[1] != 2:
           raise ValueError("Program: info['positions'] must be rows of (x, y) of numbers, got "
                            f"shape {samples.shape}")
+      before = info.get("state_before_restart")
+      if before is not None and self._continuing:   # restarted: the root sees `obs` next
+        self.frames.restart[:] = self._observation(obs)
+        self.frames.episode[algorithm.E_RESTART] = 1
+        obs = before
     return self._stepwise(self._module.advance, self._observation(obs), samples, float(reward),
                           bool(terminated), bool(truncated), rng_state)
 

@@ -49,7 +49,9 @@ A kind whose `settings` (or `size`) takes a parameter `world`, `schedule`,
 `learned_episodes` or `node` is given the program's world (the taxi's
 `taxi_rules.world_config`), the graph's schedule record, the live count of
 learning episodes ended (int64[1]: a step size's warm-up), or its node (the
-`Subtask`, whose other blocks it may read).
+`Subtask`, whose other blocks it may read); a learner's `scratch` that takes
+`child_steps` is given the live count of its node's current child's steps
+(int64[1]: an SMDP learner's tau, read in `observe`).
 
 `samples` are the positions the ship's step sampled (the ship's local ends judge each
 sampled segment); `P` of a view, termination or reward is the node's own.
@@ -177,6 +179,7 @@ class TerminationKind(NodeKind):
   end = None
   takes_settings = True
   gives_internal = False     # its `end` returns (event, G)
+  continuing = False         # a continuing root's (SPEC section 8: `algorithm.CONTINUING`)
 
 
 class RewardKind(NodeKind):
