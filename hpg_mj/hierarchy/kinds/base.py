@@ -128,6 +128,19 @@ class LearnerKind(Kind):
             if isinstance(value, np.ndarray)}
 
 
+class TableKind(LearnerKind):
+  """A learner kind over a table of `block.n_states` states (its view's)."""
+
+  def check(self, name, block, n_children, view_size):
+    check_positive_int(block, "n_states", block.n_states)
+    if view_size is not None and view_size != block.n_states:
+      raise GraphError(f"subtask {name!r}: its view gives {view_size} states, its "
+                       f"{type(block).__name__} has n_states = {block.n_states}")
+
+  def size(self, block):
+    return int(block.n_states)
+
+
 class NodeKind(Kind):
   """A view, termination or reward kind."""
 

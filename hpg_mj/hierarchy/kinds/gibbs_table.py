@@ -61,18 +61,11 @@ def observe(P, L, N, x, signal, done, terminal, n, mask, rng, learn, sample):
   return choose(P, L, N, x, n, mask, rng, learn, sample)
 
 
-class GibbsTableKind(base.LearnerKind):
+class GibbsTableKind(base.TableKind):
   block = blocks.GibbsTable
   reads = "state"
   masked = True
 
-  def check(self, name, block, n_children, view_size):
-    if view_size is not None and view_size != block.n_states:
-      raise GraphError(f"subtask {name!r}: its view has {view_size} states, its GibbsTable "
-                       f"{block.n_states}")
-
-  def size(self, block):
-    return base.check_positive_int(block, "n_states", block.n_states)
 
   def settings(self, name, block, learned_episodes):
     for field, low, high in (("alpha", 0.0, math.inf), ("trace_gamma", 0.0, 1.0),

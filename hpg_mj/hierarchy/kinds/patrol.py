@@ -83,18 +83,12 @@ def clock(P, obs, call, samples):
   return core.SUCCESS if call.steps >= P.steps else core.NO_EVENT
 
 
-class RLearningKind(base.LearnerKind):
+class RLearningKind(base.TableKind):
   block = blocks.RLearning
 
   def check(self, name, block, n_children, view_size):
-    base.check_positive_int(block, "n_states", block.n_states)
+    super().check(name, block, n_children, view_size)
     base.check_positive_int(block, "planning_every", block.planning_every, low=0)
-    if view_size is not None and view_size != block.n_states:
-      raise GraphError(f"subtask {name!r}: its view gives {view_size} states, its RLearning "
-                       f"has n_states = {block.n_states}")
-
-  def size(self, block):
-    return int(block.n_states)
 
   def settings(self, name, block, schedule=None):
     for field in ("alpha", "gain_step", "epsilon"):

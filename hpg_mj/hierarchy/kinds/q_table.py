@@ -62,19 +62,13 @@ def rates(name, block, schedule):
   return float(block.alpha), float(block.gamma), float(block.trace_decay), epsilon
 
 
-class QTableKind(base.LearnerKind):
+class QTableKind(base.TableKind):
   block = blocks.QTable
   reads = "state"
 
   def check(self, name, block, n_children, view_size):
-    base.check_positive_int(block, "n_states", block.n_states)
+    super().check(name, block, n_children, view_size)
     base.check_positive_int(block, "trace_capacity", block.trace_capacity)
-    if view_size is not None and view_size != block.n_states:
-      raise GraphError(f"subtask {name!r}: its view gives {view_size} states, its QTable has "
-                       f"n_states = {block.n_states}")
-
-  def size(self, block):
-    return int(block.n_states)
 
   def settings(self, name, block, schedule=None):
     return Settings(*rates(name, block, schedule))
