@@ -1,4 +1,4 @@
-"""The machine's test oracle: a graph of blocks rewritten as a graph of Python
+"""The open machine's test oracle: a graph of blocks rewritten as a graph of Python
 callables and step-by-step learner objects, run by the pure-Python executor
 (`hierarchy.executor`, recursive Algorithm 1). The oracle shares only the
 learning rules with the machine (`learners`), not its stack, its bookkeeping or
@@ -6,10 +6,20 @@ its order of calls, so a test that holds the two equal checks the machine's
 control flow: calls, returns, rewards summed per level, ends, runs and draws."""
 import numpy as np
 
-from hpg_mj.hierarchy import blocks, executor, ship_rules
+from hpg_mj.hierarchy import blocks, calls, executor, ship_rules
 from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
+from hpg_mj.hierarchy.kinds.rules import Abstraction, InternalReward, Termination
 from hpg_mj.learners import schedules, stepwise, tiles
 from hpg_mj.worlds import ship_core as core
+
+
+def _record(call):
+  """The call's record as a user's rule reads it on the open machine (`hierarchy.calls`):
+  its arguments by name, the observation where it began, its steps."""
+  names = sorted(call.args)
+  return calls.record(names)(*[call.args[k] for k in names],
+                             np.ascontiguousarray(call.origin, dtype=np.float64),
+                             int(call.steps))
 
 
 def _grid_cell(x, y, cell_m, grid):
@@ -77,10 +87,9 @@ class Oracle:
     view = node.view
     if isinstance(view, blocks.GridCell):
       return lambda call, obs: _grid_cell(obs[0], obs[1], view.cell_m, view.grid)
-    if isinstance(view, blocks.CellRule):
+    if isinstance(view, Abstraction):
       return lambda call, obs: int(view.rule(np.ascontiguousarray(obs, dtype=np.float64),
-                                             self._origin(call), call.args.get("direction", -1),
-                                             call.steps))
+                                             _record(call)))
     arrays = view.coder.arrays()
     out = np.empty(view.coder.n_tilings, dtype=np.int64)
     local = np.empty(4)
@@ -138,11 +147,10 @@ class Oracle:
                                                  t.radius_m, weight)
         if not isinstance(node.internal_reward, blocks.Shaping):
           internal = 0.0
-      elif isinstance(node.termination, blocks.EndRule):
-        event = int(node.termination.rule(obs, self._origin(call), arg, call.steps))
-      if isinstance(node.internal_reward, blocks.RewardRule):
-        internal = float(node.internal_reward.rule(obs, self._origin(call), arg, call.steps,
-                                                   event))
+      elif isinstance(node.termination, Termination):
+        event = int(node.termination.rule(obs, _record(call)))
+      if isinstance(node.internal_reward, InternalReward):
+        internal = float(node.internal_reward.rule(obs, _record(call), event))
       call.memo.update(seen_at=call.steps, event=event, internal=internal)
     return call.memo["event"], call.memo["internal"]
 

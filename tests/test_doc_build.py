@@ -61,7 +61,7 @@ def test_the_learner_contract_and_the_api_are_documented(site):
   interfaces = (site / "interfaces.html").read_text()
   assert "hpg_mj.hierarchy.graph.Learner" in interfaces and "observe" in interfaces
   api = (site / "api" / "hpg_mj.hierarchy.html").read_text()
-  assert "hpg_mj.hierarchy.machine.Machine" in api and "hpg_mj.hierarchy.blocks" in api
+  assert "hpg_mj.hierarchy.program.Program" in api and "hpg_mj.hierarchy.blocks" in api
 
 
 def test_the_front_page_installs_runs_and_scores_and_every_task_page_links_to_scoring(site):

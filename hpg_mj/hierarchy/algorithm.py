@@ -63,7 +63,7 @@ Frames = collections.namedtuple("Frames", (
 E_DEPTH, E_STEPS, E_EVENT, E_LEARNED, E_RESTART = range(5)
 LEARN, SAMPLE = range(2)
 CALLS, RUNS, SUCCESSES = range(3)
-# A record row (as `hierarchy.machine`'s): how the episode ended, its steps, its
+# A record row: how the episode ended, its steps, its
 # return, 0, then calls, runs and successes of each node.
 ROW_END, ROW_STEPS, ROW_RETURN, ROW_ILLEGAL, ROW_COUNTERS = range(5)
 NO_EVENT, SUCCESS = core.NO_EVENT, core.SUCCESS

@@ -1,12 +1,14 @@
-"""The building blocks of a compiled task graph (`hpg_mj.hierarchy.machine`).
+"""The building blocks of a compiled task graph (the open machine, `hierarchy.program`).
 
 A `Subtask` of `hpg_mj.hierarchy.graph` whose learner, view, termination and
-internal reward are blocks from this module is data: the machine turns the
-graph into arrays and runs it with one compiled implementation of Algorithm 1,
-fused with a compiled world or step by step under any environment.
+internal reward are blocks is data: the open machine finds each block's kind
+(`hierarchy.kinds`: one module a kind) and compiles the graph with Algorithm 1
+(`hierarchy.algorithm`), fused with a compiled world or step by step under any
+environment. These are the shipped blocks; a user adds a kind of their own with
+`hierarchy.kinds.register`, and writes rules of their own with
+`hierarchy.kinds.rules` (below).
 
-Learners (a closed set of kinds; one instance may serve several nodes, which then
-share its parameters):
+Learners (one instance may serve several nodes, which then share its parameters):
 
   QTable(n_states, alpha, trace_decay, epsilon, ...)
       Watkins's Q(lambda) over an SMDP with replacing traces (SPEC section 3),
@@ -60,7 +62,7 @@ Views (what a node's learner sees of the world's state):
 The children a ship node may choose (its `available`): `NearGateLine(within_m)`,
 all within `within_m` of the gate line, else only the first (a TiledQTable's).
 
-The taxi hierarchy's rules (`hierarchy.taxi_subtasks`), for a machine built with the
+The taxi hierarchy's rules (`hierarchy.taxi_subtasks`), for a program built with the
 taxi's world: `TaxiChildren(subtask)` (a node's `available`), `TaxiEnd(subtask)`
 (its termination), `TaxiTarget(subtask)` (a `Child`'s `bind`: Navigate's target).
 
@@ -84,19 +86,12 @@ Terminations and internal rewards:
                                its G is the shaping towards the target, times
                                weight, and +100 / -100
 
-A user's own rule, where the blocks do not reach: a small `@numba.njit` function of
-(obs, origin, arg, steps) -- the observation now (float64), the first two numbers of
-the observation where the call began, the call's `direction` argument (-1 without
-one) and the primitive steps taken in the call -- compiled into the machine, which
-runs it at the blocks' speed:
-
-  CellRule(rule)               a QTable's view: rule(obs, origin, arg, steps) -> its
-                               state, an integer in [0, n_states)
-  EndRule(rule)                a termination: rule(obs, origin, arg, steps) -> the
-                               call's event: 0 go on, 1 success, -1 failure (the call
-                               ends on either; a run that ends in 1 is a success)
-  RewardRule(rule)             an internal reward G: rule(obs, origin, arg, steps,
-                               event) -> G, after each child's return
+A user's own rule, where the blocks do not reach, is a small `@numba.njit` function
+of the observation and the call's record (`call.x` its arguments by name,
+`call.origin` the observation where it began, `call.steps` its primitive steps),
+compiled into the graph's program (`hierarchy.kinds.rules`): `Abstraction(rule)` a
+table's state, `Features(rule)` the numbers a coder tiles, `Termination(rule)` the
+call's event, `InternalReward(rule)` G (rule(obs, call, event)).
 
 Rewards a node's learner sees: `reward=SUMMED` (the rewards of the child's run
 summed: the root's R) or `reward=STEP` (-1 a primitive step: the low level's R,
@@ -282,10 +277,6 @@ class PatrolCell:
     return ship_rules.n_root_cells(self.near_gate_m, self.near_gate_cell_m) * self.heading_sectors
 
 
-@dataclasses.dataclass(frozen=True)
-class CellRule:
-  """A QTable's view by a user's `@numba.njit` rule(obs, origin, arg, steps) -> state."""
-  rule: object
 
 
 @dataclasses.dataclass(frozen=True)
@@ -358,18 +349,8 @@ class TargetReached:
   max_steps: int = 600
 
 
-@dataclasses.dataclass(frozen=True)
-class EndRule:
-  """A termination by a user's `@numba.njit` rule(obs, origin, arg, steps) -> event
-  (0 go on, 1 success, -1 failure)."""
-  rule: object
 
 
-@dataclasses.dataclass(frozen=True)
-class RewardRule:
-  """An internal reward G by a user's `@numba.njit` rule(obs, origin, arg, steps,
-  event) -> G."""
-  rule: object
 
 
 @dataclasses.dataclass(frozen=True)
@@ -398,3 +379,16 @@ class LinearEpsilon:
   start: float = 0.1
   end: float = 0.0
   episodes: int = 50_000
+
+
+# The earlier machine's rules of (obs, origin, arg, steps), and what replaced them.
+_EARLIER_RULES = {"CellRule": "Abstraction", "EndRule": "Termination",
+                  "RewardRule": "InternalReward"}
+
+
+def __getattr__(name):
+  if name in _EARLIER_RULES:
+    raise AttributeError(f"hpg_mj.hierarchy.blocks.{name} is gone: write "
+                         f"hpg_mj.hierarchy.kinds.rules.{_EARLIER_RULES[name]}(rule), the rule "
+                         "taking (obs, call) (call.origin, call.steps, its arguments by name)")
+  raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

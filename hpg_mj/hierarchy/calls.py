@@ -17,7 +17,7 @@ def name_of(arguments):
 
 def record(arguments):
   """The namedtuple class of a call with `arguments` (then `origin`, `steps`)."""
-  return globals()[name_of(tuple(arguments))] if arguments else Call
+  return __getattr__(name_of(tuple(arguments))) if arguments else Call
 
 
 def _arguments(name):

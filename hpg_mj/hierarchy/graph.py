@@ -98,7 +98,7 @@ class Subtask:
 @runtime_checkable
 class Learner(Protocol):
   """What a subtask's learner must answer when the Python executor runs its graph
-  (`hierarchy.executor`; a graph of blocks needs none of this: `hierarchy.machine`
+  (`hierarchy.executor`; a graph of blocks needs none of this: the open machine
   runs it). Checked when the graph is built (`TaskGraph`), naming the node.
 
   start()

@@ -80,7 +80,7 @@ The agent (`hpg_mj.agents.taxi_maxq`, a baseline of HPG, tag "baseline") holds i
 configuration, its step-by-step nodes and its metrics.
 
 Why MAXQ-Q has its own engine and does not run on the task-graph machine
-(`hierarchy.machine`): it is a different algorithm, value decomposition. A
+(`hierarchy.program`): it is a different algorithm, value decomposition. A
 subtask's choice needs its children's values V(a, s), computed recursively through
 the whole graph below it (`scores`), and a returning child updates its parent's
 two completion functions over every state of the child's run (all-states

@@ -7,7 +7,7 @@ their arrays by name, and writes the graph's operations (`enter`, `resume`, `jud
 arguments bound as constants) below the text of Algorithm 1 (`hierarchy.algorithm`),
 as one module of its own that numba compiles: only the kinds the graph holds, a
 user's rules and kinds among them, are typed at all, and the algorithm never asks
-which kind a node holds. The module is a file in the cache folder (`cache_folder`),
+which kind a node holds. The module is a file in the cache folder (`graph_module`),
 named by a hash of everything it compiles, so numba's cache keeps its machine code
 between processes; a change to the algorithm, a kind or a user's file gives another
 name.
@@ -21,11 +21,7 @@ The learned arrays are saved and restored by name (`state()`, `parameters()`):
 `"<node>.<field>"`, the node the first that holds the learner (the graph's order).
 """
 import collections
-import hashlib
-import importlib.util
 import inspect
-import os
-import sys
 
 import numba
 import numpy as np
@@ -33,52 +29,20 @@ import numpy as np
 from hpg_mj.hierarchy import algorithm
 from hpg_mj.hierarchy import boundary
 from hpg_mj.hierarchy import calls
+from hpg_mj.hierarchy import graph_module
 from hpg_mj.hierarchy import kinds as kinds_mod
 from hpg_mj.hierarchy.graph import GraphError, Primitive
 from hpg_mj.hierarchy.kinds import rules as rules_mod
 from hpg_mj.learners import banks
 from hpg_mj.worlds import ship_core as core
 
-_VERSION = "1"        # of the generated text's layout
 _F64 = np.dtype(np.float64)
 _VECTOR, _ROWS_OF_XY = (8,), (16, 8)          # the strides of a float64 vector, of rows of (x, y)
-
-
-def cache_folder():
-  """Where the graphs' modules (and numba's cache of them) are written:
-  $HPG_MJ_CACHE/graphs, else ~/.cache/hpg_mj/graphs."""
-  root = os.environ.get("HPG_MJ_CACHE") or os.path.join(os.path.expanduser("~"), ".cache",
-                                                        "hpg_mj")
-  return os.path.join(root, "graphs")
 
 
 def _identifier(name):
   out = "".join(c if c.isalnum() else "_" for c in name)
   return out if out and not out[0].isdigit() else "n_" + out
-
-
-def _fingerprint(fn):
-  """What identifies a compiled function's code: its module, name and the text of its
-  file (a change to a helper beside it counts too), or its bytecode."""
-  py = getattr(fn, "py_func", fn)
-  h = hashlib.sha256(f"{py.__module__}.{py.__qualname__}".encode())
-  try:
-    with open(inspect.getsourcefile(py), "rb") as f:
-      h.update(f.read())
-  except (TypeError, OSError):
-    code = py.__code__
-    h.update(code.co_code)
-    h.update(repr(code.co_consts).encode())
-    h.update(repr(code.co_names).encode())
-  return h.hexdigest()
-
-
-def _importable(fn):
-  """Whether another process finds `fn` again by its module's name (numba's cache
-  rebuilds a compiled function's globals by importing its module)."""
-  py = getattr(fn, "py_func", fn)
-  module = sys.modules.get(py.__module__)
-  return module is not None and getattr(module, "__file__", None) is not None
 
 
 def _check_argument(where, arg, value):
@@ -112,7 +76,7 @@ class Program:
     self.graph = graph
     self.obs_size = int(obs_size)
     self.world = world
-    # The root last, as `hierarchy.machine` numbers them (the agents' records read so).
+    # The root last (the agents' records read the nodes' counters so).
     self.names = [n for n in graph.nodes if n != graph.root] + [graph.root]
     self.index = {name: i for i, name in enumerate(self.names)}
     self._functions = {}            # id -> (global name, function)
@@ -160,6 +124,10 @@ class Program:
                              f"which takes no arguments; got {sorted(args)}")
           continue
         bound.setdefault(ref.node, []).append((name, args))
+    for name, node in self.graph.nodes.items():
+      if not isinstance(node, Primitive) and name != self.graph.root and name not in bound:
+        raise GraphError(f"subtask {name!r} is called by no node of the graph; call it "
+                         f"(Child({name!r}, ...)) or leave it out")
     for arg, value in dict(root_args).items():
       _check_argument("root_args: the argument", arg, value)
     bound.setdefault(self.graph.root, []).append(("the root call", dict(root_args)))
@@ -196,7 +164,7 @@ class Program:
 
   def _schedule(self):
     """The graph's exploration schedule (a held epsilon of 0.1 by default, as
-    `hierarchy.machine`'s), its watched subtasks checked."""
+    the shipped hierarchies'), its watched subtasks checked."""
     from hpg_mj.hierarchy import blocks
     block = self.graph.schedule or blocks.HeldEpsilon()
     self.schedule_block = block
@@ -540,45 +508,12 @@ class Program:
       self.frames.args[root, j] = float(self._root_args[arg])
 
   def _load(self):
+    """The graph's module: Algorithm 1's text and the graph's operations, with the
+    user's functions as its globals (`graph_module.load`)."""
     with open(algorithm.__file__) as f:
       text = f.read() + self._text
-    # A rule from code that no module holds (a notebook's cell, an exec'd block) is
-    # compiled anew in each process: numba's cache could not find it again.
-    self.cached = all(_importable(fn) for _, fn in self._functions.values())
-    if not self.cached:
-      text = text.replace("cache=True", "cache=False")
-    header = ["from hpg_mj.hierarchy import boundary", "from hpg_mj.hierarchy import calls"]
-    h = hashlib.sha256((_VERSION + text).encode())
-    for global_name, fn in sorted(self._functions.values(), key=lambda p: p[0]):
-      h.update(global_name.encode())
-      h.update(_fingerprint(fn).encode())
-    for _, value in self._records:
-      h.update(repr(type(value)).encode())
-    name = f"hpg_mj_graph_{h.hexdigest()[:20]}"
-    text = text.replace("import collections\n", "import collections\n" + "\n".join(header) +
-                        "\n", 1)
-    folder = cache_folder()
-    os.makedirs(folder, exist_ok=True)
-    path = os.path.join(folder, name + ".py")
-    if not os.path.exists(path):
-      tmp = f"{path}.{os.getpid()}.tmp"
-      with open(tmp, "w") as f:
-        f.write(text)
-      os.replace(tmp, path)
-    if name in sys.modules:
-      module = sys.modules[name]
-    else:
-      spec = importlib.util.spec_from_file_location(name, path)
-      module = importlib.util.module_from_spec(spec)
-      for global_name, fn in self._functions.values():
-        module.__dict__[global_name] = fn
-      sys.modules[name] = module
-      try:
-        spec.loader.exec_module(module)
-      except BaseException:
-        del sys.modules[name]
-        raise
-    self.module_path = path
+    module, self.module_path, self.cached = graph_module.load(
+        text, dict(self._functions.values()), [type(v) for _, v in self._records])
     return module
 
   # -- running --
@@ -638,7 +573,7 @@ class Program:
 
   def run(self, episodes, learn, sample, rng_state, world, start=None):
     """`episodes` episodes fused with the analytic ship; `world` = (gate reward,
-    out-of-bounds reward, max steps). Rows as `hierarchy.machine`'s."""
+    out-of-bounds reward, max steps). Rows as `algorithm.run_ship` writes them."""
     self._flags(learn, sample)
     rows = np.zeros((int(episodes), algorithm.ROW_COUNTERS + 3 * len(self.names)))
     fixed = np.zeros(0) if start is None else np.asarray(start, dtype=np.float64)

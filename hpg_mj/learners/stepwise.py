@@ -266,7 +266,7 @@ class ActorCritic:
   `actor_coder`'s tiles (plain weights, stepped along Q(s, a) psi); the critic is
   linear over `critic_coder`'s tiles of (state, r), learned by TD(lambda) on an
   Eq. 3-style lazy trace. The order of draws and updates is that of
-  the machine's (`hierarchy.machine`, learner kind ACTOR_CRITIC).
+  the open machine's (`hierarchy.kinds.actor_critic`).
   """
 
   def __init__(self, actor_coder, critic_coder, r_max, alpha_actor, alpha_critic, lam):

@@ -372,6 +372,15 @@ class _Unregistered:
         "root", children=[Child("goto", x=1.0, y=2.0, limit=80), Child("goto", x=1.0, limit=80)],
         termination=blocks.Never(), view=Abstraction(cell), learner=blocks.QTable(400))]),
      "subtask 'goto': its calls bind different arguments"),
+    (lambda: TaskGraph("root", [Primitive("turn"), Subtask(
+        "goto", children=["turn"], termination=Termination(arrived), view=Features(aim),
+        learner=blocks.GaussianCMAC(CODER)), Subtask(
+        "spare", children=["turn"], termination=Termination(arrived), view=Features(aim),
+        learner=blocks.GaussianCMAC(CODER)), Subtask(
+        "root", children=[Child("goto", x=1.0, y=2.0, limit=80)],
+        termination=blocks.Never(), view=Abstraction(cell), learner=blocks.QTable(400))]),
+     "subtask 'spare' is called by no node of the graph; call it (Child('spare', ...)) or "
+     "leave it out"),
     (lambda: waypoint_graph(goto_view=Features(numba.njit(_plain))),
      None),
 ])
@@ -389,60 +398,7 @@ def test_a_rule_that_is_not_compiled_is_refused():
     Features(_plain)
 
 
-# ---- the shipped kinds: the hybrid's graph (Figure 3) --------------------------------
-
-def _near_line_route(seed):
-  """The route with its approach points offered only within 150 m of the gate line and
-  its shaping halved (the task file offers them everywhere, with weight 1)."""
-  from hpg_mj import agents
-  from hpg_mj.agents import ship_beyond
-  from hpg_mj.taskfile import updated
-  config = agents.build(agents.load_task("ship_hybrid_beyond"), seed=seed).config
-  return ship_beyond.ShipBeyond(updated(config, root={"approach_within_m": 150.0},
-                                        low_level={"shaping": 0.5}), seed=seed)
-
-
-@pytest.mark.parametrize("task", ["ship_hybrid", "ship_flat_pg", "ship_hybrid_beyond",
-                                  _near_line_route])
-def test_a_shipped_graph_gives_the_old_machines_numbers_bit_for_bit(task):
-  """Figure 3 (GridCell root, LocalTiles and LocalGoal with Shaping below, the held
-  epsilon) and flat PGRL (StateTiles) on the open machine and on `hierarchy.machine`:
-  fused, then step by step through the Gymnasium ship (each subtask called told),
-  every record and learned array the same."""
-  from hpg_mj import agents
-  from hpg_mj.hierarchy import machine
-  from hpg_mj.learners import eligibility as el
-  old, new = (task(4) if callable(task) else agents.build(agents.load_task(task), seed=4)
-              for _ in range(2))
-  old._machine, new._machine = machine.Machine(old.graph()), Program(new.graph())
-  a, b = old.train(300), new.train(300)
-  for field in a.dtype.names:
-    np.testing.assert_array_equal(a[field], b[field], err_msg=field)
-  env = old.make_env("gymnasium")
-  told = {"old": [], "new": []}
-  rows_old = machine.run_stepwise(old.machine, env, 4, True, True, old.rng_state,
-                                  old.start_state, old._ended, on_call=told["old"].append)
-  rows_new = new.machine.run_stepwise(env, 4, True, True, new.rng_state, new.start_state,
-                                      new._ended, on_call=told["new"].append)
-  np.testing.assert_array_equal(rows_old, rows_new)
-  assert len(told["old"]) == len(told["new"])
-  for x, y in zip(told["old"], told["new"]):
-    assert (x.node, x.args) == (y.node, y.args)
-    np.testing.assert_array_equal(x.origin, y.origin[:2])      # (the new: the whole observation)
-  state = new.machine.state()
-  for name, node in old.graph().nodes.items():          # (the old machine's blocks)
-    learner = getattr(node, "learner", None)
-    if isinstance(learner, blocks.QTable):
-      np.testing.assert_array_equal(old.machine.q_arrays(learner)[0], state[f"{name}.q"])
-    elif isinstance(learner, blocks.GaussianCMAC):
-      trace, values = old.machine.gaussian_arrays(learner)
-      np.testing.assert_array_equal(el.parameters(trace),
-                                    new.machine.parameters()[f"{name}.theta"])
-      np.testing.assert_array_equal(values, state[f"{name}.values"])
-  if "schedule.state" in state:            # (a graph with a schedule of its own)
-    np.testing.assert_array_equal(old.machine.epsilon_schedule[0], state["schedule.state"])
-    np.testing.assert_array_equal(old.machine.epsilon_schedule[1], state["schedule.outcomes"])
-
+# ---- the stand-alone subtasks (Program.run_alone) ---------------------------------------
 
 @pytest.mark.parametrize("task, env_id", [("diagonal", "hpg_mj/ShipSteeringDiagonal-v0"),
                                           ("straight", "hpg_mj/ShipSteeringStraight-v0")])

@@ -42,18 +42,9 @@ def kind_of(block, role, node):
     if kind is not None:
       return kind
   known = sorted(cls.__name__ for (r, cls) in _KINDS if r == role)
-  hint = _EARLIER_RULES.get(type(block).__name__)
-  hint = f"; for a rule, write {hint}" if hint and type(block).__module__.endswith(
-      "hierarchy.blocks") else " (hpg_mj.hierarchy.kinds.register adds one)"
   raise GraphError(f"subtask {node!r}: its {role} {type(block).__name__} has no kind on the "
-                   f"open machine; registered {role}s: {known}{hint}")
-
-
-# The earlier machine's rules of (obs, origin, arg, steps), and what the open machine
-# takes instead (`hierarchy.kinds.rules`).
-_EARLIER_RULES = {"CellRule": "Abstraction(rule) with rule(obs, call)",
-                  "EndRule": "Termination(rule) with rule(obs, call)",
-                  "RewardRule": "InternalReward(rule) with rule(obs, call, event)"}
+                   f"open machine; registered {role}s: {known} "
+                   "(hpg_mj.hierarchy.kinds.register adds one)")
 
 
 def _register_shipped():

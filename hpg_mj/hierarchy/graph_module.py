@@ -1,0 +1,85 @@
+"""A graph's program as a module of its own (`hierarchy.program`): Algorithm 1's text
+and the graph's operations written to a file in the cache folder (`cache_folder`),
+named by a hash of everything it compiles, so that numba's cache keeps its machine
+code between processes; a change to the algorithm, a kind or a user's file gives
+another name."""
+import hashlib
+import importlib.util
+import inspect
+import os
+import sys
+
+_VERSION = "1"        # of the generated text's layout
+_HEADER = ("from hpg_mj.hierarchy import boundary", "from hpg_mj.hierarchy import calls")
+
+
+def cache_folder():
+  """Where the graphs' modules (and numba's cache of them) are written:
+  $HPG_MJ_CACHE/graphs, else ~/.cache/hpg_mj/graphs."""
+  root = os.environ.get("HPG_MJ_CACHE") or os.path.join(os.path.expanduser("~"), ".cache",
+                                                        "hpg_mj")
+  return os.path.join(root, "graphs")
+
+
+def _fingerprint(fn):
+  """What identifies a compiled function's code: its module, name and the text of its
+  file (a change to a helper beside it counts too), or its bytecode."""
+  py = getattr(fn, "py_func", fn)
+  h = hashlib.sha256(f"{py.__module__}.{py.__qualname__}".encode())
+  try:
+    with open(inspect.getsourcefile(py), "rb") as f:
+      h.update(f.read())
+  except (TypeError, OSError):
+    code = py.__code__
+    h.update(code.co_code)
+    h.update(repr(code.co_consts).encode())
+    h.update(repr(code.co_names).encode())
+  return h.hexdigest()
+
+
+def _importable(fn):
+  """Whether another process finds `fn` again by its module's name (numba's cache
+  rebuilds a compiled function's globals by importing its module)."""
+  py = getattr(fn, "py_func", fn)
+  module = sys.modules.get(py.__module__)
+  return module is not None and getattr(module, "__file__", None) is not None
+
+
+def load(text, functions, record_types):
+  """(the module, its path, whether numba caches it) of `text` with `functions`
+  ({global name: function}) as its globals; `record_types` the types of the records
+  it is called with (part of its name). A rule from code that no module holds (a
+  notebook's cell, an exec'd block) is compiled anew in each process: numba's cache
+  could not find it again."""
+  cached = all(_importable(fn) for fn in functions.values())
+  if not cached:
+    text = text.replace("cache=True", "cache=False")
+  h = hashlib.sha256((_VERSION + text).encode())
+  for global_name, fn in sorted(functions.items()):
+    h.update(global_name.encode())
+    h.update(_fingerprint(fn).encode())
+  for t in record_types:
+    h.update(repr(t).encode())
+  name = f"hpg_mj_graph_{h.hexdigest()[:20]}"
+  text = text.replace("import collections\n", "import collections\n" + "\n".join(_HEADER) +
+                      "\n", 1)
+  folder = cache_folder()
+  os.makedirs(folder, exist_ok=True)
+  path = os.path.join(folder, name + ".py")
+  if not os.path.exists(path):
+    tmp = f"{path}.{os.getpid()}.tmp"
+    with open(tmp, "w") as f:
+      f.write(text)
+    os.replace(tmp, path)
+  if name in sys.modules:
+    return sys.modules[name], path, cached
+  spec = importlib.util.spec_from_file_location(name, path)
+  module = importlib.util.module_from_spec(spec)
+  module.__dict__.update(functions)
+  sys.modules[name] = module
+  try:
+    spec.loader.exec_module(module)
+  except BaseException:
+    del sys.modules[name]
+    raise
+  return module, path, cached
