@@ -220,8 +220,8 @@ class _MujocoShips:
 
   integrate = False
 
-  def __init__(self, num_envs):
-    self.ships = [ship_env.MujocoBackend() for _ in range(num_envs)]
+  def __init__(self, num_envs, make_ship=ship_env.MujocoBackend):
+    self.ships = [make_ship() for _ in range(num_envs)]
 
   def set_state(self, states, i, state):
     self.ships[i].set_state(state)
@@ -271,13 +271,7 @@ class ShipSteeringVectorEnv(_BatchedEnv):
       raise ValueError(f"{who}: render_mode {render_mode!r} is not supported by the batch; "
                        "allowed: None (render a single ShipSteeringEnv)")
     self.rules = ship_task.ShipRules(task, max_steps, gate_reward, out_of_bounds_reward)
-    if backend == "analytic":
-      self._ships = _AnalyticShips(self.num_envs)
-    elif backend == "mujoco":
-      self._ships = _MujocoShips(self.num_envs)
-    else:
-      raise ValueError(f"unknown ship backend {backend!r}; valid backends: "
-                       f"{list(ship_env.BACKENDS)}")
+    self._ships = self._make_ships(backend)
     self.task, self.backend, self.strict = task, backend, bool(strict)
     self.single_observation_space, self.single_action_space = ship_env.spaces_of(self.rules)
     self.observation_space = batch_space(self.single_observation_space, self.num_envs)
@@ -295,6 +289,15 @@ class ShipSteeringVectorEnv(_BatchedEnv):
     self._is_steer = self.rules.goal is None
     self._goal = np.zeros(2) if self._is_steer else self.rules.goal.copy()
     self._shapes = ((n, 1), (n,))
+
+  def _make_ships(self, backend):
+    """The batch's ships (a task on other water brings its own)."""
+    if backend == "analytic":
+      return _AnalyticShips(self.num_envs)
+    if backend == "mujoco":
+      return _MujocoShips(self.num_envs)
+    raise ValueError(f"unknown ship backend {backend!r}; valid backends: "
+                     f"{list(ship_env.BACKENDS)}")
 
   def _start(self, indices, options):
     given = options.get("state")
