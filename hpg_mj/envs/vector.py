@@ -88,6 +88,10 @@ class _BatchedEnv(VectorEnv):
     self._ended = np.zeros(self.num_envs, dtype=np.bool_)   # ended at the last step
     self._started = False
 
+  def _observation_of(self, observations, i):
+    """Copy i's observation out of the batch's (a dictionary's subclass says how)."""
+    return observations[i]
+
   def reset(self, *, seed=None, options=None):
     seeds = _seeds(seed, self.num_envs, self.who)
     options = dict(options or {})
@@ -141,7 +145,7 @@ class _BatchedEnv(VectorEnv):
         final_obs = np.full(self.num_envs, None, dtype=object)
         last = self._observations()
         for i in restart.tolist():
-          final_obs[i] = last[i]
+          final_obs[i] = self._observation_of(last, i)
         final_info = _select_info(info, restart, self.num_envs)
         self._start(restart, {})
         _drop_info(info, restart)

@@ -153,3 +153,19 @@ def test_the_analytic_current_imports_neither_mujoco_nor_dm_control():
                         timeout=120)
   assert done.returncode == 0, done.stderr[-2000:]
   assert done.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_pixels_of_both_paths_are_the_same_picture():
+  # Pixel observations as the steering ship's: the Gymnasium frame and dm_control's
+  # physics.render of the same ship at its start.
+  state = [300.0, 500.0, 80.0, 0.0]
+  env = gymnasium.make(ID, level="hard", backend="mujoco", render_mode="rgb_array",
+                       width=160, height=120)
+  env.reset(options={"state": state})
+  frame = env.render()
+  assert frame.shape == (120, 160, 3) and frame.std() > 5.0
+  dm = suite.load("ship_current", "hard", {"initial_state": state})
+  dm.reset()
+  np.testing.assert_array_equal(dm.physics.render(120, 160, camera_id="top"), frame)
+  env.close()
+  dm.close()
