@@ -134,7 +134,14 @@ SHIP_GYMNASIUM_IDS = {"steer": "hpg_mj/ShipSteering-v0",
                       "straight": "hpg_mj/ShipSteeringStraight-v0",
                       "patrol": "hpg_mj/ShipPatrol-v0"}
 # The other ship domains, whose tasks are levels: domain -> its Gymnasium id (`level=`).
-SHIP_LEVEL_IDS = {"ship_current": "hpg_mj/ShipCurrent-v0"}
+SHIP_LEVEL_IDS = {"ship_current": "hpg_mj/ShipCurrent-v0", "ship_goal": "hpg_mj/ShipGoal-v0"}
+
+
+def _flat(obs):
+  """An observation as one row: a goal-conditioned dictionary's parts in key order."""
+  if isinstance(obs, dict):
+    return np.concatenate([np.ravel(obs[key]) for key in sorted(obs)])
+  return obs
 
 
 def _ship_gymnasium(domain, task):
@@ -159,6 +166,10 @@ def golden_dir():
 # gate heading almost west, sails straight (r = 0) through the gate and on out of
 # the field, and after the restart turns as the other tasks' do.
 SHIP_GOLDEN_STARTS = {"patrol": (440.0, 390.15, -80.0, 0.0)}
+# The goal tasks' first episode sails from 9.85 m south of a gate at (400, 400) heading
+# north straight through it (its pass is the episode's end at the sixth step); the
+# episodes after it draw their starts and gates.
+GOAL_GOLDEN_FIRST = {"state": (400.0, 390.15, 0.0, 0.0), "gate": (400.0, 400.0, 0.0)}
 PATROL_GOLDEN_STRAIGHT = 260     # control steps at r = 0 before the random turns
 
 
@@ -178,26 +189,34 @@ def ship_analytic_rollout(task, actions=None, domain="ship"):
   import hpg_mj  # noqa: F401  (registers the ids)
   env_id, kwargs = _ship_gymnasium(domain, task)
   env = gymnasium.make(env_id, **kwargs).unwrapped
-  start = SHIP_GOLDEN_STARTS.get(task)
-  obs, _ = env.reset(seed=GOLDEN_SEED, options=None if start is None else {"state": start})
-  rows, rewards, ends = [obs], [], []
+  start = SHIP_GOLDEN_STARTS.get(task) if domain == "ship" else None
+  options = GOAL_GOLDEN_FIRST if domain == "ship_goal" else (
+      None if start is None else {"state": start})
+  obs, _ = env.reset(seed=GOLDEN_SEED, options=options)
+  rows, rewards, ends = [_flat(obs)], [], []
   for a in ship_golden_actions(task) if actions is None else actions:
     obs, reward, terminated, truncated, _ = env.step(a)
     rewards.append(reward)
     ends.append(2 * terminated + truncated)
     if terminated or truncated:
       obs, _ = env.reset()
-    rows.append(obs)
+    rows.append(_flat(obs))
   return np.array(rows), np.array(rewards), np.array(ends)
 
 
 def ship_mujoco_rollout(task, actions=None, domain="ship"):
   """The same on the MuJoCo ship through the dm_control suite."""
   from hpg_mj import suite
-  env = suite.load(domain, task, {"random": GOLDEN_SEED,
-                                   "initial_state": SHIP_GOLDEN_STARTS.get(task)})
+  kwargs = {"random": GOLDEN_SEED}
+  if domain == "ship_goal":
+    kwargs.update(initial_state=GOAL_GOLDEN_FIRST["state"], gate=GOAL_GOLDEN_FIRST["gate"])
+  elif domain == "ship":
+    kwargs["initial_state"] = SHIP_GOLDEN_STARTS.get(task)
+  env = suite.load(domain, task, kwargs)
   flat = lambda ts: np.concatenate([np.ravel(v) for v in ts.observation.values()])  # noqa: E731
   ts = env.reset()
+  if domain == "ship_goal":                    # the first episode only
+    env.task.initial_state = env.task.gate = None
   rows, rewards, ends = [flat(ts)], [], []
   for a in ship_golden_actions(task) if actions is None else actions:
     ts = env.step(a)
@@ -410,4 +429,90 @@ def verify_current(controls=1000, starts=3, seed=0, levels=None):
       worst = np.maximum(worst, (*mj_err, *eu_err))
     results.append(CurrentVerification(level, controls, starts, current_core.max_speed(field),
                                        *worst))
+  return results
+
+
+# ---- `hpg-mj verify goal`: the goal task's two backends, episode by episode ------------
+
+@dataclasses.dataclass
+class GoalVerification:
+  level: str
+  episodes: int
+  analytic_passes: int          # episodes the scripted helmsman ended at the gate
+  same_outcome: int             # episodes both ships ended alike, within one control step
+  largest_position_m: float     # MuJoCo against analytic, over every step sailed
+  gate_geoms_m: float           # the MuJoCo gate's posts against the rule's, largest
+
+  def line(self):
+    return (f"  {self.level:<7} {self.episodes} episodes: helmsman passed "
+            f"{self.analytic_passes}; same end within a step on both ships "
+            f"{self.same_outcome}; MuJoCo vs analytic position at most "
+            f"{self.largest_position_m:.3f} m; MuJoCo gate posts off the rule's by "
+            f"{self.gate_geoms_m:.1e} m")
+
+  @property
+  def passed(self):
+    """The ships differ by their discretisations only (the analytic ship strays about
+    1 m from the continuous one in 600 s, `hpg-mj verify ship`; MuJoCo's 0.04 m), the
+    MuJoCo gate stands where the rule's is, and at most one episode in 20 ends
+    differently. A pass is seen one control step earlier or later when the ships are a
+    metre apart along the track (the window is 1.8 m deep): that counts as the same end."""
+    return (self.largest_position_m < 1.5 and self.gate_geoms_m < 1e-9
+            and self.same_outcome >= 0.95 * self.episodes)
+
+
+def _goal_episode(env, seed, actions=None, start=None, steps=2000):
+  """(states, events, actions) of one episode of `env` (a ShipGoalEnv): the scripted
+  helmsman's choices, or `actions` replayed from `start` (and the last one held for
+  one more control step, should the episode not have ended)."""
+  from hpg_mj.worlds import ship_goal_core as goal_core
+  obs, _ = env.reset(seed=seed, options=start)
+  states, events, chosen, phase = [obs["observation"]], [None], [], 0
+  for t in range(steps if actions is None else len(actions) + 1):
+    if actions is None:
+      tx, ty, phase = goal_core.pilot_target(obs["observation"], phase, obs["desired_goal"])
+      r = core.pilot_turn_rate(obs["observation"], tx, ty)
+    else:
+      r = actions[min(t, len(actions) - 1)]
+    obs, _, terminated, truncated, info = env.step(np.array([r]))
+    states.append(obs["observation"])
+    events.append(info["event"])
+    chosen.append(r)
+    if terminated or truncated:
+      break
+  return np.array(states), events, chosen
+
+
+def verify_goal(episodes=20, seed=0, levels=None):
+  """Per level, `episodes` episodes of the scripted helmsman on the analytic ship, its
+  turning rates replayed on the MuJoCo ship from the same start through the same gate:
+  one GoalVerification per level."""
+  import gymnasium
+
+  import hpg_mj  # noqa: F401  (registers the ids)
+  from hpg_mj.worlds import ship_goal_core as goal_core
+  if episodes < 1:
+    raise ValueError(f"episodes must be positive, got {episodes}")
+  results = []
+  for level in levels or tuple(goal_core.LEVELS):
+    goal_core.level_range(level, "hpg-mj verify goal")
+    analytic = gymnasium.make("hpg_mj/ShipGoal-v0", level=level, backend="analytic").unwrapped
+    mujoco = gymnasium.make("hpg_mj/ShipGoal-v0", level=level, backend="mujoco").unwrapped
+    passes = same = 0
+    largest = posts_off = 0.0
+    for episode in range(episodes):
+      states, events, actions = _goal_episode(analytic, seed * 100_003 + episode)
+      desired = analytic._desired
+      start = {"state": states[0], "gate": [desired[0], desired[1],
+                                            goal_core.gate_heading_deg(desired)]}
+      replay, replay_events, _ = _goal_episode(mujoco, None, actions, start)
+      n = min(len(states), len(replay))
+      largest = max(largest, float(np.hypot(*(states[:n, :2] - replay[:n, :2]).T).max()))
+      passes += events[-1] == "gate"
+      same += abs(len(replay) - len(states)) <= 1 and replay_events[-1] == events[-1]
+      drawn = np.array([mujoco.backend.physics.named.model.geom_pos[name][:2]
+                        for name in ("gate_post_west", "gate_post_east")])
+      posts_off = max(posts_off, float(np.abs(drawn - goal_core.gate_posts(
+          analytic._desired)).max()))
+    results.append(GoalVerification(level, episodes, passes, same, largest, posts_off))
   return results

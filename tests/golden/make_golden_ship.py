@@ -17,13 +17,13 @@ HERE = pathlib.Path(__file__).resolve().parents[2] / "golden"
 
 
 TASKS = ("steer", "diagonal", "straight", "patrol", "current_easy", "current_medium",
-         "current_hard")
+         "current_hard", "goal_easy", "goal_medium", "goal_hard")
 
 
 def main(tasks=TASKS):
   for name in tasks:
     # "current_hard": the ship_current domain's task "hard" (file ship_current_hard.npz).
-    domain, task = ("ship_current", name[len("current_"):]) if name.startswith("current_") \
+    domain, task = ("ship_" + name.split("_")[0], name.split("_")[1]) if "_" in name \
         else ("ship", name)
     actions = verify.ship_golden_actions(task)
     a_obs, a_rew, a_end = verify.ship_analytic_rollout(task, actions, domain)
