@@ -45,10 +45,14 @@ TASKS = {
         "hpg_mj/ShipCurrent-v0", f"figures/tasks/ship_current_{level}.png",
         f"the still-water helmsman in the {level} current: where its wake bends, the water "
         "carried the ship (`scripts/task_pictures.py`)") for level in ("easy", "medium", "hard")},
+    **{("ship_goal", level): (
+        "hpg_mj/ShipGoal-v0", f"figures/tasks/ship_goal_{level}.png",
+        f"a gate of the {level} level and the scripted helmsman's way through it "
+        "(`scripts/task_pictures.py`)") for level in ("easy", "medium", "hard")},
 }
 
 # Domains whose tasks are the levels of one Gymnasium id (its `level` argument).
-_LEVEL_DOMAINS = ("ship_current",)
+_LEVEL_DOMAINS = ("ship_current", "ship_goal")
 
 # Gymnasium's make() arguments for building each id here: the analytic ship needs
 # neither MuJoCo nor a renderer.
@@ -56,7 +60,8 @@ _MAKE_KWARGS = {"hpg_mj/ShipSteering-v0": {"backend": "analytic"},
                 "hpg_mj/ShipSteeringDiagonal-v0": {"backend": "analytic"},
                 "hpg_mj/ShipSteeringStraight-v0": {"backend": "analytic"},
                 "hpg_mj/ShipPatrol-v0": {"backend": "analytic"},
-                "hpg_mj/ShipCurrent-v0": {"backend": "analytic"}}
+                "hpg_mj/ShipCurrent-v0": {"backend": "analytic"},
+                "hpg_mj/ShipGoal-v0": {"backend": "analytic"}}
 
 
 def page_name(domain, task):
