@@ -31,9 +31,7 @@ from hpg_mj.worlds.ship_model import _c_call
 
 with _headless.simulation_imports():   # no GL in the simulating process (SPEC section 9)
   import mujoco as mj
-  from dm_control.rl import control
   from dm_control.utils import containers
-  from dm_env import specs
 
 SUITE = containers.TaggedTasks()
 
@@ -104,14 +102,8 @@ class Physics(ship.Physics):
     x, y = self._position()
     return np.array(current_core.current_at(self.field, x, y))
 
-  def step(self, nstep=1):
-    """`ShipPhysics.step` with the current's controls set before every MuJoCo step."""
-    sampling = self._sampling
-    if sampling is None or sampling[0] != nstep:
-      sampling = self._sampling = self._sampling_of(nstep)
-    _, substeps, rows = sampling
-    self._samples = positions = np.empty((rows.shape[0], 2))
-    self.stepped_state = state = np.empty(4)
+  def _sail(self, substeps, rows, positions, state):
+    """`ShipPhysics._sail` with the current's controls set before every MuJoCo step."""
     timestep = self._model_ptr.opt.timestep
     if ship_model.MJ_STEP:
       args = (ship_model.MJ_STEP, self._addresses[0], self._addresses[1], substeps, self._qpos,
@@ -153,22 +145,15 @@ class CurrentTask(ship.ShipTask):
     return obs
 
 
-def _environment(level, random, initial_state, strict, max_steps, environment_kwargs, **rewards):
-  physics = Physics.from_xml_string(*get_model_and_assets())
-  task = CurrentTask(level, random=random, initial_state=initial_state, strict=strict,
-                     max_steps=max_steps, **rewards)
-  environment_kwargs = dict(environment_kwargs or {})
-  environment_kwargs.setdefault("time_limit", float("inf"))
-  environment_kwargs.setdefault("control_timestep", core.CONTROL_INTERVAL)
-  return control.Environment(physics, task, **environment_kwargs)
-
-
 def _constructor(level):
   def task(random=None, initial_state=None, strict=False, max_steps=None,
            environment_kwargs=None, gate_reward=core.GATE_REWARD,
            out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD):
-    return _environment(level, random, initial_state, strict, max_steps, environment_kwargs,
-                        gate_reward=gate_reward, out_of_bounds_reward=out_of_bounds_reward)
+    return ship.environment(
+        Physics.from_xml_string(*get_model_and_assets()),
+        CurrentTask(level, random=random, initial_state=initial_state, strict=strict,
+                    max_steps=max_steps, gate_reward=gate_reward,
+                    out_of_bounds_reward=out_of_bounds_reward), environment_kwargs)
   task.__name__ = task.__qualname__ = level
   task.__doc__ = (f"`ship/steer` in the current of level {level!r} (water up to "
                   f"{current_core.max_speed(current_core.LEVELS[level]):.2f} m/s); the gate's "

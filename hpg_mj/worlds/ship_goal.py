@@ -20,13 +20,12 @@ geoms moved to the episode's gate.
 """
 import numpy as np
 
+from hpg_mj import _headless
 from hpg_mj.worlds import ship
 from hpg_mj.worlds import ship_core as core
 from hpg_mj.worlds import ship_goal_core as goal_core
-from hpg_mj import _headless
 
 with _headless.simulation_imports():   # no GL in the simulating process (SPEC section 9)
-  from dm_control.rl import control
   from dm_control.utils import containers
 
 SUITE = containers.TaggedTasks()
@@ -90,14 +89,11 @@ def _constructor(level):
   def task(random=None, initial_state=None, gate=None, strict=False, max_steps=None,
            environment_kwargs=None, gate_reward=core.GATE_REWARD,
            out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD):
-    physics = ship.Physics.from_xml_string(*get_model_and_assets())
-    goal_task = GoalTask(level, random=random, initial_state=initial_state, gate=gate,
-                         strict=strict, max_steps=max_steps, gate_reward=gate_reward,
-                         out_of_bounds_reward=out_of_bounds_reward)
-    kwargs = dict(environment_kwargs or {})
-    kwargs.setdefault("time_limit", float("inf"))
-    kwargs.setdefault("control_timestep", core.CONTROL_INTERVAL)
-    return control.Environment(physics, goal_task, **kwargs)
+    return ship.environment(
+        ship.Physics.from_xml_string(*get_model_and_assets()),
+        GoalTask(level, random=random, initial_state=initial_state, gate=gate, strict=strict,
+                 max_steps=max_steps, gate_reward=gate_reward,
+                 out_of_bounds_reward=out_of_bounds_reward), environment_kwargs)
   low, high, largest = goal_core.LEVELS[level]
   task.__name__ = task.__qualname__ = level
   task.__doc__ = (f"Pass a gate drawn each episode (level {level!r}: centre uniform on "

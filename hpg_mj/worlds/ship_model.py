@@ -256,6 +256,11 @@ class ShipPhysics(mujoco.Physics):
     # New arrays each step: callers keep the last step's samples and state.
     self._samples = positions = np.empty((rows.shape[0], 2))
     self.stepped_state = state = np.empty(4)   # `ship_state()` after this step, read with it
+    self._sail(substeps, rows, positions, state)
+
+  def _sail(self, substeps, rows, positions, state):
+    """The MuJoCo steps of one `step`: `substeps` per sample, the joint positions of
+    each sample into `rows`, then `bow_readings` (a ship on other water overrides it)."""
     if MJ_STEP:
       args = (MJ_STEP, self._addresses[0], self._addresses[1], substeps, self._qpos, self._act,
               self._bow, rows, positions, state)
