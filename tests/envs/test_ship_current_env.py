@@ -1,13 +1,11 @@
 """The ship in a current as Gymnasium environments (single and native batch) and as
-dm_control tasks: every level passes Gymnasium's `check_env` and dm_env's
-`EnvironmentTestMixin`, the batch follows the single environments, and a bad level is
-a one-line error naming what is allowed."""
-import unittest
-
+dm_control tasks: every level passes Gymnasium's `check_env` (dm_env's
+`EnvironmentTestMixin`: tests/test_suite_environment_mixin.py, every suite task), the
+batch follows the single environments, and a bad level is a one-line error naming what
+is allowed."""
 import gymnasium
 import numpy as np
 import pytest
-from dm_env import test_utils
 from gymnasium.utils.env_checker import check_env
 from gymnasium.vector import AutoresetMode
 
@@ -118,25 +116,6 @@ def test_the_dm_control_task_is_the_gymnasium_environment_on_mujoco():
     obs, reward, *_ = gym.step(np.array([r]))
     np.testing.assert_array_equal(np.concatenate(list(ts.observation.values())), obs)
     assert ts.reward == reward
-
-
-class _Levels(test_utils.EnvironmentTestMixin):
-  level = None
-
-  def make_object_under_test(self):
-    return suite.load("ship_current", self.level, {"random": 0})
-
-
-class EasyTest(_Levels, unittest.TestCase):
-  level = "easy"
-
-
-class MediumTest(_Levels, unittest.TestCase):
-  level = "medium"
-
-
-class HardTest(_Levels, unittest.TestCase):
-  level = "hard"
 
 
 def test_the_analytic_current_imports_neither_mujoco_nor_dm_control():
