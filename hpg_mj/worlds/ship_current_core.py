@@ -1,6 +1,6 @@
-"""The ship in a current: the water's velocity field of each level and Equation 1 with
-the drift it adds, compiled (numba), shared by every backend and path. Free of MuJoCo,
-as `ship_core` is (SPEC section 9).
+"""The ship in a current (SPEC section 11): the water's velocity field of each level and
+Equation 1 with the drift it adds, compiled (numba), shared by every backend and path.
+Free of MuJoCo, as `ship_core` is (SPEC section 9).
 
 The water moves at `c(x, y)` (m/s) and carries the ship with it: over ground the ship
 sails `V * (sin(theta), cos(theta)) + c(x, y)`; heading and turning rate follow

@@ -1,7 +1,7 @@
-"""The goal-conditioned ship: a gate whose place and heading are drawn each episode, and
-the rule that says when the ship has passed it, written on goals alone so that
-Hindsight Experience Replay can ask it of any achieved and desired goal. Free of
-MuJoCo (SPEC section 9); the ship itself is `ship_core`'s.
+"""The goal-conditioned ship (SPEC section 11): a gate whose place and heading are drawn
+each episode, and the rule that says when the ship has passed it, written on goals
+alone so that Hindsight Experience Replay can ask it of any achieved and desired goal.
+Free of MuJoCo (SPEC section 9); the ship itself is `ship_core`'s.
 
 Goals are float64 `[x, y, sin(heading), cos(heading)]`: the *achieved goal* is the
 ship's position and direction of travel at the end of a control step, the *desired

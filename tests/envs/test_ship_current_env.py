@@ -50,7 +50,7 @@ def test_the_hard_current_sweeps_a_ship_off_the_course_the_still_water_keeps():
   assert "gate" in events
   for _ in range(20):
     obs, _, terminated, _, info = hard.step(np.array([0.0]))
-  assert not terminated and obs[1] > 400.0 and obs[0] > 450.0     # crossed the line east of the gate
+  assert not terminated and obs[1] > 400.0 and obs[0] > 450.0     # crossed east of the gate
 
 
 @pytest.mark.parametrize("level", LEVELS)
