@@ -122,7 +122,8 @@ class ShipCurrentEnv(ship_env.ShipSteeringEnv):
     return _backend(name, self.field)
 
   def _with_current(self, state):
-    return np.append(state, current_core.current_at(self.field, state[0], state[1]))
+    x, y = state[:2].tolist()      # Python floats: numba types numpy's slowly (17 us)
+    return np.append(state, current_core.current_at(self.field, x, y))
 
   def reset(self, *, seed=None, options=None):
     state, info = super().reset(seed=seed, options=options)

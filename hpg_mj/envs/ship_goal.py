@@ -150,7 +150,7 @@ class ShipGoalEnv(gymnasium.Env):
     self._steps += 1
     active, steps, achieved, outcome = self._arrays
     steps[0] = self._steps
-    goal_core.judge_batch(state[None, :], active, steps, self._desired[None, :],
+    goal_core.judge_one()(state[None, :], active, steps, self._desired[None, :],
                           self.rules.max_steps, self.rules.success_reward,
                           self.rules.failure_reward, achieved, outcome)
     event, reward, terminated, truncated = (a[0] for a in outcome)

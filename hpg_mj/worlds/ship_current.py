@@ -141,7 +141,8 @@ class CurrentTask(ship.ShipTask):
 
   def get_observation(self, physics):
     obs = super().get_observation(physics)
-    obs["current"] = np.array(current_core.current_at(self.field, *obs["position"]))
+    x, y = obs["position"].tolist()     # Python floats: numba types numpy's slowly (17 us)
+    obs["current"] = np.array(current_core.current_at(self.field, x, y))
     return obs
 
 

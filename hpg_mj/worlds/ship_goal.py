@@ -46,6 +46,7 @@ class GoalTask(ship.ShipTask):
     # The gate observed before the first episode (dm_control reads an observation to
     # make its spec): ship/steer's.
     self.desired = goal_core.check_gate([400.0, 400.0, 0.0], self.name)
+    self._gate_heading_deg = np.zeros(1)
     self._arrays = (np.zeros(1, np.bool_) | True, np.zeros(1, np.int64), np.zeros((1, 4)),
                     (np.zeros(1, np.int64), np.zeros(1), np.zeros(1, np.bool_),
                      np.zeros(1, np.bool_)))
@@ -64,13 +65,14 @@ class GoalTask(ship.ShipTask):
     self.desired = (self._gate if self._gate is not None
                     else goal_core.sample_gate(self.random, self.level_range))
     physics.place_gate(goal_core.gate_posts(self.desired))
+    self._gate_heading_deg = np.array([goal_core.gate_heading_deg(self.desired)])
 
   def after_step(self, physics):
     self._steps += 1
     state = physics.stepped_state
     active, steps, achieved, outcome = self._arrays
     steps[0] = self._steps
-    goal_core.judge_batch(state[None, :], active, steps, self.desired[None, :],
+    goal_core.judge_one()(state[None, :], active, steps, self.desired[None, :],
                           self.rules.max_steps, self.rules.success_reward,
                           self.rules.failure_reward, achieved, outcome)
     event, reward, terminated, truncated = (a[0] for a in outcome)
@@ -81,7 +83,7 @@ class GoalTask(ship.ShipTask):
   def get_observation(self, physics):
     obs = super().get_observation(physics)
     obs["gate_position"] = self.desired[:2].copy()
-    obs["gate_heading_deg"] = np.array([goal_core.gate_heading_deg(self.desired)])
+    obs["gate_heading_deg"] = self._gate_heading_deg.copy()
     return obs
 
 

@@ -16,6 +16,7 @@ gate's. A ship sails at most 1.8 m in a control step, so one that crosses the li
 between the posts heading with the gate ends exactly one control step inside that
 window: the pass is seen at the end of that step, from the goals alone.
 """
+import functools
 import math
 
 import numba
@@ -153,6 +154,17 @@ def judge_batch(states, active, steps, desired, max_steps, gate_reward, out_of_b
     event[i], reward[i] = outcome_of(a, desired[i], gate_reward, out_of_bounds_reward)
     terminated[i] = event[i] != core.NO_EVENT
     truncated[i] = not terminated[i] and steps[i] >= max_steps
+
+
+@functools.cache
+def judge_one():
+  """`judge_batch`'s entry point for one ship's arrays (a row each; the single
+  environments' step): numba's dispatcher would type its nine arguments again at each
+  step, most of the call."""
+  f64, i64, b1 = numba.float64, numba.int64, numba.boolean
+  return judge_batch.compile((f64[:, ::1], b1[::1], i64[::1], f64[:, ::1], i64, f64, f64,
+                              f64[:, ::1], numba.types.Tuple((i64[::1], f64[::1], b1[::1],
+                                                              b1[::1]))))
 
 
 def check_gate(gate, who):
