@@ -62,7 +62,7 @@ class ShipGoalEnv(gymnasium.Env):
   (|lateral| <= 50 m), at most one control step of sailing past the gate line
   (0 <= forward < 1.8 m) and heading within 45 degrees of the gate's heading. A ship
   sails 1.8 m in a control step, so every pass between the posts with the gate's
-  heading ends one step inside that window. `info["is_success"]` says whether the step
+  heading is seen at the end of the step that crosses the line. `info["is_success"]` says whether the step
   reached the gate; `info["event"]` is "gate", "out_of_bounds" or None.
 
   ## Starting state

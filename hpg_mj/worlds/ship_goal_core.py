@@ -13,8 +13,8 @@ A goal is *reached* when, in the gate's frame, the ship's position lies between 
 posts (|lateral| <= 50 m), at most one control step of sailing past the gate line
 (0 <= forward < 3 m/s * 0.6 s = 1.8 m), and its heading within 45 degrees of the
 gate's. A ship sails at most 1.8 m in a control step, so one that crosses the line
-between the posts heading with the gate ends exactly one control step inside that
-window: the pass is seen at the end of that step, from the goals alone.
+between the posts heading with the gate ends that step inside the window: the pass is
+seen at the end of the step that crosses the line, from the goals alone.
 """
 import functools
 import math
