@@ -111,9 +111,7 @@ class ShipGoalEnv(gymnasium.Env):
     self._trail = []
     self._steps = 0
     self._desired = np.zeros(4)
-    self._arrays = (np.ones(1, np.bool_), np.zeros(1, np.int64), np.zeros((1, 4)),
-                    (np.zeros(1, np.int64), np.zeros(1), np.zeros(1, np.bool_),
-                     np.zeros(1, np.bool_)))
+    self._judge = goal_core.OneShip(self.rules)
 
   def _observation(self, state):
     return {"observation": state, "achieved_goal": goal_core.goal_of(state),
@@ -148,17 +146,11 @@ class ShipGoalEnv(gymnasium.Env):
                                           name="turning rate r (deg/s)")
     samples, state = self.backend.control(r)
     self._steps += 1
-    active, steps, achieved, outcome = self._arrays
-    steps[0] = self._steps
-    goal_core.judge_one()(state[None, :], active, steps, self._desired[None, :],
-                          self.rules.max_steps, self.rules.success_reward,
-                          self.rules.failure_reward, achieved, outcome)
-    event, reward, terminated, truncated = (a[0] for a in outcome)
+    event, reward, terminated, truncated, name = self._judge(state, self._steps, self._desired)
     if self.render_mode is not None:
       self._trail.extend(samples[1:].copy())
-    info = {"event": self.rules.event_names[int(event)], "positions": samples,
-            "is_success": bool(event == core.SUCCESS)}
-    return (self._observation(state), float(reward), bool(terminated), bool(truncated), info)
+    info = {"event": name, "positions": samples, "is_success": event == core.SUCCESS}
+    return self._observation(state), reward, terminated, truncated, info
 
   def compute_reward(self, achieved_goal, desired_goal, info):
     """The reward of achieved and desired goals of any batch shape (`info` unused)."""

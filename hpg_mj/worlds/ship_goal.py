@@ -47,9 +47,7 @@ class GoalTask(ship.ShipTask):
     # make its spec): ship/steer's.
     self.desired = goal_core.check_gate([400.0, 400.0, 0.0], self.name)
     self._gate_heading_deg = np.zeros(1)
-    self._arrays = (np.zeros(1, np.bool_) | True, np.zeros(1, np.int64), np.zeros((1, 4)),
-                    (np.zeros(1, np.int64), np.zeros(1), np.zeros(1, np.bool_),
-                     np.zeros(1, np.bool_)))
+    self._judge = goal_core.OneShip(self.rules)
 
   @property
   def gate(self):
@@ -70,14 +68,8 @@ class GoalTask(ship.ShipTask):
   def after_step(self, physics):
     self._steps += 1
     state = physics.stepped_state
-    active, steps, achieved, outcome = self._arrays
-    steps[0] = self._steps
-    goal_core.judge_one()(state[None, :], active, steps, self.desired[None, :],
-                          self.rules.max_steps, self.rules.success_reward,
-                          self.rules.failure_reward, achieved, outcome)
-    event, reward, terminated, truncated = (a[0] for a in outcome)
-    self._outcome = (float(reward), bool(terminated), bool(truncated),
-                     self.rules.event_names[int(event)])
+    _, reward, terminated, truncated, name = self._judge(state, self._steps, self.desired)
+    self._outcome = (reward, terminated, truncated, name)
     self._state_after_step = state
 
   def get_observation(self, physics):

@@ -157,14 +157,37 @@ def judge_batch(states, active, steps, desired, max_steps, gate_reward, out_of_b
 
 
 @functools.cache
-def judge_one():
-  """`judge_batch`'s entry point for one ship's arrays (a row each; the single
-  environments' step): numba's dispatcher would type its nine arguments again at each
-  step, most of the call."""
+def _judge_one():
+  """`judge_batch`'s entry point for one ship's arrays (a row each): numba's dispatcher
+  would type its nine arguments again at each step, most of the call."""
   f64, i64, b1 = numba.float64, numba.int64, numba.boolean
   return judge_batch.compile((f64[:, ::1], b1[::1], i64[::1], f64[:, ::1], i64, f64, f64,
                               f64[:, ::1], numba.types.Tuple((i64[::1], f64[::1], b1[::1],
                                                               b1[::1]))))
+
+
+class OneShip:
+  """`judge_batch` for the single environments (Gymnasium's and dm_control's): one ship
+  on `rules` (a `ShipRules` of "steer": the step limit and the two rewards), its arrays
+  made once."""
+
+  def __init__(self, rules):
+    self.rules = rules
+    self._active, self._steps = np.ones(1, np.bool_), np.zeros(1, np.int64)
+    self._achieved = np.zeros((1, 4))
+    self._outcome = (np.zeros(1, np.int64), np.zeros(1), np.zeros(1, np.bool_),
+                     np.zeros(1, np.bool_))
+
+  def __call__(self, state, steps, desired):
+    """(event, reward, terminated, truncated, event name) after a control step that
+    ended at `state` (float64, C order), `steps` control steps in."""
+    self._steps[0] = steps
+    rules = self.rules
+    _judge_one()(state[None, :], self._active, self._steps, desired[None, :], rules.max_steps,
+                 rules.success_reward, rules.failure_reward, self._achieved, self._outcome)
+    event, reward, terminated, truncated = (a[0] for a in self._outcome)
+    return (int(event), float(reward), bool(terminated), bool(truncated),
+            rules.event_names[int(event)])
 
 
 def check_gate(gate, who):
