@@ -220,7 +220,12 @@ class ShipSteeringEnv(gymnasium.Env):
     if self._renderer is None:
       self._renderer = scenes.ShipScene(self._width, self._height)
     return self._renderer.render(self.backend.state(), np.asarray(self._trail),
-                                 target=self.rules.goal, camera=self._camera)
+                                 camera=self._camera, **self._drawn())
+
+  def _drawn(self):
+    """What the frame shows beside the ship: a subtask's goal disc (a task with a gate of
+    its own draws it)."""
+    return {"target": self.rules.goal}
 
   def close(self):
     if self._renderer is not None:

@@ -7,13 +7,11 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
-from hpg_mj import _assets
 from hpg_mj import _validation
 from hpg_mj.envs import ship as ship_env
 from hpg_mj.envs import vector
 from hpg_mj.worlds import ship_core as core
 from hpg_mj.worlds import ship_goal_core as goal_core
-from hpg_mj.worlds import ship_task
 
 
 def spaces_of(rules):
@@ -27,7 +25,7 @@ def spaces_of(rules):
                       "desired_goal": goal}), action
 
 
-class ShipGoalEnv(gymnasium.Env):
+class ShipGoalEnv(ship_env.ShipSteeringEnv):
   """Ship steering to a gate drawn each episode (`hpg_mj/ShipGoal-v0`), goal-conditioned.
 
   ## Description
@@ -87,29 +85,15 @@ class ShipGoalEnv(gymnasium.Env):
   - v0: initial release.
   """
 
-  metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
-  model_file = "ship.xml"
-
   def __init__(self, level=goal_core.DEFAULT_LEVEL, backend="mujoco", render_mode=None,
                strict=False, max_steps=None, width=640, height=480, camera=None,
                gate_reward=core.GATE_REWARD, out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD):
     self.level = level
     self.level_range = goal_core.level_range(level, "ShipGoalEnv")
-    self.rules = ship_task.ShipRules("steer", max_steps, gate_reward, out_of_bounds_reward)
-    if render_mode not in (None, "rgb_array"):
-      raise ValueError(f"unknown render_mode {render_mode!r}; valid: None, 'rgb_array'")
+    super().__init__("steer", backend, render_mode, strict, max_steps, width, height, camera,
+                     gate_reward, out_of_bounds_reward)
     self._name = f"ShipGoal({level}, backend={backend})"
-    self.backend = ship_env.make_backend(backend)
-    self.strict = bool(strict)
-    self.render_mode = render_mode
     self.observation_space, self.action_space = spaces_of(self.rules)
-    if render_mode is not None:
-      _assets.check_frame_size(self.model_file, width, height, self._name)
-    self._width, self._height = int(width), int(height)
-    self._camera = camera or "top"
-    self._renderer = None
-    self._trail = []
-    self._steps = 0
     self._desired = np.zeros(4)
     self._judge = goal_core.OneShip(self.rules)
 
@@ -118,7 +102,7 @@ class ShipGoalEnv(gymnasium.Env):
             "desired_goal": self._desired.copy()}
 
   def reset(self, *, seed=None, options=None):
-    super().reset(seed=seed)
+    gymnasium.Env.reset(self, seed=seed)    # the steering task's reset knows no gate
     options = dict(options or {})
     unknown = set(options) - {"state", "gate"}
     if unknown:
@@ -157,20 +141,8 @@ class ShipGoalEnv(gymnasium.Env):
     return goal_core.compute_reward(achieved_goal, desired_goal, self.rules.success_reward,
                                     self.rules.failure_reward)
 
-  def render(self):
-    if self.render_mode is None:
-      gymnasium.logger.warn("render() called without a render_mode; pass render_mode='rgb_array'")
-      return None
-    from hpg_mj.render import scenes  # drawn in a worker process (SPEC section 9)
-    if self._renderer is None:
-      self._renderer = scenes.ShipScene(self._width, self._height)
-    return self._renderer.render(self.backend.state(), np.asarray(self._trail),
-                                 camera=self._camera, gate=goal_core.gate_posts(self._desired))
-
-  def close(self):
-    if self._renderer is not None:
-      self._renderer.close()
-      self._renderer = None
+  def _drawn(self):
+    return {"gate": goal_core.gate_posts(self._desired)}
 
 
 class ShipGoalVectorEnv(vector.ShipSteeringVectorEnv):
