@@ -49,6 +49,25 @@ def bench_analytic_batch(min_seconds, ships=1024, controls=200):
   return _timed(run, min_seconds)
 
 
+def bench_current_batch(min_seconds, level="hard", ships=1024, controls=200):
+  """`bench_analytic_batch` for the ship in a current: the same starts and turning
+  rates, every ship sailing (`ship_current_core.drift_batch`)."""
+  from hpg_mj.worlds import ship_current_core as current_core
+  rng = np.random.default_rng(0)
+  states = np.column_stack([rng.uniform(0, 1000, ships), rng.uniform(0, 1000, ships),
+                            rng.uniform(-180, 180, ships), rng.uniform(-15, 15, ships)])
+  r = rng.uniform(-15, 15, ships)
+  samples = np.empty((ships, core.SAMPLES_PER_CONTROL + 1, 2))
+  active = np.ones(ships, dtype=np.bool_)
+  field = current_core.level_field(level)
+
+  def run():
+    for _ in range(controls):
+      current_core.drift_batch(states, r, active, samples, field)
+    return ships * controls * core.SAMPLES_PER_CONTROL
+  return _timed(run, min_seconds)
+
+
 def _bench_dm_env(env, action, min_seconds, chunk=2000):
   env.reset()
 
@@ -97,9 +116,15 @@ def bench_envs(min_seconds=1.0):
                bench_analytic_single(min_seconds)))
   rows.append(("analytic ship, batch of 1024 (compiled)", "0.2 s steps/s",
                bench_analytic_batch(min_seconds)))
+  rows.append(("analytic ship in the hard current, batch of 1024 (compiled)", "0.2 s steps/s",
+               bench_current_batch(min_seconds)))
   rows.append(("dm_control ship steer (MuJoCo)", "control steps/s",
                _bench_dm_env(suite.load("ship", "steer", {"random": 0}), np.array([5.0]),
                              min_seconds)))
+  for domain in ("ship_current", "ship_goal"):
+    rows.append((f"dm_control {domain} hard (MuJoCo)", "control steps/s",
+                 _bench_dm_env(suite.load(domain, "hard", {"random": 0}), np.array([5.0]),
+                               min_seconds)))
   ship_actions = [np.array([r]) for r in np.random.default_rng(0).uniform(-15, 15, 97)]
   for backend in ("mujoco", "analytic"):   # as a user gets it: with gymnasium.make's wrappers
     env = gymnasium.make("hpg_mj/ShipSteering-v0", backend=backend)
@@ -110,10 +135,20 @@ def bench_envs(min_seconds=1.0):
   env = gymnasium.make_vec("hpg_mj/ShipSteering-v0", 1024, backend="analytic")
   rows.append(("Gymnasium ShipSteering-v0 analytic, make_vec batch of 1024", "control steps/s",
                _bench_vector_env(env, rng.uniform(-15, 15, (97, 1024, 1)), min_seconds)))
+  for name in ("ShipCurrent", "ShipGoal"):      # the ladder's tasks, at their hardest
+    env = gymnasium.make_vec(f"hpg_mj/{name}-v0", 1024, level="hard", backend="analytic")
+    rows.append((f"Gymnasium {name}-v0 hard analytic, make_vec batch of 1024",
+                 "control steps/s",
+                 _bench_vector_env(env, rng.uniform(-15, 15, (97, 1024, 1)), min_seconds)))
   env = gymnasium.make_vec("hpg_mj/ShipSteering-v0", 16, backend="mujoco")
   rows.append(("Gymnasium ShipSteering-v0 mujoco, make_vec batch of 16 (loop)",
                "control steps/s",
                _bench_vector_env(env, rng.uniform(-15, 15, (97, 16, 1)), min_seconds, 20)))
+  for name in ("ShipCurrent", "ShipGoal"):
+    env = gymnasium.make_vec(f"hpg_mj/{name}-v0", 16, level="hard", backend="mujoco")
+    rows.append((f"Gymnasium {name}-v0 hard mujoco, make_vec batch of 16 (loop)",
+                 "control steps/s",
+                 _bench_vector_env(env, rng.uniform(-15, 15, (97, 16, 1)), min_seconds, 20)))
   env = gymnasium.make_vec("hpg_mj/TaxiFuel-v0", 1024)
   rows.append(("Gymnasium TaxiFuel-v0, make_vec batch of 1024", "primitive steps/s",
                _bench_vector_env(env, rng.integers(0, 7, (101, 1024)), min_seconds)))

@@ -15,8 +15,28 @@ def _cmd_verify(args):
     print(f"  {len(checks) - len(failed)} of {len(checks)} passed" + (
         f"; FAILED: {', '.join(f'{c.task} {c.path}' for c in failed)}" if failed else ""))
     return 1 if failed else 0
+  if args.what == "current":
+    results = verify.verify_current(controls=args.controls, starts=args.starts, seed=args.seed)
+    print(f"ship in a current: {args.starts} random starts x {args.controls} random controls "
+          "per level, against the continuous ODE (largest position and heading errors)")
+    for result in results:
+      print(result.line())
+    ok = all(result.passed for result in results)
+    print("  bounds (< 0.25 m, < 0.25 deg, <= half the Euler error):", "met" if ok else "NOT MET")
+    return 0 if ok else 1
+  if args.what == "goal":
+    results = verify.verify_goal(episodes=args.starts, seed=args.seed)
+    print(f"goal-conditioned ship: {args.starts} episodes per level of the scripted helmsman "
+          "on the analytic ship, its turning rates replayed on the MuJoCo ship")
+    for result in results:
+      print(result.line())
+    ok = all(result.passed for result in results)
+    print("  bounds (< 1.5 m apart, the gate's geoms at the rule's, >= 95% same ends):",
+          "met" if ok else "NOT MET")
+    return 0 if ok else 1
   if args.what != "ship":
-    raise SystemExit(f"hpg-mj verify: unknown check {args.what!r}; valid: ship, golden")
+    raise SystemExit(f"hpg-mj verify: unknown check {args.what!r}; valid: ship, current, goal, "
+                     "golden")
   result = verify.verify_ship(controls=args.controls, starts=args.starts, seed=args.seed)
   print("\n".join(result.lines()))
   # SPEC section 1: within 0.25 m and 0.25 deg, and at most half the Euler model's error.
@@ -703,8 +723,11 @@ def build_parser():
   sub = parser.add_subparsers(dest="command", required=True)
 
   p = sub.add_parser("verify", help="ship: the MuJoCo ship against the continuous ODE; "
+                                    "current: both ships in each level's current, likewise; "
+                                    "goal: the goal task's two ships, episode by episode "
+                                    "(--starts episodes per level); "
                                     "golden: every task's stored trajectory, replayed")
-  p.add_argument("what", choices=["ship", "golden"])
+  p.add_argument("what", choices=["ship", "current", "goal", "golden"])
   p.add_argument("--controls", type=_at_least(1), default=1000,
                  help="random 0.6 s controls per start")
   p.add_argument("--starts", type=_at_least(1), default=3, help="random starting states")

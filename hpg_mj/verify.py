@@ -1,4 +1,5 @@
 """`hpg-mj verify ship`: the two ships against the continuous ODE (SPEC section 1);
+`hpg-mj verify current`: the two ships in each level's current, likewise;
 `hpg-mj verify golden`: the stored golden trajectories of every task, replayed.
 
 The continuous ship: d(theta_dot)/dt = (r - theta_dot)/T, d(theta)/dt = theta_dot,
@@ -132,6 +133,22 @@ SHIP_GYMNASIUM_IDS = {"steer": "hpg_mj/ShipSteering-v0",
                       "diagonal": "hpg_mj/ShipSteeringDiagonal-v0",
                       "straight": "hpg_mj/ShipSteeringStraight-v0",
                       "patrol": "hpg_mj/ShipPatrol-v0"}
+# The other ship domains, whose tasks are levels: domain -> its Gymnasium id (`level=`).
+SHIP_LEVEL_IDS = {"ship_current": "hpg_mj/ShipCurrent-v0", "ship_goal": "hpg_mj/ShipGoal-v0"}
+
+
+def _flat(obs):
+  """An observation as one row: a goal-conditioned dictionary's parts in key order."""
+  if isinstance(obs, dict):
+    return np.concatenate([np.ravel(obs[key]) for key in sorted(obs)])
+  return obs
+
+
+def _ship_gymnasium(domain, task):
+  """(Gymnasium id, make() arguments) of a ship domain's task, on the analytic ship."""
+  if domain == "ship":
+    return SHIP_GYMNASIUM_IDS[task], {"backend": "analytic"}
+  return SHIP_LEVEL_IDS[domain], {"backend": "analytic", "level": task}
 
 
 def golden_dir():
@@ -149,6 +166,10 @@ def golden_dir():
 # gate heading almost west, sails straight (r = 0) through the gate and on out of
 # the field, and after the restart turns as the other tasks' do.
 SHIP_GOLDEN_STARTS = {"patrol": (440.0, 390.15, -80.0, 0.0)}
+# The goal tasks' first episode sails from 9.85 m south of a gate at (400, 400) heading
+# north straight through it (its pass is the episode's end at the sixth step); the
+# episodes after it draw their starts and gates.
+GOAL_GOLDEN_FIRST = {"state": (400.0, 390.15, 0.0, 0.0), "gate": (400.0, 400.0, 0.0)}
 PATROL_GOLDEN_STRAIGHT = 260     # control steps at r = 0 before the random turns
 
 
@@ -160,33 +181,42 @@ def ship_golden_actions(task=None):
   return turns
 
 
-def ship_analytic_rollout(task, actions=None):
+def ship_analytic_rollout(task, actions=None, domain="ship"):
   """(observations, rewards, ends) of the analytic ship through Gymnasium; ends:
   0 going on, 1 truncated, 2 terminated (then reset)."""
   import gymnasium
 
   import hpg_mj  # noqa: F401  (registers the ids)
-  env = gymnasium.make(SHIP_GYMNASIUM_IDS[task], backend="analytic").unwrapped
-  start = SHIP_GOLDEN_STARTS.get(task)
-  obs, _ = env.reset(seed=GOLDEN_SEED, options=None if start is None else {"state": start})
-  rows, rewards, ends = [obs], [], []
+  env_id, kwargs = _ship_gymnasium(domain, task)
+  env = gymnasium.make(env_id, **kwargs).unwrapped
+  start = SHIP_GOLDEN_STARTS.get(task) if domain == "ship" else None
+  options = GOAL_GOLDEN_FIRST if domain == "ship_goal" else (
+      None if start is None else {"state": start})
+  obs, _ = env.reset(seed=GOLDEN_SEED, options=options)
+  rows, rewards, ends = [_flat(obs)], [], []
   for a in ship_golden_actions(task) if actions is None else actions:
     obs, reward, terminated, truncated, _ = env.step(a)
     rewards.append(reward)
     ends.append(2 * terminated + truncated)
     if terminated or truncated:
       obs, _ = env.reset()
-    rows.append(obs)
+    rows.append(_flat(obs))
   return np.array(rows), np.array(rewards), np.array(ends)
 
 
-def ship_mujoco_rollout(task, actions=None):
+def ship_mujoco_rollout(task, actions=None, domain="ship"):
   """The same on the MuJoCo ship through the dm_control suite."""
   from hpg_mj import suite
-  env = suite.load("ship", task, {"random": GOLDEN_SEED,
-                                   "initial_state": SHIP_GOLDEN_STARTS.get(task)})
+  kwargs = {"random": GOLDEN_SEED}
+  if domain == "ship_goal":
+    kwargs.update(initial_state=GOAL_GOLDEN_FIRST["state"], gate=GOAL_GOLDEN_FIRST["gate"])
+  elif domain == "ship":
+    kwargs["initial_state"] = SHIP_GOLDEN_STARTS.get(task)
+  env = suite.load(domain, task, kwargs)
   flat = lambda ts: np.concatenate([np.ravel(v) for v in ts.observation.values()])  # noqa: E731
   ts = env.reset()
+  if domain == "ship_goal":                    # the first episode only
+    env.task.initial_state = env.task.gate = None
   rows, rewards, ends = [flat(ts)], [], []
   for a in ship_golden_actions(task) if actions is None else actions:
     ts = env.step(a)
@@ -249,15 +279,15 @@ class GoldenCheck:
             f"{self.deviation:.3g} (tolerance {tolerance}){events}")
 
 
-def _check_ship(task, golden):
+def _check_ship(task, golden, domain="ship"):
   rows = []
-  obs, rewards, ends = ship_analytic_rollout(task, golden["actions"])
-  rows.append(GoldenCheck(f"ship/{task}", "analytic (Gymnasium)",
+  obs, rewards, ends = ship_analytic_rollout(task, golden["actions"], domain)
+  rows.append(GoldenCheck(f"{domain}/{task}", "analytic (Gymnasium)",
                           max(_deviation(obs, golden["analytic_obs"]),
                               _deviation(rewards, golden["analytic_rewards"])), 0.0,
                           np.array_equal(ends, golden["analytic_ends"])))
-  obs, rewards, ends = ship_mujoco_rollout(task, golden["actions"])
-  rows.append(GoldenCheck(f"ship/{task}", "MuJoCo (dm_control)",
+  obs, rewards, ends = ship_mujoco_rollout(task, golden["actions"], domain)
+  rows.append(GoldenCheck(f"{domain}/{task}", "MuJoCo (dm_control)",
                           max(_deviation(obs, golden["mujoco_obs"]),
                               _deviation(rewards, golden["mujoco_rewards"])), MUJOCO_TOLERANCE,
                           np.array_equal(ends, golden["mujoco_ends"])))
@@ -290,7 +320,8 @@ def verify_golden():
       continue
     try:
       with np.load(path, allow_pickle=False) as golden:
-        checks += (_check_ship if domain == "ship" else _check_taxi)(task, golden)
+        checks += (_check_taxi(task, golden) if domain == "taxi"
+                   else _check_ship(task, golden, domain))
     except Exception as err:  # noqa: BLE001  (a failed replay is a failed check, named)
       checks.append(GoldenCheck(f"{domain}/{task}", "-", float("inf"), 0.0, False,
                                 f"replay failed: {type(err).__name__}: {err}"))
@@ -302,3 +333,186 @@ def golden_versions():
   from hpg_mj import provenance
   v = provenance.versions()
   return ", ".join(f"{k} {v[k]}" for k in ("mujoco", "dm_control", "numba", "numpy", "gymnasium"))
+
+
+# ---- `hpg-mj verify current`: the ships in a current against the continuous ODE -----
+
+def exact_current_trajectory(state, controls, field):
+  """The continuous ship in a current (ship_current_core): Equation 1's heading and
+  turning rate, and over ground V * heading + c(x, y); states [x, y, theta_deg
+  (unwrapped), theta_dot_deg] at every sampling instant, by an 8th-order Runge-Kutta
+  integrator (scipy's DOP853) at tolerances far below the errors measured."""
+  from scipy.integrate import solve_ivp
+
+  from hpg_mj.worlds import ship_current_core as current_core
+  field = np.asarray(field, dtype=np.float64)
+  dt, k = core.SAMPLING_INTERVAL, core.SAMPLES_PER_CONTROL
+  times = dt * np.arange(1, k + 1)
+
+  def rates(_, s, r):
+    theta = np.radians(s[2])
+    cx, cy = current_core.current_at(field, s[0], s[1])
+    return (core.SPEED * np.sin(theta) + cx, core.SPEED * np.cos(theta) + cy, s[3],
+            (r - s[3]) / core.TIME_CONSTANT)
+
+  s = np.array(state, dtype=np.float64)
+  out = np.empty((len(controls) * k, 4))
+  for i, r in enumerate(controls):
+    solution = solve_ivp(rates, (0.0, k * dt), s, method="DOP853", t_eval=times,
+                         args=(float(r),), rtol=1e-11, atol=1e-9)
+    out[i * k:(i + 1) * k] = solution.y.T
+    s = solution.y[:, -1].copy()
+  return out
+
+
+def drift_trajectory(state, controls, field):
+  """The analytic ship in a current (`ship_current_core.drift_sample`) every 0.2 s."""
+  from hpg_mj.worlds import ship_current_core as current_core
+  s = np.array(state, dtype=np.float64)
+  field = np.asarray(field, dtype=np.float64)
+  out = []
+  for r in controls:
+    for _ in range(core.SAMPLES_PER_CONTROL):
+      current_core.drift_sample(s, r, field, core.SPEED, core.TIME_CONSTANT,
+                                core.SAMPLING_INTERVAL)
+      out.append(s.copy())
+  return np.array(out)
+
+
+@dataclasses.dataclass
+class CurrentVerification:
+  level: str
+  controls: int
+  starts: int
+  max_current_m_s: float
+  mujoco_position_m: float
+  mujoco_heading_deg: float
+  euler_position_m: float
+  euler_heading_deg: float
+
+  def line(self):
+    return (f"  {self.level:<7} (water up to {self.max_current_m_s:.2f} m/s): MuJoCo "
+            f"{self.mujoco_position_m:.4f} m, {self.mujoco_heading_deg:.4f} deg; analytic "
+            f"(Euler) {self.euler_position_m:.4f} m, {self.euler_heading_deg:.4f} deg; "
+            f"MuJoCo / Euler position error "
+            f"{self.mujoco_position_m / self.euler_position_m:.3f}")
+
+  @property
+  def passed(self):
+    """SPEC section 1's bounds for the steering ship, kept in the current: within
+    0.25 m and 0.25 deg, and at most half the Euler model's position error."""
+    return (self.mujoco_position_m < 0.25 and self.mujoco_heading_deg < 0.25
+            and self.mujoco_position_m <= 0.5 * self.euler_position_m)
+
+
+def verify_current(controls=1000, starts=3, seed=0, levels=None):
+  """Largest errors of both ships in each level's current against the continuous
+  solution (as `verify_ship`): one CurrentVerification per level."""
+  from hpg_mj.worlds import ship_current
+  from hpg_mj.worlds import ship_current_core as current_core
+  if controls < 1 or starts < 1:
+    raise ValueError(f"controls and starts must be positive, got {controls} and {starts}")
+  results = []
+  physics = ship_current.Physics.from_xml_string(*ship_current.get_model_and_assets())
+  for level in levels or tuple(current_core.LEVELS):
+    field = current_core.level_field(level, "hpg-mj verify current")
+    physics.set_field(field)
+    rng = np.random.default_rng(seed)
+    rules = ship.ShipRules("steer")
+    worst = np.zeros(4)
+    for _ in range(starts):
+      start = rules.sample_start(rng)
+      rs = rng.uniform(-core.MAX_TURN_RATE, core.MAX_TURN_RATE, controls)
+      reference = exact_current_trajectory(start, rs, field)
+      mj_err = _errors(mujoco_trajectory(start, rs, physics), reference)
+      eu_err = _errors(drift_trajectory(start, rs, field), reference)
+      worst = np.maximum(worst, (*mj_err, *eu_err))
+    results.append(CurrentVerification(level, controls, starts, current_core.max_speed(field),
+                                       *worst))
+  return results
+
+
+# ---- `hpg-mj verify goal`: the goal task's two backends, episode by episode ------------
+
+@dataclasses.dataclass
+class GoalVerification:
+  level: str
+  episodes: int
+  analytic_passes: int          # episodes the scripted helmsman ended at the gate
+  same_outcome: int             # episodes both ships ended alike, within one control step
+  largest_position_m: float     # MuJoCo against analytic, over every step sailed
+  gate_geoms_m: float           # the MuJoCo gate's posts against the rule's, largest
+
+  def line(self):
+    return (f"  {self.level:<7} {self.episodes} episodes: helmsman passed "
+            f"{self.analytic_passes}; same end within a step on both ships "
+            f"{self.same_outcome}; MuJoCo vs analytic position at most "
+            f"{self.largest_position_m:.3f} m; MuJoCo gate posts off the rule's by "
+            f"{self.gate_geoms_m:.1e} m")
+
+  @property
+  def passed(self):
+    """The ships differ by their discretisations only (the analytic ship strays about
+    1 m from the continuous one in 600 s, `hpg-mj verify ship`; MuJoCo's 0.04 m), the
+    MuJoCo gate stands where the rule's is, and at most one episode in 20 ends
+    differently. A pass is seen one control step earlier or later when the ships are a
+    metre apart along the track (the window is 1.8 m deep): that counts as the same end."""
+    return (self.largest_position_m < 1.5 and self.gate_geoms_m < 1e-9
+            and self.same_outcome >= 0.95 * self.episodes)
+
+
+def _goal_episode(env, seed, actions=None, start=None, steps=2000):
+  """(states, events, actions) of one episode of `env` (a ShipGoalEnv): the scripted
+  helmsman's choices, or `actions` replayed from `start` (and the last one held for
+  one more control step, should the episode not have ended)."""
+  from hpg_mj.worlds import ship_goal_core as goal_core
+  obs, _ = env.reset(seed=seed, options=start)
+  states, events, chosen, phase = [obs["observation"]], [None], [], 0
+  for t in range(steps if actions is None else len(actions) + 1):
+    if actions is None:
+      tx, ty, phase = goal_core.pilot_target(obs["observation"], phase, obs["desired_goal"])
+      r = core.pilot_turn_rate(obs["observation"], tx, ty)
+    else:
+      r = actions[min(t, len(actions) - 1)]
+    obs, _, terminated, truncated, info = env.step(np.array([r]))
+    states.append(obs["observation"])
+    events.append(info["event"])
+    chosen.append(r)
+    if terminated or truncated:
+      break
+  return np.array(states), events, chosen
+
+
+def verify_goal(episodes=20, seed=0, levels=None):
+  """Per level, `episodes` episodes of the scripted helmsman on the analytic ship, its
+  turning rates replayed on the MuJoCo ship from the same start through the same gate:
+  one GoalVerification per level."""
+  import gymnasium
+
+  import hpg_mj  # noqa: F401  (registers the ids)
+  from hpg_mj.worlds import ship_goal_core as goal_core
+  if episodes < 1:
+    raise ValueError(f"episodes must be positive, got {episodes}")
+  results = []
+  for level in levels or tuple(goal_core.LEVELS):
+    goal_core.level_range(level, "hpg-mj verify goal")
+    analytic = gymnasium.make("hpg_mj/ShipGoal-v0", level=level, backend="analytic").unwrapped
+    mujoco = gymnasium.make("hpg_mj/ShipGoal-v0", level=level, backend="mujoco").unwrapped
+    passes = same = 0
+    largest = posts_off = 0.0
+    for episode in range(episodes):
+      states, events, actions = _goal_episode(analytic, seed * 100_003 + episode)
+      desired = analytic._desired
+      start = {"state": states[0], "gate": [desired[0], desired[1],
+                                            goal_core.gate_heading_deg(desired)]}
+      replay, replay_events, _ = _goal_episode(mujoco, None, actions, start)
+      n = min(len(states), len(replay))
+      largest = max(largest, float(np.hypot(*(states[:n, :2] - replay[:n, :2]).T).max()))
+      passes += events[-1] == "gate"
+      same += abs(len(replay) - len(states)) <= 1 and replay_events[-1] == events[-1]
+      drawn = np.array([mujoco.backend.physics.named.model.geom_pos[name][:2]
+                        for name in ("gate_post_west", "gate_post_east")])
+      posts_off = max(posts_off, float(np.abs(drawn - goal_core.gate_posts(
+          analytic._desired)).max()))
+    results.append(GoalVerification(level, episodes, passes, same, largest, posts_off))
+  return results

@@ -31,7 +31,10 @@ def _rollout(env, seed, n=N_STEPS):
 
 def test_all_tasks_listed():
   assert set(suite.ALL_TASKS) == {("ship", "steer"), ("ship", "diagonal"), ("ship", "straight"),
-                                  ("ship", "patrol"), ("taxi", "fuel"), ("taxi", "classic")}
+                                  ("ship", "patrol"), ("taxi", "fuel"), ("taxi", "classic"),
+                                  ("ship_current", "easy"), ("ship_current", "medium"),
+                                  ("ship_current", "hard"), ("ship_goal", "easy"),
+                                  ("ship_goal", "medium"), ("ship_goal", "hard")}
 
 
 @pytest.mark.parametrize("domain,task", suite.ALL_TASKS)
@@ -100,7 +103,7 @@ def test_initial_states_are_random(domain, task):
 
 
 def test_unknown_domain_and_task_list_the_valid_ones():
-  with pytest.raises(ValueError, match=r"unknown domain 'boat'.*'ship', 'taxi'"):
+  with pytest.raises(ValueError, match=r"unknown domain 'boat'.*'ship', 'ship_current', 'ship_goal', 'taxi'"):
     suite.load("boat", "steer")
   with pytest.raises(ValueError, match=r"unknown task 'sail'.*'diagonal', 'patrol', 'steer', 'straight'"):
     suite.load("ship", "sail")

@@ -41,14 +41,27 @@ TASKS = {
     ("taxi", "classic"): ("hpg_mj/Taxi-v0", "videos/taxi_fuel_scripted.gif",
                           "the board (shown here with the fuel station F, which the "
                           "classic task does not have)"),
+    **{("ship_current", level): (
+        "hpg_mj/ShipCurrent-v0", f"figures/tasks/ship_current_{level}.png",
+        f"the still-water helmsman in the {level} current: where its wake bends, the water "
+        "carried the ship (`scripts/task_pictures.py`)") for level in ("easy", "medium", "hard")},
+    **{("ship_goal", level): (
+        "hpg_mj/ShipGoal-v0", f"figures/tasks/ship_goal_{level}.png",
+        f"a gate of the {level} level and the scripted helmsman's way through it "
+        "(`scripts/task_pictures.py`)") for level in ("easy", "medium", "hard")},
 }
+
+# Domains whose tasks are the levels of one Gymnasium id (its `level` argument).
+_LEVEL_DOMAINS = ("ship_current", "ship_goal")
 
 # Gymnasium's make() arguments for building each id here: the analytic ship needs
 # neither MuJoCo nor a renderer.
 _MAKE_KWARGS = {"hpg_mj/ShipSteering-v0": {"backend": "analytic"},
                 "hpg_mj/ShipSteeringDiagonal-v0": {"backend": "analytic"},
                 "hpg_mj/ShipSteeringStraight-v0": {"backend": "analytic"},
-                "hpg_mj/ShipPatrol-v0": {"backend": "analytic"}}
+                "hpg_mj/ShipPatrol-v0": {"backend": "analytic"},
+                "hpg_mj/ShipCurrent-v0": {"backend": "analytic"},
+                "hpg_mj/ShipGoal-v0": {"backend": "analytic"}}
 
 
 def page_name(domain, task):
@@ -60,7 +73,7 @@ def _check_coverage():
   if set(TASKS) != set(suite.ALL_TASKS):
     raise ValueError(f"docs/_ext/task_pages.py TASKS names {sorted(TASKS)}, the suite has "
                      f"{sorted(suite.ALL_TASKS)}: add or remove the task's page")
-  ids = sorted(env_id for env_id, _, _ in TASKS.values())
+  ids = sorted({env_id for env_id, _, _ in TASKS.values()})
   if ids != sorted(envs.ENV_IDS):
     raise ValueError(f"docs/_ext/task_pages.py TASKS names the ids {ids}, hpg_mj registers "
                      f"{sorted(envs.ENV_IDS)}")
@@ -137,13 +150,15 @@ def render(domain, task):
   module = suite._DOMAINS[domain]
   constructor = module.SUITE[task]
   cls = _entry_class(env_id)
-  env = gymnasium.make(env_id, **_MAKE_KWARGS.get(env_id, {}))
+  level = {"level": task} if domain in _LEVEL_DOMAINS else {}
+  env = gymnasium.make(env_id, **_MAKE_KWARGS.get(env_id, {}), **level)
   dm_env = suite.load(domain, task)
+  arguments = f", level={task!r}" if level else ""
   try:
     facts = [
         ("dm_control", f"`suite.load({domain!r}, {task!r})`"),
-        ("Gymnasium", f"`gymnasium.make({env_id!r})`"),
-        ("vector", f"`gymnasium.make_vec({env_id!r}, num_envs=N)` "
+        ("Gymnasium", f"`gymnasium.make({env_id!r}{arguments})`"),
+        ("vector", f"`gymnasium.make_vec({env_id!r}, num_envs=N{arguments})` "
                    f"(`{envs.VECTOR_ENTRY_POINTS[envs.ENV_IDS[env_id][0]]}`)"),
         ("entry point", f"`{envs.ENV_IDS[env_id][0]}` with `{envs.ENV_IDS[env_id][1]!r}`"),
         ("action space", f"`{env.action_space!r}`"),

@@ -8,6 +8,8 @@ ENV_IDS = {
     "hpg_mj/ShipSteeringDiagonal-v0": ("hpg_mj.envs.ship:ShipSteeringEnv", {"task": "diagonal"}),
     "hpg_mj/ShipSteeringStraight-v0": ("hpg_mj.envs.ship:ShipSteeringEnv", {"task": "straight"}),
     "hpg_mj/ShipPatrol-v0": ("hpg_mj.envs.ship:ShipSteeringEnv", {"task": "patrol"}),
+    "hpg_mj/ShipCurrent-v0": ("hpg_mj.envs.ship_current:ShipCurrentEnv", {"level": "easy"}),
+    "hpg_mj/ShipGoal-v0": ("hpg_mj.envs.ship_goal:ShipGoalEnv", {"level": "easy"}),
     "hpg_mj/TaxiFuel-v0": ("hpg_mj.envs.taxi:TaxiEnv", {"fuel": True}),
     "hpg_mj/Taxi-v0": ("hpg_mj.envs.taxi:TaxiEnv", {"fuel": False}),
 }
@@ -15,6 +17,8 @@ ENV_IDS = {
 VECTOR_ENTRY_POINTS = {
     "hpg_mj.envs.ship:ShipSteeringEnv": "hpg_mj.envs.vector:ShipSteeringVectorEnv",
     "hpg_mj.envs.taxi:TaxiEnv": "hpg_mj.envs.vector:TaxiVectorEnv",
+    "hpg_mj.envs.ship_current:ShipCurrentEnv": "hpg_mj.envs.ship_current:ShipCurrentVectorEnv",
+    "hpg_mj.envs.ship_goal:ShipGoalEnv": "hpg_mj.envs.ship_goal:ShipGoalVectorEnv",
 }
 
 

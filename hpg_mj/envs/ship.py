@@ -161,7 +161,7 @@ class ShipSteeringEnv(gymnasium.Env):
     self.rules = ship_task.ShipRules(task, max_steps, gate_reward, out_of_bounds_reward)
     if render_mode not in (None, "rgb_array"):
       raise ValueError(f"unknown render_mode {render_mode!r}; valid: None, 'rgb_array'")
-    self.backend = make_backend(backend)
+    self.backend = self._make_backend(backend)
     self.task = task
     self.strict = bool(strict)
     self.render_mode = render_mode
@@ -174,6 +174,10 @@ class ShipSteeringEnv(gymnasium.Env):
     self._renderer = None
     self._trail = []
     self._steps = 0
+
+  def _make_backend(self, name):
+    """The ship this environment sails (a task on other water brings its own)."""
+    return make_backend(name)
 
   def reset(self, *, seed=None, options=None):
     super().reset(seed=seed)
@@ -216,7 +220,12 @@ class ShipSteeringEnv(gymnasium.Env):
     if self._renderer is None:
       self._renderer = scenes.ShipScene(self._width, self._height)
     return self._renderer.render(self.backend.state(), np.asarray(self._trail),
-                                 target=self.rules.goal, camera=self._camera)
+                                 camera=self._camera, **self._drawn())
+
+  def _drawn(self):
+    """What the frame shows beside the ship: a subtask's goal disc (a task with a gate of
+    its own draws it)."""
+    return {"target": self.rules.goal}
 
   def close(self):
     if self._renderer is not None:

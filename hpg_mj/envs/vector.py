@@ -88,6 +88,10 @@ class _BatchedEnv(VectorEnv):
     self._ended = np.zeros(self.num_envs, dtype=np.bool_)   # ended at the last step
     self._started = False
 
+  def _observation_of(self, observations, i):
+    """Copy i's observation out of the batch's (a dictionary's subclass says how)."""
+    return observations[i]
+
   def reset(self, *, seed=None, options=None):
     seeds = _seeds(seed, self.num_envs, self.who)
     options = dict(options or {})
@@ -141,7 +145,7 @@ class _BatchedEnv(VectorEnv):
         final_obs = np.full(self.num_envs, None, dtype=object)
         last = self._observations()
         for i in restart.tolist():
-          final_obs[i] = last[i]
+          final_obs[i] = self._observation_of(last, i)
         final_info = _select_info(info, restart, self.num_envs)
         self._start(restart, {})
         _drop_info(info, restart)
@@ -220,8 +224,8 @@ class _MujocoShips:
 
   integrate = False
 
-  def __init__(self, num_envs):
-    self.ships = [ship_env.MujocoBackend() for _ in range(num_envs)]
+  def __init__(self, num_envs, make_ship=ship_env.MujocoBackend):
+    self.ships = [make_ship() for _ in range(num_envs)]
 
   def set_state(self, states, i, state):
     self.ships[i].set_state(state)
@@ -271,13 +275,7 @@ class ShipSteeringVectorEnv(_BatchedEnv):
       raise ValueError(f"{who}: render_mode {render_mode!r} is not supported by the batch; "
                        "allowed: None (render a single ShipSteeringEnv)")
     self.rules = ship_task.ShipRules(task, max_steps, gate_reward, out_of_bounds_reward)
-    if backend == "analytic":
-      self._ships = _AnalyticShips(self.num_envs)
-    elif backend == "mujoco":
-      self._ships = _MujocoShips(self.num_envs)
-    else:
-      raise ValueError(f"unknown ship backend {backend!r}; valid backends: "
-                       f"{list(ship_env.BACKENDS)}")
+    self._ships = self._make_ships(backend)
     self.task, self.backend, self.strict = task, backend, bool(strict)
     self.single_observation_space, self.single_action_space = ship_env.spaces_of(self.rules)
     self.observation_space = batch_space(self.single_observation_space, self.num_envs)
@@ -295,6 +293,15 @@ class ShipSteeringVectorEnv(_BatchedEnv):
     self._is_steer = self.rules.goal is None
     self._goal = np.zeros(2) if self._is_steer else self.rules.goal.copy()
     self._shapes = ((n, 1), (n,))
+
+  def _make_ships(self, backend):
+    """The batch's ships (a task on other water brings its own)."""
+    if backend == "analytic":
+      return _AnalyticShips(self.num_envs)
+    if backend == "mujoco":
+      return _MujocoShips(self.num_envs)
+    raise ValueError(f"unknown ship backend {backend!r}; valid backends: "
+                     f"{list(ship_env.BACKENDS)}")
 
   def _start(self, indices, options):
     given = options.get("state")

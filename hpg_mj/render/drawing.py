@@ -82,11 +82,12 @@ class ShipDrawing:
   def render_first(self):
     self.render(state=np.array([500.0, 500.0, 0.0, 0.0]))
 
-  def render(self, state, trail=(), target=None, camera="top", marks=()):
+  def render(self, state, trail=(), target=None, camera="top", marks=(), gate=None):
     model = self.physics.model.ptr
     camera_id = _camera_id(model, camera, "the ship model")
     self.physics.set_ship_state(state)
     self.physics.place_target(target)
+    self.physics.place_gate(gate)
     mujoco.mj_forward(model, self.physics.data.ptr)
     self._renderer.update_scene(self.physics.data.ptr, camera=camera_id)
     pixel = _pixel_size(model, camera_id, self.height)

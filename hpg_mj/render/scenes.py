@@ -20,17 +20,20 @@ class ShipScene:
     """The worker's OpenGL backend ("egl", "osmesa"), or None before the first frame."""
     return self._worker.backend
 
-  def render(self, state, trail=(), target=None, camera="top", marks=()):
+  def render(self, state, trail=(), target=None, camera="top", marks=(), gate=None):
     """An RGB frame (height, width, 3) of the ship at `state` [x, y, theta_deg, theta_dot_deg].
 
     `trail`: positions sailed so far, drawn as the wake. `target`: a subtask's
-    goal disc. `marks`: positions drawn as dots (the root's decisions).
+    goal disc. `marks`: positions drawn as dots (the root's decisions). `gate`: the
+    gate's two posts, rows (x, y), where the goal task drew it (SPEC section 2's
+    when None).
     """
     return self._worker.render(
         state=np.asarray(state, dtype=np.float64),
         trail=np.asarray(trail, dtype=np.float64).reshape(-1, 2),
         target=None if target is None else np.asarray(target, dtype=np.float64),
-        camera=camera, marks=np.asarray(marks, dtype=np.float64).reshape(-1, 2))
+        camera=camera, marks=np.asarray(marks, dtype=np.float64).reshape(-1, 2),
+        gate=None if gate is None else np.asarray(gate, dtype=np.float64))
 
   def close(self):
     self._worker.close()

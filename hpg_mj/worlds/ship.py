@@ -151,16 +151,21 @@ class ShipTask(base.Task):
     return self._outcome[3]
 
 
+def environment(physics, task, environment_kwargs=None):
+  """`control.Environment` of a ship `task` on `physics`: a control step of 0.6 s, and
+  the episode's length the task's own (truncation and failure differ by task)."""
+  environment_kwargs = dict(environment_kwargs or {})
+  environment_kwargs.setdefault("time_limit", float("inf"))
+  environment_kwargs.setdefault("control_timestep", core.CONTROL_INTERVAL)
+  return control.Environment(physics, task, **environment_kwargs)
+
+
 def _environment(kind, random, initial_state, strict, max_steps, environment_kwargs,
                  **rewards):
   physics = Physics.from_xml_string(*get_model_and_assets())
   task = ShipTask(kind, random=random, initial_state=initial_state, strict=strict,
                   max_steps=max_steps, **rewards)
-  environment_kwargs = dict(environment_kwargs or {})
-  # The task owns the episode's length (truncation vs. failure differ by task).
-  environment_kwargs.setdefault("time_limit", float("inf"))
-  environment_kwargs.setdefault("control_timestep", core.CONTROL_INTERVAL)
-  return control.Environment(physics, task, **environment_kwargs)
+  return environment(physics, task, environment_kwargs)
 
 
 @SUITE.add("benchmarking")

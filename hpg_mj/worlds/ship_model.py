@@ -217,6 +217,22 @@ class ShipPhysics(mujoco.Physics):
     pos = (-5000.0, -5000.0, -50.0) if xy is None else (xy[0], xy[1], 0.3)
     self.named.data.mocap_pos["target"] = pos
 
+  def place_gate(self, posts=None):
+    """Moves the gate's geoms (its two posts and the line between them) to `posts`,
+    rows (x, y) (the goal task's gate), or back to SPEC section 2's when None."""
+    posts = core.GATE if posts is None else np.asarray(posts, dtype=np.float64)
+    named = self.named.model
+    for name, (x, y) in zip(("gate_post_west", "gate_post_east"), posts):
+      named.geom_pos[name][:2] = (x, y)
+    (x0, y0), (x1, y1) = posts
+    half_angle = 0.5 * math.atan2(y1 - y0, x1 - x0)
+    named.geom_pos["gate_line"][:2] = (0.5 * (x0 + x1), 0.5 * (y0 + y1))
+    named.geom_quat["gate_line"] = (math.cos(half_angle), 0.0, 0.0, math.sin(half_angle))
+    # The compiler marked the line's frame as its body's turned by nothing, and MuJoCo
+    # then never reads its geom_quat: it must read it now.
+    self.model.geom_sameframe[self.model.name2id("gate_line", "geom")] = \
+        mj.mjtSameFrame.mjSAMEFRAME_NONE
+
   def sampled_positions(self):
     """Positions sampled during the last `step` (rows: start, then each 0.2 s)."""
     if self._samples is None:
@@ -240,6 +256,11 @@ class ShipPhysics(mujoco.Physics):
     # New arrays each step: callers keep the last step's samples and state.
     self._samples = positions = np.empty((rows.shape[0], 2))
     self.stepped_state = state = np.empty(4)   # `ship_state()` after this step, read with it
+    self._sail(substeps, rows, positions, state)
+
+  def _sail(self, substeps, rows, positions, state):
+    """The MuJoCo steps of one `step`: `substeps` per sample, the joint positions of
+    each sample into `rows`, then `bow_readings` (a ship on other water overrides it)."""
     if MJ_STEP:
       args = (MJ_STEP, self._addresses[0], self._addresses[1], substeps, self._qpos, self._act,
               self._bow, rows, positions, state)

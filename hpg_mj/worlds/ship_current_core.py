@@ -1,0 +1,111 @@
+"""The ship in a current (SPEC section 11): the water's velocity field of each level and
+Equation 1 with the drift it adds, compiled (numba), shared by every backend and path.
+Free of MuJoCo, as `ship_core` is (SPEC section 9).
+
+The water moves at `c(x, y)` (m/s) and carries the ship with it: over ground the ship
+sails `V * (sin(theta), cos(theta)) + c(x, y)`; heading and turning rate follow
+Equation 1 unchanged (the rudder turns the hull relative to the water). To cross a
+current the helmsman heads partly into it and the ship crabs: its track over ground
+is not its heading.
+
+One family of fields, four numbers per level (`LEVELS`), `s_x = x / 1000`,
+`s_y = y / 1000` clamped to [0, 1]:
+
+    c_x = uniform_x + river * 4 s_y (1 - s_y)      (a river along x, fastest mid-field)
+    c_y = uniform_y + cross * (2 s_x - 1)          (a cross flow, north on the east side)
+
+Each component varies only along the other axis, so the flow has no divergence (water
+is neither made nor lost). Polynomials, not sines: a sampling interval of Equation 1
+costs one sine and one cosine, and the field adds a few multiplications to it.
+"""
+import math
+
+import numba
+import numpy as np
+
+from hpg_mj.worlds import ship_core as core
+
+# level -> (uniform_x, uniform_y, river, cross), m/s.
+LEVELS = {
+    "easy": (1.0, 0.0, 0.0, 0.0),     # 1 m/s east everywhere
+    "medium": (0.5, 0.0, 1.5, 0.0),   # east, 0.5 m/s at the north and south edges, 2.0 mid-field
+    "hard": (0.5, 0.0, 2.2, 0.8),     # east up to 2.7 m/s mid-field; a cross flow of +-0.8 m/s
+}
+DEFAULT_LEVEL = "easy"
+
+
+def level_field(level, who="ship current"):
+  """The field's four numbers (a float64 array) of `level`, or a one-line error."""
+  if not isinstance(level, str) or level not in LEVELS:
+    raise ValueError(f"{who}: unknown level {level!r}; allowed levels: {list(LEVELS)}")
+  return np.array(LEVELS[level], dtype=np.float64)
+
+
+def max_speed(field):
+  """The fastest water (m/s) of a field anywhere: at the river's middle, at an edge."""
+  ux, uy, river, cross = (float(v) for v in field)
+  return math.hypot(max(abs(ux), abs(ux + river)), abs(uy) + abs(cross))
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def current_at(field, x, y):
+  """The water's velocity (c_x, c_y) in m/s at (x, y) (the module's formula)."""
+  sx = min(max(x / core.FIELD_SIZE, 0.0), 1.0)
+  sy = min(max(y / core.FIELD_SIZE, 0.0), 1.0)
+  cx = field[0] + field[2] * 4.0 * sy * (1.0 - sy)
+  cy = field[1] + field[3] * (2.0 * sx - 1.0)
+  return cx, cy
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def drift_sample(state, r_deg, field, speed, time_constant, dt):
+  """One sampling interval of Equation 1 with the drift (explicit Euler), in place: the
+  water's velocity is read where the interval begins, as the heading's sine is."""
+  theta = state[2]
+  theta_dot = state[3]
+  rad = math.radians(theta)
+  cx, cy = current_at(field, state[0], state[1])
+  # Equation 1's terms as `ship_core.euler_sample` writes them, then the drift's: in
+  # still water the same arithmetic, bit for bit.
+  state[0] += dt * speed * math.sin(rad) + dt * cx
+  state[1] += dt * speed * math.cos(rad) + dt * cy
+  state[2] = core.wrap_deg(theta + dt * theta_dot)
+  state[3] = theta_dot + dt * (r_deg - theta_dot) / time_constant
+
+
+@numba.njit(cache=True, error_model="numpy")
+def drift_control(state, r_deg, samples, field):
+  """`ship_core.euler_control` in the current: `r_deg` held over the samples' intervals;
+  `samples[0]` the start, `samples[k]` the position after interval k."""
+  samples[0, 0] = state[0]
+  samples[0, 1] = state[1]
+  for k in range(1, samples.shape[0]):
+    drift_sample(state, r_deg, field, core.SPEED, core.TIME_CONSTANT, core.SAMPLING_INTERVAL)
+    samples[k, 0] = state[0]
+    samples[k, 1] = state[1]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def drift_batch(states, r_deg, active, samples, field):
+  """One control interval of every `active` ship of a batch, sample by sample across
+  the batch (as `ship_core.task_step_batch` sails Equation 1)."""
+  n = states.shape[0]
+  for i in range(n):
+    if active[i]:
+      samples[i, 0, 0] = states[i, 0]
+      samples[i, 0, 1] = states[i, 1]
+  for k in range(1, samples.shape[1]):
+    for i in range(n):
+      if active[i]:
+        state = states[i]
+        drift_sample(state, r_deg[i], field, core.SPEED, core.TIME_CONSTANT,
+                     core.SAMPLING_INTERVAL)
+        samples[i, k, 0] = state[0]
+        samples[i, k, 1] = state[1]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def currents_of(states, field, out):
+  """The water's velocity at each ship's position: rows (c_x, c_y) into `out`."""
+  for i in range(states.shape[0]):
+    out[i, 0], out[i, 1] = current_at(field, states[i, 0], states[i, 1])

@@ -1,0 +1,102 @@
+"""The goal-conditioned ship, in the style of dm_control's suite: pass a gate whose place
+and heading are drawn each episode (`ship_goal_core`'s rule and levels).
+
+Tasks:
+  easy:   the gate's centre uniform within 100 m of `ship/steer`'s (400, 400), its
+          heading within 30 degrees of north.
+  medium: the centre anywhere in the middle 600 m ([200, 800] m each way), the
+          heading within 90 degrees of north.
+  hard:   the centre anywhere in [100, 900] m each way (both posts on the field),
+          any heading.
+
+The ship, the field, the uniform starts and the rewards are `ship/steer`'s (-1 per
+control step, +100 at the gate, -100 off the field, 5,000 control steps then
+truncated); the gate must be passed heading within 45 degrees of its heading, and the
+pass and the departure are judged where the ship is at the end of each control step,
+so that the same rule is a function of goals alone (`ship_goal_core`, for Hindsight
+Experience Replay). The observation adds the gate (`gate_position`,
+`gate_heading_deg`). On MuJoCo the steering ship of assets/ship.xml sails, its gate's
+geoms moved to the episode's gate.
+"""
+import numpy as np
+
+from hpg_mj import _headless
+from hpg_mj.worlds import ship
+from hpg_mj.worlds import ship_core as core
+from hpg_mj.worlds import ship_goal_core as goal_core
+
+with _headless.simulation_imports():   # no GL in the simulating process (SPEC section 9)
+  from dm_control.utils import containers
+
+SUITE = containers.TaggedTasks()
+get_model_and_assets = ship.get_model_and_assets
+
+
+class GoalTask(ship.ShipTask):
+  """`ship/steer` with the episode's own gate (`ship_goal_core`)."""
+
+  def __init__(self, level=goal_core.DEFAULT_LEVEL, random=None, initial_state=None, gate=None,
+               strict=False, max_steps=None, **rewards):
+    self.level = level
+    self.level_range = goal_core.level_range(level, "ship_goal")
+    super().__init__("steer", random=random, initial_state=initial_state, strict=strict,
+                     max_steps=max_steps, **rewards)
+    self.name = f"ship_goal-{level}"
+    self.gate = gate
+    # The gate observed before the first episode (dm_control reads an observation to
+    # make its spec): ship/steer's.
+    self.desired = goal_core.check_gate([400.0, 400.0, 0.0], self.name)
+    self._gate_heading_deg = np.zeros(1)
+    self._judge = goal_core.OneShip(self.rules)
+
+  @property
+  def gate(self):
+    """A fixed gate [x, y, heading_deg] for the next episodes, or None (drawn)."""
+    return self._gate
+
+  @gate.setter
+  def gate(self, gate):
+    self._gate = None if gate is None else goal_core.check_gate(gate, self.name)
+
+  def initialize_episode(self, physics):
+    super().initialize_episode(physics)     # the ship's start, then the gate
+    self.desired = (self._gate if self._gate is not None
+                    else goal_core.sample_gate(self.random, self.level_range))
+    physics.place_gate(goal_core.gate_posts(self.desired))
+    self._gate_heading_deg = np.array([goal_core.gate_heading_deg(self.desired)])
+
+  def after_step(self, physics):
+    self._steps += 1
+    state = physics.stepped_state
+    _, reward, terminated, truncated, name = self._judge(state, self._steps, self.desired)
+    self._outcome = (reward, terminated, truncated, name)
+    self._state_after_step = state
+
+  def get_observation(self, physics):
+    obs = super().get_observation(physics)
+    obs["gate_position"] = self.desired[:2].copy()
+    obs["gate_heading_deg"] = self._gate_heading_deg.copy()
+    return obs
+
+
+def _constructor(level):
+  def task(random=None, initial_state=None, gate=None, strict=False, max_steps=None,
+           environment_kwargs=None, gate_reward=core.GATE_REWARD,
+           out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD):
+    return ship.environment(
+        ship.Physics.from_xml_string(*get_model_and_assets()),
+        GoalTask(level, random=random, initial_state=initial_state, gate=gate, strict=strict,
+                 max_steps=max_steps, gate_reward=gate_reward,
+                 out_of_bounds_reward=out_of_bounds_reward), environment_kwargs)
+  low, high, largest = goal_core.LEVELS[level]
+  task.__name__ = task.__qualname__ = level
+  task.__doc__ = (f"Pass a gate drawn each episode (level {level!r}: centre uniform on "
+                  f"[{low:g}, {high:g}] m each way, heading within {largest:g} degrees of "
+                  "north); `gate=[x, y, heading_deg]` fixes it. The gate's and the bounds' "
+                  "rewards are SPEC section 2's unless given.")
+  return task
+
+
+easy = SUITE.add("benchmarking", "easy")(_constructor("easy"))
+medium = SUITE.add("benchmarking", "medium")(_constructor("medium"))
+hard = SUITE.add("benchmarking", "hard")(_constructor("hard"))

@@ -1,0 +1,205 @@
+"""The goal-conditioned ship (SPEC section 11): a gate whose place and heading are drawn
+each episode, and the rule that says when the ship has passed it, written on goals
+alone so that Hindsight Experience Replay can ask it of any achieved and desired goal.
+Free of MuJoCo (SPEC section 9); the ship itself is `ship_core`'s.
+
+Goals are float64 `[x, y, sin(heading), cos(heading)]`: the *achieved goal* is the
+ship's position and direction of travel at the end of a control step, the *desired
+goal* the gate's centre and the heading to pass it with (its normal, clockwise from
+north as every heading here). The gate is 100 m wide, as `ship/steer`'s, across that
+heading: its posts stand 50 m either side of the centre.
+
+A goal is *reached* when, in the gate's frame, the ship's position lies between the
+posts (|lateral| <= 50 m), at most one control step of sailing past the gate line
+(0 <= forward < 3 m/s * 0.6 s = 1.8 m), and its heading within 45 degrees of the
+gate's. A ship sails at most 1.8 m in a control step, so one that crosses the line
+between the posts heading with the gate ends that step inside the window: the pass is
+seen at the end of the step that crosses the line, from the goals alone.
+"""
+import functools
+import math
+
+import numba
+import numpy as np
+
+from hpg_mj.worlds import ship_core as core
+
+HALF_WIDTH = 50.0                                   # m, posts either side of the centre
+WINDOW = core.SPEED * core.CONTROL_INTERVAL         # 1.8 m: one control step of sailing
+HEADING_TOLERANCE_DEG = 45.0
+_MIN_COS = math.cos(math.radians(HEADING_TOLERANCE_DEG))
+
+# level -> (lowest and highest centre coordinate in m, largest heading in deg): the
+# centre uniform on [low, high]^2, the heading uniform on [-largest, largest).
+LEVELS = {
+    "easy": (300.0, 500.0, 30.0),     # near ship/steer's gate (400, 400), heading north +-30
+    "medium": (200.0, 800.0, 90.0),   # the middle 600 m, any heading with a northward part
+    "hard": (100.0, 900.0, 180.0),    # anywhere its posts stay on the field, any heading
+}
+DEFAULT_LEVEL = "easy"
+
+
+def level_range(level, who="ship goal"):
+  """(low, high, largest heading) of `level`, or a one-line error."""
+  if not isinstance(level, str) or level not in LEVELS:
+    raise ValueError(f"{who}: unknown level {level!r}; allowed levels: {list(LEVELS)}")
+  return LEVELS[level]
+
+
+def sample_gate(random, level_range_):
+  """A desired goal [x, y, sin, cos] drawn from `random` (a Generator or RandomState)."""
+  low, high, largest = level_range_
+  x, y = random.uniform(low, high), random.uniform(low, high)
+  heading = math.radians(random.uniform(-largest, largest))
+  return np.array([x, y, math.sin(heading), math.cos(heading)])
+
+
+def goal_of(state):
+  """The achieved goal of a ship state [x, y, theta_deg, theta_dot_deg]."""
+  theta = math.radians(state[2])
+  return np.array([state[0], state[1], math.sin(theta), math.cos(theta)])
+
+
+def gate_heading_deg(desired):
+  """The heading (deg, clockwise from north) of a desired goal."""
+  return math.degrees(math.atan2(desired[2], desired[3]))
+
+
+def gate_posts(desired):
+  """The gate's two posts, rows (x, y): left, then right of a ship passing it."""
+  x, y, s, c = (float(v) for v in desired)
+  return np.array([[x - HALF_WIDTH * c, y + HALF_WIDTH * s],
+                   [x + HALF_WIDTH * c, y - HALF_WIDTH * s]])
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def reached(ax, ay, asin, acos, dx, dy, dsin, dcos):
+  """Whether the achieved goal (ax, ay, asin, acos) reaches the desired (module's rule)."""
+  rx = ax - dx
+  ry = ay - dy
+  forward = rx * dsin + ry * dcos
+  lateral = rx * dcos - ry * dsin
+  return (0.0 <= forward < WINDOW and abs(lateral) <= HALF_WIDTH
+          and asin * dsin + acos * dcos >= _MIN_COS)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def outcome_of(a, d, gate_reward, out_of_bounds_reward):
+  """(event, reward) of an achieved goal `a` for the desired `d`: SUCCESS and -1 +
+  `gate_reward` at the gate; FAILURE and -1 + `out_of_bounds_reward` off the field (its
+  position at the end of the control step); else NO_EVENT and -1."""
+  if reached(a[0], a[1], a[2], a[3], d[0], d[1], d[2], d[3]):
+    return core.SUCCESS, core.STEP_REWARD + gate_reward
+  if a[0] < 0.0 or a[0] > core.FIELD_SIZE or a[1] < 0.0 or a[1] > core.FIELD_SIZE:
+    return core.FAILURE, core.STEP_REWARD + out_of_bounds_reward
+  return core.NO_EVENT, core.STEP_REWARD
+
+
+@numba.njit(cache=True, error_model="numpy")
+def goal_rewards(achieved, desired, gate_reward, out_of_bounds_reward, reward, event):
+  """`outcome_of` for rows of achieved and desired goals (n, 4), into `reward`, `event`."""
+  for i in range(achieved.shape[0]):
+    event[i], reward[i] = outcome_of(achieved[i], desired[i], gate_reward,
+                                     out_of_bounds_reward)
+
+
+def compute_reward(achieved_goal, desired_goal, gate_reward, out_of_bounds_reward):
+  """Rewards of any shape of goals (..., 4): a float for one pair, else an array."""
+  achieved = np.asarray(achieved_goal, dtype=np.float64)
+  desired = np.asarray(desired_goal, dtype=np.float64)
+  if achieved.shape[-1:] != (4,) or desired.shape[-1:] != (4,):
+    raise ValueError("compute_reward: goals are [x, y, sin(heading), cos(heading)] "
+                     f"(last axis 4), got shapes {achieved.shape} and {desired.shape}")
+  achieved, desired = np.broadcast_arrays(achieved, desired)
+  shape = achieved.shape[:-1]
+  a = np.ascontiguousarray(achieved.reshape(-1, 4))
+  d = np.ascontiguousarray(desired.reshape(-1, 4))
+  reward = np.empty(len(a))
+  goal_rewards(a, d, float(gate_reward), float(out_of_bounds_reward), reward,
+               np.empty(len(a), dtype=np.int64))
+  return float(reward[0]) if shape == () else reward.reshape(shape)
+
+
+@numba.njit(cache=True)
+def pilot_target(state, phase, desired, reach=150.0):
+  """Waypoints of a scripted helmsman for a gate anywhere: first the point `reach` m
+  before the gate on its line of approach (phase 0, until within 40 m), then 60 m
+  past its centre (phase 1). Returns (x, y, phase). Used for pictures and checks,
+  not learned."""
+  if phase == 0:
+    ax = desired[0] - reach * desired[2]
+    ay = desired[1] - reach * desired[3]
+    if math.hypot(state[0] - ax, state[1] - ay) >= 40.0:
+      return ax, ay, 0
+  return desired[0] + 60.0 * desired[2], desired[1] + 60.0 * desired[3], 1
+
+
+@numba.njit(cache=True, error_model="numpy")
+def judge_batch(states, active, steps, desired, max_steps, gate_reward, out_of_bounds_reward,
+                achieved, outcome):
+  """After a control step of every `active` ship (its `steps` already counted): the
+  achieved goals into `achieved`, and `outcome` = (event, reward, terminated,
+  truncated) by the module's rule: SUCCESS at the gate, FAILURE off the field (the
+  position at the end of the step), truncated after `max_steps`."""
+  event, reward, terminated, truncated = outcome
+  for i in range(states.shape[0]):
+    if not active[i]:
+      continue
+    theta = math.radians(states[i, 2])
+    a = achieved[i]
+    a[0] = states[i, 0]
+    a[1] = states[i, 1]
+    a[2] = math.sin(theta)
+    a[3] = math.cos(theta)
+    event[i], reward[i] = outcome_of(a, desired[i], gate_reward, out_of_bounds_reward)
+    terminated[i] = event[i] != core.NO_EVENT
+    truncated[i] = not terminated[i] and steps[i] >= max_steps
+
+
+@functools.cache
+def _judge_one():
+  """`judge_batch`'s entry point for one ship's arrays (a row each): numba's dispatcher
+  would type its nine arguments again at each step, most of the call."""
+  f64, i64, b1 = numba.float64, numba.int64, numba.boolean
+  return judge_batch.compile((f64[:, ::1], b1[::1], i64[::1], f64[:, ::1], i64, f64, f64,
+                              f64[:, ::1], numba.types.Tuple((i64[::1], f64[::1], b1[::1],
+                                                              b1[::1]))))
+
+
+class OneShip:
+  """`judge_batch` for the single environments (Gymnasium's and dm_control's): one ship
+  on `rules` (a `ShipRules` of "steer": the step limit and the two rewards), its arrays
+  made once."""
+
+  def __init__(self, rules):
+    self.rules = rules
+    self._active, self._steps = np.ones(1, np.bool_), np.zeros(1, np.int64)
+    self._achieved = np.zeros((1, 4))
+    self._outcome = (np.zeros(1, np.int64), np.zeros(1), np.zeros(1, np.bool_),
+                     np.zeros(1, np.bool_))
+
+  def __call__(self, state, steps, desired):
+    """(event, reward, terminated, truncated, event name) after a control step that
+    ended at `state` (float64, C order), `steps` control steps in."""
+    self._steps[0] = steps
+    rules = self.rules
+    _judge_one()(state[None, :], self._active, self._steps, desired[None, :], rules.max_steps,
+                 rules.success_reward, rules.failure_reward, self._achieved, self._outcome)
+    event, reward, terminated, truncated = (a[0] for a in self._outcome)
+    return (int(event), float(reward), bool(terminated), bool(truncated),
+            rules.event_names[int(event)])
+
+
+def check_gate(gate, who):
+  """A gate given by a user, [x, y, heading_deg], as a desired goal, or a one-line error:
+  finite, its posts on the field."""
+  arr = np.asarray(gate, dtype=np.float64)
+  if arr.shape != (3,) or not np.isfinite(arr).all():
+    raise ValueError(f"{who}: a gate is [x, y, heading_deg] (3 finite numbers), got {gate!r}")
+  heading = math.radians(arr[2])
+  desired = np.array([arr[0], arr[1], math.sin(heading), math.cos(heading)])
+  posts = gate_posts(desired)
+  if not ((posts >= 0.0) & (posts <= core.FIELD_SIZE)).all():
+    raise ValueError(f"{who}: gate {arr.tolist()} puts its posts at {posts.round(2).tolist()}; "
+                     f"allowed: both posts on the field [0, {core.FIELD_SIZE}] m")
+  return desired

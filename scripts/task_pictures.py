@@ -1,0 +1,69 @@
+"""The pictures of the ladder's task pages (docs/tasks/, docs/_ext/task_pages.py):
+
+  .venv/bin/python scripts/task_pictures.py          # writes figures/tasks/*.png
+
+ship_current_<level>.png: the still-water helmsman (`ship_core.pilot_turn_rate` to the
+gate's middle, which knows nothing of the water) from one fixed start in each level's
+current, drawn by the Gymnasium environment's own `render()` with its wake: where the
+wake bends, the water carried the ship.
+
+ship_goal_<level>.png: a gate of each level (drawn with seed 4) where the episode put it,
+and the scripted helmsman's wake to and through it (`ship_goal_core.pilot_target`).
+"""
+import pathlib
+
+import gymnasium
+import imageio.v2 as imageio
+import numpy as np
+
+import hpg_mj  # noqa: F401  (registers the ids)
+from hpg_mj.worlds import ship_core as core
+from hpg_mj.worlds import ship_goal_core as goal_core
+
+OUT = pathlib.Path(__file__).resolve().parents[1] / "figures" / "tasks"
+START = [150.0, 850.0, 90.0, 0.0]      # the north-west, heading east
+STEPS = 500
+
+
+def current_picture(level):
+  env = gymnasium.make("hpg_mj/ShipCurrent-v0", level=level, backend="analytic",
+                       render_mode="rgb_array", width=480, height=360)
+  obs, _ = env.reset(options={"state": START})
+  mid = core.GATE.mean(axis=0)
+  for _ in range(STEPS):
+    r = core.pilot_turn_rate(np.ascontiguousarray(obs[:4]), mid[0], mid[1])
+    obs, _, terminated, truncated, _ = env.step(np.array([r]))
+    if terminated or truncated:
+      break
+  frame = env.render()
+  env.close()
+  return frame
+
+
+def goal_picture(level, seed=4):
+  """The episode's gate (seeded) and the scripted helmsman's way to and through it."""
+  env = gymnasium.make("hpg_mj/ShipGoal-v0", level=level, backend="analytic",
+                       render_mode="rgb_array", width=480, height=360)
+  obs, _ = env.reset(seed=seed)
+  phase = 0
+  for _ in range(STEPS * 4):
+    tx, ty, phase = goal_core.pilot_target(obs["observation"], phase, obs["desired_goal"])
+    obs, _, terminated, truncated, _ = env.step(
+        np.array([core.pilot_turn_rate(obs["observation"], tx, ty)]))
+    if terminated or truncated:
+      break
+  frame = env.render()
+  env.close()
+  return frame
+
+
+def main():
+  OUT.mkdir(parents=True, exist_ok=True)
+  for level in ("easy", "medium", "hard"):
+    for name, picture in (("ship_current", current_picture), ("ship_goal", goal_picture)):
+      imageio.imwrite(OUT / f"{name}_{level}.png", picture(level))
+      print(OUT / f"{name}_{level}.png")
+
+
+if __name__ == "__main__":
+  main()
