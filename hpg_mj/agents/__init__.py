@@ -59,6 +59,7 @@ _SHIPPED = {
     "taxi_hpg": "hpg_mj.agents.taxi_hpg:TaxiHPG",
     "taxi_maxq": "hpg_mj.agents.taxi_maxq:TaxiMAXQ",
     "taxi_flat_q": "hpg_mj.agents.taxi_flat_q:TaxiFlatQ",
+    "taxi_option_critic": "hpg_mj.agents.taxi_option_critic:TaxiOptionCritic",
     # Stable-Baselines3's, with the extra `pip install 'hpg_mj[sb3]'`
     "ship_ppo": "hpg_mj.agents.sb3:ShipPPO",
     "ship_sac": "hpg_mj.agents.sb3:ShipSAC",

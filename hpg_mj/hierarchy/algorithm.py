@@ -85,9 +85,10 @@ def enter(G, node):
   raise NotImplementedError("compiled per graph by hierarchy.program")
 
 
-def resume(G, node, signal, done, terminal):
+def resume(G, node, signal, done, terminal, terminated):
   """The learner of `node` takes R + G = `signal` of its child's run in s' (its view
-  of G.M.obs) and, unless `done`, makes its next choice."""
+  of G.M.obs) and, unless `done`, makes its next choice. `terminal`: s' ends the
+  call's own task (its termination's event, or the world's end: `terminated`)."""
   raise NotImplementedError("compiled per graph by hierarchy.program")
 
 
@@ -197,7 +198,7 @@ def step(G, reward, terminated, truncated):
     M.reward[node] = 0.0
     if d == 0 and learn:
       schedule_decided(G)
-    resume(G, node, seen + internal, done, terminal)
+    resume(G, node, seen + internal, done, terminal, terminated)
     M.child_steps[node] = 0        # (after `resume`: a learner may read its tau)
     if not done:
       return False, descend(G, d)

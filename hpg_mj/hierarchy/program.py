@@ -372,16 +372,19 @@ class Program:
   def _resume_lines(self, s):
     i, (P, Lr, N) = s.index, s._records
     observe = self._function(s.learner.observe)
+    # A learner that bootstraps past its call's own end (an option's critic) sees s'
+    # as terminal only where the world's episode ended.
+    term = "terminated" if s.learner.bootstraps_at_own_end else "terminal"
     if s.view.gives == "state":
-      view = [f"x{i} = np.int64(M.x[{i}, 0])", "if not terminal:",
+      view = [f"x{i} = np.int64(M.x[{i}, 0])", f"if not {term}:",
               *["  " + line for line in self._view_lines(s)]]
     else:
-      view = ["if not terminal:", *["  " + line for line in self._view_lines(s)]]
+      view = [f"if not {term}:", *["  " + line for line in self._view_lines(s)]]
     offer = self._offer_lines(s)
     view += ["if not done:", *["  " + line for line in offer]] if offer else []
     return [f"# {s.name}: its learner takes R + G in s' and, unless done, chooses again",
             *view,
-            f"v{i} = {observe}({P}, {Lr}, {N}, {self._x(s)}, signal, done, terminal, "
+            f"v{i} = {observe}({P}, {Lr}, {N}, {self._x(s)}, signal, done, {term}, "
             f"{self._n(s)}, M.rng, M.flags[0], M.flags[1])",
             "if not done:", "  " + self._settle(s)]
 
@@ -390,6 +393,8 @@ class Program:
     end, end_settings = self._op(s.end, node.termination, "T", s)
     args = ", ".join([end_settings, "M.obs", f"call{i}", "M.samples"] if end_settings else
                      ["M.obs", f"call{i}"])
+    if s.end.draws:
+      args += ", M.rng"
     what = self._what(s.name, f"termination {rules_mod.rule_name(node.termination)}",
                       "0 (go on), 1 (success), -1 (failure) or a bool")
     lines = [f"# {s.name}: its event and G after a child returned",
@@ -462,8 +467,8 @@ class Program:
       s._records = self._learner(s)
     self._operation(L, "enter", "", "The call of `node` begins: z <- 0, its view, its first "
                     "choice.", self._enter_lines, "None")
-    self._operation(L, "resume", ", signal, done, terminal", "The learner of `node` takes "
-                    "R + G = `signal` in s' and, unless `done`, chooses again.",
+    self._operation(L, "resume", ", signal, done, terminal, terminated", "The learner of "
+                    "`node` takes R + G = `signal` in s' and, unless `done`, chooses again.",
                     self._resume_lines, "None")
     self._operation(L, "judge", "", "After a child of `node` returned: (its event, G).",
                     self._judge_lines, "(0, 0.0)")

@@ -93,6 +93,8 @@ class LearnerKind(Kind):
   role = "learner"
   reads = "state"
   continuous = False
+  bootstraps_at_own_end = False   # its `terminal` is the world's end only, not its call's
+                                  # own (an option's critic: `kinds.option_critic`)
   masked = False         # its choose and observe take the children's mask after `n`
                          # ("prefix": a mask that offers the first k children)
   start = choose = observe = None          # its compiled operations
@@ -193,6 +195,8 @@ class TerminationKind(NodeKind):
   takes_settings = True
   gives_internal = False     # its `end` returns (event, G)
   continuing = False         # a continuing root's (SPEC section 8: `algorithm.CONTINUING`)
+  draws = False              # its `end` draws: end(P, obs, call, samples, rng), from the
+                             # run's generator (a learned termination's)
 
 
 class RewardKind(NodeKind):
