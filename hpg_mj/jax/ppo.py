@@ -28,7 +28,6 @@ it and what they add to a record row (`EpisodeRow`: the ship's gates, steps to t
 gate, returns and MushroomRL's J; the taxi's returns, lengths and deliveries).
 """
 import dataclasses
-import functools
 import math
 from typing import NamedTuple
 
@@ -188,8 +187,8 @@ def greedy_action(networks, io, x):
 # ---- Adam (Kingma and Ba 2015) after the gradient's global norm is clipped ------------
 
 def adam_init(params):
-  zeros = jax.tree.map(jnp.zeros_like, params)
-  return {"count": jnp.zeros((), jnp.int32), "mu": zeros, "nu": zeros}
+  return {"count": jnp.zeros((), jnp.int32), "mu": jax.tree.map(jnp.zeros_like, params),
+          "nu": jax.tree.map(jnp.zeros_like, params)}
 
 
 def adam_step(params, grads, opt, section):
@@ -407,8 +406,7 @@ def to_arrays(runner):
   """{name: numpy array} of every leaf of a Runner, named by its path
   ("networks.actor.0.kernel", "env_state.x", "key", ...)."""
   leaves = jax.tree_util.tree_flatten_with_path(runner)[0]
-  return {_name(path): np.array(leaf) for path, leaf in leaves}   # copies: an update
-  # donates the runner's buffers
+  return {_name(path): np.array(leaf) for path, leaf in leaves}
 
 
 def from_arrays(template, arrays, where):
@@ -433,8 +431,15 @@ def key(seed):
   return jax.random.PRNGKey(int(seed))
 
 
-@functools.lru_cache(maxsize=None)
+_COMPILED = {}
+
+
 def compiled(trainer):
-  """The jitted `init`, `update` and `episodes` of a trainer (one compile each)."""
-  return (jax.jit(trainer.init), jax.jit(trainer.update, donate_argnums=0),
-          jax.jit(trainer.episodes, static_argnums=3))
+  """The jitted `init`, `update` and `episodes` of a trainer, compiled once for all
+  trainers of the same world, parameters, section and row (each agent makes its own
+  environment object: a saved run loaded, or the seeds of one process)."""
+  what = (type(trainer.env), trainer.env.name, trainer.params, trainer.section, trainer.row)
+  if what not in _COMPILED:
+    _COMPILED[what] = (jax.jit(trainer.init), jax.jit(trainer.update),
+                       jax.jit(trainer.episodes, static_argnums=3))
+  return _COMPILED[what]
