@@ -94,7 +94,12 @@ class _JaxPPO:
   measures_evaluation_whole = True
   per_episode_scores = True
   checkpoint_rows = 1000         # `hpg-mj run` checkpoints at least every 1 M control steps
+  # As the SB3 agents' (rows of control steps; evaluations sail a batch of starts at
+  # once through `_sail`): one implementation.
   _window = sb3._SB3Agent._window
+  run = sb3._SB3Agent.run
+  evaluate = sb3._SB3Agent.evaluate
+  evaluate_fixed = sb3._SB3Agent.evaluate_fixed
 
   def _init_jax(self):
     if self.config.environment.backend != "analytic":
@@ -157,24 +162,7 @@ class _JaxPPO:
     self.episodes += int(episodes)
     return self.as_record(rows)
 
-  def run(self, episodes, backend=None, learn=True, sample=None):
-    if learn:
-      return self.train(episodes, backend)
-    return self.evaluate(episodes, backend, "sampled" if sample else "greedy")
-
   # ---- evaluation --------------------------------------------------------------------
-
-  def evaluate(self, episodes, backend=None, policy="greedy"):
-    """`episodes` episodes from starts drawn from the agent's generator, one row each."""
-    base._check_count("episodes", episodes)
-    starts = np.array([self.start_state() for _ in range(int(episodes))])
-    return self._sail(starts, backend, policy)
-
-  def evaluate_fixed(self, episodes=None, backend=None, policy="greedy", seed=None):
-    """One episode from each of the fixed seeded starts of every agent (SPEC section 7)."""
-    episodes = base.GREEDY_STARTS if episodes is None else episodes
-    seed = base.GREEDY_SEED if seed is None else seed
-    return self._sail(self.fixed_starts(episodes, seed), backend, policy)
 
   def _sail(self, starts, backend, policy):
     """One episode from each start, all at once, without learning: greedy (the
