@@ -67,6 +67,7 @@ _SHIPPED = {
     # PPO in JAX, trained in one compiled loop, with the extra `pip install 'hpg_mj[jax]'`
     "ship_ppo_jax": "hpg_mj.agents.jax_ppo:ShipPPOJax",
     "taxi_ppo_jax": "hpg_mj.agents.jax_ppo:TaxiPPOJax",
+    "taxi_dqn_jax": "hpg_mj.agents.jax_dqn:TaxiDQNJax",
 }
 _registered = {}          # name -> class, or "module:Class" until first used
 _entry_points_read = False

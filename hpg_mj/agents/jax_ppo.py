@@ -75,18 +75,21 @@ class TaxiPPOJaxConfig:
     _check_batch(self.ppo)
 
 
-def _jax_ppo():
-  """hpg_mj.jax.ppo, or an ImportError saying how to get JAX."""
+def _learner(algorithm="ppo"):
+  """hpg_mj.jax.<algorithm> (ppo, dqn), or an ImportError saying how to get JAX."""
+  import importlib
   try:
-    from hpg_mj.jax import ppo
+    return importlib.import_module(f"hpg_mj.jax.{algorithm}")
   except ImportError as err:
     raise ImportError(f"the JAX agents need the jax extra: {EXTRA} ({err})") from None
-  return ppo
 
 
-class _JaxPPO:
-  """What the two agents share (mixed into the world's agent class); a subclass
+class _JaxAgent:
+  """What the JAX agents share (mixed into the world's agent class): a subclass sets
+  `algorithm` (its learner `hpg_mj.jax.<algorithm>` and its task file's section) and
   gives `_world()`: the JAX environment, its parameters and its record row."""
+
+  algorithm = "ppo"
 
   tags = ("reference", "jax")
   record_steps = 1000            # control steps of one training record row
@@ -106,7 +109,7 @@ class _JaxPPO:
       raise ValueError(f"{self.name}: [environment] backend = "
                        f"{self.config.environment.backend!r}; the JAX agents train on the JAX "
                        "world, Equation 1's analytic ship (allowed: 'analytic')")
-    self.section = self.config.ppo
+    self.section = getattr(self.config, self.algorithm)
     self.control_steps = 0       # trained so far, all copies together
     self._trainer = None
     self._runner = None
@@ -117,20 +120,19 @@ class _JaxPPO:
   @property
   def trainer(self):
     if self._trainer is None:
-      ppo = _jax_ppo()
-      env, params, row = self._world(ppo)
-      self._trainer = ppo.Trainer(env, params, self.section, row)
+      env, params, row = self._world(_learner())
+      self._trainer = _learner(self.algorithm).Trainer(env, params, self.section, row)
     return self._trainer
 
   def _compiled(self):
-    return _jax_ppo().compiled(self.trainer)
+    return _learner(self.algorithm).compiled(self.trainer)
 
   @property
   def runner(self):
     """The run's whole state (`hpg_mj.jax.ppo.Runner`), made from the seed when first asked."""
     if self._runner is None:
       init = self._compiled()[0]
-      self._runner = init(_jax_ppo().key(self.seed))
+      self._runner = init(_learner().key(self.seed))
     return self._runner
 
   # ---- training ------------------------------------------------------------------
@@ -176,8 +178,8 @@ class _JaxPPO:
       return self.empty_record()
     sail = self._compiled()[2]
     seed = None if policy == "greedy" else int(self.rng_state[0] % (2 ** 31))
-    rows, lengths = sail(self.runner.networks, np.asarray(starts),
-                         _jax_ppo().key(0 if seed is None else seed), seed is not None)
+    rows, lengths = sail(self.trainer.acting(self.runner), np.asarray(starts),
+                         _learner().key(0 if seed is None else seed), seed is not None)
     out = np.column_stack([np.asarray(lengths, np.float64), np.asarray(rows, np.float64)])
     return self.as_record(out)
 
@@ -189,7 +191,7 @@ class _JaxPPO:
   # ---- saving ------------------------------------------------------------------------
 
   def state(self):
-    ppo = _jax_ppo()
+    ppo = _learner()
     arrays = {"rng_state": self.rng_state,
               "control_steps": np.array(self.control_steps, dtype=np.int64),
               "pending": self._pending}
@@ -197,7 +199,7 @@ class _JaxPPO:
     return arrays
 
   def restore(self, arrays, where):
-    ppo = _jax_ppo()
+    ppo = _learner()
     mine = {"rng_state", "control_steps", "pending"}
     missing = mine - set(arrays)
     if missing:
@@ -218,7 +220,7 @@ class _JaxPPO:
     self._pending = pending
 
 
-class ShipPPOJax(_JaxPPO, _ship.ShipAgent):
+class ShipPPOJax(_JaxAgent, _ship.ShipAgent):
   """PPO in JAX on the full ship task (SPEC section 2), the task file's rewards."""
   name = "ship_ppo_jax"
   Config = ShipPPOJaxConfig
@@ -240,7 +242,7 @@ class ShipPPOJax(_JaxPPO, _ship.ShipAgent):
     return world, params, row
 
 
-class TaxiPPOJax(_JaxPPO, _taxi.TaxiAgent):
+class TaxiPPOJax(_JaxAgent, _taxi.TaxiAgent):
   """PPO in JAX on taxi-fuel (or the classic taxi, [environment] fuel = false)."""
   name = "taxi_ppo_jax"
   Config = TaxiPPOJaxConfig

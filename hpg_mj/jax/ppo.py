@@ -282,17 +282,6 @@ class Trainer:
 
   # ---- the rollout: n_steps of every copy ------------------------------------------
 
-  def _env_step(self, key, state, action):
-    """gymnax's `step` (the reset of an ended episode in the same call, from the
-    second half of the key), keeping the last observation for the bootstrap."""
-    key_step, key_reset = jax.random.split(key)
-    obs_end, state_end, reward, done, info = self.env.step_env(key_step, state, action,
-                                                              self.params)
-    obs_re, state_re = self.env.reset_env(key_reset, self.params)
-    state = jax.tree.map(lambda a, b: jnp.where(done, a, b), state_re, state_end)
-    obs = jnp.where(done, obs_re, obs_end)
-    return obs, state, obs_end, reward, done, info
-
   def _rollout_step(self, runner, _):
     s = self.section
     key, act_key, step_key = jax.random.split(runner.key, 3)
@@ -301,7 +290,8 @@ class Trainer:
     log_prob, _ = log_prob_entropy(runner.networks, self.io, x, action)
     v = value(runner.networks, x)
     keys = jax.random.split(step_key, s.n_envs)
-    obs, env_state, obs_end, reward, done, info = jax.vmap(self._env_step)(
+    obs, env_state, obs_end, reward, done, info = jax.vmap(
+        lambda k, st, a: step_env(self.env, self.params, k, st, a))(
         keys, runner.env_state, self.io.act(action))
     reward = reward.astype(jnp.float32)
     ep_return = runner.ep_return + reward
@@ -385,37 +375,62 @@ class Trainer:
 
   # ---- greedy episodes from given starts ------------------------------------------------
 
+  def acting(self, runner):
+    """What `episodes` acts with: the networks."""
+    return runner.networks
+
   def episodes(self, networks, starts, key, sample):
-    """One episode from each start (its world state vector, as `reset_to` takes it),
-    all at once, without learning: greedy (the most likely action: the Gaussian's
-    mean, the softmax's largest) or, with `sample`, drawn from the policy with `key`.
-    Returns the rows of `row` (one an episode) and each episode's length."""
-    obs, state = jax.vmap(self.env._start_at)(starts)
-    n = starts.shape[0]
+    """One episode from each start, all at once, without learning (`sail`): greedy
+    (the most likely action: the Gaussian's mean, the softmax's largest) or, with
+    `sample`, drawn from the policy."""
+    def act(x, key):
+      return (sample_action(networks, self.io, x, key) if sample
+              else greedy_action(networks, self.io, x))
+    return sail(self, act, starts, key)
 
-    def cond(carry):
-      return ~jnp.all(carry[3])
 
-    def body(carry):
-      obs, state, totals, ended, rows, lengths, key = carry
-      key, act_key, step_key = jax.random.split(key, 3)
-      x = self.io.observe(obs)
-      action = (sample_action(networks, self.io, x, act_key) if sample
-                else greedy_action(networks, self.io, x))
-      obs_, state_, reward, done, info = jax.vmap(self.env.step_env, in_axes=(0, 0, 0, None))(
-          jax.random.split(step_key, n), state, self.io.act(action), self.params)
-      live = ~ended
-      totals = totals + jnp.where(live, reward, 0.0)
-      lengths = lengths + live
-      now = live & done
-      rows = rows + self.row(now, info, totals, lengths)
-      keep = lambda a, b: jnp.where(live.reshape((-1,) + (1,) * (a.ndim - 1)), a, b)  # noqa: E731
-      return (keep(obs_, obs), jax.tree.map(keep, state_, state), totals, ended | done, rows,
-              lengths, key)
-    carry = (obs, state, jnp.zeros(n, jnp.float32), jnp.zeros(n, bool),
-             jnp.zeros((n, len(self.row.fields)), jnp.float32), jnp.zeros(n, jnp.int32), key)
-    *_, rows, lengths, _ = jax.lax.while_loop(cond, body, carry)
-    return rows, lengths
+# ---- episodes from given starts, without learning ---------------------------------------
+
+def step_env(env, params, key, state, action):
+  """gymnax's `step` (the reset of an ended episode in the same call, from the second
+  half of the key), keeping the last observation (for a time limit's bootstrap)."""
+  key_step, key_reset = jax.random.split(key)
+  obs_end, state_end, reward, done, info = env.step_env(key_step, state, action, params)
+  obs_re, state_re = env.reset_env(key_reset, params)
+  state = jax.tree.map(lambda a, b: jnp.where(done, a, b), state_re, state_end)
+  obs = jnp.where(done, obs_re, obs_end)
+  return obs, state, obs_end, reward, done, info
+
+
+def sail(trainer, act, starts, key):
+  """One episode from each start (its world state vector, as `reset_to` takes it),
+  all at once, `act(x, key)` choosing the actions from what the networks see.
+  Returns the rows of `trainer.row` (one an episode) and each episode's length."""
+  env, io = trainer.env, trainer.io
+  obs, state = jax.vmap(env._start_at)(starts)
+  n = starts.shape[0]
+
+  def cond(carry):
+    return ~jnp.all(carry[3])
+
+  def body(carry):
+    obs, state, totals, ended, rows, lengths, key = carry
+    key, act_key, step_key = jax.random.split(key, 3)
+    action = act(io.observe(obs), act_key)
+    obs_, state_, reward, done, info = jax.vmap(env.step_env, in_axes=(0, 0, 0, None))(
+        jax.random.split(step_key, n), state, io.act(action), trainer.params)
+    live = ~ended
+    totals = totals + jnp.where(live, reward, 0.0)
+    lengths = lengths + live
+    now = live & done
+    rows = rows + trainer.row(now, info, totals, lengths)
+    keep = lambda a, b: jnp.where(live.reshape((-1,) + (1,) * (a.ndim - 1)), a, b)  # noqa: E731
+    return (keep(obs_, obs), jax.tree.map(keep, state_, state), totals, ended | done, rows,
+            lengths, key)
+  carry = (obs, state, jnp.zeros(n, jnp.float32), jnp.zeros(n, bool),
+           jnp.zeros((n, len(trainer.row.fields)), jnp.float32), jnp.zeros(n, jnp.int32), key)
+  *_, rows, lengths, _ = jax.lax.while_loop(cond, body, carry)
+  return rows, lengths
 
 
 # ---- the run's state as named arrays (a checkpoint), and back ---------------------------

@@ -129,7 +129,7 @@ def test_a_run_stopped_after_a_checkpoint_resumes_to_the_same_result(tmp_path, m
   again: the same record and the same greedy scores as the run never stopped."""
   from hpg_mj.agents import jax_ppo
   from hpg_mj.experiments import runs
-  monkeypatch.setattr(jax_ppo._JaxPPO, "checkpoint_rows", 1)
+  monkeypatch.setattr(jax_ppo._JaxAgent, "checkpoint_rows", 1)
   path = task_file(tmp_path, "taxi_fuel_ppo_jax", {})        # the shipped file: compiled already
   whole = runs.run(path, 7, 3, tmp_path / "whole")
   with pytest.raises(runs.RunInterrupted):
@@ -155,8 +155,44 @@ def test_bad_task_files_are_refused_in_one_line(tmp_path):
 
 def test_the_task_files_load_and_build_without_importing_jax():
   code = ("import sys; from hpg_mj import agents\n"
-          "for n in ('ship_ppo_jax', 'taxi_fuel_ppo_jax'):\n"
+          "for n in ('ship_ppo_jax', 'taxi_fuel_ppo_jax', 'taxi_fuel_dqn_jax'):\n"
           "  agents.build(agents.load_task(n))\n"
           "print(sorted(m for m in ('jax', 'jaxlib') if m in sys.modules))")
   out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
   assert out.stdout.strip() == "[]"
+
+
+# ---- DQN (hpg_mj.jax.dqn, the agent hpg_mj.agents.jax_dqn) ---------------------------
+
+DQN_SMALL = {"n_envs = 16": "n_envs = 4", "n_steps = 64": "n_steps = 32",
+             "learning_starts = 5000": "learning_starts = 200",
+             "buffer_size = 200000": "buffer_size = 3000",
+             "target_update_interval = 2000": "target_update_interval = 256"}
+
+
+def test_a_saved_dqn_run_resumes_bit_for_bit_and_its_epsilon_decays(tmp_path):
+  task = agents.load_task(task_file(tmp_path, "taxi_fuel_dqn_jax", DQN_SMALL))
+  agent = agents.build(task, seed=3)
+  record = agent.train(2)
+  assert agent.control_steps == 2048 and record["episodes"].sum() >= 1
+  agents.save(agent, tmp_path / "agent", record)
+  ahead = agent.train(2)
+  loaded, _, _ = agents.load(tmp_path / "agent")
+  np.testing.assert_array_equal(loaded.train(2), ahead)
+  for name, value in agent.state().items():
+    np.testing.assert_array_equal(loaded.state()[name], value, err_msg=name)
+  # The buffer holds every transition stored (3,000 at most), epsilon follows
+  # exploration_steps (200,000): 1 - 4,096 / 200,000 x 0.95.
+  runner = agent.runner
+  assert int(runner.stored) == 4096
+  assert float(agent.trainer.epsilon(runner.stored)) == pytest.approx(1 - 4096 / 200000 * 0.95)
+  assert np.asarray(runner.buffer["x"]).sum(axis=1).min() == 5      # five one-hot components
+  greedy = loaded.evaluate_fixed(3)
+  assert greedy["episodes"].tolist() == [1.0] * 3
+
+
+def test_bad_dqn_sections_are_refused_in_one_line(tmp_path):
+  bad = task_file(tmp_path, "taxi_fuel_dqn_jax", {"train_freq = 1 ": "train_freq = 3 "})
+  with pytest.raises(ValueError, match=r"taxi_fuel_dqn_jax.toml: \[dqn\] train_freq = 3 must "
+                                       r"divide n_steps = 64"):
+    agents.load_task(bad)
