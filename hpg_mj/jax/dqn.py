@@ -174,13 +174,4 @@ class Trainer:
     return ppo.sail(self, act, starts, key)
 
 
-_COMPILED = {}
-
-
-def compiled(trainer):
-  """`init`, and the jitted `update` and `episodes`, once a configuration (`ppo.compiled`)."""
-  what = (type(trainer.env), trainer.env.name, trainer.params, trainer.section, trainer.row)
-  if what not in _COMPILED:
-    _COMPILED[what] = (trainer.init, jax.jit(trainer.update),
-                       jax.jit(trainer.episodes, static_argnums=3))
-  return _COMPILED[what]
+compiled = ppo.compiled     # `init`, the jitted `update` and `episodes`, once a configuration
