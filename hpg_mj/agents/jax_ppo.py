@@ -41,8 +41,8 @@ EXTRA = "pip install 'hpg_mj[jax]'"
 
 @dataclasses.dataclass(frozen=True)
 class PPOSection(sb3.PPOSection):
-  """[ppo]: PPO (Schulman et al. 2017) as SB3's by the same names, plus the two
-  coefficients SB3 fixes (its defaults): constant step size and clip range."""
+  """[ppo]: PPO (Schulman et al. 2017) as SB3's by the same names (constant step size
+  and clip range), plus the two coefficients SB3 fixes at its defaults."""
   vf_coef: float = param(0.5, "weight of the value loss", low=0)
   max_grad_norm: float = param(0.5, "the gradient's global norm is clipped to this",
                                low=0, low_open=True)
@@ -108,7 +108,8 @@ class _JaxAgent:
     if self.config.environment.backend != "analytic":
       raise ValueError(f"{self.name}: [environment] backend = "
                        f"{self.config.environment.backend!r}; the JAX agents train on the JAX "
-                       "world, Equation 1's analytic ship (allowed: 'analytic')")
+                       "world (the analytic ship of Equation 1, the taxi's rules; allowed: "
+                       "'analytic')")
     self.section = getattr(self.config, self.algorithm)
     self.control_steps = 0       # trained so far, all copies together
     self._trainer = None
