@@ -1,5 +1,5 @@
 """DQN in JAX on the taxi: every step of every copy, its replay buffer and its
-gradient steps in one jitted loop over the JAX taxi (`hpg_mj.jax.dqn`; issue 42).
+gradient steps in one jitted loop over the JAX taxi (`hpg_mj.jax.dqn`).
 The agent is `hpg_mj.agents.jax_ppo`'s (the record, the metrics, the greedy
 measure, the saved state, the input contract) with this learner and its [dqn]
 section. It needs the extra `pip install 'hpg_mj[jax]'`; JAX is imported only when

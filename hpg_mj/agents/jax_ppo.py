@@ -1,6 +1,7 @@
 """PPO in JAX on the ship and the taxi: the whole update (a rollout of every copy,
 GAE, the minibatch epochs) one jitted function over the pure-JAX worlds
-(`hpg_mj.jax`, SPEC section 7's reference agents at fair budgets, issue 42). The
+(`hpg_mj.jax`; SPEC section 7's reference agents, at budgets fair to the
+hierarchies). The
 learner is `hpg_mj.jax.ppo` (PureJaxRL's loop, written in one file); this module
 is its agent: the task file's sections, the record, the greedy measure, the saved
 state. It needs the extra `pip install 'hpg_mj[jax]'`; JAX is imported only when

@@ -1,4 +1,4 @@
-"""PPO in JAX (`hpg_mj.jax.ppo`, the agents of `hpg_mj.agents.jax_ppo`, issue 42):
+"""PPO in JAX (`hpg_mj.jax.ppo`, the agents of `hpg_mj.agents.jax_ppo`):
 it learns (the ship's diagonal subtask, two seeds vmapped into one compile; the
 taxi's first lesson), its record rows hold the episodes SB3's would, a saved run
 and a stopped `hpg-mj run` resume bit for bit, its greedy episodes are the
