@@ -196,3 +196,15 @@ def test_bad_dqn_sections_are_refused_in_one_line(tmp_path):
   with pytest.raises(ValueError, match=r"taxi_fuel_dqn_jax.toml: \[dqn\] train_freq = 3 must "
                                        r"divide n_steps = 64"):
     agents.load_task(bad)
+
+
+def test_bench_train_measures_task_files_in_interleaved_rounds(tmp_path):
+  """`hpg-mj bench train --task A --task B --rounds 2`: a row each, the median of its
+  rounds, counted in the control steps the agent trained (whole updates of 8,192)."""
+  from hpg_mj import bench
+  other = task_file(tmp_path, "taxi_fuel_ppo_jax", {})
+  row = bench.bench_task(other, min_seconds=0.05)
+  assert row["steps"] % 8192 == 0 and row["steps"] > 0      # whole updates, not rows
+  rows = bench.bench_train(0.05, ["taxi_fuel_ppo_jax", str(other)], rounds=2)
+  assert [name for name, _, _ in rows] == ["taxi_fuel_ppo_jax, learning, median of 2 rounds"] * 2
+  assert all(unit == "primitive steps/s" and rate > 0 for _, unit, rate in rows)
