@@ -192,7 +192,10 @@ def _cmd_bench(args):
       import json
       print(json.dumps([bench.bench_task(t, seconds) for t in tasks], indent=2))
     else:
-      print(bench.format_rows(bench.bench_train(min_seconds=seconds, tasks=args.task)))
+      rows = bench.bench_train(min_seconds=seconds, tasks=args.task, rounds=args.rounds)
+      print(bench.format_rows(rows))
+      for name, _, rate in rows[1:] if args.task else ():
+        print(f"{rows[0][0].split(',')[0]} / {name.split(',')[0]}: {rows[0][2] / rate:.1f}x")
   else:
     _bench_experiments(args)
   return 0
@@ -855,6 +858,9 @@ def build_parser():
   p.add_argument("--json", action="store_true",
                  help="train: one JSON object per task file, compile seconds apart from "
                       "training seconds")
+  p.add_argument("--rounds", type=_at_least(1), default=1,
+                 help="train with --task: interleaved rounds over the task files (the "
+                      "median of each, and the first's speed over each other's)")
   p.add_argument("--workers", type=_at_least(1), default=None, help="experiments: processes")
   p.set_defaults(func=_cmd_bench)
 

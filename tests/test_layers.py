@@ -16,8 +16,9 @@ ALLOWED = {
     "envs": {"worlds", "render", "_validation", "_assets", "_headless"},
     "render": {"worlds", "_assets", "_validation", "_headless", "_render_worker"},
     "hierarchy": {"learners", "worlds"},
+    # (hpg_mj.jax: the JAX agents' learner, imported when such an agent is built)
     "agents": {"hierarchy", "learners", "worlds", "envs", "suite", "render", "provenance",
-               "_paths", "taskfile", "storage"},
+               "_paths", "taskfile", "storage", "jax"},
     "experiments": {"agents", "hierarchy", "learners", "worlds", "envs", "suite", "render",
                     "provenance", "_paths", "taskfile", "storage"},
     # The JAX worlds (the `jax` extra) take the numba worlds' constants, nothing else.
