@@ -75,6 +75,7 @@ NO_EVENT, SUCCESS = core.NO_EVENT, core.SUCCESS
 _JIT = dict(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
             no_cfunc_wrapper=True)
 _ENTRY = dict(cache=True, error_model="numpy", _nrt=False, no_cfunc_wrapper=True)
+_INLINE = dict(cache=True, error_model="numpy", _nrt=False, inline="always")
 
 
 # ---- the graph's operations (written per graph by `hierarchy.program`) -------------
@@ -126,7 +127,7 @@ CONTINUING = False
 
 # ---- Algorithm 1 ----------------------------------------------------------------
 
-@numba.njit(**_JIT)
+@numba.njit(**_INLINE)
 def call(G, d, node):
   """Task `node` is called at depth d."""
   M = G.M
@@ -138,7 +139,7 @@ def call(G, d, node):
   enter(G, node)
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_INLINE)
 def descend(G, d):
   """From depth d, calls the chosen children down to a primitive; returns its action."""
   M = G.M
@@ -151,7 +152,7 @@ def descend(G, d):
     call(G, d, child)
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_INLINE)
 def begin(G):
   """An episode starts in G.M.obs: the root is called; returns the first action."""
   M = G.M
@@ -340,7 +341,7 @@ def run_taxi(G, n_episodes, rng_state, world, record, starts):
   arrays.copy_into(rng_state, M.rng)
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_INLINE)
 def write_row(M, row, end, illegal):
   """The record row of the episode just ended."""
   row[ROW_END] = end

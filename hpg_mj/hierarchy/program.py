@@ -448,6 +448,16 @@ class Program:
     """The schedule's hooks: a watched subtask's run ended, the episode, a decision."""
     kind = self.schedule_kind
     S = self._record("S", self.schedule)
+    # A graph without a schedule of its own whose learners follow none (flat PGRL, the
+    # actor-critic) compiles none of the default's code: nothing would read it.
+    followed = self.graph.schedule is not None or any(
+        getattr(s.node.learner, "epsilon_schedule", False) for s in self._subtasks)
+    if not followed:
+      L += ["@numba.njit(**_JIT)", "def schedule_run(G, node, success):", "  return None",
+            "", "", "@numba.njit(**_JIT)", "def schedule_episode(G, learned):",
+            "  return None", "", "", "@numba.njit(**_JIT)", "def schedule_decided(G):",
+            "  return None", "", ""]
+      return
     run, episode, decided = (self._function(f) for f in (kind.run_ended, kind.episode_ended,
                                                           kind.decided))
     L += ["@numba.njit(**_JIT)", "def schedule_run(G, node, success):",

@@ -62,8 +62,12 @@ def _reset_width(L):
   return lambda L: el.reset(width_of(L))
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
 def _choose(P, L, N, tiles, learn, sample, rng):
+  """The draw (`policies.gaussian_choose`): called, not inlined, so that `choose` and
+  `observe` share one compiled copy of it (inlined into both, it was compiled twice:
+  ~1.3 s of flat PGRL's first compile)."""
   return policies.gaussian_choose(el.trace_of(L), L.values, tiles, N.psi, P.alpha, P.baseline,
                                   P.r_max, learn, sample, rng, width_of(L), N.psi_width,
                                   P.width_alpha, P.log_sigma_low, P.log_sigma_high)
