@@ -166,7 +166,7 @@ def begin(G):
   return descend(G, 0)
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_INLINE)
 def step(G, reward, terminated, truncated):
   """A primitive step ended in G.M.obs with `reward`. Returns (episode over, the next
   action): each call from the primitive's parent up judges whether it has ended
