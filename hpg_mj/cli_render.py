@@ -1,0 +1,132 @@
+"""`hpg-mj render`: a video of one episode of a task's scripted or trained agent, its
+options checked before any frame is drawn."""
+import sys
+
+
+# Where `hpg-mj render` and `hpg-mj demo` write unless told (--out): under runs/,
+# which git ignores, so that the main job leaves a clone's `git status` clean; the
+# showcase media in videos/ are tracked and remade only on purpose (`--out videos`).
+VIDEOS_OUT = "runs/videos"
+
+
+def _video_out(args, default):
+  """The video's path (--out, or `default`; .gif with --gif), checked before any
+  frame is drawn."""
+  import pathlib
+
+  from hpg_mj import _paths
+  from hpg_mj.render import video
+  out = pathlib.Path(args.out or default)
+  if args.gif and out.suffix.lower() != ".gif":
+    out = out.with_suffix(".gif")
+  _paths.check_file_out(out, "--out", video.VideoWriter.SUFFIXES)
+  if args.out and out.is_file() and not args.force:   # the user's file is not replaced
+    raise _paths.OutputRefused(f"--out {out} exists; give another name, or --force to "
+                               "replace it")
+  return out
+
+
+def _cmd_render(args):
+  from hpg_mj.render import video
+  if getattr(args, "agent", None) is not None:
+    return _render_agent(args)
+  _check_frame_size(f"{args.domain}.xml", args)
+  args.out = _video_out(args, f"{VIDEOS_OUT}/{args.domain}_{args.task}_{args.policy}."
+                              f"{'gif' if args.gif else 'mp4'}")
+  path, summary = video.render_task(args.domain, args.task, policy=args.policy, seed=args.seed,
+                                    out=args.out, gif=args.gif, width=args.width,
+                                    height=args.height, max_steps=args.max_steps,
+                                    backend=args.backend,
+                                    frame_every=getattr(args, "stride", None))
+  event = summary["info"].get("event") if isinstance(summary["info"], dict) else None
+  print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB): {summary['steps']} steps, "
+        f"return {summary['return']:.1f}" + (f", ended by {event}" if event else ""))
+  return 0
+
+
+def _render_agent(args):
+  """`hpg-mj render --agent DIR`: a greedy episode streamed to the video file."""
+  import time
+
+  from tqdm import tqdm
+
+  from hpg_mj import agents
+  from hpg_mj.experiments import videos
+  if args.out is not None:
+    out = _video_out(args, None)         # before the agent is loaded, as without --agent
+  agent, _, _ = agents.load(args.agent)
+  env = agent.make_env("gymnasium", backend=args.backend)     # which model draws it
+  model_file = getattr(env.unwrapped, "model_file", None)
+  env.close()
+  if model_file is not None:
+    _check_frame_size(model_file, args)
+  if args.out is None:                   # a user's kind may be "module:Class"
+    name = agent.name.replace(":", ".")
+    out = _video_out(args, f"{VIDEOS_OUT}/{name}.{'gif' if args.gif else 'mp4'}")
+  bar = tqdm(total=None, unit="step", desc=f"filming {agent.name}", dynamic_ncols=True,
+             disable=args.quiet or not sys.stderr.isatty())
+
+  def progress(done, total):
+    bar.total = total
+    bar.update(done - bar.n)
+  start = time.perf_counter()
+  try:
+    path, record = videos.render_agent(agent, out, seed=args.seed, width=args.width,
+                                       height=args.height, backend=args.backend,
+                                       max_frames=args.max_frames, stride=args.stride,
+                                       progress=progress)
+  finally:
+    bar.close()
+  summary = agent.metrics(record)
+  print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB) in {time.perf_counter() - start:.1f} s:"
+        f" a greedy episode of {args.agent}, {int(record['steps'][0])} steps, return "
+        f"{summary['mean_return']:.1f}"
+        + (f", gate passed: {bool(summary['gate_pass_rate'])}" if "gate_pass_rate" in summary
+           else ""))
+  return 0
+
+
+def _check_frame_size(model_file, args):
+  """Refuses --width or --height beyond the model's offscreen buffer before any
+  frame is drawn, in the options' names (MuJoCo's refusal, from the render worker,
+  read as a missing OpenGL library)."""
+  from hpg_mj import _assets
+  _assets.check_frame_size(model_file, args.width, args.height, options=("--width", "--height"))
+
+
+# `hpg-mj render` options that film a task's scripted or random policy, not an agent.
+RENDER_TASK_ONLY = ("domain", "task", "policy", "max_steps")
+RENDER_AGENT_ONLY = ("max_frames",)
+
+
+def _check_render_args(parser, args):
+  """Refuses the options that do not apply (with or without --agent); fills defaults."""
+  def flag(name):
+    return "--" + name.replace("_", "-")
+  if args.agent is not None:
+    given = [flag(n) for n in RENDER_TASK_ONLY if getattr(args, n) is not None]
+    if given:
+      parser.error(f"render: {', '.join(given)} cannot be used with --agent (the agent's own "
+                   "task and greedy policy are filmed); with --agent use --seed, --out, --gif, "
+                   "--width, --height, --backend, --stride, --max-frames, --quiet")
+    args.width = args.width or videos_defaults()[0]
+    args.height = args.height or videos_defaults()[1]
+    args.max_frames = args.max_frames if args.max_frames is not None else videos_defaults()[2]
+  else:
+    given = [flag(n) for n in RENDER_AGENT_ONLY if getattr(args, n) is not None]
+    if given:
+      parser.error(f"render: {', '.join(given)} only applies with --agent")
+    args.domain = args.domain or "ship"
+    args.task = args.task or ("steer" if args.domain == "ship" else "fuel")
+    args.policy = args.policy or "scripted"
+    args.width = args.width or 640
+    args.height = args.height or 480
+  for name in ("width", "height", "stride", "max_frames"):
+    value = getattr(args, name)
+    if value is not None and value < 1:
+      parser.error(f"render: {flag(name)} must be a positive integer, got {value}")
+
+
+def videos_defaults():
+  from hpg_mj.experiments import videos
+  return videos.DEFAULT_WIDTH, videos.DEFAULT_HEIGHT, videos.DEFAULT_MAX_FRAMES
