@@ -60,9 +60,16 @@ sampled segment); `P` of a view, termination or reward is the node's own.
 `Child("goto", x=...)` bound them), `call.origin` (the observation where the call
 began) and `call.steps` (the primitive steps taken in it).
 """
+import numba
 import numpy as np
 
 from hpg_mj.hierarchy.graph import GraphError
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+            no_cfunc_wrapper=True)
+def no_start(P, L, N):
+  """A learner's `start` when a call's beginning resets nothing (no trace)."""
 
 
 class Kind:

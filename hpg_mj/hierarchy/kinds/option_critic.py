@@ -166,12 +166,6 @@ def _draw(probs, rng):
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
-def root_start(P, L, N):
-  pass
-
-
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
-             no_cfunc_wrapper=True)
 def root_choose(P, L, N, x, n, rng, learn, sample):
   return float(qlambda.epsilon_greedy(P.q_omega, x, n, P.epsilon if sample else 0.0, rng))
 
@@ -186,12 +180,6 @@ def root_observe(P, L, N, x, signal, done, terminal, n, rng, learn, sample):
 
 
 # ---- an option ------------------------------------------------------------------
-
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
-             no_cfunc_wrapper=True)
-def option_start(P, L, N):
-  pass
-
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
@@ -295,7 +283,7 @@ class OverOptionsKind(_OptionCriticNode):
   def scratch(self, block, n_children):
     return Nothing(np.int64(0))
 
-  start, choose, observe = (staticmethod(root_start), staticmethod(root_choose),
+  start, choose, observe = (staticmethod(base.no_start), staticmethod(root_choose),
                             staticmethod(root_observe))
 
 
@@ -316,7 +304,7 @@ class IntraOptionKind(_OptionCriticNode):
   def scratch(self, block, n_children):
     return Scratch(np.zeros(2, dtype=np.int64), np.zeros(n_children))
 
-  start, choose, observe = (staticmethod(option_start), staticmethod(option_choose),
+  start, choose, observe = (staticmethod(base.no_start), staticmethod(option_choose),
                             staticmethod(option_observe))
 
 

@@ -40,12 +40,6 @@ ClockSettings = collections.namedtuple("ClockSettings", ("steps",))
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
-def start(P, L, N):
-  pass
-
-
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
-             no_cfunc_wrapper=True)
 def choose(P, L, N, x, n, rng, learn, sample):
   a = qlambda.epsilon_greedy(L.q, x, n, P.epsilon[0] if sample else 0.0, rng)
   N.last[0] = x
@@ -112,7 +106,8 @@ class RLearningKind(base.TableKind):
   def scratch(self, block, n_children, child_steps):
     return Scratch(np.zeros(3, dtype=np.int64), child_steps)
 
-  start, choose, observe = staticmethod(start), staticmethod(choose), staticmethod(observe)
+  start, choose, observe = (staticmethod(base.no_start), staticmethod(choose),
+                            staticmethod(observe))
 
 
 class PatrolCellKind(base.ViewKind):
