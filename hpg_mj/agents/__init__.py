@@ -39,7 +39,7 @@ def __getattr__(name):
   if name in ("ShipAgent", "ShipEnvironment"):
     from hpg_mj.agents import _ship
     return getattr(_ship, name)
-  if name in ("ShipHierarchy", "HierarchyConfig"):
+  if name in ("ShipHierarchy", "HierarchyConfig", "TaxiHierarchy", "TaxiHierarchyConfig"):
     from hpg_mj.agents import hierarchy
     return getattr(hierarchy, name)
   if name in ("TaxiAgent", "TaxiEnvironment"):

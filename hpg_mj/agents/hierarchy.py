@@ -28,6 +28,12 @@ class HierarchyConfig:
   environment: _ship.ShipEnvironment = dataclasses.field(default_factory=_ship.ShipEnvironment)
 
 
+@dataclasses.dataclass(frozen=True)
+class TaxiHierarchyConfig:
+  """A taxi hierarchy's task file: its [environment] (a subclass adds its own sections)."""
+  environment: _taxi.TaxiEnvironment = dataclasses.field(default_factory=_taxi.TaxiEnvironment)
+
+
 class ShipHierarchy(_ship.ShipMachineAgent):
   """A user's hierarchy on the full ship task (see the module docstring): give
   `graph()`; `root_args` are the root call's arguments, if its rules read any."""
@@ -42,6 +48,7 @@ class TaxiHierarchy(_taxi.TaxiMachineAgent):
   `graph()`. Its kinds read the task's world (`taxi_rules.world_config`); its
   observation is (row, col, passenger, destination[, fuel])."""
 
+  Config = TaxiHierarchyConfig
   record_fields = ("return", "steps", "outcome")
 
   @property

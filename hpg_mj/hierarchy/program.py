@@ -215,7 +215,8 @@ class Program:
     elif any(continuous):
       raise GraphError(f"subtask {name!r}: its learner {type(node.learner).__name__} chooses "
                        "among its children; a Primitive without an action (a continuous one) "
-                       "needs a learner that draws values (GaussianCMAC)")
+                       "needs a learner that draws values (GaussianCMAC); a discrete one "
+                       "gives its action: Primitive(name, action=i)")
     if s.view.gives != s.learner.reads:
       raise GraphError(f"subtask {name!r}: its learner {type(node.learner).__name__} reads "
                        f"{s.learner.reads}, its view {rules_mod.rule_name(node.view)} gives "
