@@ -18,7 +18,8 @@ saved agent records its class's import path, so another process finds it too.
 
 Shipped: ship_hybrid, ship_beyond (past the paper's route, SPEC section 8),
 ship_flat_pg, ship_actor_critic, ship_patrol (continuing, SPEC section 8), taxi_hpg,
-taxi_maxq, taxi_flat_q (each one module here); and Stable-Baselines3's PPO and SAC on
+taxi_maxq, taxi_flat_q, the learned hierarchies ship_option_critic and taxi_option_critic
+(each one module here); PPO and DQN in JAX (jax_ppo, jax_dqn, with `hpg_mj[jax]`); and Stable-Baselines3's PPO and SAC on
 the ship, PPO and DQN on the taxi (`hpg_mj.agents.sb3`, with the extra
 `pip install 'hpg_mj[sb3]'`).
 """
@@ -55,6 +56,7 @@ _SHIPPED = {
     "ship_beyond": "hpg_mj.agents.ship_beyond:ShipBeyond",
     "ship_flat_pg": "hpg_mj.agents.ship_flat_pg:ShipFlatPG",
     "ship_actor_critic": "hpg_mj.agents.ship_actor_critic:ShipActorCritic",
+    "ship_option_critic": "hpg_mj.agents.ship_option_critic:ShipOptionCritic",
     "ship_patrol": "hpg_mj.agents.ship_patrol:ShipPatrol",
     "taxi_hpg": "hpg_mj.agents.taxi_hpg:TaxiHPG",
     "taxi_maxq": "hpg_mj.agents.taxi_maxq:TaxiMAXQ",
