@@ -410,6 +410,9 @@ def _draw_and_report(args, experiment, results, root, wall, new_runs):
           optimal if fig.get("reference") == "optimal" else None)
       continue
     agent, _, _ = agents.load(root / fig["task"] / f"seed{fig['seed']}" / "agent")
+    if fig["kind"] == "options":
+      drawn[fig["name"]] = figures.draw_options(root, fig, agent)
+      continue
     drawn[fig["name"]] = figures.draw_trajectories(root, fig, agent, args.quick)
     for s in drawn[fig["name"]]:
       print(f"{fig['name']}: from {tuple(s['start'])}: "

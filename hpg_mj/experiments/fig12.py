@@ -13,9 +13,26 @@ STARTS = ((700.0, 700.0, 100.0, 3.65), (750.0, 180.0, 80.0, 7.9))
 def sail(agent, start):
   """One greedy episode of a ship agent from `start` on the MuJoCo ship: (path, the
   root's decisions as (x, y, direction) where each call began, record row)."""
-  from hpg_mj.hierarchy import executor
   env = agent.make_env("gymnasium", backend="mujoco")
   path, decisions = [], []
+
+  def on_call(call):
+    if "direction" in call.args:           # a call of the root's (a compass direction)
+      decisions.append((float(call.origin[0]), float(call.origin[1]),
+                        int(call.args["direction"])))
+
+  try:
+    record = agent.run_stepwise(traced(env.unwrapped, path), 1, learn=False, start=start,
+                                on_call=on_call)
+  finally:
+    env.close()
+  return np.array(path), decisions, record[0]
+
+
+def traced(env, path):
+  """`env` (a Gymnasium environment) for the step-by-step path, appending every
+  observation it gives to `path`."""
+  from hpg_mj.hierarchy import executor
 
   class Tracing(executor.GymAdapter):
     def reset(self, start=None):
@@ -28,17 +45,7 @@ def sail(agent, start):
       path.append(np.array(step.obs))
       return step
 
-  def on_call(call):
-    if "direction" in call.args:           # a call of the root's (a compass direction)
-      decisions.append((float(call.origin[0]), float(call.origin[1]),
-                        int(call.args["direction"])))
-
-  try:
-    record = agent.run_stepwise(Tracing(env.unwrapped), 1, learn=False, start=start,
-                                on_call=on_call)
-  finally:
-    env.close()
-  return np.array(path), decisions, record[0]
+  return Tracing(env)
 
 
 def draw(agent, out, video=True, width=640, height=480, starts=STARTS, name="fig12",

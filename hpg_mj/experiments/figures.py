@@ -11,7 +11,8 @@ it is quick. The legend names the learners as the paper does ([task] label). A
 experiment's `greedy_at` points against the control (primitive) steps trained, on a
 log axis (the sample-efficiency figures of `hpg_mj.experiments.reference`). A
 "trajectories" figure (Figure 12) sails a run's final agent from given starts on
-the MuJoCo ship (`experiments.fig12`).
+the MuJoCo ship (`experiments.fig12`); an "options" figure draws where an
+option-critic's learned options begin and end on the field (`experiments.options_map`).
 
 Records have named fields (`Agent.record_fields`): a metric is drawn for every
 task whose agent records the fields it needs; every record has "steps".
@@ -265,6 +266,19 @@ def draw_trajectories(root, fig, agent, quick=False):
   return summary
 
 
+def draw_options(root, fig, agent):
+  """An options figure from a trained option-critic (`options_map.draw`); its summary
+  also in <name>.json."""
+  import json
+
+  from hpg_mj.experiments import options_map
+  root = pathlib.Path(root)
+  summary = options_map.draw(agent, root, [tuple(s) for s in fig["starts"]], fig["name"],
+                             fig["title"])
+  (root / f"{fig['name']}.json").write_text(json.dumps(summary, indent=2) + "\n")
+  return summary
+
+
 # (metrics.json key, what the report calls it, digits); "greedy." reads the greedy
 # evaluation on the fixed starts (SPEC section 7).
 _SHIP_ROWS = (("gate_pass_rate", "gate pass rate, online", 3),
@@ -415,6 +429,18 @@ def write_report(root, experiment, results, drawn, protocol=None):
     if summary is None:
       continue
     head = f"- **{fig['name']}** ({fig['title']}): the paper: {fig['paper']}."
+    if fig["kind"] == "options":
+      lines.append(head + f" Ours, seed {fig['seed']}'s final agent, greedy on the analytic "
+                   "ship:")
+      for s in summary["starts"]:
+        lines.append(f"  - from ({s['start'][0]:.0f}, {s['start'][1]:.0f}): "
+                     f"{'passed' if s['passed'] else 'missed'} the gate in {s['steps']} "
+                     f"control steps, {s['calls']} option calls")
+      for option, s in summary["options"].items():
+        lines.append(f"  - {option}: {s['calls']} calls, {s['mean_steps']:.1f} control steps "
+                     f"each; on average begun at ({s['began'][0]:.0f}, {s['began'][1]:.0f}), "
+                     f"ended at ({s['ended'][0]:.0f}, {s['ended'][1]:.0f})")
+      continue
     if fig["kind"] == "trajectories":
       lines.append(head + " Ours, on the MuJoCo ship:")
       for s in summary:

@@ -33,14 +33,15 @@ from hpg_mj.experiments import stats
 # Per world: its experiments (shipped names), the figure's panels (greedy metric,
 # axis label) and the table's greedy scores, each also normalized.
 WORLDS = {
-    "ship": {"experiments": ("reference_ship_hierarchy", "reference_ship_ppo",
-                             "reference_ship_sac"),
+    "ship": {"experiments": ("reference_ship_hierarchy", "reference_ship_option_critic",
+                             "reference_ship_ppo", "reference_ship_sac"),
              "title": "Ship steering: greedy scores against control steps trained",
              "panels": (("gate_pass_rate", "gate pass rate, greedy"),
                         ("J", "J (MushroomRL rewards), greedy")),
              "scores": (("gate_pass_rate", "gate pass rate", 3), ("J", "J", 2)),
              "steps": ("control_steps", "control steps")},
-    "taxi": {"experiments": ("reference_taxi_hierarchy", "reference_taxi"),
+    "taxi": {"experiments": ("reference_taxi_hierarchy", "reference_taxi_option_critic",
+                             "reference_taxi"),
              "title": "Taxi-fuel: greedy return against primitive steps trained",
              "panels": (("mean_return", "mean return, greedy"),),
              "scores": (("mean_return", "return", 3),),

@@ -43,6 +43,8 @@ An experiment file (tasks/experiments/*.toml):
     [[figure]]
     name = "fig12"
     kind = "trajectories"      # a trained hybrid's greedy episodes on the MuJoCo ship
+                               # (kind = "options": an option-critic's learned options,
+                               # `options_map`, with task, seed and starts)
     task = "ship_hybrid"
     seed = 100                 # whose final agent (one of the experiment's seeds)
     starts = [[700.0, 700.0, 100.0, 3.65]]
@@ -104,7 +106,12 @@ FIGURE_KINDS = {
                      {"width": POSITIVE, "height": POSITIVE, "quick_width": POSITIVE,
                       "quick_height": POSITIVE, "frame_every": POSITIVE,
                       "quick_frame_every": POSITIVE}),
+    "options": ({"task": "str", "seed": ("int_min", 0),
+                 "starts": ("float_lists", 4, "[x, y, heading in degrees, turning rate "
+                                              "in deg/s]")}, {}),
 }
+# The agents each figure of a run's final agent can draw.
+FIGURE_AGENTS = {"trajectories": ("ship_hybrid",), "options": ("ship_option_critic",)}
 
 
 def _check_figures(path, section, tasks, figures_):
@@ -144,9 +151,10 @@ def _check_figures(path, section, tasks, figures_):
       if problem:
         raise taskfile.TaskFileError(f"{path}: {where} {problem}")
     else:
-      if tasks[names.index(fig["task"])].kind != "ship_hybrid":
-        raise taskfile.TaskFileError(f"{path}: {where} draws a ship_hybrid's trajectories; "
-                                     f"{fig['task']!r} is not one")
+      allowed = FIGURE_AGENTS[kind]
+      if tasks[names.index(fig["task"])].kind not in allowed:
+        raise taskfile.TaskFileError(f"{path}: {where} ({kind}) draws a run of "
+                                     f"{' or '.join(allowed)}; {fig['task']!r} is not one")
       first = section.get("first_seed", 0)
       last = first + min(section["runs"], section["quick_runs"]) - 1
       if not first <= fig["seed"] <= last:

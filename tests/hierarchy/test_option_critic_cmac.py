@@ -2,7 +2,7 @@
 agent `ship_option_critic`): its two paths are one algorithm; one step by hand is
 the module's updates; its arrays are saved by the root's name and a run resumes
 where it stopped; and what it refuses is named in one line."""
-import dataclasses
+import pathlib
 
 import gymnasium
 import numpy as np
@@ -117,3 +117,35 @@ def test_what_it_refuses_is_named():
     oc.OptionCriticCMAC(coder, 2, 30.0, sigma=0)
   with pytest.raises(ValueError, match=r"^OptionCriticCMAC.n_options = 0: must be an integer"):
     oc.OptionCriticCMAC(coder, 0, 30.0)
+
+
+def test_the_options_are_drawn_where_they_began_and_ended(tmp_path):
+  from hpg_mj.experiments import options_map
+  agent = _agent(6, max_steps=120)
+  agent.train(5)
+  starts = [(700.0, 700.0, 100.0, 3.65), (200.0, 200.0, 0.0, 0.0)]
+  summary = options_map.draw(agent, tmp_path, starts, name="opts")
+  assert (tmp_path / "opts.png").stat().st_size > 10_000
+  assert [s["start"] for s in summary["starts"]] == [list(s) for s in starts]
+  assert sum(s["calls"] for s in summary["options"].values()) == \
+      sum(s["calls"] for s in summary["starts"])
+  path, calls, row = options_map.sail(agent, starts[0])
+  assert len(path) == row["steps"] + 1 == summary["starts"][0]["steps"] + 1
+  assert calls[0][1] == 0 and calls[-1][2] == len(path) - 1     # the calls tile the path
+  assert all(a[2] == b[1] for a, b in zip(calls, calls[1:]))
+  assert {c[0] for c in calls} <= {f"option{w}" for w in range(4)}
+
+
+def test_an_options_figure_needs_an_option_critic(tmp_path):
+  from hpg_mj import taskfile
+  from hpg_mj.experiments import runner
+  text = (pathlib.Path(runner.__file__).parents[2] / "tasks" / "experiments" /
+          "reference_ship_option_critic.toml").read_text()
+  bad = tmp_path / "bad.toml"
+  bad.write_text(text.replace('tasks = ["ship_option_critic"]',
+                              'tasks = ["ship_option_critic", "ship_hybrid"]')
+                 .replace('task = "ship_option_critic"', 'task = "ship_hybrid"'))
+  with pytest.raises(taskfile.TaskFileError, match=r"\[\[figure\]\] 'ship_options' \(options\) "
+                                                   r"draws a run of ship_option_critic; "
+                                                   r"'ship_hybrid' is not one"):
+    runner.load_experiment(bad)
