@@ -3,7 +3,9 @@
 The pages are Markdown (MyST), as Gymnasium's are. The API reference (a page per
 subpackage, `_ext/api_pages.py`) and the interfaces are autodoc of the installed
 package, and the task pages are written at build time from the environments' own
-docstrings (`_ext/task_pages.py`), so that neither can drift from the code. The
+docstrings (`_ext/task_pages.py`), so that neither can drift from the code; the
+results tables of the README and the pages are made from the reports
+(`_ext/published.py`), and the build stops when one differs from its report. The
 build runs with warnings as errors (-W) and nitpicky cross-references: a broken
 link or reference fails it.
 """
@@ -23,6 +25,7 @@ extensions = [
     "docstrings",     # _ext/docstrings.py: the code's Markdown-flavoured docstrings
     "task_pages",     # _ext/task_pages.py: one page per task, from the docstrings
     "api_pages",      # _ext/api_pages.py: the API reference, a page per subpackage
+    "published",      # _ext/published.py: the results tables, as their reports say
 ]
 
 source_suffix = {".md": "markdown"}

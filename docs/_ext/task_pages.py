@@ -1,16 +1,21 @@
 """One documentation page per task, written when the build starts from what the code
 says: the dm_control domain's docstring (the task's own paragraph), the task
 constructor's docstring and signature, the Gymnasium environment's docstring (its
-manual: spaces, rewards, starts, endings, arguments, version history), and the
-spaces of the environments as built. Nothing on these pages is copied by hand, so
-they cannot drift from the code; a task without a page (or a page without a task)
-stops the build."""
+manual, with Gymnasium's sections: description, action space, observation space
+with a row per element, rewards, starting state, episode end, information,
+arguments with their defaults, references, version history), and the environments
+as built: their spaces, the observation table's bounds and the episode limit.
+Nothing on these pages is copied by hand, so they cannot drift from the code; a task
+without a page (or a page without a task), or an observation element without its
+row, stops the build (tests/test_task_pages.py holds every page to the sections)."""
 import inspect
 import pathlib
 import re
 import textwrap
 
 import gymnasium
+import numpy as np
+from gymnasium import spaces
 
 import hpg_mj  # noqa: F401  (registers the Gymnasium ids)
 from hpg_mj import envs
@@ -122,6 +127,89 @@ def _shift_headings(text):
   return re.sub(r"^(#+) ", r"#\1 ", text, flags=re.M)
 
 
+def _signature(name, function):
+  """`name(...)` with one parameter a line, so that a long signature stays on the page."""
+  parameters = [str(p) for p in inspect.signature(function).parameters.values()]
+  return f"{name}(" + "".join(f"\n    {p}," for p in parameters) + ("\n)" if parameters else ")")
+
+
+def episode_limit(env):
+  """The steps after which an episode ends at the latest: the environment's own limit
+  (its `max_steps` argument or the task's default; the ids are registered without
+  Gymnasium's TimeLimit wrapper, since each environment truncates itself)."""
+  rules = getattr(env.unwrapped, "rules", None)
+  if getattr(rules, "max_steps", None) is None:
+    raise ValueError(f"{env.unwrapped!r}: a task page reads the episode limit from "
+                     "env.unwrapped.rules.max_steps, which it lacks")
+  return int(rules.max_steps)
+
+
+def _bound(value):
+  return f"{float(value):g}"
+
+
+def element_bounds(space):
+  """"Num" -> (min, max) for every element of an observation space: "i" in a Box or
+  MultiDiscrete of one dimension, "key[i]" in a Dict of those."""
+  if isinstance(space, spaces.Dict):
+    return {f"{key}[{num}]": bounds for key, sub in space.spaces.items()
+            for num, bounds in element_bounds(sub).items()}
+  if isinstance(space, spaces.Box) and len(space.shape) == 1:
+    return {str(i): (_bound(low), _bound(high))
+            for i, (low, high) in enumerate(zip(space.low, space.high))}
+  if isinstance(space, spaces.MultiDiscrete) and space.nvec.ndim == 1:
+    start = getattr(space, "start", np.zeros_like(space.nvec))
+    return {str(i): (str(int(s)), str(int(s + n - 1)))
+            for i, (s, n) in enumerate(zip(start, space.nvec))}
+  if isinstance(space, spaces.Discrete):
+    return {"0": (str(int(space.start)), str(int(space.start + space.n - 1)))}
+  raise ValueError(f"no per-element bounds for the observation space {space!r}")
+
+
+def _cells(line):
+  return [cell.strip() for cell in line.strip().strip("|").split("|")]
+
+
+def element_table(manual, space, where):
+  """The manual with its observation table's Min and Max columns those of `space` as
+  built (inserted after the second column, or replacing the table's own): the table
+  under "## Observation space" whose first column is "Num", a row per element. A row
+  whose element this task's space lacks is left out (the classic taxi has no fuel);
+  an element without a row is refused."""
+  section = re.search(r"^## Observation space[ \t]*$(.*?)(?=^## |\Z)", manual, re.M | re.S | re.I)
+  if section is None:
+    raise ValueError(f"{where}: the manual has no '## Observation space' section")
+  lines = section.group(1).split("\n")
+  first = next((i for i, line in enumerate(lines) if line.startswith("|")
+                and _cells(line)[0] == "Num"), None)
+  if first is None:
+    raise ValueError(f"{where}: its observation space has no table of elements "
+                     "('| Num | Observation | ... |', a row per element)")
+  last = first
+  while last + 1 < len(lines) and lines[last + 1].startswith("|"):
+    last += 1
+  header = _cells(lines[first])
+  if "Min" in header and "Max" in header:
+    columns = header.index("Min"), header.index("Max")
+    build = lambda cells, low, high: [*cells[:columns[0]], low, *cells[columns[0] + 1:
+                                      columns[1]], high, *cells[columns[1] + 1:]]
+  else:
+    build = lambda cells, low, high: [*cells[:2], low, high, *cells[2:]]
+  bounds = element_bounds(space)
+  table = [build(header, "Min", "Max"), build(["---"] * len(header), "---", "---")]
+  for line in lines[first + 2:last + 1]:
+    cells = _cells(line)
+    num = cells[0].strip("`")
+    if num in bounds:
+      table.append(build(cells, *bounds.pop(num)))
+  if bounds:
+    raise ValueError(f"{where}: its observation table has no row for the elements "
+                     f"{sorted(bounds)} of {space!r}")
+  lines[first:last + 1] = ["| " + " | ".join(cells) + " |" for cells in table]
+  start, end = section.span(1)
+  return manual[:start] + "\n".join(lines) + manual[end:]
+
+
 def _spec_lines(spec):
   return [f"`{name}`: `{value!r}`" for name, value in spec.items()] if isinstance(
       spec, dict) else [f"`{spec!r}`"]
@@ -144,17 +232,30 @@ def _scoring(domain, task):
           "model, an agent)")
 
 
+def _make(domain, task):
+  """The task's Gymnasium environment as the page describes it (the analytic ship)."""
+  env_id = TASKS[(domain, task)][0]
+  level = {"level": task} if domain in _LEVEL_DOMAINS else {}
+  return gymnasium.make(env_id, **_MAKE_KWARGS.get(env_id, {}), **level)
+
+
 def render(domain, task):
   """The Markdown of one task's page."""
   env_id, picture, caption = TASKS[(domain, task)]
   module = suite._DOMAINS[domain]
   constructor = module.SUITE[task]
   cls = _entry_class(env_id)
-  level = {"level": task} if domain in _LEVEL_DOMAINS else {}
-  env = gymnasium.make(env_id, **_MAKE_KWARGS.get(env_id, {}), **level)
+  env = _make(domain, task)
   dm_env = suite.load(domain, task)
-  arguments = f", level={task!r}" if level else ""
+  arguments = f", level={task!r}" if domain in _LEVEL_DOMAINS else ""
+  where = f"{cls.__module__}.{cls.__qualname__} ({domain}/{task})"
   try:
+    manual = element_table(inspect.getdoc(cls), env.observation_space, where)
+    limit = episode_limit(env)
+    dm_limit = getattr(getattr(dm_env.task, "rules", None), "max_steps", limit)
+    if dm_limit != limit:
+      raise ValueError(f"{where}: the Gymnasium environment ends an episode after {limit} "
+                       f"steps, the dm_control task after {dm_limit}")
     facts = [
         ("dm_control", f"`suite.load({domain!r}, {task!r})`"),
         ("Gymnasium", f"`gymnasium.make({env_id!r}{arguments})`"),
@@ -163,6 +264,8 @@ def render(domain, task):
         ("entry point", f"`{envs.ENV_IDS[env_id][0]}` with `{envs.ENV_IDS[env_id][1]!r}`"),
         ("action space", f"`{env.action_space!r}`"),
         ("observation space", f"`{env.observation_space!r}`"),
+        ("max episode steps", f"{limit:,} (`max_steps`: the environment's own limit, "
+                              "the same in both APIs; no TimeLimit wrapper)"),
         ("dm_control action spec", "<br>".join(_spec_lines(dm_env.action_spec()))),
         ("dm_control observation spec", "<br>".join(_spec_lines(dm_env.observation_spec()))),
         ("dm_control tags", ", ".join(sorted(
@@ -173,7 +276,7 @@ def render(domain, task):
     env.close()
     dm_env.close()
   rows = "\n".join(f"| {name} | {value.replace('|', '&#124;')} |" for name, value in facts)
-  signature = f"{module.__name__}.{task}{inspect.signature(constructor)}"
+  signature = _signature(f"{module.__name__}.{task}", constructor)
   image = "../../" + picture
   return textwrap.dedent("""\
       # {title}
@@ -212,17 +315,25 @@ def render(domain, task):
                   module=module.__name__, signature=signature,
                   constructor_doc=inspect.getdoc(constructor),
                   cls=f"{cls.__module__}.{cls.__qualname__}") \
-      + _shift_headings(inspect.getdoc(cls)) + "\n"
+      + _shift_headings(manual) + "\n"
 
 
 def index():
   lines = ["# Tasks", "",
-           "One page per task: its dm_control name and Gymnasium id, its spaces, rewards,",
-           "starts, endings, arguments and version history, written at build time from",
-           "the environments' docstrings.", "",
-           "| dm_control | Gymnasium | page |", "|---|---|---|"]
+           "One page per task: its dm_control name and Gymnasium id, its spaces (the",
+           "observation element by element), rewards, starts, endings, information,",
+           "arguments with their defaults, references and version history, written at",
+           "build time from the environments' docstrings and the environments as built.",
+           "Each environment ends its episodes itself, after its `max_steps`.", "",
+           "| dm_control | Gymnasium | max episode steps | page |", "|---|---|---|---|"]
   for (domain, task), (env_id, _, _) in TASKS.items():
-    lines.append(f"| `{domain}/{task}` | `{env_id}` | [{task}]({page_name(domain, task)}.md) |")
+    env = _make(domain, task)
+    try:
+      limit = episode_limit(env)
+    finally:
+      env.close()
+    lines.append(f"| `{domain}/{task}` | `{env_id}` | {limit:,} | "
+                 f"[{task}]({page_name(domain, task)}.md) |")
   lines += ["", "```{toctree}", ":hidden:", ""]
   lines += [page_name(domain, task) for domain, task in TASKS]
   return "\n".join(lines + ["```", ""])

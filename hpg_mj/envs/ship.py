@@ -82,7 +82,7 @@ def make_backend(name):
 
 
 class ShipSteeringEnv(gymnasium.Env):
-  """Ship steering (Ghavamzadeh & Mahadevan 2003; Miller et al. 1990).
+  """Ship steering (Ghavamzadeh & Mahadevan 2003 [1]; Miller et al. 1990 [2]).
 
   ## Description
   A ship sails at a constant 3 m/s on a 1 km x 1 km sea and must be steered
@@ -102,20 +102,25 @@ class ShipSteeringEnv(gymnasium.Env):
   shape raise `ValueError`.
 
   ## Observation space
-  `Box(float64, (4,))`: `[x, y, theta_deg, theta_dot_deg]`: position in metres,
-  heading in degrees clockwise from north (+y) in [-180, 180), turning rate in
-  deg/s. For the subtasks the state is in the local 150 m frame. After the
-  ship leaves the field the last position may lie up to 1.8 m (one control
-  interval of sailing) outside it.
+  `Box(float64, (4,))`, the ship's state; for the subtasks in the local 150 m
+  frame. After the ship leaves the field the last position may lie up to 1.8 m
+  (one control interval of sailing) outside it, which the bounds allow.
+
+  | Num | Observation | Unit |
+  |---|---|---|
+  | 0 | `x`: position east | m |
+  | 1 | `y`: position north | m |
+  | 2 | `theta_deg`: heading, clockwise from north (+y), in [-180, 180) | deg |
+  | 3 | `theta_dot_deg`: turning rate | deg/s |
 
   ## Rewards
   - `steer`: -1 per control step, +100 more for passing the gate (in either
     direction, between the posts), -100 more for leaving the field.
+  - `patrol`: as `steer`, for every pass of the gate and every time the ship
+    leaves the field.
   - `diagonal`, `straight`: -1 per control step plus the shaping reward
     `exp(-(theta - theta_hat)^2 / 30^2) - 1` (theta_hat the bearing to the
     local goal), +100 more on reaching the goal, -100 more on failing.
-  `info["positions"]` holds the positions sampled every 0.2 s during the step
-  (row 0 where it began), on which the gate and the bounds are checked.
 
   ## Starting state
   - `steer`, `patrol`: x, y uniform on [0, 1000] m, heading uniform on
@@ -134,19 +139,43 @@ class ShipSteeringEnv(gymnasium.Env):
     start drawn from the environment's generator, and the process goes on;
     `info["state_before_restart"]` is where the ship was when it left.
   - Truncated: `steer` after 5,000 control steps (3,000 s); `patrol` after
-    6,000 (one hour).
+    6,000 (one hour). The environment truncates itself (`max_steps`); the ids
+    are registered without Gymnasium's `TimeLimit`.
+
+  ## Information
+  `reset()` returns `{"event": None}`. `step()` returns:
+  - `event`: what happened in the step: "gate" (`steer`, `patrol`: the gate
+    passed), "goal" (a subtask's goal reached), "out_of_bounds" (the field
+    left), "timeout" (a subtask's 300 control steps without success) or None.
+  - `positions`: a `(4, 2)` array, the positions sampled every 0.2 s during the
+    step (row 0 where it began), on which the gate and the bounds are checked.
+  - `state_before_restart` (`patrol`, after leaving the field): the state where
+    the ship left, before the fresh start that the observation shows.
 
   ## Arguments
-  - `task`: "steer" (default), "diagonal", "straight" or "patrol".
-  - `backend`: "mujoco" (default, the MJCF ship of assets/ship.xml) or
-    "analytic" (Equation 1 exactly, the paper's discretisation).
-  - `strict`: refuse out-of-range turning rates instead of clipping them.
-  - `max_steps`: override the episode length in control steps.
-  - `gate_reward`, `out_of_bounds_reward`: the +100 and -100 of SPEC section 2
-    (for the subtasks: reaching and failing the local goal).
-  - `render_mode`: None or "rgb_array" (a top-down orthographic view with
-    the ship's wake); `width`, `height`, `camera` ("top", "local",
-    "overview", "chase").
+  - `task="steer"`: "steer", "diagonal", "straight" or "patrol" (each id sets it).
+  - `backend="mujoco"`: the MJCF ship of assets/ship.xml, or "analytic"
+    (Equation 1 exactly, the paper's discretisation).
+  - `render_mode=None`: or "rgb_array", a top-down orthographic view with the
+    ship's wake.
+  - `strict=False`: True refuses out-of-range turning rates instead of clipping
+    them.
+  - `max_steps=None`: the episode's length in control steps; None is the task's
+    own (5,000 for `steer`, 6,000 for `patrol`, 300 for the subtasks).
+  - `width=640`, `height=480`: the frame's size in pixels, at most 1280 x 960
+    (the model's offscreen buffer).
+  - `camera=None`: "top", "local", "overview" or "chase"; None is "top" for
+    `steer` and `patrol`, "local" for the subtasks.
+  - `gate_reward=100.0`, `out_of_bounds_reward=-100.0`: the +100 and -100 of
+    SPEC section 2 (for the subtasks: reaching and failing the local goal).
+
+  ## References
+  [1] M. Ghavamzadeh and S. Mahadevan, "Hierarchical Policy Gradient
+  Algorithms," Proceedings of the 20th International Conference on Machine
+  Learning (ICML), 2003.
+
+  [2] W. T. Miller, R. S. Sutton and P. J. Werbos (eds.), *Neural Networks for
+  Control*, MIT Press, 1990.
 
   ## Version history
   - v0: initial release (SPEC sections 1-3); `patrol` (SPEC section 8).

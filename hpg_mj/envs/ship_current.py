@@ -75,15 +75,22 @@ class ShipCurrentEnv(ship_env.ShipSteeringEnv):
   `strict=True`; NaN, infinity or a wrong shape raise `ValueError`).
 
   ## Observation space
-  `Box(float64, (6,))`: `[x, y, theta_deg, theta_dot_deg, current_x, current_y]`:
-  the ship's state as in `hpg_mj/ShipSteering-v0`, then the water's velocity in m/s
-  where the ship is (what its log reads: speed over ground less speed through the
-  water), bounded by the level's fastest water.
+  `Box(float64, (6,))`: the ship's state as in `hpg_mj/ShipSteering-v0`, then the
+  water's velocity where the ship is (what its log reads: speed over ground less
+  speed through the water), bounded by the level's fastest water.
+
+  | Num | Observation | Unit |
+  |---|---|---|
+  | 0 | `x`: position east | m |
+  | 1 | `y`: position north | m |
+  | 2 | `theta_deg`: heading, clockwise from north (+y), in [-180, 180) | deg |
+  | 3 | `theta_dot_deg`: turning rate | deg/s |
+  | 4 | `current_x`: the water's velocity east, where the ship is | m/s |
+  | 5 | `current_y`: the water's velocity north, where the ship is | m/s |
 
   ## Rewards
   -1 per control step, +100 more for passing the gate (in either direction, between
-  the posts), -100 more for leaving the field. `info["positions"]` holds the
-  positions sampled every 0.2 s during the step, on which gate and bounds are checked.
+  the posts), -100 more for leaving the field.
 
   ## Starting state
   x, y uniform on [0, 1000] m, heading uniform on [-180, 180) deg, turning rate
@@ -92,17 +99,38 @@ class ShipCurrentEnv(ship_env.ShipSteeringEnv):
 
   ## Episode end
   Terminated at the gate or off the field (`info["event"]`: "gate",
-  "out_of_bounds"); truncated after 5,000 control steps.
+  "out_of_bounds"); truncated after 5,000 control steps (`max_steps`; the
+  environment truncates itself, without Gymnasium's `TimeLimit`).
+
+  ## Information
+  As in `hpg_mj/ShipSteering-v0`: `reset()` returns `{"event": None}`; `step()`
+  returns `event` ("gate", "out_of_bounds" or None) and `positions`, a `(4, 2)`
+  array of the positions sampled every 0.2 s during the step (row 0 where it
+  began), on which the gate and the bounds are checked.
 
   ## Arguments
-  - `level`: "easy" (default), "medium" or "hard".
-  - `backend`: "mujoco" (default; assets/ship_current.xml, the keel dragged towards
-    the water's velocity by two actuators) or "analytic" (Equation 1 with the drift,
+  - `level="easy"`: "easy", "medium" or "hard".
+  - `backend="mujoco"`: assets/ship_current.xml, the keel dragged towards the
+    water's velocity by two actuators; or "analytic" (Equation 1 with the drift,
     explicit Euler at 0.2 s; `hpg-mj verify current` measures both against the
     continuous ODE).
-  - `strict`, `max_steps`, `gate_reward`, `out_of_bounds_reward`, `render_mode`,
-    `width`, `height`, `camera`: as for `hpg_mj/ShipSteering-v0` (the picture is
-    the steering ship's; its wake shows the drift).
+  - `render_mode=None`: or "rgb_array" (the steering ship's picture; its wake
+    shows the drift).
+  - `strict=False`: True refuses out-of-range turning rates instead of clipping
+    them.
+  - `max_steps=None`: the episode's length in control steps; None is 5,000.
+  - `width=640`, `height=480`: the frame's size in pixels, at most 1280 x 960.
+  - `camera=None`: "top", "local", "overview" or "chase"; None is "top".
+  - `gate_reward=100.0`, `out_of_bounds_reward=-100.0`: the +100 and -100 of
+    SPEC section 2.
+
+  ## References
+  [1] M. Ghavamzadeh and S. Mahadevan, "Hierarchical Policy Gradient
+  Algorithms," Proceedings of the 20th International Conference on Machine
+  Learning (ICML), 2003 (the ship steering task in still water).
+
+  [2] W. T. Miller, R. S. Sutton and P. J. Werbos (eds.), *Neural Networks for
+  Control*, MIT Press, 1990.
 
   ## Version history
   - v0: initial release.

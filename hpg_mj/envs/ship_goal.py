@@ -34,7 +34,7 @@ class ShipGoalEnv(ship_env.ShipSteeringEnv):
   are drawn at each reset, heading within 45 degrees of the gate's heading. The
   observation is Gymnasium's goal-conditioned dictionary, and `compute_reward` gives
   the reward of any achieved and desired goals, so that Hindsight Experience Replay
-  (Stable-Baselines3's `HerReplayBuffer`) trains on it as it is.
+  [3] (Stable-Baselines3's `HerReplayBuffer`) trains on it as it is.
 
   | level | gate centre, each way | gate heading |
   |---|---|---|
@@ -47,11 +47,25 @@ class ShipGoalEnv(ship_env.ShipSteeringEnv):
   0.6 s control interval (clipped, or refused with `strict=True`).
 
   ## Observation space
-  `Dict`: `observation`, `Box(float64, (4,))`, the ship's `[x, y, theta_deg,
-  theta_dot_deg]` as in `hpg_mj/ShipSteering-v0`; `achieved_goal`, `Box(float64,
-  (4,))`, the ship's `[x, y, sin(theta), cos(theta)]`; `desired_goal`, the same for
-  the gate: `[x, y, sin(heading), cos(heading)]` of its centre and heading (its posts
+  `Dict` of three `Box(float64, (4,))`: `observation`, the ship's state as in
+  `hpg_mj/ShipSteering-v0`; `achieved_goal`, the ship's position and heading as a
+  goal; `desired_goal`, the same of the gate: its centre and heading (its posts
   stand 50 m either side of the centre, across the heading).
+
+  | Num | Observation | Unit |
+  |---|---|---|
+  | `observation[0]` | `x`: the ship's position east | m |
+  | `observation[1]` | `y`: the ship's position north | m |
+  | `observation[2]` | `theta_deg`: heading, clockwise from north (+y), in [-180, 180) | deg |
+  | `observation[3]` | `theta_dot_deg`: turning rate | deg/s |
+  | `achieved_goal[0]` | the ship's `x` | m |
+  | `achieved_goal[1]` | the ship's `y` | m |
+  | `achieved_goal[2]` | `sin(theta)` of the ship's heading | |
+  | `achieved_goal[3]` | `cos(theta)` of the ship's heading | |
+  | `desired_goal[0]` | the gate centre's `x` | m |
+  | `desired_goal[1]` | the gate centre's `y` | m |
+  | `desired_goal[2]` | `sin` of the gate's heading | |
+  | `desired_goal[3]` | `cos` of the gate's heading | |
 
   ## Rewards
   `compute_reward(achieved_goal, desired_goal, info)` (any batch shape): -1 per
@@ -60,8 +74,7 @@ class ShipGoalEnv(ship_env.ShipSteeringEnv):
   (|lateral| <= 50 m), at most one control step of sailing past the gate line
   (0 <= forward < 1.8 m) and heading within 45 degrees of the gate's heading. A ship
   sails 1.8 m in a control step, so every pass between the posts with the gate's
-  heading is seen at the end of the step that crosses the line. `info["is_success"]` says whether the step
-  reached the gate; `info["event"]` is "gate", "out_of_bounds" or None.
+  heading is seen at the end of the step that crosses the line.
 
   ## Starting state
   The ship as in `hpg_mj/ShipSteering-v0` (uniform on the field, any heading and
@@ -71,15 +84,41 @@ class ShipGoalEnv(ship_env.ShipSteeringEnv):
 
   ## Episode end
   Terminated when the gate is reached or the ship is off the field at the end of a
-  control step; truncated after 5,000 control steps (`max_steps`).
+  control step; truncated after 5,000 control steps (`max_steps`; the environment
+  truncates itself, without Gymnasium's `TimeLimit`).
+
+  ## Information
+  `reset()` returns `{"event": None, "is_success": False}`. `step()` returns:
+  - `is_success`: whether the step reached the gate (what `HerReplayBuffer` and
+    Gymnasium-Robotics' goal environments read).
+  - `event`: "gate", "out_of_bounds" or None.
+  - `positions`: a `(4, 2)` array, the positions sampled every 0.2 s during the
+    step (row 0 where it began).
 
   ## Arguments
-  - `level`: "easy" (default), "medium" or "hard".
-  - `backend`: "mujoco" (default; assets/ship.xml, its gate's geoms moved to the
-    episode's gate) or "analytic" (Equation 1).
-  - `strict`, `max_steps`, `gate_reward`, `out_of_bounds_reward`, `render_mode`,
-    `width`, `height`, `camera`: as for `hpg_mj/ShipSteering-v0`; the frame shows the
-    episode's gate.
+  - `level="easy"`: "easy", "medium" or "hard".
+  - `backend="mujoco"`: assets/ship.xml, its gate's geoms moved to the episode's
+    gate; or "analytic" (Equation 1).
+  - `render_mode=None`: or "rgb_array"; the frame shows the episode's gate.
+  - `strict=False`: True refuses out-of-range turning rates instead of clipping
+    them.
+  - `max_steps=None`: the episode's length in control steps; None is 5,000.
+  - `width=640`, `height=480`: the frame's size in pixels, at most 1280 x 960.
+  - `camera=None`: "top", "local", "overview" or "chase"; None is "top".
+  - `gate_reward=100.0`, `out_of_bounds_reward=-100.0`: the +100 for reaching the
+    goal and the -100 for leaving the field.
+
+  ## References
+  [1] M. Ghavamzadeh and S. Mahadevan, "Hierarchical Policy Gradient
+  Algorithms," Proceedings of the 20th International Conference on Machine
+  Learning (ICML), 2003 (the ship steering task with its one gate).
+
+  [2] W. T. Miller, R. S. Sutton and P. J. Werbos (eds.), *Neural Networks for
+  Control*, MIT Press, 1990.
+
+  [3] M. Andrychowicz, F. Wolski, A. Ray, J. Schneider, R. Fong, P. Welinder,
+  B. McGrew, J. Tobin, P. Abbeel and W. Zaremba, "Hindsight Experience Replay,"
+  Advances in Neural Information Processing Systems 30 (NIPS), 2017.
 
   ## Version history
   - v0: initial release.

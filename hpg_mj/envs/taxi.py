@@ -43,7 +43,7 @@ class TaxiEnv(gymnasium.Env):
   Decomposition" by T. G. Dietterich [<a href="#taxi_ref">2</a>].
 
   ## Action Space
-  The action is an integer in `{0, 6}` (`{0, 5}` without fuel), numbered as in
+  The action is an integer in 0..6 (0..5 without fuel), numbered as in
   Gymnasium's Taxi:
 
   - 0: Move south (down)
@@ -61,8 +61,13 @@ class TaxiEnv(gymnasium.Env):
   `MultiDiscrete([5, 5, 5, 4, 13])` (`[5, 5, 5, 4]` without fuel), int64:
   `[taxi_row, taxi_col, passenger_location, destination, fuel]`.
 
-  Passenger locations: 0 Red, 1 Green, 2 Yellow, 3 Blue, 4 in the taxi.
-  Destinations: 0 Red, 1 Green, 2 Yellow, 3 Blue. Fuel: 0..12 units.
+  | Num | Observation | Values |
+  |---|---|---|
+  | 0 | `taxi_row` | the taxi's row, 0 at the top |
+  | 1 | `taxi_col` | the taxi's column, 0 on the left |
+  | 2 | `passenger_location` | 0 Red, 1 Green, 2 Yellow, 3 Blue, 4 in the taxi |
+  | 3 | `destination` | 0 Red, 1 Green, 2 Yellow, 3 Blue |
+  | 4 | `fuel` (with fuel only) | units in the tank, 0..12 |
 
   For tabular learners `taxi_core.encode_state` maps a state to one index:
   Gymnasium's `((row * 5 + col) * 5 + passenger) * 4 + destination` (500

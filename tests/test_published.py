@@ -1,0 +1,140 @@
+"""What the README and the site publish is what the reports say: their results tables
+are made from the reports (docs/_ext/published.py) and equal what the reports make
+now; every interval a page quotes in its prose is one a report gives (to the page's
+rounding), but those marked as history; the site shows each report once, under a
+title of its own, and no two of the reports it shows disagree on a table."""
+import pathlib
+import re
+import sys
+
+import pytest
+
+REPO = pathlib.Path(__file__).resolve().parents[1]
+if str(REPO / "docs" / "_ext") not in sys.path:
+  sys.path.insert(0, str(REPO / "docs" / "_ext"))
+import published  # noqa: E402  (docs/_ext: the tables made from the reports)
+
+# Pages of history, whose numbers are those of their day.
+HISTORY_PAGES = ("docs/changelog.md", "docs/tuning_history.md")
+_HISTORY = re.compile(r"<!-- history:.*?-->.*?<!-- /history -->", re.S)
+_INTERVAL = re.compile(r"([-+]?\d[\d,]*(?:\.\d+)?) \[([-+]?\d[\d,]*(?:\.\d+)?), "
+                       r"([-+]?\d[\d,]*(?:\.\d+)?)\]")
+
+
+def _reports():
+  return sorted(REPO.glob("figures/**/REPORT.md"))
+
+
+def test_every_published_table_is_made_from_its_report_as_it_is_now():
+  assert published.stale() == [], "run `python docs/_ext/published.py`"
+  parts = {name for page in published.pages()
+           for name in re.findall(r"^<!-- published (\w+):", (REPO / page).read_text(), re.M)}
+  assert parts == set(published.PARTS)
+
+
+def test_a_report_that_changes_changes_the_page(monkeypatch):
+  """The README's table follows its report: a changed number there is a stale page."""
+  readme = (REPO / "README.md").read_text()
+  real = published._read
+  monkeypatch.setattr(published, "_read", lambda report: real(report).replace(
+      "| SAC (SB3) | `reference_ship_sac` | 0.107 [0.055, 0.176]",
+      "| SAC (SB3) | `reference_ship_sac` | 0.999 [0.055, 0.176]"))
+  changed = published.updated(readme, "README.md")
+  assert "| ship (gate rate) | SAC (SB3) | 0.999 [0.055, 0.176] |" in changed
+
+
+def _number(text):
+  return float(text.replace(",", ""))
+
+
+def _digits(text):
+  return len(text.split(".")[1]) if "." in text else 0
+
+
+def _matches(quoted, given):
+  """Whether an interval quoted on a page is `given` (a report's) to the page's rounding."""
+  return all(abs(_number(q) - _number(g)) <= 0.5 * 10 ** -_digits(q) + 1e-9
+             for q, g in zip(quoted, given))
+
+
+def test_every_interval_a_page_quotes_is_a_reports():
+  given = [m for report in _reports() for m in _INTERVAL.findall(report.read_text())]
+  assert len(given) > 100
+  unsourced = {}
+  for page in published.pages():
+    if page in HISTORY_PAGES:
+      continue
+    text = " ".join(_HISTORY.sub("", (REPO / page).read_text()).split())
+    for quoted in _INTERVAL.findall(text):
+      if not any(_matches(quoted, g) for g in given):
+        unsourced.setdefault(page, []).append("{} [{}, {}]".format(*quoted))
+  assert unsourced == {}
+
+
+def _included():
+  """page -> (report, its text as the include options cut it) of each report a page
+  includes."""
+  shown = {}
+  for path in sorted((REPO / "docs").glob("*.md")):
+    for target, options in re.findall(r"^```\{include\} (\S+)\n((?::.*\n)*)",
+                                      path.read_text(), re.M):
+      if "figures/" not in target:
+        continue
+      text = (path.parent / target).resolve().read_text()
+      option = {key: value.strip().strip('"')      # MyST reads the options as YAML
+                for key, value in re.findall(r"^:([\w-]+):[ \t]*(.*)$", options, re.M)}
+      if "start-line" in option:
+        text = "".join(text.splitlines(keepends=True)[int(option["start-line"]):])
+      if "end-before" in option:
+        assert option["end-before"] in text, (path.name, option["end-before"])
+        text = text.split(option["end-before"], 1)[0]
+      shown.setdefault(path.relative_to(REPO).as_posix(), []).append((target, text))
+  return shown
+
+
+def test_every_report_is_on_the_site_once_under_a_title_of_its_own():
+  shown = _included()
+  reports = [t for parts in shown.values() for t, _ in parts if t.endswith("REPORT.md")]
+  assert sorted(pathlib.Path(t).parent.name for t in reports) == sorted(
+      r.parent.name for r in _reports())
+  titles = {}
+  for path in sorted((REPO / "docs").glob("*.md")):
+    title = re.search(r"^# (.+)$", path.read_text(), re.M).group(1)
+    titles.setdefault(title, []).append(path.name)
+  assert {t: names for t, names in titles.items() if len(names) > 1} == {}
+  for page in shown:      # the page's title is its own, not an included report's
+    first = (REPO / page).read_text().split("```{include}")[0]
+    assert first.startswith("# "), page
+
+
+def _disagreements(included):
+  """(where, where, table) of each table shown twice with other cells: the same
+  columns and rows under the same protocol (the quick protocol's are its own)."""
+  seen, disagree = {}, []
+  for page, parts in included.items():
+    for target, text in parts:
+      for section in re.split(r"^(?=## )", text, flags=re.M):
+        quick = "QUICK protocol" in section
+        for block in re.findall(r"((?:^\|.*\|\n)+)", section, re.M):
+          rows = [[c.strip() for c in line.strip().strip("|").split("|")]
+                  for line in block.splitlines()]
+          key = (quick, tuple(rows[0]), tuple(row[0] for row in rows[2:]))
+          if key in seen and seen[key][1] != rows:
+            disagree.append((seen[key][0], f"{page} ({target})", rows[0][0]))
+          seen.setdefault(key, (f"{page} ({target})", rows))
+  return disagree
+
+
+def test_no_two_reports_on_the_site_disagree_on_a_table():
+  """The full report's section of the reference scores, written before the reference
+  runs were made again, is left off the site for the reference report's own."""
+  assert _disagreements(_included()) == []
+
+
+def test_the_full_reports_reference_section_would_disagree():
+  """Shown whole, figures/REPORT.md's reference section disagrees with
+  figures/reference/REPORT.md (the check above is not vacuous)."""
+  included = _included()
+  included["docs/results_report.md"] = [("../figures/REPORT.md",
+                                         (REPO / "figures/REPORT.md").read_text())]
+  assert {table for _, _, table in _disagreements(included)} >= {"learner"}
