@@ -222,6 +222,32 @@ def describe_config(config_class):
   return "\n".join(lines)
 
 
+def _toml_value(value):
+  if isinstance(value, bool):
+    return "true" if value else "false"
+  if isinstance(value, (int, float)):
+    return repr(value) if math.isfinite(value) else ("nan" if value != value else
+                                                     ("inf" if value > 0 else "-inf"))
+  if isinstance(value, str):
+    return '"' + value.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n") + '"'
+  if isinstance(value, (tuple, list)):
+    return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+  raise TypeError(f"{value!r} ({type(value).__name__}) has no task-file form")
+
+
+def dumps(kind, config, episodes, seed, description=""):
+  """The text of a task file that builds `config` for agent `kind` (a registered
+  name or "module:Class"): what `agents.save` records for an agent made in Python
+  without one, so that `agents.load` rebuilds it."""
+  lines = ["[task]", f"kind = {_toml_value(kind)}", f"description = {_toml_value(description)}"]
+  for sec in dataclasses.fields(config):
+    section = getattr(config, sec.name)
+    lines += ["", f"[{sec.name}]"] + [f"{f.name} = {_toml_value(getattr(section, f.name))}"
+                                      for f in dataclasses.fields(section)]
+  lines += ["", "[protocol]", f"episodes = {max(int(episodes), 1)}", f"seed = {int(seed)}"]
+  return "\n".join(lines) + "\n"
+
+
 # ---- task files ---------------------------------------------------------------
 
 @dataclasses.dataclass(frozen=True)

@@ -26,6 +26,7 @@ the ship, PPO and DQN on the taxi (`hpg_mj.agents.sb3`, with the extra
 import importlib
 import importlib.util
 import pathlib
+import sys
 import time
 
 import numpy as np
@@ -332,7 +333,7 @@ def _find_saved_class(kind, spec, directory):
   """Registers a saved agent's class as `kind`, found by its recorded import path
   `spec` (whose module may register it itself); refuses when it cannot be."""
   where = f"{directory}: agent kind {kind!r} is not registered here"
-  if not isinstance(kind, str) or not kind.isidentifier():
+  if not isinstance(kind, str) or not (kind.isidentifier() or kind == spec):
     raise storage.AgentFileError(f"{where}; registered: {names()}")
   if not isinstance(spec, str) or spec.startswith("__main__:"):
     made = ("it was saved from a class defined in a script (__main__), which another "
@@ -349,11 +350,17 @@ def _find_saved_class(kind, spec, directory):
     except (TypeError, ValueError) as err:
       raise storage.AgentFileError(f"{where}: {err}") from None
 
+
 def save(agent, directory, record, extra=None, compress=True):
   """Writes the agent's whole state, its record, its task file and what made it
   (`hpg_mj.provenance`) to `directory` (`compress`: see `storage.save`)."""
   from hpg_mj import provenance
-  text = agent.task.text if agent.task else None
+  kind = agent.name if agent.name in names() else class_path(type(agent))
+  if agent.task:
+    text = agent.task.text
+  else:                  # made in Python without a task file: one that rebuilds its config
+    text = taskfile.dumps(kind, agent.config, agent.episodes, agent.seed,
+                          f"{type(agent).__name__}, saved from Python")
   meta = {"task_file": str(agent.task.path) if agent.task else None,
           "task_text": text, "seed": agent.seed, "episodes": agent.episodes,
           "agent_class": class_path(type(agent)),      # found by `load` in a new process
@@ -361,7 +368,8 @@ def save(agent, directory, record, extra=None, compress=True):
   meta.update(extra or {})
   arrays = dict(agent.state())
   arrays["record"] = record
-  return storage.save(directory, agent.name, arrays, meta, compress)
+  return storage.save(directory, kind if agent.task is None else agent.name, arrays, meta,
+                      compress)
 
 
 def load(directory):
@@ -376,7 +384,9 @@ def load(directory):
   meta, arrays = storage.load(directory)
   provenance.warn_if_different(meta.get("provenance"), directory)
   kind = meta.get("kind")
-  if not isinstance(kind, str) or (kind not in names() and ":" not in kind):
+  script = isinstance(kind, str) and kind.startswith("__main__:") and not hasattr(
+      sys.modules["__main__"], kind.partition(":")[2])      # a script's class, not this one
+  if not isinstance(kind, str) or script or (kind not in names() and ":" not in kind):
     _find_saved_class(kind, meta.get("agent_class"), directory)
   path = pathlib.Path(meta.get("task_file") or "task.toml")
   task = taskfile.loads(meta.get("task_text") or "", path, _Registry)

@@ -75,3 +75,35 @@ def test_a_run_stopped_and_resumed_gives_the_numbers_of_one_never_stopped(tmp_pa
   assert sorted(whole) == sorted(cut)
   for name in whole:
     np.testing.assert_array_equal(whole[name], cut[name], err_msg=name)
+
+
+def test_made_and_saved_in_python_without_a_task_file_it_loads_in_another_process(tmp_path):
+  """The README's own lines (`Waypoints(seed=0)`, no task file), then `agents.save`:
+  the saved folder records a task file that rebuilds its configuration, so another
+  process loads it by its class's import path and the command line evaluates it; a
+  class defined in the script itself (__main__) is refused in one line saying why."""
+  _module(tmp_path)
+  script = ("import sys\nfrom hpg_mj import agents\nfrom hpg_mj.taskfile import updated\n"
+            "{head}\nagent = Waypoints(updated(Waypoints.Config(), environment={{'max_steps': 300}}),"
+            " seed=2)\nrecord = agent.train(40)\nagents.save(agent, sys.argv[1], record)\n"
+            "print(sorted(agent.parameters()))\n")
+  (tmp_path / "make.py").write_text(script.format(head="from my_hierarchy import Waypoints"))
+  done = subprocess.run([sys.executable, "make.py", "in_module"], capture_output=True,
+                        text=True, cwd=tmp_path, env=dict(os.environ, PYTHONPATH=""))
+  assert done.returncode == 0, done.stderr
+  meta = json.loads((tmp_path / "in_module" / "agent.json").read_text())
+  assert meta["kind"] == "my_hierarchy:Waypoints" and "max_steps = 300" in meta["task_text"]
+  done = _run(tmp_path, "evaluate", "in_module", "--episodes", 2, "--json")
+  assert done.returncode == 0, done.stderr
+  assert json.loads(done.stdout)["episodes_measured"] == 2
+  # as `python make.py` would have saved it with the class written in make.py itself
+  (tmp_path / "in_script").mkdir()
+  for name in os.listdir(tmp_path / "in_module"):
+    text = (tmp_path / "in_module" / name).read_bytes()
+    if name == "agent.json":
+      text = text.replace(b"my_hierarchy:Waypoints", b"__main__:Waypoints")
+    (tmp_path / "in_script" / name).write_bytes(text)
+  done = _run(tmp_path, "evaluate", "in_script", "--episodes", 2)
+  assert done.returncode != 0
+  assert "saved from a class defined in a script (__main__), which another process cannot " \
+         "import: put the class in a module" in done.stderr.strip().splitlines()[-1]

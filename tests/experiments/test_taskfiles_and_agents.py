@@ -136,6 +136,16 @@ def test_every_kind_has_a_task_file():
   assert {agents.load_task(p).kind for p in TASK_FILES} == shipped
 
 
+@pytest.mark.parametrize("path", TASK_FILES, ids=lambda p: p.stem)
+def test_a_configuration_written_as_a_task_file_reads_back_the_same(path):
+  """`taskfile.dumps`, what `agents.save` records for an agent made in Python."""
+  task = agents.load_task(path)
+  text = taskfile.dumps(task.kind, task.config, 7, 3, 'a "quoted" \\ description')
+  again = taskfile.loads(text, "saved.toml", agents._Registry)
+  assert again.config == task.config and again.kind == task.kind
+  assert (again.protocol.episodes, again.protocol.seed) == (7, 3)
+
+
 # The Stable-Baselines3 agents' own tests (tests/test_sb3.py) train them with tiny budgets,
 # and the JAX agents' (tests/jax/test_jax_ppo.py) in the JAX tests' own process.
 OWN_TASK_FILES = [p for p in TASK_FILES
