@@ -134,7 +134,8 @@ SHIP_GYMNASIUM_IDS = {"steer": "hpg_mj/ShipSteering-v0",
                       "straight": "hpg_mj/ShipSteeringStraight-v0",
                       "patrol": "hpg_mj/ShipPatrol-v0"}
 # The other ship domains, whose tasks are levels: domain -> its Gymnasium id (`level=`).
-SHIP_LEVEL_IDS = {"ship_current": "hpg_mj/ShipCurrent-v0", "ship_goal": "hpg_mj/ShipGoal-v0"}
+SHIP_LEVEL_IDS = {"ship_current": "hpg_mj/ShipCurrent-v0", "ship_goal": "hpg_mj/ShipGoal-v0",
+                  "ship_regatta": "hpg_mj/ShipRegatta-v0"}
 
 
 def _flat(obs):
@@ -173,6 +174,31 @@ GOAL_GOLDEN_FIRST = {"state": (400.0, 390.15, 0.0, 0.0), "gate": (400.0, 400.0, 
 PATROL_GOLDEN_STRAIGHT = 260     # control steps at r = 0 before the random turns
 
 
+def regatta_golden_first(level):
+  """The regatta's first golden episode (reset options): the level's course laid out by
+  a generator seeded with GOLDEN_SEED, the ship 9.85 m before its first gate heading
+  with it (its pass is the sixth step's, and the episode sails on); the episodes after
+  it draw their starts and courses."""
+  from hpg_mj.worlds import ship_regatta_core as regatta_core
+  course = regatta_core.sample_course(np.random.default_rng(GOLDEN_SEED),
+                                      regatta_core.level_layout(level))
+  x, y, heading = course[0]
+  rad = np.radians(heading)
+  return {"state": (x - 9.85 * np.sin(rad), y - 9.85 * np.cos(rad), heading, 0.0),
+          "course": course}
+
+
+def _golden_first(domain, task):
+  """The reset options of a ship domain's first golden episode (None: drawn)."""
+  if domain == "ship_goal":
+    return GOAL_GOLDEN_FIRST
+  if domain == "ship_regatta":
+    return regatta_golden_first(task)
+  if domain == "ship" and task in SHIP_GOLDEN_STARTS:
+    return {"state": SHIP_GOLDEN_STARTS[task]}
+  return None
+
+
 def ship_golden_actions(task=None):
   """The fixed turning rates of a ship task's golden trajectory."""
   turns = np.random.default_rng(7).uniform(-15.0, 15.0, (GOLDEN_STEPS, 1))
@@ -189,10 +215,7 @@ def ship_analytic_rollout(task, actions=None, domain="ship"):
   import hpg_mj  # noqa: F401  (registers the ids)
   env_id, kwargs = _ship_gymnasium(domain, task)
   env = gymnasium.make(env_id, **kwargs).unwrapped
-  start = SHIP_GOLDEN_STARTS.get(task) if domain == "ship" else None
-  options = GOAL_GOLDEN_FIRST if domain == "ship_goal" else (
-      None if start is None else {"state": start})
-  obs, _ = env.reset(seed=GOLDEN_SEED, options=options)
+  obs, _ = env.reset(seed=GOLDEN_SEED, options=_golden_first(domain, task))
   rows, rewards, ends = [_flat(obs)], [], []
   for a in ship_golden_actions(task) if actions is None else actions:
     obs, reward, terminated, truncated, _ = env.step(a)
@@ -208,8 +231,11 @@ def ship_mujoco_rollout(task, actions=None, domain="ship"):
   """The same on the MuJoCo ship through the dm_control suite."""
   from hpg_mj import suite
   kwargs = {"random": GOLDEN_SEED}
+  first = _golden_first(domain, task)
   if domain == "ship_goal":
-    kwargs.update(initial_state=GOAL_GOLDEN_FIRST["state"], gate=GOAL_GOLDEN_FIRST["gate"])
+    kwargs.update(initial_state=first["state"], gate=first["gate"])
+  elif domain == "ship_regatta":
+    kwargs.update(initial_state=first["state"], course=first["course"])
   elif domain == "ship":
     kwargs["initial_state"] = SHIP_GOLDEN_STARTS.get(task)
   env = suite.load(domain, task, kwargs)
@@ -217,6 +243,8 @@ def ship_mujoco_rollout(task, actions=None, domain="ship"):
   ts = env.reset()
   if domain == "ship_goal":                    # the first episode only
     env.task.initial_state = env.task.gate = None
+  elif domain == "ship_regatta":
+    env.task.initial_state = env.task.course = None
   rows, rewards, ends = [flat(ts)], [], []
   for a in ship_golden_actions(task) if actions is None else actions:
     ts = env.step(a)
@@ -516,3 +544,4 @@ def verify_goal(episodes=20, seed=0, levels=None):
           analytic._desired)).max()))
     results.append(GoalVerification(level, episodes, passes, same, largest, posts_off))
   return results
+
