@@ -1,11 +1,12 @@
 """The regatta (hpg_mj.worlds.ship_regatta_core, ship_regatta): the courses each level
 lays out, the gates counted in order by the steering task's own crossing rule, what the
-ship sees of them, and the MuJoCo model with its course."""
+ship sees of them, and the MuJoCo ship round a course against the continuous one."""
 import math
 
 import numpy as np
 import pytest
 
+from hpg_mj import cli
 from hpg_mj.worlds import ship_core as core
 from hpg_mj.worlds import ship_model
 from hpg_mj.worlds import ship_regatta
@@ -149,3 +150,14 @@ def test_the_mujoco_model_is_the_steering_ship_with_a_course_drawn():
       physics.step(6)
     np.testing.assert_array_equal(regatta.stepped_state, steer.stepped_state)
 
+
+def test_cli_verify_regatta(capsys):
+  # Both ships round each level's courses against the continuous ship (the command's
+  # default is 3 courses a level; `hpg-mj verify regatta --starts 20` found the MuJoCo
+  # ship alike on all 60, the Euler ship on 58).
+  assert cli.main(["verify", "regatta", "--starts", "1"]) == 0
+  out = capsys.readouterr().out.splitlines()
+  assert [line.split()[0] for line in out[1:4]] == ["easy", "medium", "hard"]
+  assert all("helmsman finished 1;" in line and "same gates and end 1;" in line
+             for line in out[1:4])
+  assert out[-1].endswith("met") and "NOT" not in out[-1]
