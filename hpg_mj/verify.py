@@ -616,11 +616,10 @@ def _judged_passes(course, positions):
   from hpg_mj.worlds import ship_regatta_core as regatta_core
   one = regatta_core.OneShip(core.STEER_MAX_STEPS)
   one.set_course(course)
-  k, state = core.SAMPLES_PER_CONTROL, np.zeros(4)       # (the rule reads no end state)
+  k = core.SAMPLES_PER_CONTROL
   passes, event = [], None
   for t in range((len(positions) - 1) // k):
-    code, _, terminated, _ = one(np.ascontiguousarray(positions[t * k:(t + 1) * k + 1]),
-                                 state, t + 1)
+    code, _, terminated, _ = one(np.ascontiguousarray(positions[t * k:(t + 1) * k + 1]), t + 1)
     event = regatta_core.EVENT_NAMES[code]
     if one.next_gate > len(passes):
       passes.append(t)

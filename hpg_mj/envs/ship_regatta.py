@@ -204,7 +204,7 @@ class ShipRegattaEnv(ship_env.ShipSteeringEnv):
     samples, state = self.backend.control(r)
     self._steps += 1
     passed = self._ship.next_gate
-    event, reward, terminated, truncated = self._ship(samples, state, self._steps)
+    event, reward, terminated, truncated = self._ship(samples, self._steps)
     if self._ship.next_gate != passed:
       self._place_course()
     if self.render_mode is not None:
@@ -222,10 +222,12 @@ class ShipRegattaVectorEnv(vector.ShipSteeringVectorEnv):
   `ShipSteeringVectorEnv`'s): `gymnasium.make_vec("hpg_mj/ShipRegatta-v0", num_envs=N,
   level="hard", backend="analytic")` sails and judges every copy in one compiled call.
   Observations `(N, 11)`, each row as the single environment's. Infos add
-  `gates_passed` (an int array); at a reset, `course` `(N, gates, 3)`, masked to the
-  copies reset. Reset options add `course` (one course `(gates, 3)` for every copy
-  reset, or one per copy, `(N, gates, 3)`). The MuJoCo ships' course geoms are not
-  moved (the batch draws nothing)."""
+  `gates_passed` (an int array); `reset()`'s adds `course` `(N, gates, 3)`, masked to the
+  copies reset (after an autoreset, `env.unwrapped.courses` holds every copy's: copying
+  them into each step's info would cost the batch a third of its speed). Reset options
+  add `course` (one course `(gates, 3)` for every copy reset, or one per copy,
+  `(N, gates, 3)`). The MuJoCo ships' course geoms are not moved (the batch draws
+  nothing)."""
 
   RESET_OPTIONS = ("reset_mask", "state", "course")
 
@@ -248,6 +250,17 @@ class ShipRegattaVectorEnv(vector.ShipSteeringVectorEnv):
     self._posts = np.zeros((n, gates, 2, 2))
     self._next = np.zeros(n, dtype=np.int64)
     self._obs = np.zeros((n, regatta_core.OBSERVATION_SIZE))
+
+  @property
+  def courses(self):
+    """Every copy's course, `(N, gates, 3)`: rows [x, y, heading_deg] of its gates."""
+    return self._courses.copy()
+
+  def reset(self, *, seed=None, options=None):
+    observations, info = super().reset(seed=seed, options=options)
+    info["course"] = self._courses.copy()
+    info["_course"] = info["_event"].copy()
+    return observations, info
 
   def _make_ships(self, backend):
     if backend == "mujoco":
@@ -303,6 +316,4 @@ class ShipRegattaVectorEnv(vector.ShipSteeringVectorEnv):
     info = super()._reset_info(indices)
     info["gates_passed"] = self._next.copy()
     info["_gates_passed"] = info["_event"].copy()
-    info["course"] = self._courses.copy()
-    info["_course"] = info["_event"].copy()
     return info

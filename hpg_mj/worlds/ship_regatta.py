@@ -15,6 +15,8 @@ truncated. The observation adds the next gate and the one after it as the ship s
 degrees) and the gates left to pass (`gates_left`). On MuJoCo the steering ship sails on
 assets/ship_regatta.xml, whose course geoms are moved to the episode's gates.
 """
+import collections
+
 import numpy as np
 
 from hpg_mj import _assets
@@ -89,21 +91,22 @@ class RegattaTask(ship.ShipTask):
     self._steps += 1
     state = physics.stepped_state
     passed = self._ship.next_gate
-    event, reward, terminated, truncated = self._ship(physics.sampled_positions(), state,
-                                                      self._steps)
+    event, reward, terminated, truncated = self._ship(physics.sampled_positions(), self._steps)
     if self._ship.next_gate != passed:     # the next gate's colour moves on
       physics.place_course(self._ship.posts, self._ship.next_gate)
     self._outcome = (reward, terminated, truncated, regatta_core.EVENT_NAMES[event])
     self._state_after_step = state
 
   def get_observation(self, physics):
-    obs = super().get_observation(physics)
-    seen = self._ship.observe(np.concatenate([obs["position"], obs["heading_deg"],
-                                              obs["turning_rate_deg"]]))
-    obs["next_gate"] = seen[4:7]
-    obs["gate_after"] = seen[7:10]
-    obs["gates_left"] = seen[10:]
-    return obs
+    # `ShipTask.get_observation`'s state, and every entry a part of one new array (the
+    # Gymnasium environment's observation), which no other step's shares.
+    state, self._state_after_step = self._state_after_step, None
+    if state is None:
+      state = physics.ship_state()
+    seen = self._ship.observe(state)
+    return collections.OrderedDict(
+        (("position", seen[:2]), ("heading_deg", seen[2:3]), ("turning_rate_deg", seen[3:4]),
+         ("next_gate", seen[4:7]), ("gate_after", seen[7:10]), ("gates_left", seen[10:])))
 
 
 def _constructor(level):

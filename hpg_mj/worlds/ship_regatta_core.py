@@ -70,7 +70,9 @@ def level_layout(level, who="ship regatta"):
   return LEVELS[level]
 
 
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def _fits(x, y, course, k):
+  """Whether a gate centred at (x, y) stands where the layout allows, beside gates 0..k-1."""
   if not (LOW <= x <= HIGH and LOW <= y <= HIGH):
     return False
   for j in range(k):
@@ -79,46 +81,70 @@ def _fits(x, y, course, k):
   return True
 
 
-def _gate_after(random, course, k, spacing, smallest, largest):
-  """Gate k of a course whose gates before it are laid, drawn by the module's rule, or
-  None where `_TRIES` turns find it no room."""
-  for _ in range(_TRIES):
-    turn = random.uniform(smallest, largest)
-    side = 1.0 if random.uniform(0.0, 1.0) < 0.5 else -1.0
-    for sign in (side, -side):
-      heading = float(core.wrap_deg(course[k - 1, 2] + sign * turn))
-      rad = math.radians(heading)
-      x = course[k - 1, 0] + spacing * math.sin(rad)
-      y = course[k - 1, 1] + spacing * math.cos(rad)
-      if _fits(x, y, course, k):
-        return x, y, heading
-  return None
+@numba.njit(cache=True, error_model="numpy")
+def lay_course(draws, spacing, smallest, largest, course):
+  """Lays `course` (rows [x, y, heading_deg], filled in place) by the module's rule from
+  `draws`, uniforms on [0, 1) (`draws_per_course` of them): the first gate's x, y and
+  heading, then a turn and a side for each try of each gate. False where a gate finds
+  no room in `_TRIES` turns (the caller lays the course again with new draws)."""
+  course[0, 0] = LOW + (HIGH - LOW) * draws[0]
+  course[0, 1] = LOW + (HIGH - LOW) * draws[1]
+  course[0, 2] = -180.0 + 360.0 * draws[2]
+  at = 3
+  for k in range(1, course.shape[0]):
+    placed = False
+    for _ in range(_TRIES):
+      turn = smallest + (largest - smallest) * draws[at]
+      side = 1.0 if draws[at + 1] < 0.5 else -1.0
+      at += 2
+      for sign in (side, -side):
+        heading = core.wrap_deg(course[k - 1, 2] + sign * turn)
+        rad = math.radians(heading)
+        x = course[k - 1, 0] + spacing * math.sin(rad)
+        y = course[k - 1, 1] + spacing * math.cos(rad)
+        if _fits(x, y, course, k):
+          course[k, 0] = x
+          course[k, 1] = y
+          course[k, 2] = heading
+          placed = True
+          break
+      if placed:
+        break
+    if not placed:
+      return False
+  return True
+
+
+def draws_per_course(gates):
+  """The uniforms one try at laying a course of `gates` takes (`lay_course`)."""
+  return 3 + 2 * _TRIES * (int(gates) - 1)
 
 
 def sample_course(random, layout):
-  """A course of `layout` (`LEVELS`' four numbers), rows [x, y, heading_deg], drawn from
-  `random` (a Generator or a RandomState) by the module's rule."""
+  """A course of `layout` (`LEVELS`' four numbers), rows [x, y, heading_deg], laid out by
+  the module's rule from uniforms drawn from `random` (a Generator or a RandomState), a
+  block at each try: a reset costs microseconds, and a batch resets its copies often."""
   gates, spacing, smallest, largest = layout
   course = np.empty((int(gates), 3))
-  while True:
-    course[0] = (random.uniform(LOW, HIGH), random.uniform(LOW, HIGH),
-                 random.uniform(-180.0, 180.0))
-    for k in range(1, len(course)):
-      gate = _gate_after(random, course, k, spacing, smallest, largest)
-      if gate is None:
-        break                      # no room for gate k: the course is laid again
-      course[k] = gate
-    else:
-      return course
+  while not lay_course(random.uniform(0.0, 1.0, draws_per_course(gates)), float(spacing),
+                       float(smallest), float(largest), course):
+    pass
+  return course
+
+
+@numba.njit(cache=True, error_model="numpy")
+def posts_into(course, out):
+  """The posts of every gate of a course into `out`, (gates, 2, 2): rows (x, y), left then
+  right of a ship passing it (`ship_goal_core.posts_into`)."""
+  for k in range(course.shape[0]):
+    rad = math.radians(course[k, 2])
+    goal_core.posts_into(course[k, 0], course[k, 1], math.sin(rad), math.cos(rad), out[k])
 
 
 def posts_of(course):
-  """The posts of every gate of a course, (gates, 2, 2): rows (x, y), left then right of
-  a ship passing it (`ship_goal_core.gate_posts`)."""
+  """The posts of every gate of a course, a new (gates, 2, 2) array (`posts_into`)."""
   out = np.empty((len(course), 2, 2))
-  for k, (x, y, heading) in enumerate(np.asarray(course, dtype=np.float64)):
-    rad = math.radians(heading)
-    out[k] = goal_core.gate_posts((x, y, math.sin(rad), math.cos(rad)))
+  posts_into(np.ascontiguousarray(course, dtype=np.float64), out)
   return out
 
 
@@ -168,6 +194,18 @@ def course_outcome(samples, posts, next_gate, gate_reward, finish_reward, out_of
   return event, reward, next_gate
 
 
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def ship_outcome(samples, posts, next_gate, steps, max_steps, gate_reward, finish_reward,
+                 out_of_bounds_reward):
+  """(event, reward, next gate, terminated, truncated) of one ship's control step, `steps`
+  control steps in (this one counted): `course_outcome`'s, terminated at the finish or
+  off the field, truncated after `max_steps`."""
+  event, reward, next_gate = course_outcome(samples, posts, next_gate, gate_reward,
+                                            finish_reward, out_of_bounds_reward)
+  terminated = event == core.SUCCESS or event == core.FAILURE
+  return event, reward, next_gate, terminated, not terminated and steps >= max_steps
+
+
 @numba.njit(cache=True, error_model="numpy")
 def step_batch(states, r_deg, active, samples, steps, integrate, posts, next_gate, max_steps,
                gate_reward, finish_reward, out_of_bounds_reward, outcome):
@@ -175,8 +213,7 @@ def step_batch(states, r_deg, active, samples, steps, integrate, posts, next_gat
   (n, gates, 2, 2), the next gate of each in `next_gate`). With `integrate` the ships
   sail Equation 1 here (`ship_core.sail_batch`); without it `samples` and `states`
   already hold the step (the MuJoCo ships). Each active ship's `steps` grows by one and
-  `outcome` = (event, reward, terminated, truncated) is filled by `course_outcome`:
-  terminated at the finish or off the field, truncated after `max_steps`."""
+  `outcome` = (event, reward, terminated, truncated) is filled by `ship_outcome`."""
   event, reward, terminated, truncated = outcome
   if integrate:
     core.sail_batch(states, r_deg, active, samples)
@@ -184,20 +221,15 @@ def step_batch(states, r_deg, active, samples, steps, integrate, posts, next_gat
     if not active[i]:
       continue
     steps[i] += 1
-    e, rw, nxt = course_outcome(samples[i], posts[i], next_gate[i], gate_reward,
-                                finish_reward, out_of_bounds_reward)
-    next_gate[i] = nxt
-    event[i] = e
-    reward[i] = rw
-    terminated[i] = e == core.SUCCESS or e == core.FAILURE
-    truncated[i] = not terminated[i] and steps[i] >= max_steps
+    event[i], reward[i], next_gate[i], terminated[i], truncated[i] = ship_outcome(
+        samples[i], posts[i], next_gate[i], steps[i], max_steps, gate_reward, finish_reward,
+        out_of_bounds_reward)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _seen(state, gate, out, at):
-  """Gate `gate` ([x, y, heading_deg]) as the ship at `state` sees it, into out[at:at + 3]."""
-  rad = math.radians(state[2])
-  sin, cos = math.sin(rad), math.cos(rad)
+def _seen(state, sin, cos, gate, out, at):
+  """Gate `gate` ([x, y, heading_deg]) as the ship at `state` (its heading's sine and
+  cosine `sin`, `cos`) sees it, into out[at:at + 3]."""
   dx = gate[0] - state[0]
   dy = gate[1] - state[1]
   out[at] = dx * sin + dy * cos                   # ahead
@@ -205,33 +237,36 @@ def _seen(state, gate, out, at):
   out[at + 2] = core.wrap_deg(gate[2] - state[2])
 
 
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def observe(state, course, next_gate, out):
+  """The observation (the module's) of the ship at `state` with gate `next_gate` of
+  `course` to pass next, into `out` (11): its state, its next two gates as it sees them,
+  the gates it has left to pass."""
+  for j in range(4):
+    out[j] = state[j]
+  last = course.shape[0] - 1
+  rad = math.radians(state[2])
+  sin, cos = math.sin(rad), math.cos(rad)
+  _seen(state, sin, cos, course[min(next_gate, last)], out, 4)
+  _seen(state, sin, cos, course[min(next_gate + 1, last)], out, 7)
+  out[10] = course.shape[0] - next_gate
+
+
 @numba.njit(cache=True, error_model="numpy")
 def observe_batch(states, courses, next_gate, out):
-  """Each ship's observation (the module's) into the rows of `out`, (n, 11): its state,
-  its next two gates as it sees them, the gates it has left to pass."""
+  """Each ship's observation (`observe`) into the rows of `out`, (n, 11)."""
   for i in range(states.shape[0]):
-    row = out[i]
-    state = states[i]
-    for j in range(4):
-      row[j] = state[j]
-    course = courses[i]
-    last = course.shape[0] - 1
-    k = next_gate[i]
-    _seen(state, course[min(k, last)], row, 4)
-    _seen(state, course[min(k + 1, last)], row, 7)
-    row[10] = course.shape[0] - k
+    observe(states[i], courses[i], next_gate[i], out[i])
 
 
 @functools.cache
 def _one_ship():
-  """`step_batch`'s and `observe_batch`'s entry points for one ship's arrays (a row
-  each): numba's dispatcher would type their arguments again at each step."""
-  f64, i64, b1 = numba.float64, numba.int64, numba.boolean
-  outcome = numba.types.Tuple((i64[::1], f64[::1], b1[::1], b1[::1]))
-  step = step_batch.compile((f64[:, ::1], f64[::1], b1[::1], f64[:, :, ::1], i64[::1], b1,
-                             f64[:, :, :, ::1], i64[::1], i64, f64, f64, f64, outcome))
-  observe = observe_batch.compile((f64[:, ::1], f64[:, :, ::1], i64[::1], f64[:, ::1]))
-  return step, observe
+  """`ship_outcome`'s and `observe`'s entry points for one ship's arrays: numba's
+  dispatcher would type their arguments again at each step (most of the call)."""
+  f64, i64 = numba.float64, numba.int64
+  step = ship_outcome.compile((f64[:, ::1], f64[:, :, ::1], i64, i64, i64, f64, f64, f64))
+  seen = observe.compile((f64[::1], f64[:, ::1], i64, f64[::1]))
+  return step, seen
 
 
 class OneShip:
@@ -242,41 +277,29 @@ class OneShip:
                out_of_bounds_reward=OUT_OF_BOUNDS_REWARD):
     self.max_steps = int(max_steps)
     self.rewards = (float(gate_reward), float(finish_reward), float(out_of_bounds_reward))
-    self._active, self._steps = np.ones(1, np.bool_), np.zeros(1, np.int64)
-    self._next = np.zeros(1, np.int64)
-    self._r = np.zeros(1)
-    self._outcome = (np.zeros(1, np.int64), np.zeros(1), np.zeros(1, np.bool_),
-                     np.zeros(1, np.bool_))
-    self._observation = np.zeros((1, OBSERVATION_SIZE))
+    self.next_gate = 0                  # the gate to pass next (the number passed so far)
+    self._step, self._observe = _one_ship()
     self.set_course(sample_course(np.random.default_rng(0), LEVELS[DEFAULT_LEVEL]))
 
   def set_course(self, course):
     """A new course (rows [x, y, heading_deg]), its first gate the next."""
     self.course = np.ascontiguousarray(course, dtype=np.float64)
     self.posts = posts_of(self.course)
-    self._courses = self.course[None]
-    self._posts = self.posts[None]
-    self._next[0] = 0
+    self.next_gate = 0
 
-  @property
-  def next_gate(self):
-    """The index of the gate to pass next (the number passed so far)."""
-    return int(self._next[0])
-
-  def __call__(self, samples, state, steps):
+  def __call__(self, samples, steps):
     """(event, reward, terminated, truncated) after a control step that sampled `samples`
-    and ended at `state` (float64, C order), `steps` control steps in."""
-    self._steps[0] = steps - 1          # `step_batch` counts the step itself
-    _one_ship()[0](state[None, :], self._r, self._active, samples[None], self._steps, False,
-                   self._posts, self._next, self.max_steps, *self.rewards, self._outcome)
-    event, reward, terminated, truncated = (a[0] for a in self._outcome)
-    return int(event), float(reward), bool(terminated), bool(truncated)
+    (float64, C order), `steps` control steps in (this one counted)."""
+    event, reward, self.next_gate, terminated, truncated = self._step(
+        samples, self.posts, self.next_gate, steps, self.max_steps, *self.rewards)
+    return event, reward, terminated, truncated
 
   def observe(self, state):
-    """The observation (a new array of 11) of the ship at `state` on this course."""
-    _one_ship()[1](np.ascontiguousarray(state, dtype=np.float64)[None, :], self._courses,
-                   self._next, self._observation)
-    return self._observation[0].copy()
+    """The observation (a new array of 11) of the ship at `state` (float64, C order) on
+    this course."""
+    out = np.empty(OBSERVATION_SIZE)
+    self._observe(state, self.course, self.next_gate, out)
+    return out
 
 
 def pilot_target(state, phase, course, next_gate, reach):

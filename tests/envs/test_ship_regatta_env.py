@@ -106,6 +106,7 @@ def test_the_batch_counts_gates_and_takes_courses():
   each = np.array([NORTH] * 4) + [[[10.0 * i, 0.0, 0.0]] for i in range(4)]
   _, info = vec.reset(options={"course": each})
   np.testing.assert_array_equal(info["course"], each)
+  np.testing.assert_array_equal(vec.unwrapped.courses, each)
   with pytest.raises(ValueError, match=r"^ShipRegattaVectorEnv\(easy, backend=analytic\): "
                                        r"options\['course'\] must be one course \(3, 3\) or one "
                                        r"per copy \(4, 3, 3\), got shape \(2, 3\)$"):

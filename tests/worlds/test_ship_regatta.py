@@ -23,7 +23,7 @@ def _sail(course, state, rates, one=None):
   state, samples, out = np.array(state, dtype=np.float64), np.empty((4, 2)), []
   for steps, r in enumerate(rates, 1):
     core.euler_control(state, r, samples)
-    event, reward, terminated, _ = one(samples, state, steps)
+    event, reward, terminated, _ = one(samples, steps)
     out.append((event, reward, one.next_gate))
     if terminated:
       break
@@ -45,7 +45,8 @@ def test_each_level_lays_its_courses_from_the_seed(level):
   turns = np.abs(core.wrap_deg_array(np.diff(courses[:, :, 2], axis=1)))
   assert turns.min() >= smallest - 1e-9 and turns.max() <= largest + 1e-9
   assert turns.max() > largest - 5.0 and turns.min() < smallest + 5.0
-  assert courses[:, :, :2].min() >= regatta_core.LOW and courses[:, :, :2].max() <= regatta_core.HIGH
+  centres = courses[:, :, :2]
+  assert centres.min() >= regatta_core.LOW and centres.max() <= regatta_core.HIGH
   apart = np.hypot(*(courses[:, :, None, :2] - courses[:, None, :, :2]).transpose(3, 0, 1, 2))
   assert apart[:, ~np.eye(gates, dtype=bool)].min() >= regatta_core.MIN_SEPARATION
   posts = np.array([regatta_core.posts_of(c) for c in courses[:20]])
@@ -101,21 +102,21 @@ def test_off_the_field_is_the_steering_tasks_penalty():
 def test_the_ship_sees_the_next_two_gates_from_its_own_frame():
   one = regatta_core.OneShip(5000)
   one.set_course(NORTH)
-  np.testing.assert_allclose(one.observe([400.0, 390.0, 0.0, 2.0]),
+  np.testing.assert_allclose(one.observe(np.array([400.0, 390.0, 0.0, 2.0])),
                              [400.0, 390.0, 0.0, 2.0, 10.0, 0.0, 0.0, 210.0, 0.0, 0.0, 3.0])
   # Heading east, 100 m west of the course: the gates ahead, on the port (left) side.
-  seen = one.observe([300.0, 400.0, 90.0, 0.0])
+  seen = one.observe(np.array([300.0, 400.0, 90.0, 0.0]))
   np.testing.assert_allclose(seen[4:], [100.0, 0.0, -90.0, 100.0, -200.0, -90.0, 3.0],
                              atol=1e-12)
   state, samples = np.array([400.0, 790.15, 0.0, 0.0]), np.empty((4, 2))
   one.set_course(NORTH)
-  one._next[0] = 2                                  # at the last gate: no gate after it
+  one.next_gate = 2                                 # at the last gate: no gate after it
   seen = one.observe(state)
   np.testing.assert_allclose(seen[4:7], seen[7:10])
   assert seen[10] == 1.0
   for steps in range(1, 7):
     core.euler_control(state, 0.0, samples)
-    event, *_ = one(samples, state, steps)
+    event, *_ = one(samples, steps)
   assert event == core.SUCCESS and one.observe(state)[10] == 0.0
 
 
