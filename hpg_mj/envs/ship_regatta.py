@@ -28,9 +28,10 @@ class MujocoRegattaBackend(ship_env.MujocoBackend):
 def spaces_of(rules, gates):
   """(observation space, action space): the steering ship's state, then two gates as the
   ship sees them (ahead and to starboard within the field's diagonal and one control
-  step of sailing, a heading in degrees) and the gates left, 0 to `gates`."""
+  step of sailing, 1,416.8 m, rounded up to whole metres; a heading in degrees) and the
+  gates left, 0 to `gates`."""
   state, action = ship_env.spaces_of(rules)
-  reach = math.hypot(state.high[0], state.high[1])
+  reach = float(math.ceil(math.hypot(state.high[0], state.high[1])))
   seen = [reach, reach, 180.0]
   observation = spaces.Box(low=np.concatenate([state.low, np.negative(seen * 2), [0.0]]),
                            high=np.concatenate([state.high, seen * 2, [float(gates)]]),
@@ -76,11 +77,11 @@ class ShipRegattaEnv(ship_env.ShipSteeringEnv):
   | 1 | y, the ship's position north | m | -1.8 to 1001.8 |
   | 2 | theta, the ship's heading, clockwise from north | deg | -180 to 180 |
   | 3 | theta_dot, the ship's turning rate | deg/s | -15 to 15 |
-  | 4 | the next gate's centre, ahead of the ship (along its heading) | m | -1416.8 to 1416.8 |
-  | 5 | the next gate's centre, to the ship's starboard (right) | m | -1416.8 to 1416.8 |
+  | 4 | the next gate's centre, ahead of the ship (along its heading) | m | -1417 to 1417 |
+  | 5 | the next gate's centre, to the ship's starboard (right) | m | -1417 to 1417 |
   | 6 | the next gate's heading less the ship's, wrapped | deg | -180 to 180 |
-  | 7 | the gate after it, ahead of the ship | m | -1416.8 to 1416.8 |
-  | 8 | the gate after it, to the ship's starboard | m | -1416.8 to 1416.8 |
+  | 7 | the gate after it, ahead of the ship | m | -1417 to 1417 |
+  | 8 | the gate after it, to the ship's starboard | m | -1417 to 1417 |
   | 9 | the gate after it, its heading less the ship's | deg | -180 to 180 |
   | 10 | the gates left to pass, the next one included | gates | 0 to the level's gates |
 

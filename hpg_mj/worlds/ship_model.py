@@ -134,7 +134,7 @@ def sail(mj_step, model, data, substeps, qpos, act, bow, rows, positions, state)
 
 _HIDDEN_Z = -50.0        # m: below the sea, where a hidden marker waits
 # The course's gates, (post, line) colours: passed, next (SPEC section 2's gate), later.
-_COURSE_RGBA = (((0.45, 0.45, 0.45, 1.0), (0.45, 0.45, 0.45, 1.0), (0.55, 0.55, 0.55, 0.5)),
+_COURSE_RGBA = (((0.2, 0.2, 0.2, 1.0), (0.2, 0.2, 0.2, 1.0), (0.12, 0.12, 0.12, 0.9)),
                 ((0.95, 0.75, 0.1, 1.0), (0.95, 0.75, 0.1, 1.0), (1.0, 0.9, 0.3, 0.8)),
                 ((0.92, 0.92, 0.92, 1.0), (0.92, 0.92, 0.92, 1.0), (1.0, 1.0, 1.0, 0.6)))
 
@@ -263,7 +263,7 @@ class ShipPhysics(mujoco.Physics):
   def place_course(self, posts, next_gate=0):
     """Moves the course's gate geoms (assets/ship_regatta.xml) to `posts`, (gates, 2, 2)
     rows (x, y) of each gate's posts, and colours them: the gates before `next_gate`
-    passed (grey), the next as SPEC section 2's gate, the later ones white; the model's
+    passed (dark grey), the next as SPEC section 2's gate, the later ones white; the model's
     gates beyond the course and SPEC section 2's own gate hidden below the sea."""
     posts = np.asarray(posts, dtype=np.float64)
     geoms = self._course_geoms
