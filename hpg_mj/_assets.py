@@ -6,6 +6,7 @@ package; a source checkout that was not installed reads the top-level folder.
 import functools
 import numbers
 import pathlib
+import re
 
 _PACKAGED_ASSETS = pathlib.Path(__file__).resolve().parent / "assets"
 _SOURCE_ASSETS = pathlib.Path(__file__).resolve().parents[1] / "assets"
@@ -31,13 +32,31 @@ def read_model(name: str) -> str:
   return path.read_text()
 
 
+def included_assets(name: str) -> dict:
+  """The files `assets/<name>` includes (`<include file="...">`, and theirs), as MuJoCo's
+  `from_xml_string` takes them: {file name: bytes}; empty for a model that includes
+  nothing. A model read from its text (`read_model`) finds them only here."""
+  found, todo = {}, [name]
+  while todo:
+    for included in re.findall(r'<include\s+file="([^"]+)"', read_model(todo.pop())):
+      if included not in found:
+        found[included] = read_model(included).encode()
+        todo.append(included)
+  return found
+
+
+def load_model(name: str):
+  """The compiled `mujoco.MjModel` of `assets/<name>`, with the files it includes."""
+  import mujoco
+  return mujoco.MjModel.from_xml_string(read_model(name), included_assets(name))
+
+
 @functools.lru_cache(maxsize=None)
 def offscreen_buffer(name: str) -> tuple:
   """(width, height): the largest frame in pixels MuJoCo can draw of `assets/<name>`,
   its offscreen buffer (`<visual><global offwidth offheight>`, read from the
   compiled model, so MuJoCo's own default where the file says nothing)."""
-  import mujoco
-  model = mujoco.MjModel.from_xml_string(read_model(name))
+  model = load_model(name)
   return int(model.vis.global_.offwidth), int(model.vis.global_.offheight)
 
 

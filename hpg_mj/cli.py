@@ -37,9 +37,20 @@ def _cmd_verify(args):
     print("  bounds (< 1.5 m apart, the gate's geoms at the rule's, >= 95% same ends):",
           "met" if ok else "NOT MET")
     return 0 if ok else 1
+  if args.what == "regatta":
+    results = verify.verify_regatta(episodes=args.starts, seed=args.seed)
+    print(f"regatta: {args.starts} courses per level sailed by the scripted helmsman on the "
+          "analytic ship, its turning rates replayed on the MuJoCo and the continuous ship")
+    for result in results:
+      print(result.line())
+    ok = all(result.passed for result in results)
+    print("  bounds (MuJoCo < 0.25 m, < 0.25 deg, <= half the Euler error, its course's geoms "
+          "at the rule's, >= 95% the continuous ship's gates and ends):",
+          "met" if ok else "NOT MET")
+    return 0 if ok else 1
   if args.what != "ship":
     raise SystemExit(f"hpg-mj verify: unknown check {args.what!r}; valid: ship, current, goal, "
-                     "golden")
+                     "regatta, golden")
   result = verify.verify_ship(controls=args.controls, starts=args.starts, seed=args.seed)
   print("\n".join(result.lines()))
   # SPEC section 1: within 0.25 m and 0.25 deg, and at most half the Euler model's error.
@@ -563,8 +574,10 @@ def build_parser():
                                     "current: both ships in each level's current, likewise; "
                                     "goal: the goal task's two ships, episode by episode "
                                     "(--starts episodes per level); "
+                                    "regatta: the regatta's two ships, course by course "
+                                    "(--starts courses per level); "
                                     "golden: every task's stored trajectory, replayed")
-  p.add_argument("what", choices=["ship", "current", "goal", "golden"])
+  p.add_argument("what", choices=["ship", "current", "goal", "regatta", "golden"])
   p.add_argument("--controls", type=_at_least(1), default=1000,
                  help="random 0.6 s controls per start")
   p.add_argument("--starts", type=_at_least(1), default=3, help="random starting states")

@@ -1,5 +1,6 @@
 """`hpg-mj verify ship`: the two ships against the continuous ODE (SPEC section 1);
 `hpg-mj verify current`: the two ships in each level's current, likewise;
+`hpg-mj verify goal`, `hpg-mj verify regatta`: the two ships' episodes of those tasks;
 `hpg-mj verify golden`: the stored golden trajectories of every task, replayed.
 
 The continuous ship: d(theta_dot)/dt = (r - theta_dot)/T, d(theta)/dt = theta_dot,
@@ -134,7 +135,8 @@ SHIP_GYMNASIUM_IDS = {"steer": "hpg_mj/ShipSteering-v0",
                       "straight": "hpg_mj/ShipSteeringStraight-v0",
                       "patrol": "hpg_mj/ShipPatrol-v0"}
 # The other ship domains, whose tasks are levels: domain -> its Gymnasium id (`level=`).
-SHIP_LEVEL_IDS = {"ship_current": "hpg_mj/ShipCurrent-v0", "ship_goal": "hpg_mj/ShipGoal-v0"}
+SHIP_LEVEL_IDS = {"ship_current": "hpg_mj/ShipCurrent-v0", "ship_goal": "hpg_mj/ShipGoal-v0",
+                  "ship_regatta": "hpg_mj/ShipRegatta-v0"}
 
 
 def _flat(obs):
@@ -173,6 +175,31 @@ GOAL_GOLDEN_FIRST = {"state": (400.0, 390.15, 0.0, 0.0), "gate": (400.0, 400.0, 
 PATROL_GOLDEN_STRAIGHT = 260     # control steps at r = 0 before the random turns
 
 
+def regatta_golden_first(level):
+  """The regatta's first golden episode (reset options): the level's course laid out by
+  a generator seeded with GOLDEN_SEED, the ship 9.85 m before its first gate heading
+  with it (its pass is the sixth step's, and the episode sails on); the episodes after
+  it draw their starts and courses."""
+  from hpg_mj.worlds import ship_regatta_core as regatta_core
+  course = regatta_core.sample_course(np.random.default_rng(GOLDEN_SEED),
+                                      regatta_core.level_layout(level))
+  x, y, heading = course[0]
+  rad = np.radians(heading)
+  return {"state": (x - 9.85 * np.sin(rad), y - 9.85 * np.cos(rad), heading, 0.0),
+          "course": course}
+
+
+def _golden_first(domain, task):
+  """The reset options of a ship domain's first golden episode (None: drawn)."""
+  if domain == "ship_goal":
+    return GOAL_GOLDEN_FIRST
+  if domain == "ship_regatta":
+    return regatta_golden_first(task)
+  if domain == "ship" and task in SHIP_GOLDEN_STARTS:
+    return {"state": SHIP_GOLDEN_STARTS[task]}
+  return None
+
+
 def ship_golden_actions(task=None):
   """The fixed turning rates of a ship task's golden trajectory."""
   turns = np.random.default_rng(7).uniform(-15.0, 15.0, (GOLDEN_STEPS, 1))
@@ -189,10 +216,7 @@ def ship_analytic_rollout(task, actions=None, domain="ship"):
   import hpg_mj  # noqa: F401  (registers the ids)
   env_id, kwargs = _ship_gymnasium(domain, task)
   env = gymnasium.make(env_id, **kwargs).unwrapped
-  start = SHIP_GOLDEN_STARTS.get(task) if domain == "ship" else None
-  options = GOAL_GOLDEN_FIRST if domain == "ship_goal" else (
-      None if start is None else {"state": start})
-  obs, _ = env.reset(seed=GOLDEN_SEED, options=options)
+  obs, _ = env.reset(seed=GOLDEN_SEED, options=_golden_first(domain, task))
   rows, rewards, ends = [_flat(obs)], [], []
   for a in ship_golden_actions(task) if actions is None else actions:
     obs, reward, terminated, truncated, _ = env.step(a)
@@ -208,8 +232,11 @@ def ship_mujoco_rollout(task, actions=None, domain="ship"):
   """The same on the MuJoCo ship through the dm_control suite."""
   from hpg_mj import suite
   kwargs = {"random": GOLDEN_SEED}
+  first = _golden_first(domain, task)
   if domain == "ship_goal":
-    kwargs.update(initial_state=GOAL_GOLDEN_FIRST["state"], gate=GOAL_GOLDEN_FIRST["gate"])
+    kwargs.update(initial_state=first["state"], gate=first["gate"])
+  elif domain == "ship_regatta":
+    kwargs.update(initial_state=first["state"], course=first["course"])
   elif domain == "ship":
     kwargs["initial_state"] = SHIP_GOLDEN_STARTS.get(task)
   env = suite.load(domain, task, kwargs)
@@ -217,6 +244,8 @@ def ship_mujoco_rollout(task, actions=None, domain="ship"):
   ts = env.reset()
   if domain == "ship_goal":                    # the first episode only
     env.task.initial_state = env.task.gate = None
+  elif domain == "ship_regatta":
+    env.task.initial_state = env.task.course = None
   rows, rewards, ends = [flat(ts)], [], []
   for a in ship_golden_actions(task) if actions is None else actions:
     ts = env.step(a)
@@ -515,4 +544,138 @@ def verify_goal(episodes=20, seed=0, levels=None):
       posts_off = max(posts_off, float(np.abs(drawn - goal_core.gate_posts(
           analytic._desired)).max()))
     results.append(GoalVerification(level, episodes, passes, same, largest, posts_off))
+  return results
+
+
+# ---- `hpg-mj verify regatta`: the regatta's two backends against the continuous ship --
+
+@dataclasses.dataclass
+class RegattaVerification:
+  level: str
+  episodes: int
+  analytic_finishes: int        # courses the scripted helmsman sailed to the finish
+  mujoco_position_m: float      # the MuJoCo environment against the continuous ship
+  mujoco_heading_deg: float
+  euler_position_m: float       # the analytic environment against the continuous ship
+  mujoco_same: int              # courses where the MuJoCo ship passed the continuous
+                                # ship's gates, each within a control step, and ended alike
+  euler_same: int               # the same for the analytic ship (reported)
+  course_geoms_m: float         # the MuJoCo course's posts against the rule's, largest
+
+  def line(self):
+    return (f"  {self.level:<7} {self.episodes} courses, helmsman finished "
+            f"{self.analytic_finishes}; against the continuous ship: MuJoCo "
+            f"{self.mujoco_position_m:.4f} m, {self.mujoco_heading_deg:.4f} deg, same gates "
+            f"and end {self.mujoco_same}; analytic (Euler) {self.euler_position_m:.4f} m, "
+            f"same gates and end {self.euler_same}; MuJoCo course posts off the rule's by "
+            f"{self.course_geoms_m:.1e} m")
+
+  @property
+  def passed(self):
+    """SPEC section 1's bounds over whole courses (within 0.25 m and 0.25 deg of the
+    continuous ship, at most half the Euler ship's error); the MuJoCo course where the
+    rule's is; and in at least 19 courses of 20 the MuJoCo ship passes the continuous
+    ship's gates, each within one control step (1.8 m of sailing), and ends alike. The
+    Euler ship, metres off after the hard level's ten minutes of hairpins, is
+    reported."""
+    return (self.mujoco_position_m < 0.25 and self.mujoco_heading_deg < 0.25
+            and self.mujoco_position_m <= 0.5 * self.euler_position_m
+            and self.course_geoms_m < 1e-9 and self.mujoco_same >= 0.95 * self.episodes)
+
+
+def _regatta_episode(env, seed, actions=None, start=None, steps=5000):
+  """(states at each control step, the steps at which gates were passed, the last event,
+  the turning rates) of one episode of `env` (a ShipRegattaEnv): the scripted
+  helmsman's choices round the course, or `actions` replayed from `start` (the last one
+  held for one more control step, should the episode not have ended)."""
+  from hpg_mj.worlds import ship_regatta_core as regatta_core
+  obs, info = env.reset(seed=seed, options=start)
+  course, reach = info["course"], 0.5 * env.layout[1]
+  states, passes, chosen, phase, event = [obs[:4]], [], [], 0, None
+  for t in range(steps if actions is None else len(actions) + 1):
+    if actions is None:
+      tx, ty, phase = regatta_core.pilot_target(obs[:4], phase, course, len(passes), reach)
+      r = core.pilot_turn_rate(obs[:4], tx, ty)
+    else:
+      r = actions[min(t, len(actions) - 1)]
+    obs, _, terminated, truncated, info = env.step(np.array([r]))
+    states.append(obs[:4])
+    chosen.append(r)
+    event = info["event"]
+    if info["gates_passed"] > len(passes):
+      passes.append(t)
+      phase = 0
+    if terminated or truncated:
+      break
+  return np.array(states), passes, event, chosen
+
+
+def _judged_passes(course, positions):
+  """(the steps at which gates were passed, the last event) of a track, positions (x, y)
+  every 0.2 s from its start, by the regatta's rule (`ship_regatta_core.OneShip`)."""
+  from hpg_mj.worlds import ship_regatta_core as regatta_core
+  one = regatta_core.OneShip(core.STEER_MAX_STEPS)
+  one.set_course(course)
+  k = core.SAMPLES_PER_CONTROL
+  passes, event = [], None
+  for t in range((len(positions) - 1) // k):
+    code, _, terminated, _ = one(np.ascontiguousarray(positions[t * k:(t + 1) * k + 1]), t + 1)
+    event = regatta_core.EVENT_NAMES[code]
+    if one.next_gate > len(passes):
+      passes.append(t)
+    if terminated:
+      break
+  return passes, event
+
+
+def _alike(passes, event, reference):
+  """Whether a ship passed the reference ship's gates, each within a control step, and
+  ended as it did."""
+  ref_passes, ref_event = reference
+  return (len(passes) == len(ref_passes) and event == ref_event
+          and all(abs(a - b) <= 1 for a, b in zip(passes, ref_passes)))
+
+
+def verify_regatta(episodes=20, seed=0, levels=None):
+  """Per level, `episodes` courses sailed by the scripted helmsman on the analytic
+  environment; its turning rates replayed on the MuJoCo environment from the same start
+  round the same course, and on the continuous ship (`exact_trajectory`), whose track
+  the regatta's rule judges too: one RegattaVerification per level."""
+  import gymnasium
+
+  import hpg_mj  # noqa: F401  (registers the ids)
+  from hpg_mj.worlds import ship_regatta_core as regatta_core
+  if episodes < 1:
+    raise ValueError(f"episodes must be positive, got {episodes}")
+  k = core.SAMPLES_PER_CONTROL
+  results = []
+  for level in levels or tuple(regatta_core.LEVELS):
+    regatta_core.level_layout(level, "hpg-mj verify regatta")
+    analytic = gymnasium.make("hpg_mj/ShipRegatta-v0", level=level,
+                              backend="analytic").unwrapped
+    mujoco = gymnasium.make("hpg_mj/ShipRegatta-v0", level=level, backend="mujoco").unwrapped
+    finishes = mujoco_same = euler_same = 0
+    worst = np.zeros(3)
+    posts_off = 0.0
+    for episode in range(episodes):
+      states, passes, event, actions = _regatta_episode(analytic, seed * 100_003 + episode)
+      course = analytic.course
+      start = {"state": states[0], "course": course}
+      replay, replay_passes, replay_event, _ = _regatta_episode(mujoco, None, actions, start)
+      exact = exact_trajectory(states[0], list(actions) + actions[-1:])
+      reference = _judged_passes(course, np.concatenate([states[:1, :2], exact[:, :2]]))
+      ends = exact[k - 1::k]                       # the continuous ship at each step's end
+      n = min(len(replay), len(states)) - 1
+      worst = np.maximum(worst, (*_errors(replay[1:n + 1], ends[:n]),
+                                 _errors(states[1:n + 1], ends[:n])[0]))
+      finishes += event == "finish"
+      mujoco_same += _alike(replay_passes, replay_event, reference)
+      euler_same += _alike(passes, event, reference)
+      physics = mujoco.backend.physics
+      posts = regatta_core.posts_of(course)
+      drawn = np.array([[physics.model.ptr.geom_pos[i][:2] for i in ids[:2]]
+                        for ids in physics._course_geoms[:len(posts)]])
+      posts_off = max(posts_off, float(np.abs(drawn - posts).max()))
+    results.append(RegattaVerification(level, episodes, finishes, *worst, mujoco_same,
+                                       euler_same, posts_off))
   return results

@@ -9,6 +9,10 @@ wake bends, the water carried the ship.
 
 ship_goal_<level>.png: a gate of each level (drawn with seed 4) where the episode put it,
 and the scripted helmsman's wake to and through it (`ship_goal_core.pilot_target`).
+
+ship_regatta_<level>.png: a course of each level (laid out with seed 4) and the scripted
+helmsman's wake round it (`ship_regatta_core.pilot_target`), drawn when half its gates
+are passed: those grey, the next yellow, the rest white.
 """
 import pathlib
 
@@ -19,6 +23,7 @@ import numpy as np
 import hpg_mj  # noqa: F401  (registers the ids)
 from hpg_mj.worlds import ship_core as core
 from hpg_mj.worlds import ship_goal_core as goal_core
+from hpg_mj.worlds import ship_regatta_core as regatta_core
 
 OUT = pathlib.Path(__file__).resolve().parents[1] / "figures" / "tasks"
 START = [150.0, 850.0, 90.0, 0.0]      # the north-west, heading east
@@ -57,10 +62,32 @@ def goal_picture(level, seed=4):
   return frame
 
 
+def regatta_picture(level, seed=4):
+  """The episode's course (seeded) and the scripted helmsman's way round its first half."""
+  env = gymnasium.make("hpg_mj/ShipRegatta-v0", level=level, backend="analytic",
+                       render_mode="rgb_array", width=480, height=360)
+  obs, info = env.reset(seed=seed)
+  gates, spacing, _, _ = regatta_core.LEVELS[level]
+  phase, passed = 0, 0
+  while passed < (gates + 1) // 2:
+    tx, ty, phase = regatta_core.pilot_target(obs[:4], phase, info["course"], passed,
+                                              0.5 * spacing)
+    obs, _, terminated, truncated, step_info = env.step(
+        np.array([core.pilot_turn_rate(obs[:4], tx, ty)]))
+    if step_info["gates_passed"] > passed:
+      passed, phase = step_info["gates_passed"], 0
+    if terminated or truncated:
+      break
+  frame = env.render()
+  env.close()
+  return frame
+
+
 def main():
   OUT.mkdir(parents=True, exist_ok=True)
   for level in ("easy", "medium", "hard"):
-    for name, picture in (("ship_current", current_picture), ("ship_goal", goal_picture)):
+    for name, picture in (("ship_current", current_picture), ("ship_goal", goal_picture),
+                          ("ship_regatta", regatta_picture)):
       imageio.imwrite(OUT / f"{name}_{level}.png", picture(level))
       print(OUT / f"{name}_{level}.png")
 

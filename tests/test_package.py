@@ -21,7 +21,8 @@ def test_assets_load_from_the_installed_package():
 
 
 def test_unknown_model_lists_what_exists():
-  with pytest.raises(FileNotFoundError, match=r"available: \['ship.xml', 'ship_current.xml', 'taxi.xml'\]"):
+  with pytest.raises(FileNotFoundError, match=r"available: \['ship.xml', 'ship_current.xml', "
+                                              r"'ship_regatta.xml', 'taxi.xml'\]"):
     _assets.read_model("boat.xml")
 
 

@@ -34,7 +34,9 @@ def test_all_tasks_listed():
                                   ("ship", "patrol"), ("taxi", "fuel"), ("taxi", "classic"),
                                   ("ship_current", "easy"), ("ship_current", "medium"),
                                   ("ship_current", "hard"), ("ship_goal", "easy"),
-                                  ("ship_goal", "medium"), ("ship_goal", "hard")}
+                                  ("ship_goal", "medium"), ("ship_goal", "hard"),
+                                  ("ship_regatta", "easy"), ("ship_regatta", "medium"),
+                                  ("ship_regatta", "hard")}
 
 
 @pytest.mark.parametrize("domain,task", suite.ALL_TASKS)
@@ -103,7 +105,8 @@ def test_initial_states_are_random(domain, task):
 
 
 def test_unknown_domain_and_task_list_the_valid_ones():
-  with pytest.raises(ValueError, match=r"unknown domain 'boat'.*'ship', 'ship_current', 'ship_goal', 'taxi'"):
+  with pytest.raises(ValueError, match=r"unknown domain 'boat'.*'ship', 'ship_current', "
+                                       r"'ship_goal', 'ship_regatta', 'taxi'"):
     suite.load("boat", "steer")
   with pytest.raises(ValueError, match=r"unknown task 'sail'.*'diagonal', 'patrol', 'steer', 'straight'"):
     suite.load("ship", "sail")

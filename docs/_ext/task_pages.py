@@ -54,10 +54,15 @@ TASKS = {
         "hpg_mj/ShipGoal-v0", f"figures/tasks/ship_goal_{level}.png",
         f"a gate of the {level} level and the scripted helmsman's way through it "
         "(`scripts/task_pictures.py`)") for level in ("easy", "medium", "hard")},
+    **{("ship_regatta", level): (
+        "hpg_mj/ShipRegatta-v0", f"figures/tasks/ship_regatta_{level}.png",
+        f"a course of the {level} level and the scripted helmsman's wake through its "
+        "first gates (grey), with the next (yellow) and the rest (white) to pass "
+        "(`scripts/task_pictures.py`)") for level in ("easy", "medium", "hard")},
 }
 
 # Domains whose tasks are the levels of one Gymnasium id (its `level` argument).
-_LEVEL_DOMAINS = ("ship_current", "ship_goal")
+_LEVEL_DOMAINS = ("ship_current", "ship_goal", "ship_regatta")
 
 # Gymnasium's make() arguments for building each id here: the analytic ship needs
 # neither MuJoCo nor a renderer.
@@ -66,7 +71,8 @@ _MAKE_KWARGS = {"hpg_mj/ShipSteering-v0": {"backend": "analytic"},
                 "hpg_mj/ShipSteeringStraight-v0": {"backend": "analytic"},
                 "hpg_mj/ShipPatrol-v0": {"backend": "analytic"},
                 "hpg_mj/ShipCurrent-v0": {"backend": "analytic"},
-                "hpg_mj/ShipGoal-v0": {"backend": "analytic"}}
+                "hpg_mj/ShipGoal-v0": {"backend": "analytic"},
+                "hpg_mj/ShipRegatta-v0": {"backend": "analytic"}}
 
 
 def page_name(domain, task):
@@ -275,7 +281,9 @@ def render(domain, task):
   finally:
     env.close()
     dm_env.close()
-  rows = "\n".join(f"| {name} | {value.replace('|', '&#124;')} |" for name, value in facts)
+  # One line a row: a long space's repr (numpy's) wraps.
+  rows = "\n".join(f"| {name} | {' '.join(value.split()).replace('|', '&#124;')} |"
+                   for name, value in facts)
   signature = _signature(f"{module.__name__}.{task}", constructor)
   image = "../../" + picture
   return textwrap.dedent("""\

@@ -10,6 +10,7 @@ ENV_IDS = {
     "hpg_mj/ShipPatrol-v0": ("hpg_mj.envs.ship:ShipSteeringEnv", {"task": "patrol"}),
     "hpg_mj/ShipCurrent-v0": ("hpg_mj.envs.ship_current:ShipCurrentEnv", {"level": "easy"}),
     "hpg_mj/ShipGoal-v0": ("hpg_mj.envs.ship_goal:ShipGoalEnv", {"level": "easy"}),
+    "hpg_mj/ShipRegatta-v0": ("hpg_mj.envs.ship_regatta:ShipRegattaEnv", {"level": "easy"}),
     "hpg_mj/TaxiFuel-v0": ("hpg_mj.envs.taxi:TaxiEnv", {"fuel": True}),
     "hpg_mj/Taxi-v0": ("hpg_mj.envs.taxi:TaxiEnv", {"fuel": False}),
 }
@@ -19,6 +20,7 @@ VECTOR_ENTRY_POINTS = {
     "hpg_mj.envs.taxi:TaxiEnv": "hpg_mj.envs.vector:TaxiVectorEnv",
     "hpg_mj.envs.ship_current:ShipCurrentEnv": "hpg_mj.envs.ship_current:ShipCurrentVectorEnv",
     "hpg_mj.envs.ship_goal:ShipGoalEnv": "hpg_mj.envs.ship_goal:ShipGoalVectorEnv",
+    "hpg_mj.envs.ship_regatta:ShipRegattaEnv": "hpg_mj.envs.ship_regatta:ShipRegattaVectorEnv",
 }
 
 

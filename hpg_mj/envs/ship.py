@@ -247,7 +247,7 @@ class ShipSteeringEnv(gymnasium.Env):
       return None
     from hpg_mj.render import scenes  # drawn in a worker process (SPEC section 9)
     if self._renderer is None:
-      self._renderer = scenes.ShipScene(self._width, self._height)
+      self._renderer = scenes.ShipScene(self._width, self._height, self.model_file)
     return self._renderer.render(self.backend.state(), np.asarray(self._trail),
                                  camera=self._camera, **self._drawn())
 

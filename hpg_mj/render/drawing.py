@@ -70,11 +70,13 @@ def _camera_id(model, camera, what):
 
 
 class ShipDrawing:
-  """The field, the gate, the bounds, the ship at a state and its wake."""
+  """The field, the gate, the bounds, the ship at a state and its wake; on the model
+  `model` of assets/ (the regatta's draws its course too)."""
 
-  def __init__(self, width=640, height=480):
+  def __init__(self, width=640, height=480, model="ship.xml"):
     from hpg_mj.worlds import ship_model
-    self.physics = ship_model.ShipPhysics.from_xml_string(*ship_model.get_model_and_assets())
+    self.physics = ship_model.ShipPhysics.from_xml_string(_assets.read_model(model),
+                                                          _assets.included_assets(model))
     self.width, self.height = int(width), int(height)
     self._renderer = mujoco.Renderer(self.physics.model.ptr, self.height, self.width,
                                      max_geom=4000)
@@ -82,12 +84,15 @@ class ShipDrawing:
   def render_first(self):
     self.render(state=np.array([500.0, 500.0, 0.0, 0.0]))
 
-  def render(self, state, trail=(), target=None, camera="top", marks=(), gate=None):
+  def render(self, state, trail=(), target=None, camera="top", marks=(), gate=None,
+             course=None, next_gate=0):
     model = self.physics.model.ptr
     camera_id = _camera_id(model, camera, "the ship model")
     self.physics.set_ship_state(state)
     self.physics.place_target(target)
     self.physics.place_gate(gate)
+    if course is not None:
+      self.physics.place_course(course, next_gate)
     mujoco.mj_forward(model, self.physics.data.ptr)
     self._renderer.update_scene(self.physics.data.ptr, camera=camera_id)
     pixel = _pixel_size(model, camera_id, self.height)
@@ -105,7 +110,7 @@ class PhysicsDrawing:
 
   def __init__(self, model_name):
     self.model_name = model_name
-    self.model = mujoco.MjModel.from_xml_string(_assets.read_model(model_name))
+    self.model = _assets.load_model(model_name)
     self.data = mujoco.MjData(self.model)
     self._renderers = {}   # (height, width) -> mujoco.Renderer
 

@@ -48,9 +48,13 @@ stop_profiler_clock = ship_model.stop_profiler_clock
 class Physics(ship_model.ShipPhysics):
   """The MuJoCo ship (`ship_model.ShipPhysics`), drawn by the render worker."""
 
+  # The model of assets/ the render worker draws (a world with markers of its own names
+  # its file; the ship in a current draws as the steering ship).
+  model_file = "ship.xml"
+
   def render(self, height=240, width=320, camera_id=-1, **options):
     """dm_control's `render`, drawn in a worker process (SPEC section 9)."""
-    return worker.render_physics(self, "ship.xml", height, width, camera_id, **options)
+    return worker.render_physics(self, self.model_file, height, width, camera_id, **options)
 
   def free(self):
     worker.close_physics_worker(self)

@@ -457,6 +457,26 @@ def task_outcome(samples, end_state, steps, is_steer, goal, size, max_steps, suc
   return event, reward, terminated, truncated
 
 
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def sail_batch(states, r_deg, active, samples):
+  """One control interval of Equation 1 for every `active` ship of a batch: `euler_control`
+  for each, sample by sample across the batch (the ships' independent chains of sin and
+  cos then overlap in the processor). Every batch of ships on still water sails here
+  (`task_step_batch`, the regatta's `ship_regatta_core.step_batch`)."""
+  n = states.shape[0]
+  for i in range(n):
+    if active[i]:
+      samples[i, 0, 0] = states[i, 0]
+      samples[i, 0, 1] = states[i, 1]
+  for k in range(1, samples.shape[1]):
+    for i in range(n):
+      if active[i]:
+        state = states[i]
+        euler_sample(state, r_deg[i], SPEED, TIME_CONSTANT, SAMPLING_INTERVAL)
+        samples[i, k, 0] = state[0]
+        samples[i, k, 1] = state[1]
+
+
 @numba.njit(cache=True)
 def task_step_batch(states, r_deg, active, samples, steps, integrate, is_steer, goal, size,
                     max_steps, success_reward, failure_reward, outcome):
@@ -472,19 +492,7 @@ def task_step_batch(states, r_deg, active, samples, steps, integrate, is_steer, 
   event, reward, terminated, truncated = outcome
   n = states.shape[0]
   if integrate:
-    # `euler_control` for each ship, sample by sample across the batch: the ships'
-    # independent chains of sin and cos then overlap in the processor.
-    for i in range(n):
-      if active[i]:
-        samples[i, 0, 0] = states[i, 0]
-        samples[i, 0, 1] = states[i, 1]
-    for k in range(1, samples.shape[1]):
-      for i in range(n):
-        if active[i]:
-          state = states[i]
-          euler_sample(state, r_deg[i], SPEED, TIME_CONSTANT, SAMPLING_INTERVAL)
-          samples[i, k, 0] = state[0]
-          samples[i, k, 1] = state[1]
+    sail_batch(states, r_deg, active, samples)
   for i in range(n):
     if not active[i]:
       continue

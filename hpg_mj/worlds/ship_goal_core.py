@@ -65,11 +65,21 @@ def gate_heading_deg(desired):
   return math.degrees(math.atan2(desired[2], desired[3]))
 
 
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def posts_into(x, y, s, c, out):
+  """The posts of the gate at (x, y) with heading sine and cosine (s, c) into `out`, rows
+  (x, y): left, then right of a ship passing it (compiled, for the regatta's courses)."""
+  out[0, 0] = x - HALF_WIDTH * c
+  out[0, 1] = y + HALF_WIDTH * s
+  out[1, 0] = x + HALF_WIDTH * c
+  out[1, 1] = y - HALF_WIDTH * s
+
+
 def gate_posts(desired):
   """The gate's two posts, rows (x, y): left, then right of a ship passing it."""
-  x, y, s, c = (float(v) for v in desired)
-  return np.array([[x - HALF_WIDTH * c, y + HALF_WIDTH * s],
-                   [x + HALF_WIDTH * c, y - HALF_WIDTH * s]])
+  out = np.empty((2, 2))
+  posts_into(*(float(v) for v in desired), out)
+  return out
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")

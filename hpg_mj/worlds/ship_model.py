@@ -132,6 +132,39 @@ def sail(mj_step, model, data, substeps, qpos, act, bow, rows, positions, state)
   bow_readings(rows, act, bow, positions, state)
 
 
+_HIDDEN_Z = -50.0        # m: below the sea, where a hidden marker waits
+# The course's gates, (post, line) colours: passed, next (SPEC section 2's gate), later.
+_COURSE_RGBA = (((0.2, 0.2, 0.2, 1.0), (0.2, 0.2, 0.2, 1.0), (0.12, 0.12, 0.12, 0.9)),
+                ((0.95, 0.75, 0.1, 1.0), (0.95, 0.75, 0.1, 1.0), (1.0, 0.9, 0.3, 0.8)),
+                ((0.92, 0.92, 0.92, 1.0), (0.92, 0.92, 0.92, 1.0), (1.0, 1.0, 1.0, 0.6)))
+
+
+def _course_geoms(model):
+  """Rows of (left post, right post, line) geom ids of the gates `course<k>_...` of a
+  model, k = 0, 1, ... as long as they exist."""
+  rows = []
+  while True:
+    ids = [mj.mj_name2id(model, mj.mjtObj.mjOBJ_GEOM, f"course{len(rows)}_{part}")
+           for part in ("post_left", "post_right", "line")]
+    if min(ids) < 0:
+      return rows
+    rows.append(ids)
+
+
+def _move_gate(model, ids, posts):
+  """Puts a gate's geoms `ids` (two posts, then the line between them) at `posts`, rows
+  (x, y), their heights as the model has them (posts standing, the line on the sea)."""
+  (x0, y0), (x1, y1) = posts
+  model.geom_pos[ids[0]] = (x0, y0, 5.0)
+  model.geom_pos[ids[1]] = (x1, y1, 5.0)
+  half_angle = 0.5 * math.atan2(y1 - y0, x1 - x0)
+  model.geom_pos[ids[2]] = (0.5 * (x0 + x1), 0.5 * (y0 + y1), 0.3)
+  model.geom_quat[ids[2]] = (math.cos(half_angle), 0.0, 0.0, math.sin(half_angle))
+  # The compiler marked the line's frame as its body's turned by nothing, and MuJoCo
+  # then never reads its geom_quat: it must read it now.
+  model.geom_sameframe[ids[2]] = mj.mjtSameFrame.mjSAMEFRAME_NONE
+
+
 class ShipPhysics(mujoco.Physics):
   """The MuJoCo ship with named readings in the paper's units."""
 
@@ -158,6 +191,9 @@ class ShipPhysics(mujoco.Physics):
     # entry point of `sail`, made at the first step.
     self._addresses = (self._model_ptr._address, self._data_ptr._address)
     self._sailing = None
+    # The geoms of a course's gates (assets/ship_regatta.xml), rows of (left post, right
+    # post, line) ids, looked up once; none in a model without a course.
+    self._course_geoms = _course_geoms(self._model_ptr)
 
   def _substeps_per_sample(self):
     substeps = core.SAMPLING_INTERVAL / self._model_ptr.opt.timestep
@@ -221,17 +257,31 @@ class ShipPhysics(mujoco.Physics):
     """Moves the gate's geoms (its two posts and the line between them) to `posts`,
     rows (x, y) (the goal task's gate), or back to SPEC section 2's when None."""
     posts = core.GATE if posts is None else np.asarray(posts, dtype=np.float64)
-    named = self.named.model
-    for name, (x, y) in zip(("gate_post_west", "gate_post_east"), posts):
-      named.geom_pos[name][:2] = (x, y)
-    (x0, y0), (x1, y1) = posts
-    half_angle = 0.5 * math.atan2(y1 - y0, x1 - x0)
-    named.geom_pos["gate_line"][:2] = (0.5 * (x0 + x1), 0.5 * (y0 + y1))
-    named.geom_quat["gate_line"] = (math.cos(half_angle), 0.0, 0.0, math.sin(half_angle))
-    # The compiler marked the line's frame as its body's turned by nothing, and MuJoCo
-    # then never reads its geom_quat: it must read it now.
-    self.model.geom_sameframe[self.model.name2id("gate_line", "geom")] = \
-        mj.mjtSameFrame.mjSAMEFRAME_NONE
+    _move_gate(self._model_ptr, [self.model.name2id(name, "geom") for name in
+                                 ("gate_post_west", "gate_post_east", "gate_line")], posts)
+
+  def place_course(self, posts, next_gate=0):
+    """Moves the course's gate geoms (assets/ship_regatta.xml) to `posts`, (gates, 2, 2)
+    rows (x, y) of each gate's posts, and colours them: the gates before `next_gate`
+    passed (dark grey), the next as SPEC section 2's gate, the later ones white; the model's
+    gates beyond the course and SPEC section 2's own gate hidden below the sea."""
+    posts = np.asarray(posts, dtype=np.float64)
+    geoms = self._course_geoms
+    if len(posts) > len(geoms):
+      raise ValueError(f"a course of {len(posts)} gates does not fit the model's "
+                       f"{len(geoms)} course gates (assets/ship_regatta.xml)")
+    model = self._model_ptr
+    for name in ("gate_post_west", "gate_post_east", "gate_line"):
+      model.geom_pos[self.model.name2id(name, "geom")][2] = _HIDDEN_Z
+    for k, ids in enumerate(geoms):
+      if k >= len(posts):
+        for i in ids:
+          model.geom_pos[i] = (-5000.0, -5000.0, _HIDDEN_Z)
+        continue
+      _move_gate(model, ids, posts[k])
+      look = _COURSE_RGBA[0 if k < next_gate else (1 if k == next_gate else 2)]
+      for i, rgba in zip(ids, look):
+        model.geom_rgba[i] = rgba
 
   def sampled_positions(self):
     """Positions sampled during the last `step` (rows: start, then each 0.2 s)."""
