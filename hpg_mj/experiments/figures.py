@@ -279,6 +279,18 @@ def draw_options(root, fig, agent):
   return summary
 
 
+def options_lines(fig, summary):
+  """What an options figure shows (`draw_options`' summary), a line each."""
+  lines = [f"  - seed {fig['seed']}'s final agent, greedy on the analytic ship, from "
+           f"({s['start'][0]:.0f}, {s['start'][1]:.0f}): "
+           f"{'passed' if s['passed'] else 'missed'} the gate in {s['steps']} control steps, "
+           f"{s['calls']} option calls" for s in summary["starts"]]
+  return lines + [f"  - {option}: {s['calls']} calls, {s['mean_steps']:.1f} control steps "
+                  f"each; on average begun at ({s['began'][0]:.0f}, {s['began'][1]:.0f}), "
+                  f"ended at ({s['ended'][0]:.0f}, {s['ended'][1]:.0f})"
+                  for option, s in summary["options"].items()]
+
+
 # (metrics.json key, what the report calls it, digits); "greedy." reads the greedy
 # evaluation on the fixed starts (SPEC section 7).
 _SHIP_ROWS = (("gate_pass_rate", "gate pass rate, online", 3),
@@ -430,16 +442,7 @@ def write_report(root, experiment, results, drawn, protocol=None):
       continue
     head = f"- **{fig['name']}** ({fig['title']}): the paper: {fig['paper']}."
     if fig["kind"] == "options":
-      lines.append(head + f" Ours, seed {fig['seed']}'s final agent, greedy on the analytic "
-                   "ship:")
-      for s in summary["starts"]:
-        lines.append(f"  - from ({s['start'][0]:.0f}, {s['start'][1]:.0f}): "
-                     f"{'passed' if s['passed'] else 'missed'} the gate in {s['steps']} "
-                     f"control steps, {s['calls']} option calls")
-      for option, s in summary["options"].items():
-        lines.append(f"  - {option}: {s['calls']} calls, {s['mean_steps']:.1f} control steps "
-                     f"each; on average begun at ({s['began'][0]:.0f}, {s['began'][1]:.0f}), "
-                     f"ended at ({s['ended'][0]:.0f}, {s['ended'][1]:.0f})")
+      lines += [head + " Ours:", *options_lines(fig, summary)]
       continue
     if fig["kind"] == "trajectories":
       lines.append(head + " Ours, on the MuJoCo ship:")

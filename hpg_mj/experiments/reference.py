@@ -164,6 +164,26 @@ def _bounds_line(world):
               for score in entry["scores"]) + " (SPEC section 7.1).")
 
 
+def _options_sections(out, experiments, quick, root):
+  """The options figures (`figures.draw_options`) drawn by these experiments under
+  OUT, copied beside the report, with what they show."""
+  import shutil
+  lines = []
+  for name in experiments:
+    experiment = runner.load_experiment(name)
+    here = runner.folder(experiment, out, quick)
+    for fig in experiment["figures"]:
+      summary = here / f"{fig['name']}.json"
+      if fig["kind"] != "options" or not summary.is_file():
+        continue
+      shutil.copyfile(here / f"{fig['name']}.png", root / f"{fig['name']}.png")
+      lines += [f"### {fig['title']}", "", f"![{fig['title']}]({fig['name']}.png)", "",
+                f"`{fig['name']}.png` (experiment `{name}`): each control step coloured by the "
+                "option that chose it; a dot where an option was called, a cross where it "
+                "ended.", "", *figures.options_lines(fig, json.loads(summary.read_text())), ""]
+  return lines
+
+
 def write(out, quick=False, earlier=None):
   """Draws the figures and writes table.md, REPORT.md and runs.jsonl under
   OUT/reference (OUT/reference_quick with `quick`) from the finished runs (and
@@ -202,6 +222,7 @@ def write(out, quick=False, earlier=None):
                 f"`reference_{world}.png`: {spec['title']} (log axis), each learner's "
                 "mean over its runs with the 95% bootstrap band; the x of a point is the "
                 "mean over runs of the steps trained by then.", ""]
+    lines += _options_sections(out, spec["experiments"], quick, root)
     for e in entries:
       made[e["task"].path.stem] = e["runs"]
   table_md = ["## Reference scores", "",

@@ -149,3 +149,26 @@ def test_an_options_figure_needs_an_option_critic(tmp_path):
                                                    r"draws a run of ship_option_critic; "
                                                    r"'ship_hybrid' is not one"):
     runner.load_experiment(bad)
+
+
+def test_the_reference_report_shows_the_options_drawn(tmp_path):
+  """`reference.write` copies each options figure its experiments drew beside the
+  report and says what it shows."""
+  import json
+
+  from hpg_mj.experiments import reference, runner
+  experiment = runner.load_experiment("reference_ship_option_critic")
+  here = runner.folder(experiment, tmp_path, False)
+  here.mkdir(parents=True)
+  (here / "ship_options.png").write_bytes(b"png")
+  (here / "ship_options.json").write_text(json.dumps({
+      "starts": [{"start": [700.0, 700.0, 100.0, 3.65], "passed": True, "steps": 90,
+                  "calls": 12}],
+      "options": {"option0": {"calls": 12, "mean_steps": 7.5, "began": [650.0, 560.0],
+                              "ended": [640.0, 540.0]}}}))
+  report = reference.write(tmp_path).read_text()
+  assert (tmp_path / "reference" / "ship_options.png").read_bytes() == b"png"
+  assert "![Option-critic on the ship: where its learned options begin and end]" \
+         "(ship_options.png)" in report
+  assert "from (700, 700): passed the gate in 90 control steps, 12 option calls" in report
+  assert "option0: 12 calls, 7.5 control steps each; on average begun at (650, 560)" in report
