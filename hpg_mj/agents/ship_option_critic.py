@@ -27,8 +27,8 @@ class Options(taskfile.Section):
   learner: str = param("option_critic", "Bacon et al.'s option-critic over a CMAC",
                        choices=("option_critic",))
   n_options: int = param(4, "options the root chooses among", low=1, high=64)
-  alpha_critic: float = param(0.1, "step size of Q_Omega", low=0, high=1, low_open=True)
-  alpha_policy: float = param(0.01, "step size of the intra-option policies", low=0,
+  alpha_critic: float = param(0.3, "step size of Q_Omega", low=0, high=1, low_open=True)
+  alpha_policy: float = param(0.03, "step size of the intra-option policies", low=0,
                               low_open=True)
   alpha_termination: float = param(0.01, "step size of the terminations", low=0)
   gamma: float = param(0.99, "discount", low=0, high=1, low_open=True)
