@@ -739,13 +739,13 @@ def search_first_turns(task="ship", starts=None):
 BEST_IS = {
     "ship_current": ("per start, the fewest control steps to the gate over first turns "
                      "before a helmsman that heads down the least-time field of the level's "
-                     "water (planners.plan_current)"),
+                     "water (planners.plan)"),
     "ship_goal": ("per start, the fewest control steps to the episode's gate over first "
                   "turns before helmsmen lining up with it from a grid of approaches "
-                  "(planners.plan_goal)"),
+                  "(planners.plan)"),
     "ship_regatta": ("per start, a rollout of the scripted helmsman gate by gate over the "
                      "whole course, each gate's way of taking it chosen by sailing every "
-                     "candidate to the finish (planners.plan_regatta)"),
+                     "candidate to the finish (planners.plan)"),
 }
 REFERENCE_IS = {
     "ship_current": "a ship that turns at once, the least time of the grid's paths",

@@ -30,6 +30,7 @@ alone (`Helmsman`).
 benchmark's records hold, and, asked, the turning rates it sailed (to replay on the
 environments); `reference_steps` a ship that turns at once, below them.
 """
+import collections
 import functools
 import heapq
 import math
@@ -448,42 +449,49 @@ def regatta_rate(state, course, posts, gate, mode, reach):
   return core.pilot_turn_rate(state, tx, ty)
 
 
+class RegattaRules(collections.namedtuple(
+    "RegattaRules", "max_steps gate_reward finish_reward out_of_bounds_reward reach")):
+  """The regatta's step limit and rewards, and the lined-up helmsmen's reach (m), as the
+  compiled planner reads them."""
+
+
 @numba.njit(cache=True, error_model="numpy")
 def _sail_regatta(state, course, posts, next_gate, steps, total, mode, sign, first, stop,
-                  cap, reach, max_steps, gate_reward, finish_reward, out_of_bounds_reward,
-                  samples, actions):
+                  cap, rules, samples, actions):
   """Sails on from `state` (in place), `steps` control steps and `total` reward into the
   episode with `next_gate` to pass: the first turns (counted from the episode's start),
   then helmsman `mode` for that gate, then the scripted helmsman (mode 0) for the rest,
   or, with `stop`, a stop once that gate is passed. Ends at the finish, off the field,
-  at `max_steps` or `cap` steps. Returns (event, next gate, steps, return)."""
+  at the step limit or `cap` steps (`rules`: a `RegattaRules`). Returns (event, next
+  gate, steps, return)."""
   gate = next_gate
   event = core.NO_EVENT
   while True:
     r = _turn(steps, sign, first, 0)
     if math.isnan(r):
       r = regatta_rate(state, course, posts, next_gate, mode if next_gate == gate else 0,
-                       reach)
+                       rules.reach)
     if steps < actions.shape[0]:
       actions[steps] = r
     core.euler_control(state, r, samples)
     steps += 1
-    event, reward, next_gate = regatta_core.course_outcome(samples, posts, next_gate,
-                                                           gate_reward, finish_reward,
-                                                           out_of_bounds_reward)
+    event, reward, next_gate = regatta_core.course_outcome(
+        samples, posts, next_gate, rules.gate_reward, rules.finish_reward,
+        rules.out_of_bounds_reward)
     total += reward
-    if event == core.SUCCESS or event == core.FAILURE or steps >= max_steps or steps >= cap:
+    if (event == core.SUCCESS or event == core.FAILURE or steps >= rules.max_steps
+        or steps >= cap):
       return event, next_gate, steps, total
     if stop and next_gate != gate:
       return event, next_gate, steps, total
 
 
 @numba.njit(cache=True)
-def _plan_regatta(starts, courses, modes, firsts, max_steps, gate_reward, finish_reward,
-                  out_of_bounds_reward, reach, best, choice, actions):
+def _plan_regatta(starts, courses, modes, firsts, rules, best, choice, actions):
   """`plan_regatta`'s rollout: best[i] = (finished, gates passed, steps, return),
   choice[i, k] the candidate taken at gate k (-1: never reached), choice[i, -1] the first
-  turn (sign times its steps)."""
+  turn (sign times its steps). The first `modes` of `regatta_rate`'s candidates are
+  tried (1: the scripted helmsman alone, with the first turns)."""
   samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
   state = np.empty(4)
   trial = np.empty(4)
@@ -505,7 +513,7 @@ def _plan_regatta(starts, courses, modes, firsts, max_steps, gate_reward, finish
       # beats none, then the greater return (among finishes, the fewer steps).
       best_total, best_mode, best_sign, best_first = -np.inf, 0, sign, first
       best_finished = False
-      cap = max_steps
+      cap = rules.max_steps
       n_first = firsts.shape[0] if steps == 0 else 0
       for c in range(modes + 2 * n_first):
         mode, c_sign, c_first = c, sign, first
@@ -515,8 +523,7 @@ def _plan_regatta(starts, courses, modes, firsts, max_steps, gate_reward, finish
           c_first = firsts[(c - modes) // 2]
         trial[:] = state
         e, g, s, t = _sail_regatta(trial, course, posts, next_gate, steps, total, mode, c_sign,
-                                   c_first, False, cap, reach, max_steps, gate_reward,
-                                   finish_reward, out_of_bounds_reward, samples, none)
+                                   c_first, False, cap, rules, samples, none)
         finished = e == core.SUCCESS
         if (finished and not best_finished) or (finished == best_finished and t > best_total):
           best_total, best_mode, best_sign, best_first = t, mode, c_sign, c_first
@@ -530,9 +537,8 @@ def _plan_regatta(starts, courses, modes, firsts, max_steps, gate_reward, finish
       gate = next_gate
       event, next_gate, steps, total = _sail_regatta(
           state, course, posts, next_gate, steps, total, best_mode, sign, first, True,
-          max_steps, reach, max_steps, gate_reward, finish_reward, out_of_bounds_reward,
-          samples, row)
-      if (event == core.SUCCESS or event == core.FAILURE or steps >= max_steps
+          rules.max_steps, rules, samples, row)
+      if (event == core.SUCCESS or event == core.FAILURE or steps >= rules.max_steps
           or next_gate == gate):
         break
     best[i, 0] = event == core.SUCCESS
@@ -646,9 +652,10 @@ def plan(name, level, starts, max_steps=core.STEER_MAX_STEPS, gate_reward=core.G
     gates, spacing, _, _ = regatta_core.level_layout(level)
     courses = np.ascontiguousarray(starts["course"], dtype=np.float64).reshape(-1, gates, 3)
     outcome, choice = np.zeros((n, 4)), np.zeros((n, gates + 1))
-    _plan_regatta(states, courses, N_REGATTA_CANDIDATES, FIRST_TURNS, max_steps,
-                  float(gate_reward), regatta_core.FINISH_REWARD, float(out_of_bounds_reward),
-                  0.5 * spacing, outcome, choice, rates)
+    rules = RegattaRules(int(max_steps), float(gate_reward), regatta_core.FINISH_REWARD,
+                         float(out_of_bounds_reward), 0.5 * spacing)
+    _plan_regatta(states, courses, N_REGATTA_CANDIDATES, FIRST_TURNS, rules, outcome, choice,
+                  rates)
   else:
     raise ValueError(f"no ladder planner for task {name!r}; allowed: ship_current, ship_goal, "
                      "ship_regatta")
