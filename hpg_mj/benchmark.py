@@ -22,18 +22,26 @@ theta_dot_deg]`, action the turning rate r in deg/s, clipped to [-15, 15]),
 "taxi_fuel" and "taxi" (SPEC section 5; observation `(row, col, passenger,
 destination, fuel)`, fuel left out in the classic "taxi"; action an integer
 0..6, 0..5 in the classic taxi), or a task file (its [environment]: a shipped
-name such as "ship_hybrid", a path, or a loaded `TaskFile`).
+name such as "ship_hybrid", a path, or a loaded `TaskFile`). The task ladder's
+(`LADDER`, SPEC section 11), each at a level of `LEVELS` (`level="hard"`, or
+"ship_goal/hard"): "ship_current", "ship_goal" and "ship_regatta", the Gymnasium
+environments' observations (the goal's a dictionary: `observation`,
+`achieved_goal`, `desired_goal`, each (n, 4) in a batch) and the turning rate; start
+i is the episode the environment lays out at `reset(seed=GREEDY_SEED + i)`.
 
 Metrics (one implementation each, shared with the agents' reports):
   ship   gate_pass_rate, steps_to_gate (mean control steps over the passes),
          mean_return (the task's rewards), J (MushroomRL's rewards, gamma 0.99,
-         `agents._ship.mushroom_j`), control_steps
+         `agents._ship.mushroom_j`), control_steps; the same for the current and
+         the goal (the pass: the goal reached)
+  regatta finish_rate, gates_passed (the mean gates passed), steps_to_finish
+         (mean control steps over the finishes), mean_return, control_steps
   taxi   mean_return, optimum (the mean exact optimal return V* from the same
          starts, `worlds.taxi_values`), fraction_of_optimum (mean_return /
          optimum), delivery_rate, primitive_steps
 and each score of `SCORES` also normalized, `<score>_normalized` = 100 (score -
 random) / (best known - random), against the bounds of `bounds()` (SPEC section
-7.1; `hpg-mj bounds` computes them). `official` says whether the evaluation ran
+7.1; `hpg-mj bounds` computes them; the ladder's best known from `hpg_mj.planners`). `official` says whether the evaluation ran
 the whole protocol (all fixed starts, the task's own step limit), the bounds'.
 """
 import dataclasses
@@ -52,13 +60,15 @@ from hpg_mj.agents import _ship
 from hpg_mj.agents import _taxi
 from hpg_mj.agents import base
 from hpg_mj.experiments import bounds as bounds_mod
-from hpg_mj.experiments.bounds import SCORES, TASKS, bounds  # noqa: F401  (public here)
+from hpg_mj.experiments.bounds import (KEYS, LADDER, LEVELS, SCORES, TASKS,  # noqa: F401
+                                       bounds)                        # (public here)
 from hpg_mj.hierarchy import ship_rules
 from hpg_mj.worlds import ship_core
 from hpg_mj.worlds import taxi_core
 from hpg_mj.worlds import taxi_rules
 
 RECORD_FIELDS = {"ship": ("passed", "steps", "return", "J"),
+                 "regatta": ("finished", "gates", "steps", "return"),
                  "taxi": ("return", "steps", "outcome", "delivered", "optimal_return")}
 DEFAULT_NUM_ENVS = 1000
 RANDOM_POLICY_SEED = 0        # the random policy's own generator (bounds)
@@ -71,32 +81,47 @@ class PolicyError(ValueError):
 
 # ---- tasks ---------------------------------------------------------------------------
 
+ENV_IDS = {"ship": "hpg_mj/ShipSteering-v0", "taxi_fuel": "hpg_mj/TaxiFuel-v0",
+           "taxi": "hpg_mj/Taxi-v0", "ship_current": "hpg_mj/ShipCurrent-v0",
+           "ship_goal": "hpg_mj/ShipGoal-v0", "ship_regatta": "hpg_mj/ShipRegatta-v0"}
+
+
 @dataclasses.dataclass(frozen=True)
 class Task:
   """One benchmark task: the world and its environment's settings."""
-  name: str                                   # "ship", "taxi_fuel" or "taxi"
+  name: str                   # "ship", "taxi_fuel", "taxi" or a ladder task of `LADDER`
   max_steps: int                              # the step limit (then truncated)
-  gate_reward: float = ship_core.GATE_REWARD                    # ship only
-  out_of_bounds_reward: float = ship_core.OUT_OF_BOUNDS_REWARD  # ship only
+  gate_reward: float = ship_core.GATE_REWARD                    # ships only
+  out_of_bounds_reward: float = ship_core.OUT_OF_BOUNDS_REWARD  # ships only
   capacity: int = taxi_core.FUEL_CAPACITY                       # taxi_fuel only
+  level: str = None                           # the ladder's tasks only: a name of LEVELS
 
   @property
   def world(self):
-    return "ship" if self.name == "ship" else "taxi"
+    """What the record holds: "ship" (a gate: the steering task, the current, the
+    goal), "regatta" (a course of gates) or "taxi"."""
+    if self.name == "ship_regatta":
+      return "regatta"
+    return "ship" if self.name in ("ship",) + LADDER else "taxi"
+
+  @property
+  def key(self):
+    """The task's name in the bounds: "ship", ..., "<task>/<level>" on the ladder."""
+    return bounds_mod.bounds_key(self.name, self.level)
 
   @property
   def env_id(self):
-    return {"ship": "hpg_mj/ShipSteering-v0", "taxi_fuel": "hpg_mj/TaxiFuel-v0",
-            "taxi": "hpg_mj/Taxi-v0"}[self.name]
+    return ENV_IDS[self.name]
 
   @property
   def default_max_steps(self):
-    return ship_core.STEER_MAX_STEPS if self.world == "ship" else taxi_core.MAX_STEPS
+    return taxi_core.MAX_STEPS if self.world == "taxi" else ship_core.STEER_MAX_STEPS
 
   def env_kwargs(self, backend="analytic"):
-    if self.world == "ship":
+    if self.world != "taxi":
+      level = {} if self.level is None else {"level": self.level}
       return {"backend": backend, "max_steps": self.max_steps, "gate_reward": self.gate_reward,
-              "out_of_bounds_reward": self.out_of_bounds_reward}
+              "out_of_bounds_reward": self.out_of_bounds_reward, **level}
     extra = {"capacity": self.capacity} if self.name == "taxi_fuel" else {}
     return {"max_steps": self.max_steps, **extra}
 
@@ -106,11 +131,29 @@ class Task:
                                max_steps=self.max_steps, who=f"benchmark task {self.name!r}")
 
 
-def task_of(task, max_steps=None):
-  """A `Task` from a name of `TASKS`, a `Task`, an agent (its own task), a loaded
-  task file, or a task file's path or shipped name; `max_steps` replaces its
-  step limit."""
-  if isinstance(task, Task):
+def task_of(task, max_steps=None, level=None):
+  """A `Task` from a name of `TASKS` or of the ladder's `LADDER` (at `level`, a name of
+  `LEVELS`, default "easy" as the environments'; or written "ship_goal/hard"), a
+  `Task`, an agent (its own task), a loaded task file, or a task file's path or
+  shipped name; `max_steps` replaces its step limit. A name the benchmark does not
+  have, or a level it does not, is refused in one line naming what is allowed."""
+  name = task
+  if isinstance(task, str) and "/" in task and task.split("/", 1)[0] in LADDER:
+    name, written = task.split("/", 1)
+    if level is not None and level != written:
+      raise ValueError(f"task {task!r} names level {written!r} and level={level!r} another; "
+                       "give the level once")
+    level = written
+  if level is not None and not (isinstance(name, str) and name in LADDER):
+    raise ValueError(f"level={level!r} is for the ladder's tasks {list(LADDER)}; task "
+                     f"{getattr(name, 'name', name)!r} has no levels")
+  if isinstance(name, str) and name in LADDER:
+    level = LEVELS[0] if level is None else level
+    if not isinstance(level, str) or level not in LEVELS:
+      raise ValueError(f"level {level!r} of task {name!r} is not known; allowed levels: "
+                       f"{list(LEVELS)}")
+    out = Task(name, ship_core.STEER_MAX_STEPS, level=level)
+  elif isinstance(task, Task):
     out = task
   elif isinstance(task, str) and task in TASKS:
     out = Task(task, ship_core.STEER_MAX_STEPS if task == "ship" else taxi_core.MAX_STEPS)
@@ -124,16 +167,24 @@ def task_of(task, max_steps=None):
   return out
 
 
+_ALLOWED = (f"{', '.join(TASKS)}, {', '.join(LADDER)} (at a level: {', '.join(LEVELS)}; "
+            "for example ship_goal/hard), or a task file (a shipped name or a path)")
+
+
 def _task_of_environment(task):
   from hpg_mj import agents
   if isinstance(task, base.Agent):
     holder, where = task, f"agent {task.name!r}"
   else:
     if isinstance(task, (str, pathlib.Path)):
-      task = agents.load_task(task)
+      try:
+        task = agents.load_task(task)
+      except ValueError as err:
+        if isinstance(task, str) and not task.endswith(".toml") and "/" not in task:
+          raise ValueError(f"task {task!r} is not known; allowed: {_ALLOWED}") from None
+        raise err
     elif not (hasattr(task, "config") and hasattr(task, "kind")):
-      raise ValueError(f"task {task!r} is not known; allowed: {list(TASKS)}, a task file "
-                       "(shipped name or path) or an hpg_mj agent")
+      raise ValueError(f"task {task!r} is not known; allowed: {_ALLOWED} or an hpg_mj agent")
     holder = types.SimpleNamespace(config=task.config,
                                    record_steps=agents.lookup(task.kind).record_steps)
     where = f"task file {task.path}"
@@ -149,13 +200,54 @@ def _task_of_environment(task):
 
 def fixed_starts(task="ship", episodes=base.GREEDY_STARTS, seed=base.GREEDY_SEED):
   """The fixed seeded starts of every report (SPEC section 7): row i from seed
-  `seed + i`, drawn as every agent of the task draws its starts."""
+  `seed + i`, drawn as every agent of the task draws its starts; an array of rows.
+
+  On the ladder's tasks (`LADDER`), start i is the episode the Gymnasium environment
+  lays out at `reset(seed=seed + i)`: the ship's state, then the goal's gate or the
+  regatta's course, from one generator. A dictionary of arrays, the reset options
+  that set it: "state" (n, 4), and "gate" (n, 3) rows [x, y, heading_deg] or
+  "course" (n, gates, 3)."""
   task = task_of(task)
+  if task.name in LADDER:
+    return _ladder_starts(task, episodes, seed)
   if task.world == "ship":
     return base.seeded_starts(_ship.draw_start, episodes, seed)
   world = taxi_rules.world_config(task.rules())
   return base.seeded_starts(lambda generator: _taxi.draw_start(generator, world), episodes,
                             seed).astype(np.int64)
+
+
+def _ladder_starts(task, episodes, seed):
+  """`fixed_starts` of a ladder task: each environment's reset, drawn alike."""
+  from gymnasium.utils import seeding
+
+  from hpg_mj.worlds import ship_goal_core
+  from hpg_mj.worlds import ship_regatta_core
+  from hpg_mj.worlds import ship_task
+  _count("episodes", episodes)
+  _count("seed", seed)
+  rules = ship_task.ShipRules("steer")
+  states, extra = np.zeros((int(episodes), 4)), []
+  for i in range(int(episodes)):
+    generator, _ = seeding.np_random(int(seed) + i)    # as gymnasium.Env.reset does
+    states[i] = rules.sample_start(generator)
+    if task.name == "ship_goal":                        # ship_goal_core.sample_gate's draws
+      low, high, largest = ship_goal_core.level_range(task.level)
+      extra.append([generator.uniform(low, high), generator.uniform(low, high),
+                    generator.uniform(-largest, largest)])
+    elif task.name == "ship_regatta":
+      extra.append(ship_regatta_core.sample_course(
+          generator, ship_regatta_core.level_layout(task.level)))
+  if task.name == "ship_goal":
+    return {"state": states, "gate": np.array(extra, dtype=np.float64).reshape(-1, 3)}
+  if task.name == "ship_regatta":
+    gates = ship_regatta_core.level_layout(task.level)[0]
+    return {"state": states, "course": np.array(extra, dtype=np.float64).reshape(-1, gates, 3)}
+  return {"state": states}
+
+
+def _start_count(starts):
+  return len(starts["state"]) if isinstance(starts, dict) else len(starts)
 
 
 def optimal_returns(task, starts):
@@ -183,16 +275,17 @@ def record_dtype(world):
 
 
 def evaluate(policy, task=None, episodes=base.GREEDY_STARTS, max_steps=None, *,
-             seed=base.GREEDY_SEED, batched=None, num_envs=DEFAULT_NUM_ENVS,
+             level=None, seed=base.GREEDY_SEED, batched=None, num_envs=DEFAULT_NUM_ENVS,
              backend=None, progress=None):
   """Scores `policy` greedily on `episodes` fixed starts of `task` (see the module
   docstring); returns an `Evaluation`.
 
-  `task`: a name of `TASKS` or a task file (default: an agent's own task, else
-  "ship"). `max_steps`: a step cap (default the task's limit: ship 5,000 control
-  steps, taxi 200 primitive steps). `batched`: whether a function takes a batch
-  of observations (default: False for a function, True for an object with
-  `predict`). `backend`: "analytic" (the ship's Equation 1) or "mujoco" (default:
+  `task`: a name of `TASKS`, a ladder task of `LADDER` at `level` (a name of
+  `LEVELS`, default "easy"; or "ship_goal/hard" written at once), or a task file
+  (default: an agent's own task, else "ship"). `max_steps`: a step cap (default the
+  task's limit: the ships 5,000 control steps, taxi 200 primitive steps).
+  `batched`: whether a function takes a batch of observations (default: False for a
+  function, True for an object with `predict`). `backend`: "analytic" (the ship's Equation 1) or "mujoco" (default:
   an agent's own, as `hpg-mj evaluate`; else "analytic").
   `progress`: a progress bar on stderr (None: when stderr is a terminal).
   """
@@ -206,7 +299,7 @@ def evaluate(policy, task=None, episodes=base.GREEDY_STARTS, max_steps=None, *,
     raise ValueError(f"unknown backend {backend!r}; valid backends: {list(base.BACKENDS)}")
   if isinstance(policy, base.Agent):
     own = task_of(policy)
-    task = own if task is None else task_of(task)
+    task = own if task is None and level is None else task_of(task, level=level)
     if task.name != own.name:
       raise ValueError(f"agent {policy.name!r} acts on the task {own.name!r}, not {task.name!r}")
     if max_steps is not None and int(max_steps) != own.max_steps:
@@ -214,7 +307,7 @@ def evaluate(policy, task=None, episodes=base.GREEDY_STARTS, max_steps=None, *,
                        f"{own.max_steps}; set [environment] max_steps there, not max_steps")
     task = own
   else:
-    task = task_of("ship" if task is None else task, max_steps)
+    task = task_of("ship" if task is None else task, max_steps, level)
   starts = fixed_starts(task, episodes, seed)
   bar = _progress_bar(episodes, task, progress)
   try:
@@ -227,15 +320,17 @@ def evaluate(policy, task=None, episodes=base.GREEDY_STARTS, max_steps=None, *,
     bar.close()
   if task.world == "ship":
     record["J"] = _ship.mushroom_j(record, task.max_steps, task.out_of_bounds_reward)
-  else:
+  elif task.world == "taxi":
     record["optimal_return"] = optimal_returns(task, starts)
     record["delivered"] = record["outcome"] == taxi_rules.DELIVERED
   official = (episodes == base.GREEDY_STARTS and seed == base.GREEDY_SEED
               and task.max_steps == task.default_max_steps
               and task.capacity == taxi_core.FUEL_CAPACITY)
-  metrics = {"task": task.name, "episodes": int(episodes), "max_steps": task.max_steps,
-             **metrics_of(record, task), "official": bool(official)}
-  metrics.update(normalized(task.name, metrics))
+  level = {} if task.level is None else {"level": task.level}
+  metrics = {"task": task.name, **level, "episodes": int(episodes),
+             "max_steps": task.max_steps, **metrics_of(record, task),
+             "official": bool(official)}
+  metrics.update(normalized(task.key, metrics))
   return Evaluation(metrics, record, task)
 
 
@@ -247,6 +342,14 @@ def metrics_of(record, task):
     out["control_steps"] = int(record["steps"].sum())
     return out
   n = len(record)
+  if task.world == "regatta":
+    finished = record["finished"] > 0
+    return {"finish_rate": float(finished.mean()) if n else None,
+            "gates_passed": float(record["gates"].mean()) if n else None,
+            "steps_to_finish": float(record["steps"][finished].mean()) if finished.any()
+                               else None,
+            "mean_return": float(record["return"].mean()) if n else None,
+            "control_steps": int(record["steps"].sum())}
   mean = float(record["return"].mean()) if n else None
   optimum = float(record["optimal_return"].mean()) if n else None
   return {"mean_return": mean, "optimum": optimum,
@@ -263,7 +366,7 @@ def _count(name, value):
 def _progress_bar(episodes, task, progress):
   from tqdm import tqdm
   disable = None if progress is None else not progress      # None: on a terminal only
-  return tqdm(total=int(episodes), unit="ep", desc=f"evaluate {task.name}", disable=disable,
+  return tqdm(total=int(episodes), unit="ep", desc=f"evaluate {task.key}", disable=disable,
               dynamic_ncols=True, file=sys.stderr)
 
 
@@ -297,35 +400,52 @@ def _actor(policy, batched):
                    "predict(obs, deterministic=True) or an hpg_mj agent")
 
 
+def _rows(obs, index):
+  """Rows `index` of a batch of observations (an array, or a dictionary of arrays)."""
+  if isinstance(obs, dict):
+    return {key: value[index] for key, value in obs.items()}
+  return obs[index]
+
+
+def _each(obs):
+  """One observation after another out of a batch (an array or a dictionary of them)."""
+  if isinstance(obs, dict):
+    keys = list(obs)
+    return [dict(zip(keys, values)) for values in zip(*(obs[k] for k in keys))]
+  return obs
+
+
 def sail(act, batched, task, starts, num_envs=DEFAULT_NUM_ENVS, backend="analytic", bar=None):
-  """Runs `act` from each of `starts` through `num_envs` copies of the task's
-  native vector environment (autoreset off: a copy that ends is put at the next
-  start); returns the record without its derived fields (J, optimum)."""
+  """Runs `act` from each of `starts` (`fixed_starts`' rows, or its dictionary on the
+  ladder) through `num_envs` copies of the task's native vector environment
+  (autoreset off: a copy that ends is put at the next start); returns the record
+  without its derived fields (J, optimum)."""
   import gymnasium
 
   import hpg_mj  # noqa: F401  (registers the ids)
   task = task_of(task)
-  n = len(starts)
+  given = starts if isinstance(starts, dict) else {"state": starts}
+  n = _start_count(given)
   record = np.zeros(n, dtype=record_dtype(task.world))
   if n == 0:
     return record
   num_envs = min(int(num_envs), n)
   env = gymnasium.make_vec(task.env_id, num_envs=num_envs, autoreset_mode="Disabled",
                            **task.env_kwargs(backend))
-  check = _ship_actions if task.world == "ship" else _taxi_actions(env.single_action_space.n)
-  placed = np.array(starts[:num_envs])
+  check = _taxi_actions(env.single_action_space.n) if task.world == "taxi" else _ship_actions
+  placed = {key: np.array(value[:num_envs]) for key, value in given.items()}
   episode = np.arange(num_envs)          # the episode each copy sails; -1: none left
   following = num_envs
   steps = np.zeros(num_envs, dtype=np.int64)
   returns = np.zeros(num_envs)
-  actions = np.zeros(num_envs, dtype=np.float64 if task.world == "ship" else np.int64)
-  obs, _ = env.reset(options={"state": placed})
+  actions = np.zeros(num_envs, dtype=np.int64 if task.world == "taxi" else np.float64)
+  obs, _ = env.reset(options=placed)
   total_steps, loops, shown = 0, 0, time.monotonic()
   try:
     while (episode >= 0).any():
       live = np.flatnonzero(episode >= 0)
       actions[:] = 0
-      actions[live] = _act(act, batched, obs[live], episode[live], steps[live], check)
+      actions[live] = _act(act, batched, _rows(obs, live), episode[live], steps[live], check)
       obs, reward, terminated, truncated, info = env.step(actions)
       steps[live] += 1
       returns[live] += reward[live]
@@ -339,10 +459,14 @@ def sail(act, batched, task, starts, num_envs=DEFAULT_NUM_ENVS, backend="analyti
         row["steps"], row["return"] = steps[i], returns[i]
         if task.world == "ship":
           row["passed"] = info["event"][i] == "gate"
+        elif task.world == "regatta":
+          row["finished"] = info["event"][i] == "finish"
+          row["gates"] = info["gates_passed"][i]
         else:
           row["outcome"] = taxi_rules.outcome(bool(truncated[i]), float(reward[i]))
         if following < n:
-          placed[i] = starts[following]
+          for key, value in placed.items():
+            value[i] = given[key][following]
           episode[i] = following
           following += 1
         else:
@@ -352,7 +476,7 @@ def sail(act, batched, task, starts, num_envs=DEFAULT_NUM_ENVS, backend="analyti
       if ended.size:
         mask = np.zeros(num_envs, dtype=np.bool_)
         mask[ended] = True
-        obs, _ = env.reset(options={"reset_mask": mask, "state": placed})
+        obs, _ = env.reset(options={"reset_mask": mask, **placed})
         steps[ended] = 0
         returns[ended] = 0.0
       loops += 1
@@ -369,19 +493,19 @@ def sail(act, batched, task, starts, num_envs=DEFAULT_NUM_ENVS, backend="analyti
 def _act(act, batched, obs, episodes, steps, check):
   """The policy's actions for the live copies, checked."""
   if batched:
-    where = (f"episode {int(episodes[0])}, step {int(steps[0])} (a batch of {len(obs)} "
+    where = (f"episode {int(episodes[0])}, step {int(steps[0])} (a batch of {len(episodes)} "
              f"episodes: {_few(episodes)})")
     try:
       out = act(obs)
     except Exception as err:
       raise PolicyError(f"the policy raised at {where}: {type(err).__name__}: {err}") from err
-    return check(out, len(obs), lambda k: f"episode {int(episodes[k])}, step {int(steps[k])}",
+    return check(out, len(episodes), lambda k: f"episode {int(episodes[k])}, step {int(steps[k])}",
                  where)
   def at(k):
     return f"episode {int(episodes[k])}, step {int(steps[k])}"
   outs, k = [], 0
   try:
-    for k, one in enumerate(obs):
+    for k, one in enumerate(_each(obs)):
       outs.append(act(one))
   except Exception as err:
     raise PolicyError(f"the policy raised at {at(k)}: {type(err).__name__}: {err}") from err
@@ -389,8 +513,9 @@ def _act(act, batched, obs, episodes, steps, check):
     arr = np.asarray(outs)
   except Exception:   # shapes that differ: checked one by one below
     arr = None
-  if arr is not None and arr.shape in ((len(obs),), (len(obs), 1)) and arr.dtype.kind in "iuf":
-    return check(arr, len(obs), at, at(0))
+  n = len(episodes)
+  if arr is not None and arr.shape in ((n,), (n, 1)) and arr.dtype.kind in "iuf":
+    return check(arr, len(episodes), at, at(0))
   return np.array([check(a, None, lambda _, k=k: at(k), at(k))[0] for k, a in enumerate(outs)])
 
 
@@ -448,7 +573,7 @@ def _taxi_actions(n_actions):
 # ---- policies of the bounds -------------------------------------------------------------
 
 class RandomPolicy:
-  """The random policy of the bounds: uniform over the task's actions (the ship's r
+  """The random policy of the bounds: uniform over the task's actions (every ship's r
   uniform in [-15, 15] deg/s each control step), from its own seeded generator,
   drawn in the order the batches come."""
 
@@ -457,8 +582,8 @@ class RandomPolicy:
     self.random = np.random.default_rng(seed)
 
   def predict(self, obs, deterministic=True):
-    n = len(obs)
-    if self.task.world == "ship":
+    n = len(next(iter(obs.values())) if isinstance(obs, dict) else obs)
+    if self.task.world != "taxi":
       return self.random.uniform(-ship_core.MAX_TURN_RATE, ship_core.MAX_TURN_RATE, n), None
     return self.random.integers(0, self.task.rules().num_actions, n), None
 
@@ -611,19 +736,72 @@ def search_first_turns(task="ship", starts=None):
 
 # ---- bounds and normalized scores ------------------------------------------------------
 
+BEST_IS = {
+    "ship_current": ("per start, the fewest control steps to the gate over first turns "
+                     "before a helmsman that heads down the least-time field of the level's "
+                     "water (planners.plan)"),
+    "ship_goal": ("per start, the fewest control steps to the episode's gate over first "
+                  "turns before helmsmen lining up with it from a grid of approaches "
+                  "(planners.plan)"),
+    "ship_regatta": ("per start, a rollout of the scripted helmsman gate by gate over the "
+                     "whole course, each gate's way of taking it chosen by sailing every "
+                     "candidate to the finish (planners.plan)"),
+}
+REFERENCE_IS = {
+    "ship_current": "a ship that turns at once, the least time of the grid's paths",
+    "ship_goal": "the straight line to the gate (a lower bound)",
+    "ship_regatta": "the shortest polyline through the gates in order (a lower bound)",
+}
+CHECKED_STARTS = 5            # the first starts whose best known episodes the file keeps
+
+
+def best_known(task, starts, actions=False):
+  """The best known episodes of a ladder task from `starts` (`fixed_starts`): (a
+  benchmark record, the planner's choices per start, and with `actions` the turning
+  rates sailed, `planners.plan`)."""
+  from hpg_mj import planners
+  task = task_of(task)
+  if task.name not in LADDER:
+    raise ValueError(f"best_known is for the ladder's tasks {list(LADDER)}, not {task.name!r}")
+  outcome, choice, rates = planners.plan(task.name, task.level, starts, task.max_steps,
+                                         task.gate_reward, task.out_of_bounds_reward, actions)
+  record = np.zeros(len(outcome), dtype=record_dtype(task.world))
+  if task.world == "regatta":
+    for k, field in enumerate(("finished", "gates", "steps", "return")):
+      record[field] = outcome[:, k]
+  else:
+    record["passed"], record["steps"], record["return"] = outcome.T
+    record["J"] = _ship.mushroom_j(record, task.max_steps, task.out_of_bounds_reward)
+  return record, choice, rates
+
+
+def ladder_helmsman(task):
+  """The scripted helmsman of a ladder task (its level's; `planners.Helmsman`), a
+  batched policy for `evaluate`."""
+  from hpg_mj import planners
+  task = task_of(task)
+  return planners.Helmsman(task.name, task.level)
+
+
 def compute_bounds(episodes=base.GREEDY_STARTS, seed=base.GREEDY_SEED, progress=None,
-                   say=None):
+                   say=None, tasks=None):
   """Each task's reference scores on the fixed starts (SPEC section 7.1): "random"
   (`RandomPolicy`), "best" (ship: the per-start search over first turns,
-  `search_first_turns`; taxi: the exact optimum, `OptimalTaxiPolicy`) and, for
-  the ship, "helmsman" (`helmsman`). What `hpg-mj bounds` writes."""
+  `search_first_turns`; taxi: the exact optimum, `OptimalTaxiPolicy`; the ladder's:
+  its planner, `best_known`) and, for the ship and the ladder, "helmsman" (`helmsman`,
+  `ladder_helmsman`). `tasks`: names of `KEYS` (default all). What `hpg-mj bounds`
+  writes."""
   say = say or (lambda line: None)
+  tasks = KEYS if tasks is None else tuple(tasks)
+  for name in tasks:
+    if name not in KEYS:
+      raise ValueError(f"no bounds for task {name!r}; allowed: {list(KEYS)}")
   out = {"protocol": {"episodes": int(episodes), "seed": int(seed),
                       "random_policy_seed": RANDOM_POLICY_SEED,
                       "num_envs": DEFAULT_NUM_ENVS,
                       "command": "hpg-mj bounds --out hpg_mj/benchmark_bounds.json"},
          "tasks": {}}
-  for name in TASKS:
+  for name in tasks:
     task = task_of(name)
     entry = {"max_steps": task.max_steps, "scores": list(SCORES[name])}
 
@@ -639,6 +817,21 @@ def compute_bounds(episodes=base.GREEDY_STARTS, seed=base.GREEDY_SEED, progress=
       entry["best"] = metrics_of(record, task)
       entry["best_is"] = ("per start, the fewest control steps to the gate over first turns "
                           "(search_first_turns)")
+    elif task.name in LADDER:
+      entry["helmsman"] = score(ladder_helmsman(task), "the scripted helmsman")
+      say(f"{name}: the planner from each start ...")
+      starts = fixed_starts(task, episodes, seed)
+      record, _, _ = best_known(task, starts)
+      entry["best"] = metrics_of(record, task)
+      entry["best_is"] = BEST_IS[task.name]
+      entry["best_of_first_starts"] = [[float(v) for v in row]
+                                       for row in record[:CHECKED_STARTS].tolist()]
+      done = record["finished" if task.world == "regatta" else "passed"] > 0
+      reference = _reference_steps(task, starts)
+      entry["reference"] = {
+          "steps": float(reference[done].mean()) if done.any() else None,
+          "best_steps": float(record["steps"][done].mean()) if done.any() else None,
+          "is": REFERENCE_IS[task.name]}
     else:
       entry["best"] = score(OptimalTaxiPolicy(task), "the exact optimum")
       entry["best_is"] = "the exact optimal policy (worlds.taxi_values)"
@@ -646,11 +839,17 @@ def compute_bounds(episodes=base.GREEDY_STARTS, seed=base.GREEDY_SEED, progress=
   return out
 
 
+def _reference_steps(task, starts):
+  from hpg_mj import planners
+  return planners.reference_steps(task.name, task.level, starts)
+
+
 def normalized(task, metrics, published=None):
   """{"<score>_normalized": 100 (score - random) / (best known - random)} for the
   task's `SCORES` (0 = the random policy, 100 = the best known; D4RL's and
-  Minari's normalized score); empty where no bounds are published."""
-  name = task if isinstance(task, str) and task in TASKS else task_of(task).name
+  Minari's normalized score); empty where no bounds are published. `task`: a name of
+  `KEYS` ("ship", "ship_goal/hard", ...) or anything `task_of` takes."""
+  name = task if isinstance(task, str) and task in KEYS else task_of(task).key
   return bounds_mod.normalized(name, metrics, published)
 
 
@@ -667,6 +866,11 @@ def format_bounds(published):
       values = [entry[row][k] for k in keys]
       lines.append("  " + f"{row:<10}" + "".join(
           f"{'-' if v is None else format(v, '.4f'):>20}" for v in values))
+    reference = entry.get("reference")
+    if reference and reference["steps"] is not None:
+      lines.append(f"  reference ({reference['is']}): {reference['steps']:.1f} control steps "
+                   f"where the best known takes {reference['best_steps']:.1f} (over the starts "
+                   "it completes)")
   return lines
 
 

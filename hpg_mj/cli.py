@@ -247,8 +247,8 @@ def _cmd_evaluate(args):
   if policy not in agents.POLICIES:
     raise ValueError(f"--policy {policy!r} with a saved agent: allowed {list(agents.POLICIES)} "
                      "(module:function scores a policy without an agent folder)")
-  for flag, value in (("--task", args.task), ("--max-steps", args.max_steps),
-                      ("--batched", args.batched or None)):
+  for flag, value in (("--task", args.task), ("--level", args.level),
+                      ("--max-steps", args.max_steps), ("--batched", args.batched or None)):
     if value is not None:
       raise ValueError(f"{flag} is for --policy; a saved agent runs its own task file")
   agent, _, meta = agents.load(args.agent_dir)
@@ -281,18 +281,48 @@ def _evaluate_policy(args):
   if args.seed is not None:
     raise ValueError("--seed is for a saved agent; --policy runs the fixed starts of the "
                      "reports (SPEC section 7)")
+  task = _benchmark_task(args.task, args.level)
   policy = benchmark.load_policy(args.policy)
   start = time.perf_counter()
-  result = benchmark.evaluate(policy, args.task or "ship", args.episodes, args.max_steps,
+  result = benchmark.evaluate(policy, task, args.episodes, args.max_steps,
                               batched=True if args.batched else None, num_envs=args.num_envs,
                               backend=args.backend or "analytic",
                               progress=False if args.quiet or args.json else None)
   metrics = dict(result.metrics)
+  seed = benchmark.base.GREEDY_SEED
+  starts = (f"fixed set (start i: the environment's reset(seed={seed} + i))"
+            if result.task.name in benchmark.LADDER
+            else f"fixed set (start i from seed {seed} + i)")
   metrics.update({"policy": args.policy, "backend": args.backend or "analytic",
-                  "starts": f"fixed set (start i from seed {benchmark.base.GREEDY_SEED} + i)",
+                  "starts": starts,
                   "wall_seconds": round(time.perf_counter() - start, 3)})
   _print_metrics(metrics, args.json)
   return 0
+
+
+def _benchmark_task(task, level):
+  """`hpg-mj evaluate --policy`'s --task and --level as a benchmark task, or a one-line
+  error naming the option and what it allows."""
+  from hpg_mj import benchmark
+  task = "ship" if task is None else task
+  if "/" in task and task.split("/", 1)[0] in benchmark.LADDER:    # ship_goal/hard
+    if level is not None:
+      raise ValueError(f"--task {task!r} names its level; give --level only with a bare "
+                       "task name")
+    task, level = task.split("/", 1)
+  if task not in benchmark.TASKS + benchmark.LADDER:
+    raise ValueError(f"--task {task!r} is not a task; allowed: "
+                     f"{', '.join(benchmark.TASKS + benchmark.LADDER)}")
+  if level is not None and task not in benchmark.LADDER:
+    raise ValueError(f"--level is for the ladder's tasks ({', '.join(benchmark.LADDER)}), "
+                     f"not --task {task}")
+  if task in benchmark.LADDER:
+    level = benchmark.LEVELS[0] if level is None else level
+    if level not in benchmark.LEVELS:
+      raise ValueError(f"--level {level!r} is not a level; allowed: "
+                       f"{', '.join(benchmark.LEVELS)}")
+    return benchmark.task_of(task, level=level)
+  return task
 
 
 def _cmd_bounds(args):
@@ -303,11 +333,22 @@ def _cmd_bounds(args):
   from hpg_mj import benchmark
   say = (lambda line: None) if args.quiet else (
       lambda line: print(line, file=sys.stderr, flush=True))
+  for name in args.task or ():
+    if name not in benchmark.KEYS:
+      raise ValueError(f"--task {name!r} has no bounds; allowed: {', '.join(benchmark.KEYS)}")
   published = benchmark.compute_bounds(args.episodes, progress=False if args.quiet else None,
-                                       say=say)
+                                       say=say, tasks=args.task)
   print("\n".join(benchmark.format_bounds(published)))
   if args.out:
-    pathlib.Path(args.out).write_text(json.dumps(published, indent=1) + "\n")
+    out = pathlib.Path(args.out)
+    if args.task and out.is_file():     # these tasks' bounds replace theirs in the file
+      earlier = json.loads(out.read_text())
+      if earlier.get("protocol") != published["protocol"]:
+        raise ValueError(f"{out}: its bounds were computed under another protocol "
+                         f"({earlier.get('protocol')}); recompute every task (no --task)")
+      tasks = dict(earlier["tasks"], **published["tasks"])
+      published["tasks"] = {name: tasks[name] for name in benchmark.KEYS if name in tasks}
+    out.write_text(json.dumps(published, indent=1) + "\n")
     print(f"wrote {args.out}")
   return 0
 
@@ -668,8 +709,12 @@ def build_parser():
                  help="without an agent: a function obs -> action, or an object with "
                  "predict(obs, deterministic=True), as module:name or path/file.py:name "
                  "(hpg_mj.benchmark.evaluate); with an agent: greedy (default) or sampled")
-  p.add_argument("--task", choices=["ship", "taxi_fuel", "taxi"], default=None,
-                 help="with --policy: the task (default ship)")
+  p.add_argument("--task", default=None, metavar="TASK",
+                 help="with --policy: the task, one of ship, taxi_fuel, taxi, ship_current, "
+                      "ship_goal, ship_regatta (default ship)")
+  p.add_argument("--level", default=None, metavar="LEVEL",
+                 help="with --policy and a ladder task (ship_current, ship_goal, "
+                      "ship_regatta): easy (default), medium or hard")
   p.add_argument("--batched", action="store_true",
                  help="with --policy: the function takes a batch of observations")
   p.add_argument("--max-steps", type=_at_least(1), default=None,
@@ -691,6 +736,10 @@ def build_parser():
                  "(the package's: hpg_mj/benchmark_bounds.json)")
   p.add_argument("--episodes", type=_at_least(1), default=1000,
                  help="fixed starts (default 1000, the reports')")
+  p.add_argument("--task", action="append", default=None, metavar="TASK",
+                 help="only this task's bounds, as named in the file (ship, taxi_fuel, "
+                      "taxi, ship_current/easy, ..., ship_regatta/hard; repeatable); with "
+                      "--out they replace that task's in the file")
   p.add_argument("--quiet", action="store_true")
   p.set_defaults(func=_cmd_bounds)
 

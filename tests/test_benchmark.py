@@ -406,5 +406,22 @@ def test_hpg_mj_bounds_writes_what_compute_bounds_gives(tmp_path, capsys):
   assert f"wrote {out}" in printed
   written = json.loads(out.read_text())
   assert written == json.loads(json.dumps(benchmark.compute_bounds(4, progress=False)))
-  assert set(written["tasks"]) == set(benchmark.TASKS)
+  assert list(written["tasks"]) == list(benchmark.KEYS)
   assert written["tasks"]["taxi_fuel"]["best"]["fraction_of_optimum"] == 1.0
+  # --task: only that task's bounds, replacing its entry in the file
+  entry = written["tasks"]["ship_goal/hard"]
+  written["tasks"]["ship_goal/hard"] = {"stale": True}
+  out.write_text(json.dumps(written))
+  assert cli.main(["bounds", "--episodes", "4", "--task", "ship_goal/hard", "--out", str(out),
+                   "--quiet"]) == 0
+  merged = json.loads(out.read_text())
+  assert merged["tasks"]["ship_goal/hard"] == entry and list(merged["tasks"]) == list(
+      benchmark.KEYS)
+  capsys.readouterr()
+  assert cli.main(["bounds", "--episodes", "5", "--task", "ship_goal/hard", "--out", str(out),
+                   "--quiet"]) == 2
+  assert "computed under another protocol" in capsys.readouterr().err
+  assert cli.main(["bounds", "--task", "ship_goal"]) == 2
+  assert capsys.readouterr().err.startswith("hpg-mj bounds: error: --task 'ship_goal' has no "
+                                            "bounds; allowed: ship, taxi_fuel, taxi, "
+                                            "ship_current/easy,")

@@ -7,9 +7,17 @@ import json
 import pathlib
 
 TASKS = ("ship", "taxi_fuel", "taxi")
+# SPEC section 11's task ladder: each task at each level, its bounds under
+# "<task>/<level>" (`bounds_key`).
+LADDER = ("ship_current", "ship_goal", "ship_regatta")
+LEVELS = ("easy", "medium", "hard")
+LADDER_KEYS = tuple(f"{name}/{level}" for name in LADDER for level in LEVELS)
+KEYS = TASKS + LADDER_KEYS
 # The scores normalized against the bounds (higher is better for each).
 SCORES = {"ship": ("J", "gate_pass_rate"), "taxi_fuel": ("mean_return",),
-          "taxi": ("mean_return",)}
+          "taxi": ("mean_return",),
+          **{key: ("mean_return", "finish_rate") if key.startswith("ship_regatta/")
+             else ("J", "gate_pass_rate") for key in LADDER_KEYS}}
 BOUNDS_FILE = pathlib.Path(__file__).resolve().parents[1] / "benchmark_bounds.json"
 
 _LOADED = []
@@ -22,6 +30,11 @@ def bounds():
     _LOADED.append(json.loads(BOUNDS_FILE.read_text()) if BOUNDS_FILE.is_file() else
                    {"protocol": None, "tasks": {}})
   return _LOADED[0]
+
+
+def bounds_key(name, level=None):
+  """The bounds' name of a task: "ship", or "<task>/<level>" on the ladder."""
+  return name if level is None else f"{name}/{level}"
 
 
 def task_name(agent):
@@ -55,7 +68,8 @@ def normalize(task, score, value, published=None):
 
 def normalized(task, metrics, published=None):
   """{"<score>_normalized": `normalize(...)`} for the scores of `SCORES[task]` in
-  `metrics`; empty for no task (None) or where no bounds are published."""
+  `metrics` (`task` a name of `KEYS`: "ship", "ship_goal/hard", ...); empty for no
+  task (None) or where no bounds are published."""
   if task is None or (published or bounds())["tasks"].get(task) is None:
     return {}
   return {f"{score}_normalized": normalize(task, score, metrics.get(score), published)
