@@ -41,8 +41,10 @@ Metrics (one implementation each, shared with the agents' reports):
          optimum), delivery_rate, primitive_steps
 and each score of `SCORES` also normalized, `<score>_normalized` = 100 (score -
 random) / (best known - random), against the bounds of `bounds()` (SPEC section
-7.1; `hpg-mj bounds` computes them; the ladder's best known from `hpg_mj.planners`). `official` says whether the evaluation ran
-the whole protocol (all fixed starts, the task's own step limit), the bounds'.
+7.1; `hpg-mj bounds` computes them; the ladder's best known from `hpg_mj.planners`).
+`official` says whether the evaluation ran the whole protocol (all fixed starts, the
+task's own step limit), the bounds'. The tasks and their fixed starts are
+`hpg_mj.benchmark_tasks`'.
 """
 import dataclasses
 import importlib
@@ -51,17 +53,17 @@ import math
 import pathlib
 import sys
 import time
-import types
 
 import numba
 import numpy as np
 
 from hpg_mj.agents import _ship
-from hpg_mj.agents import _taxi
 from hpg_mj.agents import base
 from hpg_mj.experiments import bounds as bounds_mod
 from hpg_mj.experiments.bounds import (KEYS, LADDER, LEVELS, SCORES, TASKS,  # noqa: F401
                                        bounds)                        # (public here)
+from hpg_mj.benchmark_tasks import (ENV_IDS, Task, _count, _start_count,  # noqa: F401
+                                    fixed_starts, optimal_returns, task_of)  # (public here)
 from hpg_mj.hierarchy import ship_rules
 from hpg_mj.worlds import ship_core
 from hpg_mj.worlds import taxi_core
@@ -77,185 +79,6 @@ RANDOM_POLICY_SEED = 0        # the random policy's own generator (bounds)
 class PolicyError(ValueError):
   """A policy that raised or returned an action the task cannot take; the
   message names the episode (its index in the fixed start set) and the step."""
-
-
-# ---- tasks ---------------------------------------------------------------------------
-
-ENV_IDS = {"ship": "hpg_mj/ShipSteering-v0", "taxi_fuel": "hpg_mj/TaxiFuel-v0",
-           "taxi": "hpg_mj/Taxi-v0", "ship_current": "hpg_mj/ShipCurrent-v0",
-           "ship_goal": "hpg_mj/ShipGoal-v0", "ship_regatta": "hpg_mj/ShipRegatta-v0"}
-
-
-@dataclasses.dataclass(frozen=True)
-class Task:
-  """One benchmark task: the world and its environment's settings."""
-  name: str                   # "ship", "taxi_fuel", "taxi" or a ladder task of `LADDER`
-  max_steps: int                              # the step limit (then truncated)
-  gate_reward: float = ship_core.GATE_REWARD                    # ships only
-  out_of_bounds_reward: float = ship_core.OUT_OF_BOUNDS_REWARD  # ships only
-  capacity: int = taxi_core.FUEL_CAPACITY                       # taxi_fuel only
-  level: str = None                           # the ladder's tasks only: a name of LEVELS
-
-  @property
-  def world(self):
-    """What the record holds: "ship" (a gate: the steering task, the current, the
-    goal), "regatta" (a course of gates) or "taxi"."""
-    if self.name == "ship_regatta":
-      return "regatta"
-    return "ship" if self.name in ("ship",) + LADDER else "taxi"
-
-  @property
-  def key(self):
-    """The task's name in the bounds: "ship", ..., "<task>/<level>" on the ladder."""
-    return bounds_mod.bounds_key(self.name, self.level)
-
-  @property
-  def env_id(self):
-    return ENV_IDS[self.name]
-
-  @property
-  def default_max_steps(self):
-    return taxi_core.MAX_STEPS if self.world == "taxi" else ship_core.STEER_MAX_STEPS
-
-  def env_kwargs(self, backend="analytic"):
-    if self.world != "taxi":
-      level = {} if self.level is None else {"level": self.level}
-      return {"backend": backend, "max_steps": self.max_steps, "gate_reward": self.gate_reward,
-              "out_of_bounds_reward": self.out_of_bounds_reward, **level}
-    extra = {"capacity": self.capacity} if self.name == "taxi_fuel" else {}
-    return {"max_steps": self.max_steps, **extra}
-
-  def rules(self):
-    """The taxi's `TaxiRules` (its starts and its world array)."""
-    return taxi_core.TaxiRules(self.name == "taxi_fuel", capacity=self.capacity,
-                               max_steps=self.max_steps, who=f"benchmark task {self.name!r}")
-
-
-def task_of(task, max_steps=None, level=None):
-  """A `Task` from a name of `TASKS` or of the ladder's `LADDER` (at `level`, a name of
-  `LEVELS`, default "easy" as the environments'; or written "ship_goal/hard"), a
-  `Task`, an agent (its own task), a loaded task file, or a task file's path or
-  shipped name; `max_steps` replaces its step limit. A name the benchmark does not
-  have, or a level it does not, is refused in one line naming what is allowed."""
-  name = task
-  if isinstance(task, str) and "/" in task and task.split("/", 1)[0] in LADDER:
-    name, written = task.split("/", 1)
-    if level is not None and level != written:
-      raise ValueError(f"task {task!r} names level {written!r} and level={level!r} another; "
-                       "give the level once")
-    level = written
-  if level is not None and not (isinstance(name, str) and name in LADDER):
-    raise ValueError(f"level={level!r} is for the ladder's tasks {list(LADDER)}; task "
-                     f"{getattr(name, 'name', name)!r} has no levels")
-  if isinstance(name, str) and name in LADDER:
-    level = LEVELS[0] if level is None else level
-    if not isinstance(level, str) or level not in LEVELS:
-      raise ValueError(f"level {level!r} of task {name!r} is not known; allowed levels: "
-                       f"{list(LEVELS)}")
-    out = Task(name, ship_core.STEER_MAX_STEPS, level=level)
-  elif isinstance(task, Task):
-    out = task
-  elif isinstance(task, str) and task in TASKS:
-    out = Task(task, ship_core.STEER_MAX_STEPS if task == "ship" else taxi_core.MAX_STEPS)
-  else:
-    out = _task_of_environment(task)
-  if max_steps is not None:
-    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) \
-        or max_steps < 1:
-      raise ValueError(f"max_steps must be a positive integer, got {max_steps!r}")
-    out = dataclasses.replace(out, max_steps=int(max_steps))
-  return out
-
-
-_ALLOWED = (f"{', '.join(TASKS)}, {', '.join(LADDER)} (at a level: {', '.join(LEVELS)}; "
-            "for example ship_goal/hard), or a task file (a shipped name or a path)")
-
-
-def _task_of_environment(task):
-  from hpg_mj import agents
-  if isinstance(task, base.Agent):
-    holder, where = task, f"agent {task.name!r}"
-  else:
-    if isinstance(task, (str, pathlib.Path)):
-      try:
-        task = agents.load_task(task)
-      except ValueError as err:
-        if isinstance(task, str) and not task.endswith(".toml") and "/" not in task:
-          raise ValueError(f"task {task!r} is not known; allowed: {_ALLOWED}") from None
-        raise err
-    elif not (hasattr(task, "config") and hasattr(task, "kind")):
-      raise ValueError(f"task {task!r} is not known; allowed: {_ALLOWED} or an hpg_mj agent")
-    holder = types.SimpleNamespace(config=task.config,
-                                   record_steps=agents.lookup(task.kind).record_steps)
-    where = f"task file {task.path}"
-  name = bounds_mod.task_name(holder)
-  if name is None:
-    raise ValueError(f"{where}: not one of the benchmark's tasks {list(TASKS)} (the full "
-                     "ship task or the taxi, episodic)")
-  env = holder.config.environment
-  if name == "ship":
-    return Task(name, int(env.max_steps), float(env.gate_reward), float(env.out_of_bounds_reward))
-  return Task(name, int(env.max_steps), capacity=int(env.capacity))
-
-
-def fixed_starts(task="ship", episodes=base.GREEDY_STARTS, seed=base.GREEDY_SEED):
-  """The fixed seeded starts of every report (SPEC section 7): row i from seed
-  `seed + i`, drawn as every agent of the task draws its starts; an array of rows.
-
-  On the ladder's tasks (`LADDER`), start i is the episode the Gymnasium environment
-  lays out at `reset(seed=seed + i)`: the ship's state, then the goal's gate or the
-  regatta's course, from one generator. A dictionary of arrays, the reset options
-  that set it: "state" (n, 4), and "gate" (n, 3) rows [x, y, heading_deg] or
-  "course" (n, gates, 3)."""
-  task = task_of(task)
-  if task.name in LADDER:
-    return _ladder_starts(task, episodes, seed)
-  if task.world == "ship":
-    return base.seeded_starts(_ship.draw_start, episodes, seed)
-  world = taxi_rules.world_config(task.rules())
-  return base.seeded_starts(lambda generator: _taxi.draw_start(generator, world), episodes,
-                            seed).astype(np.int64)
-
-
-def _ladder_starts(task, episodes, seed):
-  """`fixed_starts` of a ladder task: each environment's reset, drawn alike."""
-  from gymnasium.utils import seeding
-
-  from hpg_mj.worlds import ship_goal_core
-  from hpg_mj.worlds import ship_regatta_core
-  from hpg_mj.worlds import ship_task
-  _count("episodes", episodes)
-  _count("seed", seed)
-  rules = ship_task.ShipRules("steer")
-  states, extra = np.zeros((int(episodes), 4)), []
-  for i in range(int(episodes)):
-    generator, _ = seeding.np_random(int(seed) + i)    # as gymnasium.Env.reset does
-    states[i] = rules.sample_start(generator)
-    if task.name == "ship_goal":                        # ship_goal_core.sample_gate's draws
-      low, high, largest = ship_goal_core.level_range(task.level)
-      extra.append([generator.uniform(low, high), generator.uniform(low, high),
-                    generator.uniform(-largest, largest)])
-    elif task.name == "ship_regatta":
-      extra.append(ship_regatta_core.sample_course(
-          generator, ship_regatta_core.level_layout(task.level)))
-  if task.name == "ship_goal":
-    return {"state": states, "gate": np.array(extra, dtype=np.float64).reshape(-1, 3)}
-  if task.name == "ship_regatta":
-    gates = ship_regatta_core.level_layout(task.level)[0]
-    return {"state": states, "course": np.array(extra, dtype=np.float64).reshape(-1, gates, 3)}
-  return {"state": states}
-
-
-def _start_count(starts):
-  return len(starts["state"]) if isinstance(starts, dict) else len(starts)
-
-
-def optimal_returns(task, starts):
-  """V* of each taxi start (`worlds.taxi_values`, exact)."""
-  from hpg_mj.worlds import taxi_values
-  task = task_of(task)
-  values = taxi_values.taxi_values(task.name == "taxi_fuel", capacity=task.capacity)
-  return np.array([values.state_value(*(int(v) for v in s)) for s in starts], dtype=np.float64)
 
 
 # ---- scoring ---------------------------------------------------------------------------
@@ -356,11 +179,6 @@ def metrics_of(record, task):
           "fraction_of_optimum": mean / optimum if n and optimum != 0 else None,
           "delivery_rate": float(record["delivered"].mean()) if n else None,
           "primitive_steps": int(record["steps"].sum())}
-
-
-def _count(name, value):
-  if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-    raise ValueError(f"{name} must be a non-negative integer, got {value!r}")
 
 
 def _progress_bar(episodes, task, progress):
