@@ -9,6 +9,7 @@ function of a key, so seeds vmap into one compile (`make_train`). The learner of
 
 SB3's SAC by the same names (the task file's [sac] section,
 `hpg_mj.agents.jax_sac.SACSection`), and as SB3 computes it:
+
 - twin Q critics on (observation, action), their targets Polyak-averaged
   (`tau`) after every gradient step; the target is the smaller target Q of the next
   action drawn from the policy, less alpha times its log-probability;
