@@ -68,10 +68,12 @@ _SHIPPED = {
     "ship_sac": "hpg_mj.agents.sb3:ShipSAC",
     "taxi_ppo": "hpg_mj.agents.sb3:TaxiPPO",
     "taxi_dqn": "hpg_mj.agents.sb3:TaxiDQN",
-    # PPO in JAX, trained in one compiled loop, with the extra `pip install 'hpg_mj[jax]'`
+    # PPO, DQN and SAC in JAX, trained in one compiled loop, with the extra
+    # `pip install 'hpg_mj[jax]'`
     "ship_ppo_jax": "hpg_mj.agents.jax_ppo:ShipPPOJax",
     "taxi_ppo_jax": "hpg_mj.agents.jax_ppo:TaxiPPOJax",
     "taxi_dqn_jax": "hpg_mj.agents.jax_dqn:TaxiDQNJax",
+    "ship_sac_jax": "hpg_mj.agents.jax_sac:ShipSACJax",
 }
 _registered = {}          # name -> class, or "module:Class" until first used
 _entry_points_read = False

@@ -77,7 +77,7 @@ class TaxiPPOJaxConfig:
 
 
 def _learner(algorithm="ppo"):
-  """hpg_mj.jax.<algorithm> (ppo, dqn), or an ImportError saying how to get JAX."""
+  """hpg_mj.jax.<algorithm> (ppo, dqn, sac), or an ImportError saying how to get JAX."""
   import importlib
   try:
     return importlib.import_module(f"hpg_mj.jax.{algorithm}")

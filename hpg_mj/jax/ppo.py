@@ -473,10 +473,10 @@ _COMPILED = {}
 
 def compiled(trainer):
   """`init` (run once a run, op by op: compiling it would cost more than it saves),
-  and the jitted `update` and `episodes` of a trainer (PPO's or DQN's), compiled
-  once for all trainers of the same kind, world, parameters, section and row
-  (each agent makes its own environment object: a saved run loaded, or the seeds
-  of one process)."""
+  and the jitted `update` and `episodes` of a trainer (PPO's or DQN's; `sac.compiled`
+  jits SAC's `init` too), compiled once for all trainers of the same kind, world,
+  parameters, section and row (each agent makes its own environment object: a saved
+  run loaded, or the seeds of one process)."""
   what = (type(trainer), type(trainer.env), trainer.env.name, trainer.params, trainer.section,
           trainer.row)
   if what not in _COMPILED:

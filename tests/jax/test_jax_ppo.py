@@ -155,7 +155,7 @@ def test_bad_task_files_are_refused_in_one_line(tmp_path):
 
 def test_the_task_files_load_and_build_without_importing_jax():
   code = ("import sys; from hpg_mj import agents\n"
-          "for n in ('ship_ppo_jax', 'taxi_fuel_ppo_jax', 'taxi_fuel_dqn_jax'):\n"
+          "for n in ('ship_ppo_jax', 'taxi_fuel_ppo_jax', 'taxi_fuel_dqn_jax', 'ship_sac_jax'):\n"
           "  agents.build(agents.load_task(n))\n"
           "print(sorted(m for m in ('jax', 'jaxlib') if m in sys.modules))")
   out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
