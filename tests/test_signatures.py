@@ -14,8 +14,9 @@ LIMIT = 15
 
 def _compiled_functions():
   for info in pkgutil.walk_packages(hpg_mj.__path__, "hpg_mj."):
-    if info.name.endswith(("_render_worker", "doctor")) or ".render." in info.name:
-      continue
+    if info.name.endswith(("_render_worker", "doctor")) or ".render." in info.name or \
+        info.name.startswith("hpg_mj.jax"):     # JAX, not numba (and not imported here:
+      continue                                  # see tests/jax)
     module = importlib.import_module(info.name)
     for name, value in vars(module).items():
       if isinstance(value, numba.core.registry.CPUDispatcher) and value.__module__ == info.name:

@@ -139,7 +139,7 @@ def test_the_options_are_drawn_where_they_began_and_ended(tmp_path):
 def test_an_options_figure_needs_an_option_critic(tmp_path):
   from hpg_mj import taskfile
   from hpg_mj.experiments import runner
-  text = (pathlib.Path(runner.__file__).parents[2] / "tasks" / "experiments" /
+  text = (pathlib.Path(__file__).resolve().parents[2] / "tasks" / "experiments" /
           "reference_ship_option_critic.toml").read_text()
   bad = tmp_path / "bad.toml"
   bad.write_text(text.replace('tasks = ["ship_option_critic"]',
