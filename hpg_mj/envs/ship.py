@@ -208,16 +208,21 @@ class ShipSteeringEnv(gymnasium.Env):
     """The ship this environment sails (a task on other water brings its own)."""
     return make_backend(name)
 
+  def _start(self, options, *extra):
+    """The reset's start (`options["state"]`, checked, or drawn) and its options,
+    refused in one line when it names one but "state" and `extra` (a task's own)."""
+    options = dict(options or {})
+    unknown = set(options) - {"state", *extra}
+    if unknown:
+      raise ValueError(f"{self._name}: unknown reset options {sorted(unknown)}; allowed: "
+                       f"{sorted({'state', *extra})}")
+    if options.get("state") is not None:
+      return self.rules.check_state(options["state"], self._name), options
+    return self.rules.sample_start(self.np_random), options
+
   def reset(self, *, seed=None, options=None):
     super().reset(seed=seed)
-    options = dict(options or {})
-    unknown = set(options) - {"state"}
-    if unknown:
-      raise ValueError(f"{self._name}: unknown reset options {sorted(unknown)}; allowed: ['state']")
-    if options.get("state") is not None:
-      state = self.rules.check_state(options["state"], self._name)
-    else:
-      state = self.rules.sample_start(self.np_random)
+    state, _ = self._start(options)
     self.backend.set_state(state)
     self._steps = 0
     obs = self.backend.state()

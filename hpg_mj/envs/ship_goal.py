@@ -142,15 +142,7 @@ class ShipGoalEnv(ship_env.ShipSteeringEnv):
 
   def reset(self, *, seed=None, options=None):
     gymnasium.Env.reset(self, seed=seed)    # the steering task's reset knows no gate
-    options = dict(options or {})
-    unknown = set(options) - {"state", "gate"}
-    if unknown:
-      raise ValueError(f"{self._name}: unknown reset options {sorted(unknown)}; allowed: "
-                       "['gate', 'state']")
-    if options.get("state") is not None:
-      state = self.rules.check_state(options["state"], self._name)
-    else:
-      state = self.rules.sample_start(self.np_random)
+    state, options = self._start(options, "gate")
     if options.get("gate") is not None:
       self._desired = goal_core.check_gate(options["gate"], self._name)
     else:

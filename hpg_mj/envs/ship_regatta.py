@@ -179,15 +179,7 @@ class ShipRegattaEnv(ship_env.ShipSteeringEnv):
 
   def reset(self, *, seed=None, options=None):
     gymnasium.Env.reset(self, seed=seed)    # the steering task's reset knows no course
-    options = dict(options or {})
-    unknown = set(options) - {"state", "course"}
-    if unknown:
-      raise ValueError(f"{self._name}: unknown reset options {sorted(unknown)}; allowed: "
-                       "['course', 'state']")
-    if options.get("state") is not None:
-      state = self.rules.check_state(options["state"], self._name)
-    else:
-      state = self.rules.sample_start(self.np_random)
+    state, options = self._start(options, "course")
     if options.get("course") is not None:
       course = regatta_core.check_course(options["course"], self.layout[0], self._name)
     else:

@@ -239,11 +239,14 @@ def learned_end(P, obs, call, samples, rng):
 
 # ---- the kinds ------------------------------------------------------------------
 
-def _check_option(name, block, oc_field="oc"):
-  oc = getattr(block, oc_field)
-  if not isinstance(oc, OptionCritic):
-    raise GraphError(f"subtask {name!r}: its {type(block).__name__}.{oc_field} must be an "
-                     f"OptionCritic; got {type(oc).__name__}")
+def check_option(name, block, shared=None):
+  """The block's shared arrays (`block.oc`, an instance of `shared`: OptionCritic here,
+  `option_critic_cmac.OptionCriticCMAC` there) and its option index, checked."""
+  shared = shared or OptionCritic
+  oc = block.oc
+  if not isinstance(oc, shared):
+    raise GraphError(f"subtask {name!r}: its {type(block).__name__}.oc must be an "
+                     f"{shared.__name__}; got {type(oc).__name__}")
   option = getattr(block, "option", 0)
   if isinstance(option, bool) or not isinstance(option, (int, np.integer)) or \
       not 0 <= option < oc.n_options:
@@ -257,7 +260,7 @@ class _OptionCriticNode(base.TableKind):
   among = ("options", "n_options")
 
   def check(self, name, block, n_children, view_size):
-    oc = _check_option(name, block)
+    oc = check_option(name, block)
     what, field = self.among
     if n_children != getattr(oc, field):
       raise GraphError(f"subtask {name!r}: {type(block).__name__} chooses among "
@@ -314,7 +317,7 @@ class LearnedTerminationKind(base.TerminationKind):
   draws = True
 
   def check(self, name, block, arguments):
-    _check_option(name, block)
+    check_option(name, block)
 
   def settings(self, name, block, world):
     return _settings(block.oc, block.option, world)

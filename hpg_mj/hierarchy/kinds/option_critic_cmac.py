@@ -41,6 +41,7 @@ import numpy as np
 
 from hpg_mj.hierarchy.graph import GraphError
 from hpg_mj.hierarchy.kinds import base
+from hpg_mj.hierarchy.kinds import option_critic
 from hpg_mj.learners import arrays
 from hpg_mj.learners import policies
 from hpg_mj.learners import rng as rng_mod
@@ -241,16 +242,7 @@ def learned_end(P, obs, call, samples, rng):
 # ---- the kinds ------------------------------------------------------------------
 
 def _check_option(name, block):
-  oc = block.oc
-  if not isinstance(oc, OptionCriticCMAC):
-    raise GraphError(f"subtask {name!r}: its {type(block).__name__}.oc must be an "
-                     f"OptionCriticCMAC; got {type(oc).__name__}")
-  option = getattr(block, "option", 0)
-  if isinstance(option, bool) or not isinstance(option, (int, np.integer)) or \
-      not 0 <= option < oc.n_options:
-    raise GraphError(f"subtask {name!r}: its {type(block).__name__}.option = {option!r}: "
-                     f"must be an integer in [0, {oc.n_options})")
-  return oc
+  return option_critic.check_option(name, block, OptionCriticCMAC)
 
 
 class _Node(base.LearnerKind):
