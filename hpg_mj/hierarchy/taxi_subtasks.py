@@ -163,6 +163,7 @@ def at_target(target, state, world):
 
 @numba.njit(cache=True, inline="always")
 def tank_full_at_f(state, world):
+  """Whether the taxi is at F with a full tank (Refuel's end)."""
   return at_target(TARGET_F, state, world) and state[FUEL] == world[W_CAPACITY]
 
 
@@ -218,6 +219,7 @@ def carry_primitive(subtask):
 
 @numba.njit(cache=True, inline="always")
 def navigate_done(target, state, world):
+  """Whether the taxi is at `target` (Navigate(t)'s end)."""
   return at_target(target, state, world)
 
 

@@ -21,17 +21,20 @@ from hpg_mj.learners import arrays
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import tiles as tiles_mod
 
-# `actor`, `critic`: the coders' arrays (`TileCoder.arrays`).
 Settings = collections.namedtuple("Settings", ("alpha_actor", "alpha_critic", "trace_decay",
                                                "r_max", "actor", "critic"))
-# What it learns (saved by these names): the actor's weights, and the critic's
-# weights with their TD(lambda) trace in its lazy form (`learners.eligibility`).
+Settings.__doc__ = """An ActorCritic's settings `P`: its step sizes, the critic's trace
+decay, the largest action r_max, and `actor`, `critic` the coders' arrays
+(`TileCoder.arrays`)."""
 CRITIC_FIELDS = tuple(f"critic_{field}" for field in el.Trace._fields)
 Learned = collections.namedtuple("Learned", ("actor_w",) + CRITIC_FIELDS)
-# A node's scratch: the actor's active tiles of s (row 0) and s' (row 1); the
-# critic's of (s, a) and (s', a'); phi(s, a) of the critic's tiles (ones); the
-# critic's input (the features, then r); [m, u] of the action drawn in s.
+Learned.__doc__ = """What an ActorCritic learns, saved by these names: the actor's
+weights, and the critic's weights with their TD(lambda) trace in its lazy form
+(`learners.eligibility`)."""
 Scratch = collections.namedtuple("Scratch", ("tiles", "critic_tiles", "ones", "sa", "drawn"))
+Scratch.__doc__ = """A node's scratch: the actor's active tiles of s (row 0) and s'
+(row 1); the critic's of (s, a) and (s', a'); phi(s, a) of the critic's tiles (ones);
+the critic's input (the features, then r); [m, u] of the action drawn in s."""
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -57,12 +60,15 @@ def _draw(P, L, N, x, row, sample, rng):
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def start(P, L, N):
+  """A call begins: the critic's trace is cleared."""
   el.reset(_critic(L))                           # the critic's e <- 0
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def choose(P, L, N, x, n, rng, learn, sample):
+  """The action r drawn from the actor in the state of features x (its mean when not
+  `sample`), in [-r_max, r_max]."""
   m, u, r = _draw(P, L, N, x, 0, sample, rng)
   N.drawn[0] = m
   N.drawn[1] = u
@@ -72,6 +78,10 @@ def choose(P, L, N, x, n, rng, learn, sample):
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def observe(P, L, N, x, signal, done, terminal, n, rng, learn, sample):
+  """The primitive returned R = signal in s' (features x): a' drawn in s' (none where
+  s' is terminal), then, when learning, the critic's TD(lambda) step on delta =
+  R + Q(s', a') - Q(s, a) and the actor's step along Q(s, a) psi(s, a). Returns a'
+  (0 when `done`)."""
   critic = _critic(L)
   q = actor_critic.critic_value(critic, N.critic_tiles[0])
   target = signal
@@ -93,6 +103,8 @@ def observe(P, L, N, x, signal, done, terminal, n, rng, learn, sample):
 
 
 class ActorCriticKind(base.LearnerKind):
+  """Runs an `ActorCritic` block: a features learner drawing its node's one continuous
+  primitive."""
   block = blocks.ActorCritic
   reads = "features"
   continuous = True

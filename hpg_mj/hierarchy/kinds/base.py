@@ -193,10 +193,12 @@ class BindingKind(NodeKind):
   takes_settings = True
 
   def names(self, block):
+    """The arguments it binds: {name: whether an integer}."""
     raise NotImplementedError
 
 
 class TerminationKind(NodeKind):
+  """A termination kind: `end` its compiled operation (the module docstring)."""
   role = "termination"
   end = None
   takes_settings = True
@@ -207,6 +209,7 @@ class TerminationKind(NodeKind):
 
 
 class RewardKind(NodeKind):
+  """An internal reward kind: `reward` its compiled operation (the module docstring)."""
   role = "reward"
   reward = None
   takes_settings = True

@@ -21,17 +21,20 @@ from hpg_mj.hierarchy.graph import GraphError
 from hpg_mj.hierarchy.kinds import base
 from hpg_mj.learners import schedules
 
-# `epsilon`: float64[1], the value its learners read (a view of `state`'s first);
-# `state`: the held schedule's [epsilon, triggered, episodes since, unused] (saved),
-# `outcomes` and `counts` its watched subtasks' last runs (saved); `settings`:
-# [threshold, every, divisor, per decision] or [start, end, episodes, 0].
 Schedule = collections.namedtuple("Schedule", ("epsilon", "state", "outcomes", "counts",
                                                "settings"))
+Schedule.__doc__ = """A graph's schedule record `S`. `epsilon`: float64[1], the value
+its learners read (a view of `state`'s first); `state`: the held schedule's [epsilon,
+triggered, episodes since, unused] (saved); `outcomes` and `counts`: its watched
+subtasks' last runs (saved); `settings`: [threshold, every, divisor, per decision] or
+[start, end, episodes, 0]."""
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def held_run_ended(S, watched, success):
+  """HeldEpsilon's `run_ended`: the run of watched subtask `watched` (its index in
+  `watch`) is recorded as a success or a failure."""
   schedules.record_run(S.outcomes, S.counts, watched, success)
 
 
@@ -45,6 +48,8 @@ def _held_step(S):
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def held_episode_ended(S, learned):
+  """HeldEpsilon's `episode_ended`: the schedule advances one episode (unless it
+  counts decisions)."""
   if S.settings[3] == 0.0:
     _held_step(S)
 
@@ -52,6 +57,8 @@ def held_episode_ended(S, learned):
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def held_decided(S):
+  """HeldEpsilon's `decided`: the schedule advances one root decision (if it counts
+  decisions, `per_decision`)."""
   if S.settings[3] != 0.0:
     _held_step(S)
 
@@ -59,22 +66,28 @@ def held_decided(S):
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def linear_run_ended(S, watched, success):
+  """LinearEpsilon's `run_ended`: nothing (it watches no subtask)."""
   pass
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def linear_episode_ended(S, learned):
+  """LinearEpsilon's `episode_ended`: epsilon set to its linear decay's value after
+  `learned` learning episodes."""
   S.epsilon[0] = schedules.linear(learned, S.settings[0], S.settings[1], S.settings[2])
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def linear_decided(S):
+  """LinearEpsilon's `decided`: nothing (it moves per episode)."""
   pass
 
 
 class ScheduleKind(base.Kind):
+  """A schedule kind: `record(block)` makes its `Schedule`, and its compiled
+  `run_ended`, `episode_ended` and `decided` (the module docstring) move it."""
   role = "schedule"
   run_ended = episode_ended = decided = None
 
@@ -87,12 +100,14 @@ class ScheduleKind(base.Kind):
 
 
 class HeldEpsilonKind(ScheduleKind):
+  """Runs a `HeldEpsilon` schedule."""
   block = blocks.HeldEpsilon
   run_ended = staticmethod(held_run_ended)
   episode_ended = staticmethod(held_episode_ended)
   decided = staticmethod(held_decided)
 
   def record(self, block):
+    """A fresh `Schedule` for `block` (its epsilon checked to lie in [0, 1])."""
     if not 0.0 <= block.epsilon <= 1.0:
       raise GraphError(f"HeldEpsilon.epsilon = {block.epsilon!r}: must lie in [0, 1]")
     state, outcomes, counts = schedules.new_schedule(block.epsilon, block.window,
@@ -103,12 +118,14 @@ class HeldEpsilonKind(ScheduleKind):
 
 
 class LinearEpsilonKind(ScheduleKind):
+  """Runs a `LinearEpsilon` schedule."""
   block = blocks.LinearEpsilon
   run_ended = staticmethod(linear_run_ended)
   episode_ended = staticmethod(linear_episode_ended)
   decided = staticmethod(linear_decided)
 
   def record(self, block):
+    """A fresh `Schedule` for `block`, epsilon at its start."""
     state = np.array([block.start, 0.0, 0.0, 0.0])
     return Schedule(state[0:1], state, np.zeros((1, 1), dtype=np.int8),
                     np.zeros((1, 2), dtype=np.int64),

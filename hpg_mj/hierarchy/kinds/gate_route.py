@@ -26,12 +26,18 @@ from hpg_mj.hierarchy import ship_rules
 from hpg_mj.hierarchy.graph import GraphError
 from hpg_mj.hierarchy.kinds import base
 
-# The targets' settings (`blocks.GatePoints`); a view's error scale and reflection.
 ViewSettings = collections.namedtuple("ViewSettings", ("inset_m", "approach_m", "sqrt_error",
                                                        "reflect_at"))
+ViewSettings.__doc__ = """An AimTiles' settings: the targets' (`blocks.GatePoints`, in
+m), whether the heading error is on a square-root scale, and where it is reflected."""
 EndSettings = collections.namedtuple("EndSettings", ("inset_m", "approach_m", "radius_m",
                                                      "max_steps", "shaping"))
+EndSettings.__doc__ = """A TargetReached's settings: the targets' (m), the radius in m
+that reaches an approach point, the call's control steps at most and the shaping's
+weight."""
 OfferSettings = collections.namedtuple("OfferSettings", ("within_m",))
+OfferSettings.__doc__ = """A NearGateLine's settings: the distance in m from the gate
+line within which every child is offered."""
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -51,6 +57,8 @@ def aim_view(P, obs, call, samples, out):
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def target_reached(P, obs, call, samples):
+  """TargetReached's `end`: (event, G) of the call steering to its target
+  (`ship_rules.aim_outcome`)."""
   tx, ty = _target(P, obs, call)
   return ship_rules.aim_outcome(samples, obs, call.target, tx, ty, call.steps, P.max_steps,
                                 P.radius_m, P.shaping)
@@ -59,6 +67,8 @@ def target_reached(P, obs, call, samples):
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def near_gate_line(P, obs, call, mask):
+  """NearGateLine's `offer`: the first child (the gate) always; the others only when
+  the ship is within `within_m` of the gate line."""
   near = abs(obs[1] - ship_rules.GATE_Y) <= P.within_m
   mask[0] = True
   for i in range(1, mask.shape[0]):
@@ -73,6 +83,7 @@ def _needs_target(name, block, arguments):
 
 
 class AimTilesKind(base.ViewKind):
+  """Runs an `AimTiles` view: 3 features, reflected."""
   block = blocks.AimTiles
   gives = "features"
   writes = True
@@ -92,6 +103,7 @@ class AimTilesKind(base.ViewKind):
 
 
 class TargetReachedKind(base.TerminationKind):
+  """Runs a `TargetReached` termination, which gives its G."""
   block = blocks.TargetReached
   end = staticmethod(target_reached)
   gives_internal = True
@@ -112,6 +124,7 @@ class TargetReachedKind(base.TerminationKind):
 
 
 class NearGateLineKind(base.AvailableKind):
+  """Runs a `NearGateLine` root's `available`."""
   block = blocks.NearGateLine
   offer = staticmethod(near_gate_line)
   prefix = True

@@ -20,20 +20,24 @@ from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import policies
 from hpg_mj.learners import tiles as tiles_mod
 
-# `tiling`: the coder's arrays (`TileCoder.arrays`).
 Settings = collections.namedtuple("Settings", ("alpha", "trace_gamma", "baseline", "r_max",
                                                "tiling", "width_alpha", "log_sigma_low",
                                                "log_sigma_high"))
-# What it learns (saved by these names): Eq. 3's trace over theta in its lazy form
-# (`learners.eligibility`: theta, zs, y, touched, marked, count, acc) and the
-# baseline's values b over the same tiles.
+Settings.__doc__ = """A GaussianCMAC's settings `P`: Eq. 3's step size and trace
+decay, the baseline's step size, the largest action r_max, `tiling` the coder's
+arrays (`TileCoder.arrays`), and the learned width's step size and bounds on
+log sigma."""
 Learned = collections.namedtuple("Learned", el.Trace._fields + ("values",))
-# With a learned width, its trace too (width_theta, width_zs, ...).
+Learned.__doc__ = """What a GaussianCMAC learns, saved by these names: Eq. 3's trace
+over theta in its lazy form (`learners.eligibility`: theta, zs, y, touched, marked,
+count, acc) and the baseline's values b over the same tiles."""
 WIDTH_FIELDS = tuple(f"width_{field}" for field in el.Trace._fields)
 LearnedWidth = collections.namedtuple("LearnedWidth", Learned._fields + WIDTH_FIELDS)
-# A node's scratch: the active tiles of s (row 0) and of s' (row 1), the scores psi
-# of the mean and of the width.
+LearnedWidth.__doc__ = """`Learned`, with a learned width's Eq. 3 trace too
+(width_theta, width_zs, ...)."""
 Scratch = collections.namedtuple("Scratch", ("tiles", "psi", "psi_width"))
+Scratch.__doc__ = """A node's scratch: the active tiles of s (row 0) and of s'
+(row 1), the scores psi of the mean and of the width."""
 
 
 def width_of(L):
@@ -76,6 +80,7 @@ def _choose(P, L, N, tiles, learn, sample, rng):
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def start(P, L, N):
+  """A call begins: Eq. 3's z <- 0, and the learned width's."""
   el.reset(el.trace_of(L))                        # Eq. 3: z <- 0
   reset_width(L)
 
@@ -106,6 +111,8 @@ def observe(P, L, N, x, signal, done, terminal, n, rng, learn, sample):
 
 
 class GaussianCMACKind(base.LearnerKind):
+  """Runs a `GaussianCMAC` block: a features learner drawing its node's one
+  continuous primitive."""
   block = blocks.GaussianCMAC
   reads = "features"
   continuous = True

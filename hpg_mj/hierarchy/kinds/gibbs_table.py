@@ -16,15 +16,19 @@ from hpg_mj.hierarchy.kinds import base
 from hpg_mj.learners import eligibility as el
 from hpg_mj.learners import policies
 
-# `learned`: the live count of learning episodes ended (int64[1]).
 Settings = collections.namedtuple("Settings", ("alpha", "trace_gamma", "baseline",
                                                "start_fraction", "delay", "ramp", "learned"))
-# What it learns (saved by these names): Eq. 3's trace over theta[s * n + a] in its
-# lazy form (`learners.eligibility`), and the baseline b(s).
+Settings.__doc__ = """A GibbsTable's settings `P`: Eq. 3's step size and trace decay,
+the baseline's step size, the warm-up (start fraction, delay and ramp in learning
+episodes) and `learned`, the live count of learning episodes ended (int64[1])."""
 Learned = collections.namedtuple("Learned", el.Trace._fields + ("baseline",))
-# A node's scratch: the state its last choice was made in; this call's step size;
-# the softmax's scratch (probabilities, the offered children, their scores).
+Learned.__doc__ = """What a GibbsTable learns, saved by these names: Eq. 3's trace
+over theta[s * n + a] in its lazy form (`learners.eligibility`), and the baseline
+b(s)."""
 Scratch = collections.namedtuple("Scratch", ("state", "alpha", "probs", "index", "psi"))
+Scratch.__doc__ = """A node's scratch: the state its last choice was made in; this
+call's step size; the softmax's scratch (probabilities, the offered children, their
+scores)."""
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
@@ -43,6 +47,8 @@ def start(P, L, N):
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def choose(P, L, N, x, n, mask, rng, learn, sample):
+  """A child drawn from the softmax over theta(x, .) among those `mask` offers (the
+  likeliest when not `sample`), its score added to z."""
   N.state[0] = x
   return float(policies.softmax_choose(el.trace_of(L), L.baseline, x, n, mask, N.alpha[0], learn,
                                        sample, rng, N.probs[:n], N.index[:n], N.psi[:n]))
@@ -62,6 +68,7 @@ def observe(P, L, N, x, signal, done, terminal, n, mask, rng, learn, sample):
 
 
 class GibbsTableKind(base.TableKind):
+  """Runs a `GibbsTable` block: a table learner over the children its node offers."""
   block = blocks.GibbsTable
   reads = "state"
   masked = True

@@ -9,6 +9,8 @@ from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy.kinds import base
 
 Settings = collections.namedtuple("Settings", ("cell_m", "grid"))
+Settings.__doc__ = """A GridCell's settings: the cell's side in m, the cells per
+side."""
 
 
 @numba.njit(cache=True, inline="always")
@@ -22,10 +24,12 @@ def grid_cell(x, y, cell_m, grid):
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def view(P, obs, call, samples):
+  """The state: the cell i * grid + j of the ship's (x, y), clamped to the grid."""
   return grid_cell(obs[0], obs[1], P.cell_m, P.grid)
 
 
 class GridCellKind(base.ViewKind):
+  """Runs a `GridCell` view: grid ** 2 states."""
   block = blocks.GridCell
   gives = "state"
   view = staticmethod(view)

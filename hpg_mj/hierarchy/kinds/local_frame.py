@@ -21,13 +21,16 @@ from hpg_mj.hierarchy.graph import GraphError
 from hpg_mj.hierarchy.kinds import base
 from hpg_mj.worlds import ship_core as core
 
-# Scratch of the frame's numbers: the local state, the local samples.
 EndSettings = collections.namedtuple("EndSettings", ("max_steps", "local", "local_samples"))
+EndSettings.__doc__ = """A LocalGoal's settings: the call's control steps at most, and
+scratch for the frame's numbers (the local state, the local samples)."""
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def view(P, obs, call, samples, out):
+  """The ship's state in the call's local frame, into out[:4]
+  (`ship_core.global_to_local`)."""
   core.global_to_local(obs, call.origin, call.direction, out)
 
 
@@ -46,6 +49,7 @@ def _direction(name, arguments):
 
 
 class LocalTilesKind(base.ViewKind):
+  """Runs a `LocalTiles` view: 4 features."""
   block = blocks.LocalTiles
   gives = "features"
   writes = True
@@ -58,6 +62,7 @@ class LocalTilesKind(base.ViewKind):
     _direction(name, arguments)
 
 class LocalGoalKind(base.TerminationKind):
+  """Runs a `LocalGoal` termination, which gives its G."""
   block = blocks.LocalGoal
   end = staticmethod(end)
   gives_internal = True

@@ -103,18 +103,23 @@ class LearnedTermination:
   option: int
 
 
-# What the option-critic learns (saved by the root's name): Q_Omega[s * k + w],
-# Q_U[(s * k + w) * m + a], theta[(w * n + s) * m + a], vartheta[w * n + s].
 Learned = collections.namedtuple("Learned", ("q_omega", "q_u", "theta", "vartheta"))
-# Settings: the step sizes, [k options, m actions, n states], this node's option, and
-# the shared arrays (a view of the root's learned ones).
+Learned.__doc__ = """What the option-critic learns, saved by the root's name:
+Q_Omega[s * k + w], Q_U[(s * k + w) * m + a], theta[(w * n + s) * m + a],
+vartheta[w * n + s]."""
 Settings = collections.namedtuple("Settings", (
     "alpha_critic", "alpha_policy", "alpha_termination", "gamma", "epsilon", "xi",
     "temperature", "baseline", "k", "m", "n", "option", "q_omega", "q_u", "theta", "vartheta",
     "world"))
-# An option node's scratch: [s, a] of its last choice; the policy's probabilities.
+Settings.__doc__ = """A node's settings `P`: the step sizes, epsilon, xi, the softmax's
+temperature, whether Q_Omega is the baseline, k options, m actions, n states, this
+node's option, the shared arrays (a view of the root's learned ones) and the world."""
 Scratch = collections.namedtuple("Scratch", ("last", "probs"))
-Nothing = collections.namedtuple("Nothing", ("option",))     # an option learns no array of its own
+Scratch.__doc__ = """An option node's scratch: [s, a] of its last choice; the policy's
+probabilities."""
+Nothing = collections.namedtuple("Nothing", ("option",))
+Nothing.__doc__ = """What an option's node learns of its own: no array (the arrays
+are the root's `Learned`)."""
 
 
 def _settings(oc, option, world=None):
@@ -167,6 +172,8 @@ def _draw(probs, rng):
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def root_choose(P, L, N, x, n, rng, learn, sample):
+  """The root's choice of an option in state x: epsilon-greedy over Q_Omega(x, .)
+  (greedy when not `sample`)."""
   return float(qlambda.epsilon_greedy(P.q_omega, x, n, P.epsilon if sample else 0.0, rng))
 
 
@@ -184,6 +191,8 @@ def root_observe(P, L, N, x, signal, done, terminal, n, rng, learn, sample):
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def option_choose(P, L, N, x, n, rng, learn, sample):
+  """Option w's choice of a primitive in state x: drawn from pi_w(. | x), the most
+  likely when not `sample`."""
   _policy(P, x, N.probs)
   if sample:
     a = _draw(N.probs, rng)
@@ -275,6 +284,7 @@ class _OptionCriticNode(base.TableKind):
 
 
 class OverOptionsKind(_OptionCriticNode):
+  """Runs an `OverOptions` root's learner."""
   block = OverOptions
 
   def settings(self, name, block):
@@ -291,6 +301,7 @@ class OverOptionsKind(_OptionCriticNode):
 
 
 class IntraOptionKind(_OptionCriticNode):
+  """Runs an `IntraOption` learner: an option's policy and the shared updates."""
   block = IntraOption
   among = ("actions", "n_actions")
   bootstraps_at_own_end = True       # an option's end is no end of the task: U(s', w)
@@ -312,6 +323,7 @@ class IntraOptionKind(_OptionCriticNode):
 
 
 class LearnedTerminationKind(base.TerminationKind):
+  """Runs a `LearnedTermination`: an option's end, drawn."""
   block = LearnedTermination
   end = staticmethod(learned_end)
   draws = True

@@ -106,17 +106,22 @@ class LearnedTerminationCMAC:
   option: int
 
 
-# What it learns (saved by the root's name), each [w * tiles + tile].
 Learned = collections.namedtuple("Learned", ("q_omega", "theta", "vartheta"))
-# Settings: the step sizes; k options, the coder's tiles `size`, this node's option,
-# the tiling; the shared arrays; a termination's scratch (features, tiles).
+Learned.__doc__ = """What the option-critic learns, saved by the root's name, each
+indexed [w * tiles + tile]."""
 Settings = collections.namedtuple("Settings", (
     "alpha_critic", "alpha_policy", "alpha_termination", "gamma", "epsilon", "xi", "sigma",
     "r_max", "k", "size", "option", "tiling", "q_omega", "theta", "vartheta", "features",
     "tiles"))
-# A node's scratch: the active tiles of s (row 0) and s' (row 1); [u, m] of its last draw.
+Settings.__doc__ = """A node's settings `P`: the step sizes, epsilon, xi, sigma, r_max;
+k options, the coder's tiles `size`, this node's option, the tiling; the shared
+arrays; a termination's scratch (features, tiles)."""
 Scratch = collections.namedtuple("Scratch", ("tiles", "last"))
-Nothing = collections.namedtuple("Nothing", ("option",))     # an option learns no array of its own
+Scratch.__doc__ = """A node's scratch: the active tiles of s (row 0) and s' (row 1);
+[u, m] of its last draw."""
+Nothing = collections.namedtuple("Nothing", ("option",))
+Nothing.__doc__ = """What an option's node learns of its own: no array (the arrays
+are the root's `Learned`)."""
 
 
 def _settings(oc, option):
@@ -165,6 +170,8 @@ def _best(P, tiles):
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def root_choose(P, L, N, x, n, rng, learn, sample):
+  """The root's choice of an option in the state of features x: epsilon-greedy over
+  Q_Omega(s, .) on its tiles (greedy when not `sample`)."""
   if sample and rng_mod.uniform(rng) < P.epsilon:
     return float(rng_mod.randint(rng, n))
   tiles_mod.active_tiles(x, P.tiling, N.tiles[0])
@@ -196,6 +203,8 @@ def _draw(P, N, rng, sample):
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def option_choose(P, L, N, x, n, rng, learn, sample):
+  """Option w's action in the state of features x: u ~ Normal(m_w(s), sigma^2) (the
+  mean when not `sample`), returned as r_max tanh(u / 2)."""
   tiles_mod.active_tiles(x, P.tiling, N.tiles[0])
   return _draw(P, N, rng, sample)
 
@@ -265,6 +274,7 @@ class _Node(base.LearnerKind):
 
 
 class OverOptionsCMACKind(_Node):
+  """Runs an `OverOptionsCMAC` root's learner."""
   block = OverOptionsCMAC
 
   def settings(self, name, block):
@@ -278,6 +288,8 @@ class OverOptionsCMACKind(_Node):
 
 
 class IntraOptionCMACKind(_Node):
+  """Runs an `IntraOptionCMAC` learner: an option's continuous policy and the shared
+  updates."""
   block = IntraOptionCMAC
   continuous = True
   bootstraps_at_own_end = True       # an option's end is no end of the task: U(s', w)
@@ -296,6 +308,7 @@ class IntraOptionCMACKind(_Node):
 
 
 class LearnedTerminationCMACKind(base.TerminationKind):
+  """Runs a `LearnedTerminationCMAC`: an option's end, drawn."""
   block = LearnedTerminationCMAC
   end = staticmethod(learned_end)
   draws = True

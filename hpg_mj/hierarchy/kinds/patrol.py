@@ -23,24 +23,32 @@ from hpg_mj.learners import average_reward
 from hpg_mj.learners import qlambda
 from hpg_mj.worlds import ship_core as core
 
-# `epsilon`: float64[1], its own or the graph's schedule's.
 Settings = collections.namedtuple("Settings", ("alpha", "gain_step", "epsilon",
                                                "planning_every"))
-# What it learns (saved by these names): Q(s, a) at s * n + a, the gain [rho, greedy
-# transitions seen], and the planning model of each (s, a)'s latest transition.
+Settings.__doc__ = """An RLearning's settings `P`: the step sizes of Q and of the gain,
+`epsilon` (float64[1], its own or the graph's schedule's) and the decisions between
+planning sweeps."""
 Learned = collections.namedtuple("Learned", ("q", "gain", "model_next", "model_reward",
                                              "model_steps", "model_count"))
-# A node's scratch: [s, a, whether a was greedy] of its last choice; tau, the steps
-# of its current child's run (live: the program's).
+Learned.__doc__ = """What an RLearning learns, saved by these names: Q(s, a) at
+s * n + a, the gain [rho, greedy transitions seen], and the planning model of each
+(s, a)'s latest transition."""
 Scratch = collections.namedtuple("Scratch", ("last", "tau"))
+Scratch.__doc__ = """A node's scratch: [s, a, whether a was greedy] of its last
+choice; tau, the steps of its current child's run (live: the program's)."""
 ViewSettings = collections.namedtuple("ViewSettings", ("sectors", "near_gate_m",
                                                        "near_gate_cell_m"))
+ViewSettings.__doc__ = """A PatrolCell's settings: the heading's sectors, the distance
+in m from the gate within which cells are finer, and their side in m."""
 ClockSettings = collections.namedtuple("ClockSettings", ("steps",))
+ClockSettings.__doc__ = """A Clock's settings: the primitive steps of a record row."""
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def choose(P, L, N, x, n, rng, learn, sample):
+  """A child chosen in state x, epsilon-greedy over Q(x, .) (greedy when not
+  `sample`); whether it was greedy is kept for the gain's update."""
   a = qlambda.epsilon_greedy(L.q, x, n, P.epsilon[0] if sample else 0.0, rng)
   N.last[0] = x
   N.last[1] = a
@@ -68,16 +76,20 @@ def observe(P, L, N, x, signal, done, terminal, n, rng, learn, sample):
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def patrol_cell(P, obs, call, samples):
+  """The root's state: the ship's cell and heading sector
+  (`ship_rules.root_state`)."""
   return ship_rules.root_state(obs, P.sectors, P.near_gate_m, P.near_gate_cell_m)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def clock(P, obs, call, samples):
+  """A success once the call has run `steps` primitive steps, else no event."""
   return core.SUCCESS if call.steps >= P.steps else core.NO_EVENT
 
 
 class RLearningKind(base.TableKind):
+  """Runs an `RLearning` block: a table learner of relative values and the gain."""
   block = blocks.RLearning
 
   def check(self, name, block, n_children, view_size):
@@ -111,6 +123,7 @@ class RLearningKind(base.TableKind):
 
 
 class PatrolCellKind(base.ViewKind):
+  """Runs a `PatrolCell` view."""
   block = blocks.PatrolCell
   view = staticmethod(patrol_cell)
 
@@ -124,6 +137,7 @@ class PatrolCellKind(base.ViewKind):
 
 
 class ClockKind(base.TerminationKind):
+  """Runs a `Clock`: a continuing root's end."""
   block = blocks.Clock
   end = staticmethod(clock)
   continuing = True

@@ -12,24 +12,29 @@ from hpg_mj.learners import qlambda
 
 import numpy as np
 
-# `epsilon`: float64[1], its own or the graph's schedule's (`epsilon_schedule=True`).
 Settings = collections.namedtuple("Settings", ("alpha", "gamma", "trace_decay", "epsilon"))
-# What it learns (saved by these names): the values Q(s, a) at s * n + a, and the
-# trace's live entries (index, value; count of them).
+Settings.__doc__ = """A QTable's settings `P`: alpha, gamma, the trace's decay and
+`epsilon` (float64[1], its own or the graph's schedule's: `epsilon_schedule=True`)."""
 Learned = collections.namedtuple("Learned", ("q", "trace_index", "trace_value", "trace_count"))
-# A node's scratch: [s, a], the state its last choice was made in and that choice.
+Learned.__doc__ = """What a QTable learns, saved by these names: the values Q(s, a) at
+s * n + a, and the trace's live entries (index, value; count of them)."""
 Scratch = collections.namedtuple("Scratch", ("last",))
+Scratch.__doc__ = """A node's scratch: [s, a], the state its last choice was made in
+and that choice."""
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def start(P, L, N):
+  """A call begins: the trace is cleared."""
   qlambda.clear(L.trace_count)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def choose(P, L, N, x, n, rng, learn, sample):
+  """A child chosen in state x, epsilon-greedy over Q(x, .) (greedy when not
+  `sample`)."""
   a = qlambda.epsilon_greedy(L.q, x, n, P.epsilon[0] if sample else 0.0, rng)
   N.last[0] = x
   N.last[1] = a
@@ -63,6 +68,7 @@ def rates(name, block, schedule):
 
 
 class QTableKind(base.TableKind):
+  """Runs a `QTable` block."""
   block = blocks.QTable
   reads = "state"
 

@@ -78,30 +78,36 @@ class _Rule:
 
 
 class AbstractionKind(_Rule, base.ViewKind):
+  """Runs an `Abstraction`: the user's rule gives a table's state."""
   block = Abstraction
   gives = "state"
 
 
 class FeaturesKind(_Rule, base.ViewKind):
+  """Runs a `Features`: the user's rule gives the numbers a coder tiles."""
   block = Features
   gives = "features"
 
 
 class TerminationRuleKind(_Rule, base.TerminationKind):
+  """Runs a `Termination`: the user's rule gives the call's event."""
   block = Termination
 
 
 class InternalRewardKind(_Rule, base.RewardKind):
+  """Runs an `InternalReward`: the user's rule gives G."""
   block = InternalReward
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def never(P, obs, call, samples):
+  """No event: the call goes on until the episode ends."""
   return 0
 
 
 class NeverKind(base.TerminationKind):
+  """Runs a `Never` termination (a root's)."""
   block = blocks.Never
   end = staticmethod(never)
 

@@ -10,11 +10,13 @@ from hpg_mj.hierarchy.kinds import base
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def view(P, obs, call, samples, out):
+  """The observation's first numbers, copied into `out`."""
   for i in range(out.shape[0]):
     out[i] = obs[i]
 
 
 class StateTilesKind(base.ViewKind):
+  """Runs a `StateTiles` view: as many features as its coder tiles."""
   block = blocks.StateTiles
   gives = "features"
   writes = True

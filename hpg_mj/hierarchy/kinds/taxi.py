@@ -21,9 +21,10 @@ from hpg_mj.hierarchy.kinds import base
 from hpg_mj.worlds import taxi_core as core
 from hpg_mj.worlds import taxi_rules
 
-# `world`: taxi_rules.world_config's int64 array; `subtask`: the taxi subtask's id
-# (`taxi_subtasks.ROOT` ...); `board`: the state read from the observation.
 Settings = collections.namedtuple("Settings", ("world", "subtask", "board"))
+Settings.__doc__ = """A taxi kind's settings: `world`, taxi_rules.world_config's int64
+array; `subtask`, the taxi subtask's id (`taxi_subtasks.ROOT` ...); `board`, scratch
+for the state read from the observation."""
 
 
 def _settings(world, block=None):
@@ -44,42 +45,53 @@ def _board(P, obs):
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def state_view(P, obs, call, samples):
+  """TaxiState's view: the index of the full state (`taxi_rules.encoded`)."""
   return taxi_rules.encoded(obs, P.world)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def abstraction(P, obs, call, samples):
+  """TaxiAbstraction's view of Root, Get, Put or Refuel: its abstract state
+  (`taxi_subtasks.abstract_state`)."""
   return sub.abstract_state(P.subtask, np.int64(0), _board(P, obs), P.world)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def navigate_abstraction(P, obs, call, samples):
+  """TaxiAbstraction's view of Navigate: (the call's target, row, col) as one index."""
   return sub.navigate_state(call.target, _board(P, obs))
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def offer(P, obs, call, mask):
+  """TaxiChildren's `offer`: the children the subtask may choose in this state, into
+  `mask` (`taxi_subtasks.children_of`)."""
   sub.children_of(P.subtask, _board(P, obs), P.world, mask)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def end(P, obs, call, samples):
+  """TaxiEnd's termination of Root, Get, Put or Refuel: whether it has ended
+  (`taxi_subtasks.done_of`; Root never)."""
   return sub.done_of(P.subtask, np.int64(0), _board(P, obs), P.world)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def navigate_end(P, obs, call, samples):
+  """TaxiEnd's termination of Navigate: whether the taxi is at the call's target."""
   return sub.navigate_done(call.target, _board(P, obs), P.world)
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def bind(P, obs, call):
+  """TaxiTarget's binding: (t,), the station that Get, Put or Refuel sends Navigate
+  to (`taxi_subtasks.carry_target`)."""
   return (sub.carry_target(P.subtask, _board(P, obs)),)
 
 
@@ -90,6 +102,7 @@ def _needs_target(name, block, arguments):
 
 
 class TaxiStateKind(base.ViewKind):
+  """Runs a `TaxiState` view: as many states as the world's taxi has."""
   block = blocks.TaxiState
   view = staticmethod(state_view)
 
@@ -102,6 +115,7 @@ class TaxiStateKind(base.ViewKind):
 
 
 class TaxiAbstractionKind(base.ViewKind):
+  """Runs a `TaxiAbstraction` view, its subtask's abstraction."""
   block = blocks.TaxiAbstraction
 
   def operation(self, block):
@@ -119,6 +133,7 @@ class TaxiAbstractionKind(base.ViewKind):
 
 
 class TaxiChildrenKind(base.AvailableKind):
+  """Runs a `TaxiChildren`: its subtask's available children."""
   block = blocks.TaxiChildren
   offer = staticmethod(offer)
 
@@ -127,6 +142,7 @@ class TaxiChildrenKind(base.AvailableKind):
 
 
 class TaxiEndKind(base.TerminationKind):
+  """Runs a `TaxiEnd`: its subtask's termination."""
   block = blocks.TaxiEnd
 
   def operation(self, block):
@@ -139,6 +155,7 @@ class TaxiEndKind(base.TerminationKind):
 
 
 class TaxiTargetKind(base.BindingKind):
+  """Runs a `TaxiTarget`: Navigate's `target`, bound by its parent."""
   block = blocks.TaxiTarget
   bind = staticmethod(bind)
 

@@ -16,14 +16,17 @@ from hpg_mj.learners import arrays
 from hpg_mj.learners import qlambda
 from hpg_mj.learners import tiles as tiles_mod
 
-# `epsilon`: float64[1], its own or the graph's schedule's; `tiling`: the coder's arrays.
 Settings = collections.namedtuple("Settings", ("alpha", "gamma", "trace_decay", "epsilon",
                                                "tiling"))
-# What it learns (saved by these names): the weights q[tile * n + a] and the trace's
-# live entries (index, value; count of them).
+Settings.__doc__ = """A TiledQTable's settings `P`: alpha, gamma, the trace's decay,
+`epsilon` (float64[1], its own or the graph's schedule's) and `tiling`, the coder's
+arrays."""
 Learned = collections.namedtuple("Learned", ("q", "trace_index", "trace_value", "trace_count"))
-# A node's scratch: the active tiles of s (row 0) and s' (row 1); its last choice.
+Learned.__doc__ = """What a TiledQTable learns, saved by these names: the weights
+q[tile * n + a] and the trace's live entries (index, value; count of them)."""
 Scratch = collections.namedtuple("Scratch", ("tiles", "last"))
+Scratch.__doc__ = """A node's scratch: the active tiles of s (row 0) and s' (row 1);
+its last choice."""
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -38,6 +41,8 @@ def offered(mask):
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
              no_cfunc_wrapper=True)
 def choose(P, L, N, x, n, mask, rng, learn, sample):
+  """A child chosen in the state of features x among the first ones `mask` offers,
+  epsilon-greedy over Q(s, .) on its tiles (greedy when not `sample`)."""
   tiles_mod.active_tiles(x, P.tiling, N.tiles[0])
   a = qlambda.tiled_epsilon_greedy(L.q, N.tiles[0], n, offered(mask),
                                    P.epsilon[0] if sample else 0.0, rng)
@@ -62,6 +67,7 @@ def observe(P, L, N, x, signal, done, terminal, n, mask, rng, learn, sample):
 
 
 class TiledQTableKind(base.LearnerKind):
+  """Runs a `TiledQTable` block: a features learner, masked by a prefix."""
   block = blocks.TiledQTable
   reads = "features"
   masked = "prefix"
