@@ -105,6 +105,8 @@ class Agent:
   # ---- what a subclass provides -------------------------------------------
 
   def state(self):
+    """Its whole training state: name -> array, the live arrays (restoring writes
+    into them)."""
     raise NotImplementedError
 
   def restore(self, arrays, where):
@@ -115,9 +117,13 @@ class Agent:
     storage.restore_into(self.state(), arrays, where)
 
   def make_env(self, api="gymnasium", backend="analytic", **kwargs):
+    """An environment of its task (`api` "gymnasium" or "dm_control", `backend`
+    "analytic" or "mujoco"), configured from its task file."""
     raise NotImplementedError
 
   def metrics(self, record):
+    """What `record` says, a dict of numbers: its online measures over the last
+    `metric_window` rows, counts such as control_steps over the whole record."""
     raise NotImplementedError
 
   compiled = None                    # or a method: (episodes, learn, sample) -> float rows
@@ -127,6 +133,8 @@ class Agent:
     return {}
 
   def graph(self):
+    """The task graph its learners form (`hpg_mj.hierarchy.graph.TaskGraph`), which
+    the step-by-step path runs."""
     raise NotImplementedError
 
   def start_state(self):
@@ -149,6 +157,7 @@ class Agent:
 
   @classmethod
   def record_dtype(cls):
+    """Its record's numpy dtype: one float64 field per name of `record_fields`."""
     return np.dtype([(name, np.float64) for name in cls.record_fields])
 
   @classmethod
@@ -163,6 +172,7 @@ class Agent:
 
   @classmethod
   def empty_record(cls):
+    """A record of no rows (the record of an agent not yet trained)."""
     return np.zeros(0, dtype=cls.record_dtype())
 
   # ---- training and evaluation -------------------------------------------------

@@ -24,6 +24,7 @@ class DQNSection(sb3.DQNSection):
 
 @dataclasses.dataclass(frozen=True)
 class TaxiDQNJaxConfig:
+  """The task file's schema: its sections [environment] and [dqn]."""
   environment: _taxi.TaxiEnvironment = dataclasses.field(default_factory=_taxi.TaxiEnvironment)
   dqn: DQNSection = dataclasses.field(default_factory=DQNSection)
 

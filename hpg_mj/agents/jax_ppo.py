@@ -58,6 +58,7 @@ def _check_batch(section):
 
 @dataclasses.dataclass(frozen=True)
 class ShipPPOJaxConfig:
+  """The task file's schema: its sections [environment] and [ppo]."""
   environment: _ship.ShipEnvironment = dataclasses.field(default_factory=_ship.ShipEnvironment)
   ppo: PPOSection = dataclasses.field(default_factory=lambda: PPOSection(
       n_envs=64, n_steps=128, batch_size=2048, n_epochs=4, reward_scale=0.01))
@@ -68,6 +69,7 @@ class ShipPPOJaxConfig:
 
 @dataclasses.dataclass(frozen=True)
 class TaxiPPOJaxConfig:
+  """The task file's schema: its sections [environment] and [ppo]."""
   environment: _taxi.TaxiEnvironment = dataclasses.field(default_factory=_taxi.TaxiEnvironment)
   ppo: PPOSection = dataclasses.field(default_factory=lambda: PPOSection(
       n_envs=64, n_steps=128, batch_size=2048, n_epochs=4))

@@ -23,6 +23,7 @@ class SACSection(sb3.SACSection):
 
 @dataclasses.dataclass(frozen=True)
 class ShipSACJaxConfig:
+  """The task file's schema: its sections [environment] and [sac]."""
   environment: _ship.ShipEnvironment = dataclasses.field(default_factory=_ship.ShipEnvironment)
   sac: SACSection = dataclasses.field(default_factory=lambda: SACSection(
       learning_rate=1e-4, gamma=0.995))

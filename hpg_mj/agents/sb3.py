@@ -391,12 +391,14 @@ def _check_count(name, value):
 
 @dataclasses.dataclass(frozen=True)
 class ShipPPOConfig:
+  """The task file's schema: its sections [environment] and [ppo]."""
   environment: _ship.ShipEnvironment = dataclasses.field(default_factory=_ship.ShipEnvironment)
   ppo: PPOSection = dataclasses.field(default_factory=lambda: PPOSection(reward_scale=0.01))
 
 
 @dataclasses.dataclass(frozen=True)
 class ShipSACConfig:
+  """The task file's schema: its sections [environment] and [sac]."""
   environment: _ship.ShipEnvironment = dataclasses.field(default_factory=_ship.ShipEnvironment)
   sac: SACSection = dataclasses.field(default_factory=SACSection)
 
@@ -458,12 +460,14 @@ class ShipSAC(_SB3Ship):
 
 @dataclasses.dataclass(frozen=True)
 class TaxiPPOConfig:
+  """The task file's schema: its sections [environment] and [ppo]."""
   environment: _taxi.TaxiEnvironment = dataclasses.field(default_factory=_taxi.TaxiEnvironment)
   ppo: PPOSection = dataclasses.field(default_factory=PPOSection)
 
 
 @dataclasses.dataclass(frozen=True)
 class TaxiDQNConfig:
+  """The task file's schema: its sections [environment] and [dqn]."""
   environment: _taxi.TaxiEnvironment = dataclasses.field(default_factory=_taxi.TaxiEnvironment)
   dqn: DQNSection = dataclasses.field(default_factory=DQNSection)
 

@@ -23,6 +23,8 @@ from hpg_mj.learners import tiles as tiles_mod
 from hpg_mj.worlds import ship_core as core
 
 def critic_coder(n_tilings=9, tiles=(5, 5, 36, 5, 30)):
+  """The critic's CMAC over (x m, y m, heading deg, turning rate deg/s, action r deg/s):
+  `n_tilings` tilings of `tiles` tiles along each, the heading wrapping round."""
   return tiles_mod.TileCoder(
       (0.0, 0.0, -180.0, -core.MAX_TURN_RATE, -core.MAX_TURN_RATE),
       (core.FIELD_SIZE, core.FIELD_SIZE, 180.0, core.MAX_TURN_RATE, core.MAX_TURN_RATE),
@@ -52,6 +54,7 @@ class Critic(taskfile.Section):
 
 @dataclasses.dataclass(frozen=True)
 class Config:
+  """The task file's schema: its sections [environment], [actor] and [critic]."""
   environment: _ship.ShipEnvironment = dataclasses.field(default_factory=_ship.ShipEnvironment)
   actor: Actor = dataclasses.field(default_factory=Actor)
   critic: Critic = dataclasses.field(default_factory=Critic)

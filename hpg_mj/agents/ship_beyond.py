@@ -111,6 +111,7 @@ class LowLevel:
 
 @dataclasses.dataclass(frozen=True)
 class Config:
+  """The task file's schema: its sections [environment], [root] and [low_level]."""
   environment: _ship.ShipEnvironment = dataclasses.field(default_factory=_ship.ShipEnvironment)
   root: Root = dataclasses.field(default_factory=Root)
   low_level: LowLevel = dataclasses.field(default_factory=LowLevel)
@@ -178,6 +179,8 @@ class ShipBeyond(hierarchy.ShipHierarchy):
                                    root.epsilon_divisor))
 
   def metrics(self, record):
+    """The ship's metrics, with calls per episode and the aim subtask's success rate
+    over the last `metric_window` episodes."""
     out = super().metrics(record)
     w = record[-self.metric_window:]
     runs = w["aim_runs"].sum()

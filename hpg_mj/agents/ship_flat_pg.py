@@ -20,6 +20,8 @@ from hpg_mj.learners import tiles as tiles_mod
 from hpg_mj.worlds import ship_core as core
 
 def actor_coder(n_tilings=9, tiles=(20, 20, 36, 5)):
+  """The policy's CMAC over the ship's state (x m, y m, heading deg, turning rate
+  deg/s): `n_tilings` tilings of `tiles` tiles along each, the heading wrapping round."""
   return tiles_mod.TileCoder((0.0, 0.0, -180.0, -core.MAX_TURN_RATE),
                              (core.FIELD_SIZE, core.FIELD_SIZE, 180.0, core.MAX_TURN_RATE),
                              tuple(tiles), (False, False, True, False), n_tilings)
@@ -39,6 +41,7 @@ class Policy(taskfile.Section):
 
 @dataclasses.dataclass(frozen=True)
 class Config:
+  """The task file's schema: its sections [environment] and [policy]."""
   environment: _ship.ShipEnvironment = dataclasses.field(default_factory=_ship.ShipEnvironment)
   policy: Policy = dataclasses.field(default_factory=Policy)
 

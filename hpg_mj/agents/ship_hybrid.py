@@ -55,6 +55,7 @@ class LowLevel(taskfile.Section):
 
 @dataclasses.dataclass(frozen=True)
 class Config:
+  """The task file's schema: its sections [environment], [root] and [low_level]."""
   environment: _ship.ShipEnvironment = dataclasses.field(default_factory=_ship.ShipEnvironment)
   root: Root = dataclasses.field(default_factory=Root)
   low_level: LowLevel = dataclasses.field(default_factory=LowLevel)
@@ -138,6 +139,8 @@ class ShipHybrid(hierarchy.ShipHierarchy):
   # ---- metrics ------------------------------------------------------------------
 
   def metrics(self, record):
+    """The ship's metrics, with calls per episode and the diagonal and straight
+    subtasks' success rates over the last `metric_window` episodes."""
     out = super().metrics(record)
     w = record[-self.metric_window:]
     diag_runs, str_runs = w["diagonal_runs"].sum(), w["straight_runs"].sum()

@@ -44,6 +44,7 @@ class Options(taskfile.Section):
 
 @dataclasses.dataclass(frozen=True)
 class Config:
+  """The task file's schema: its sections [environment] and [options]."""
   environment: _ship.ShipEnvironment = dataclasses.field(default_factory=_ship.ShipEnvironment)
   options: Options = dataclasses.field(default_factory=Options)
 
@@ -79,6 +80,8 @@ class ShipOptionCritic(hierarchy.ShipHierarchy):
     ])
 
   def metrics(self, record):
+    """The task's metrics, with the options called per episode over the last
+    `metric_window` episodes."""
     out = super().metrics(record)
     w = record[-self.metric_window:]
     out["calls_per_episode"] = float(w["calls"].mean()) if len(w) else None

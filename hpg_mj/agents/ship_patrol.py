@@ -86,6 +86,7 @@ class Comparison:
 
 @dataclasses.dataclass(frozen=True)
 class Config:
+  """The task file's schema: its sections [environment], [root], [low_level] and [comparison]."""
   environment: _ship.ContinuingEnvironment = dataclasses.field(
       default_factory=_ship.ContinuingEnvironment)
   root: Root = dataclasses.field(default_factory=Root)

@@ -29,6 +29,7 @@ class Policy(taskfile.Section):
 
 @dataclasses.dataclass(frozen=True)
 class Config:
+  """The task file's schema: its sections [environment] and [policy]."""
   environment: _taxi.TaxiEnvironment = dataclasses.field(default_factory=_taxi.TaxiEnvironment)
   policy: Policy = dataclasses.field(default_factory=Policy)
 

@@ -87,9 +87,12 @@ class MAXQNode:
     self._primitive = -1           # V(a, s)'s index when the child is a primitive
 
   def start(self):
+    """The subtask is called: nothing to reset (MAXQ-Q keeps no trace)."""
     pass
 
   def act(self, features, mask, rng_state, sample):
+    """An epsilon-greedy child by V(a, s) + C~(i, s, a) (greedy when not `sample`);
+    `features` is (target, state)."""
     target, state = features
     h = self.shared
     a = choose(self.subtask, target, state, h.world, h.tables, h.epsilons[self.subtask],
@@ -105,6 +108,8 @@ class MAXQNode:
     return a
 
   def observe(self, signal, next_features, done, terminal, learn):
+    """The child returned: a primitive's V(a, s), then C~ and C over the states of
+    the child's run (`update_completion`), when learning."""
     h = self.shared
     if self._primitive >= 0:
       h.cursor[0] += 1
@@ -147,6 +152,7 @@ class TaxiMAXQHierarchy:
     return taxi.rules_state(obs, self.agent.task.fuel_enabled, self._state)
 
   def graph(self):
+    """The taxi's task graph, MAXQ-Q's nodes its learners."""
     return taxi.taxi_graph(self.world, self.learners, self._s, lambda subtask: self._view)
 
 
@@ -169,6 +175,7 @@ class TaxiMAXQ(_taxi.TaxiAgent):
             "completions_pseudo": a.c_tilde, "completions": a.c}
 
   def compiled(self, episodes, learn, sample):
+    """`episodes` episodes of the fused MAXQ-Q loop, as (episodes, 3) float rows."""
     before = self.engine.episodes
     rows = self.engine.run(episodes, learn=learn, sample=sample)
     self.engine.episodes = before

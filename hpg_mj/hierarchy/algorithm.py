@@ -40,26 +40,26 @@ from hpg_mj.learners import arrays
 from hpg_mj.worlds import ship_core as core
 from hpg_mj.worlds import taxi_rules
 
-# The machine's state, per node (a node is on the call stack at most once: the graph
-# is acyclic) and per run. `stack[d]`: the node called at depth d. Per node: its
-# `choice` (a child's index) and `action` (a continuous child's value), its call's
-# primitive `steps`, the steps and the summed `reward` of its current child's run,
-# the `origin` (the observation where the call began), its arguments (`args`, as
-# its `Child` bound them), its features (`x`: a features view's numbers), and its
-# `counters` [calls, runs, successes] in this episode. Per run: the `episode`
-# [depth of the primitive, steps, the root's last event, learning episodes, a
-# restart pending (a continuing root's: it sees `restart` next)], the
-# return (`total`), `flags` [learn, sample], the generator (`rng`, copied in and
-# out around a compiled call), the `fault` a boundary check wrote
-# (`hierarchy.boundary`), the observation (`obs`), the positions sampled in the
-# ship's step (`samples`), the taxi's own state in its fused loop (`board`:
-# taxi_rules' int64 state, then its episode's steps, outcome and illegal moves) and,
-# per node, the children it may choose now (`mask`: its `available`'s, else all);
-# the continuing ship's state after a departure (`restart`).
 Frames = collections.namedtuple("Frames", (
     "stack", "choice", "action", "steps", "child_steps", "reward", "origin", "args", "x",
     "counters", "episode", "total", "flags", "rng", "fault", "obs", "samples", "board",
     "mask", "restart"))
+Frames.__doc__ = """The machine's state, per node (a node is on the call stack at
+most once: the graph is acyclic) and per run. `stack[d]`: the node called at depth d. Per node: its
+`choice` (a child's index) and `action` (a continuous child's value), its call's
+primitive `steps`, the steps and the summed `reward` of its current child's run,
+the `origin` (the observation where the call began), its arguments (`args`, as
+its `Child` bound them), its features (`x`: a features view's numbers), and its
+`counters` [calls, runs, successes] in this episode. Per run: the `episode`
+[depth of the primitive, steps, the root's last event, learning episodes, a
+restart pending (a continuing root's: it sees `restart` next)], the
+return (`total`), `flags` [learn, sample], the generator (`rng`, copied in and
+out around a compiled call), the `fault` a boundary check wrote
+(`hierarchy.boundary`), the observation (`obs`), the positions sampled in the
+ship's step (`samples`), the taxi's own state in its fused loop (`board`:
+taxi_rules' int64 state, then its episode's steps, outcome and illegal moves) and,
+per node, the children it may choose now (`mask`: its `available`'s, else all);
+the continuing ship's state after a departure (`restart`)."""
 E_DEPTH, E_STEPS, E_EVENT, E_LEARNED, E_RESTART = range(5)
 LEARN, SAMPLE = range(2)
 CALLS, RUNS, SUCCESSES = range(3)

@@ -274,6 +274,7 @@ class PatrolCell:
   near_gate_cell_m: float = 25.0
 
   def n_states(self):
+    """The number of states it gives: the cells times the heading's sectors."""
     return ship_rules.n_root_cells(self.near_gate_m, self.near_gate_cell_m) * self.heading_sectors
 
 

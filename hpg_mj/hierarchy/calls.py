@@ -47,3 +47,5 @@ def __getattr__(name):
 
 
 Call = collections.namedtuple("Call", FIXED)
+Call.__doc__ = """The record of a call with no arguments: `origin`, the observation
+where it began, and `steps`, the primitive steps taken in it."""

@@ -27,11 +27,13 @@ class GymAdapter:
     self.values = env.step     # `step`'s fields as the environment gives them (`step_values`)
 
   def reset(self, start=None):
+    """Starts an episode (at `start`, a state, if given); returns its observation."""
     options = None if start is None else {"state": start}
     obs, _ = self.env.reset(options=options)
     return obs
 
   def step(self, action):
+    """One primitive step: a `Step` (obs, reward, terminated, truncated, info)."""
     obs, reward, terminated, truncated, info = self.values(action)
     return Step(obs, float(reward), bool(terminated), bool(truncated), info)
 
@@ -59,11 +61,14 @@ class DmControlAdapter:
       return np.concatenate([np.ravel(v) for v in values]).astype(np.float64)
 
   def reset(self, start=None):
+    """Starts an episode (at `start`, a state, if given); returns its observation
+    flattened into one float64 vector."""
     if start is not None:
       self.env.task.initial_state = start
     return self._flat(self.env.reset())
 
   def step(self, action):
+    """One primitive step: a `Step` (obs, reward, terminated, truncated, info)."""
     return Step(*self.values(action))
 
   def values(self, action):

@@ -122,11 +122,15 @@ class Learner(Protocol):
   A learner with `n_actions` (a discrete learner) must have one per child.
   """
 
-  def start(self) -> None: ...
+  def start(self) -> None:
+    """The subtask is called (z <- 0; a trace cleared)."""
 
-  def act(self, features, mask, rng_state, sample): ...
+  def act(self, features, mask, rng_state, sample):
+    """A child's index among the node's children (or a continuous action's value),
+    chosen in the state `features`."""
 
-  def observe(self, signal, next_features, done, terminal, learn) -> None: ...
+  def observe(self, signal, next_features, done, terminal, learn) -> None:
+    """The child returned R + G = `signal`; learn from it if `learn`."""
 
 
 class GraphError(ValueError):
@@ -191,6 +195,7 @@ class TaskGraph:
     return 1 + max(self.depth(ref.node) for ref in self._children[node.name])
 
   def subtasks(self):
+    """Its subtasks (the nodes that are not primitives), in the graph's order."""
     return [n for n in self.nodes.values() if isinstance(n, Subtask)]
 
   def _validate(self):

@@ -147,9 +147,10 @@ def table_offsets(fuel_enabled: bool = True, capacity: int = core.FUEL_CAPACITY)
                                          for i in range(rules.N_SUBTASKS)])]).astype(np.int64)
 
 
-# MAXQ-Q's tables as the compiled functions take them: V(a, s) of the primitives,
-# the completions C~ and C of every subtask (flat), and each subtask's offset in them.
 Tables = collections.namedtuple("Tables", ("values", "c_tilde", "c", "offsets"))
+Tables.__doc__ = """MAXQ-Q's tables as the compiled functions take them: V(a, s) of the
+primitives, the completions C~ and C of every subtask (flat), and each subtask's
+offset in them."""
 
 
 def new_tables(fuel_enabled: bool = True, capacity: int = core.FUEL_CAPACITY):
@@ -283,6 +284,8 @@ def greedy_random_ties(q, mask, n, rng_state):
 
 @numba.njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def navigate_scores(target, state, world, tables, scratch):
+  """Navigate(target)'s scores of its children in `state` into the scratch rows
+  (v = V(a, s), q = V(a, s) + C~); returns its row offset in the flat tables."""
   values = tables.values
   c_tilde = tables.c_tilde
   offsets = tables.offsets
@@ -313,6 +316,8 @@ def navigate_value(target, state, world, tables, scratch):
 
 @numba.njit(cache=True, _nrt=False, no_cpython_wrapper=True)
 def carry_scores(subtask, state, world, tables, scratch):
+  """Get's, Put's or Refuel's scores of its children in `state` into the scratch rows
+  (v = V(a, s), q = V(a, s) + C~); returns its row offset in the flat tables."""
   values = tables.values
   c_tilde = tables.c_tilde
   offsets = tables.offsets
@@ -347,6 +352,8 @@ def carry_value(subtask, state, world, tables, scratch):
 
 @numba.njit(cache=True, _nrt=False)
 def root_scores(state, world, tables, scratch):
+  """Root's scores of its children in `state` into the scratch rows (v = V(a, s),
+  q = V(a, s) + C~); returns its row offset in the flat tables."""
   c_tilde = tables.c_tilde
   offsets = tables.offsets
   q, v, mask = scratch

@@ -58,11 +58,15 @@ class AgentRestarts(executor.GymAdapter):
     self.gates = self.departures = 0
 
   def reset(self, start=None):
+    """Starts the patrol (at `start`, if given), its counts at 0; returns the
+    observation."""
     self.gates = self.departures = 0
     self.last_obs = self.inner.reset(start)
     return self.last_obs
 
   def step(self, action):
+    """One primitive step; after a departure, the ship restarted at a start drawn
+    from the agent's generator. A gate pass or a departure is reported as terminated."""
     step = self.inner.step(action)
     event = step.info.get("event")
     self.gates += event == "gate"

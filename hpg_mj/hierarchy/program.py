@@ -689,14 +689,17 @@ class Program:
                           bool(terminated), bool(truncated), rng_state)
 
   def counters(self):
+    """Each node's [calls, runs, successes] in this episode, flat (a copy)."""
     return self.frames.counters.reshape(-1).copy()
 
   @property
   def episode_steps(self):
+    """The primitive steps of the step-by-step episode so far."""
     return int(self.frames.episode[algorithm.E_STEPS])
 
   @property
   def episode_return(self):
+    """The return of the step-by-step episode so far."""
     return float(self.frames.total[0])
 
   def calls_begun(self):

@@ -100,9 +100,10 @@ GATE_Y = core.GATE[0, 1]
 APPROACH_DX = (-100.0, 0.0, 100.0)   # approach points: x of the gate's middle + these
 N_TARGETS = 1 + len(APPROACH_DX)     # the gate, then the approach points
 DISTANCE_CLIP = 400.0                # the aim state's distance saturates here (m)
-# The shipped route's targets: the gate's posts moved in by inset_m, the approach
-# points approach_m before its line, a call ended within radius_m of its target.
 Targets = collections.namedtuple("Targets", ("inset_m", "approach_m", "radius_m"))
+Targets.__doc__ = """The route's targets: the gate's posts moved in by `inset_m`, the
+approach points `approach_m` before its line, a call ended within `radius_m` of its
+target (all in m)."""
 SHIPPED_TARGETS = Targets(2.0, 80.0, 15.0)
 
 
