@@ -140,6 +140,8 @@ class RLearning:
     """A row starts: nothing is reset (the relative values and rho go on)."""
 
   def act(self, features, mask, rng_state, sample):
+    """A child chosen in state `features` (an int), epsilon-greedy over Q(s, .)
+    (greedy when not `sample`)."""
     s = int(features)
     epsilon = self.epsilon_source() if sample else 0.0
     a = qlambda.epsilon_greedy(self.q, s, self.n_actions, epsilon, rng_state)
@@ -148,6 +150,8 @@ class RLearning:
     return a
 
   def observe(self, signal, next_features, done, terminal, learn):
+    """The child's run of tau steps returned R = `signal`: (s, a, R, tau, s') backed
+    up, remembered, and a planning sweep when one is due, if `learn`."""
     if learn:
       update(self.q, self.n_actions, self.gain, self._state, self._action, signal,
              float(self.duration), int(next_features), self.alpha, self.gain_step,
@@ -157,4 +161,5 @@ class RLearning:
                         self.alpha, self.planning_every)
 
   def parameters(self):
+    """The relative values Q(s, a) (a copy)."""
     return self.q.copy()

@@ -39,6 +39,9 @@ _DROP_BELOW = 1e-12
 
 Trace = collections.namedtuple("Trace", ("theta", "zs", "y", "touched", "marked", "count",
                                          "acc"))
+Trace.__doc__ = """Eq. 3's parameters and trace in the lazy form (the module
+docstring): theta, zs, y float64[n]; touched int64[n]; marked bool[n]; count
+int64[1]; acc float64[2] = [D, g]."""
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")

@@ -29,12 +29,14 @@ _DROP_BELOW = 1e-12
 
 
 def new_trace(capacity: int):
+  """An empty trace of `capacity` entries: (tr_index, tr_value, tr_count)."""
   return (np.zeros(capacity, dtype=np.int64), np.zeros(capacity),
           np.zeros(1, dtype=np.int64))
 
 
 @numba.njit(cache=True)
 def max_value(q, s, n_actions):
+  """max_b Q(s, b) over the table `q`."""
   base = s * n_actions
   best = q[base]
   for b in range(1, n_actions):
@@ -62,6 +64,8 @@ def greedy(q, s, n_actions, rng_state):
 
 @numba.njit(cache=True)
 def epsilon_greedy(q, s, n_actions, epsilon, rng_state):
+  """An action in state s: uniform with probability `epsilon`, else greedy (ties
+  broken at random)."""
   if rng.uniform(rng_state) < epsilon:
     return rng.randint(rng_state, n_actions)
   return greedy(q, s, n_actions, rng_state)
@@ -69,6 +73,7 @@ def epsilon_greedy(q, s, n_actions, epsilon, rng_state):
 
 @numba.njit(cache=True)
 def clear(tr_count):
+  """Empties the trace (e <- 0)."""
   tr_count[0] = 0
 
 
@@ -203,6 +208,8 @@ def tiled_value(q, tiles, stride, a):
 
 @numba.njit(cache=True)
 def tiled_max(q, tiles, stride, n):
+  """max_b Q(s, b) over the first `n` actions, for the state whose active tiles are
+  `tiles`."""
   best = tiled_value(q, tiles, stride, 0)
   for b in range(1, n):
     v = tiled_value(q, tiles, stride, b)
@@ -230,6 +237,8 @@ def tiled_greedy(q, tiles, stride, n, rng_state):
 
 @numba.njit(cache=True)
 def tiled_epsilon_greedy(q, tiles, stride, n, epsilon, rng_state):
+  """One of the first `n` actions in the state whose active tiles are `tiles`:
+  uniform with probability `epsilon`, else greedy."""
   if rng.uniform(rng_state) < epsilon:
     return rng.randint(rng_state, n)
   return tiled_greedy(q, tiles, stride, n, rng_state)

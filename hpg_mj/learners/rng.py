@@ -40,6 +40,7 @@ def make_state(seed: int) -> np.ndarray:
 
 @numba.njit(cache=True, inline="always")
 def next_u64(s):
+  """The generator's next uint64, its state `s` advanced (xoshiro256**)."""
   x = s[1] * numba.uint64(5)
   result = ((x << numba.uint64(7)) | (x >> numba.uint64(57))) * numba.uint64(9)   # rotl(x, 7)
   t = s[1] << numba.uint64(17)
@@ -60,6 +61,7 @@ def uniform(s):
 
 @numba.njit(cache=True)
 def uniform_range(s, low, high):
+  """A float uniform in [low, high)."""
   return low + (high - low) * uniform(s)
 
 

@@ -16,12 +16,16 @@ import numpy as np
 # counts: int64[watched, 2] = [runs recorded, next slot] per watched subtask.
 
 def new_schedule(epsilon=0.1, window=1000, watched=2):
+  """A held schedule at `epsilon`: (state, outcomes, counts) for `watched` subtasks'
+  last `window` runs."""
   return (np.array([epsilon, 0.0, 0.0, 0.0]), np.zeros((watched, window), dtype=np.int8),
           np.zeros((watched, 2), dtype=np.int64))
 
 
 @numba.njit(cache=True)
 def record_run(outcomes, counts, subtask, success):
+  """Records a run of watched subtask `subtask` as a success or a failure, in its
+  ring buffer of the last runs."""
   window = outcomes.shape[1]
   slot = counts[subtask, 1]
   outcomes[subtask, slot] = 1 if success else 0

@@ -93,6 +93,8 @@ class SoftmaxPolicyGradient(_PolicyGradient):
     self._all = np.ones(self.n_actions, dtype=np.bool_)
 
   def act(self, features, mask, rng_state, sample):
+    """A child drawn from the Gibbs policy in state `features` among those `mask`
+    offers, its score added to z (the likeliest when not `sample`)."""
     mask = self._all if mask is None else mask
     s = table_state(features, self.n_states, "SoftmaxPolicyGradient")
     if sample:
@@ -128,11 +130,14 @@ class GaussianPolicyGradient(_PolicyGradient):
     self._log_sigma = (float(np.log(sigma_low)), float(np.log(sigma_high)))
 
   def start(self):
+    """The subtask is called: z <- 0 (and the width's trace)."""
     el.reset(self.trace)
     if self.width is not None:
       el.reset(self.width)
 
   def act(self, features, mask, rng_state, sample):
+    """The action drawn in the state of active tiles `features` (the mean when not
+    `sample`), in [-r_max, r_max]; its score added to z."""
     self._tiles[:] = tile_indices(features, self._tiles.shape[0], self.values.shape[0],
                                   "GaussianPolicyGradient")   # (the view's array is reused)
     # (Its baseline's -alpha b(s) psi waits for `observe`, which knows whether it learns:
@@ -142,6 +147,7 @@ class GaussianPolicyGradient(_PolicyGradient):
                                     self._psi_width, self.width_alpha, *self._log_sigma)
 
   def observe(self, signal, next_features, done, terminal, learn):
+    """Eq. 3 with R + G = `signal` (and the baseline's TD(0) step), if `learn`."""
     if learn:
       if self.baseline != 0.0:
         policies.subtract_baseline(self.trace.theta, self.values, self._tiles, self.alpha,
@@ -183,9 +189,11 @@ class QLambda:
     self._pending = None
 
   def current_epsilon(self):
+    """The epsilon it explores with now: its schedule's, else its own."""
     return self.epsilon_source() if self.epsilon_source is not None else self.epsilon
 
   def start(self):
+    """The subtask is called: the trace cleared."""
     qlambda.clear(self.count)
     self._pending = None
 
@@ -201,6 +209,8 @@ class QLambda:
                    s_next, a_next, terminal, self.alpha, self.gamma, self.lam)
 
   def act(self, features, mask, rng_state, sample):
+    """A child chosen epsilon-greedily in state `features` (greedy when not
+    `sample`); the previous transition's backup, which waited for it, is made."""
     s = self._state(features)
     epsilon = self.current_epsilon() if sample else 0.0
     a = self._choose(s, epsilon, rng_state)
@@ -211,6 +221,8 @@ class QLambda:
     return a
 
   def observe(self, signal, next_features, done, terminal, learn):
+    """The child returned R = `signal`: backed up now if the call ends, else when the
+    next choice a' is known (`act`), if `learn`."""
     p = self._pending
     if not learn:
       return
@@ -225,6 +237,7 @@ class QLambda:
     # (Without learning nothing is pending, so act() makes no backup.)
 
   def parameters(self):
+    """The values Q(s, a) (a copy)."""
     return self.q.copy()
 
 
@@ -299,10 +312,13 @@ class ActorCritic:
     return c, actor_critic.critic_value(self.critic, c)
 
   def start(self):
+    """The subtask is called: the critic's trace cleared."""
     el.reset(self.critic)
     self._next = None
 
   def act(self, features, mask, rng_state, sample):
+    """The action drawn from the actor in state `features` (drawn already when the
+    last step looked ahead), in [-r_max, r_max]."""
     if self._next is None:
       a, m, u = self._choose(features, rng_state, sample)
     else:
@@ -312,6 +328,8 @@ class ActorCritic:
     return policies.squash(u, self.r_max)
 
   def observe(self, signal, next_features, done, terminal, learn):
+    """The primitive returned R = `signal`: a' drawn in s', then the critic's
+    TD(lambda) and the actor's steps, if `learn`."""
     a, m, u, state = self._current
     c, q = self._q(state, u)
     target = signal

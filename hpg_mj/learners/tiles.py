@@ -24,8 +24,10 @@ import numba
 import numpy as np
 
 
-# What the compiled functions take: the arrays of a `TileCoder`.
 Tiling = collections.namedtuple("Tiling", ("low", "width", "n_tiles", "wrap", "offsets"))
+Tiling.__doc__ = """The arrays of a `TileCoder` as the compiled functions take them:
+each dimension's low end, tile width, tiles and whether it wraps; each tiling's
+offsets, in fractions of a tile."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -51,13 +53,16 @@ class TileCoder:
 
   @property
   def tiles_per_tiling(self):
+    """The tiles of one tiling: the product of `n_tiles`."""
     return int(np.prod(self.n_tiles))
 
   @property
   def size(self):
+    """The tiles of all its tilings: the length of a weight vector over them."""
     return self.n_tilings * self.tiles_per_tiling
 
   def arrays(self):
+    """Its `Tiling`: the arrays the compiled functions take."""
     low = np.asarray(self.low, dtype=np.float64)
     width = (np.asarray(self.high, dtype=np.float64) - low) / np.asarray(self.n_tiles)
     n = np.asarray(self.n_tiles, dtype=np.int64)
