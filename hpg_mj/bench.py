@@ -25,6 +25,8 @@ def _timed(fn, min_seconds):
 
 
 def bench_analytic_single(min_seconds):
+  """Analytic Euler steps per second of one ship (`ship_core.euler_run`), timed for at
+  least `min_seconds`."""
   state = np.array([500.0, 500.0, 10.0, 0.0])
   n = 5_000_000
 
@@ -36,6 +38,9 @@ def bench_analytic_single(min_seconds):
 
 
 def bench_analytic_batch(min_seconds, ships=1024, controls=200):
+  """Analytic Euler steps per second of `ships` ships stepped together
+  (`ship_core.euler_batch`) over `controls` control steps, timed for at least
+  `min_seconds`."""
   rng = np.random.default_rng(0)
   states = np.column_stack([rng.uniform(0, 1000, ships), rng.uniform(0, 1000, ships),
                             rng.uniform(-180, 180, ships), rng.uniform(-15, 15, ships)])
@@ -173,6 +178,8 @@ def bench_envs(min_seconds=1.0):
 
 
 def format_rows(rows):
+  """The table `hpg-mj bench envs` prints: one line per (name, unit, steps per
+  second) row."""
   width = max(len(name) for name, _, _ in rows)
   lines = [f"{'':<{width}}  {'steps per second':>18}  unit"]
   for name, unit, rate in rows:

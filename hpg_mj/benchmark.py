@@ -94,6 +94,8 @@ class Evaluation:
 
 
 def record_dtype(world):
+  """The numpy dtype of a world's evaluation record: a float64 field per name of
+  `RECORD_FIELDS[world]`."""
   return np.dtype([(name, np.float64) for name in RECORD_FIELDS[world]])
 
 
@@ -400,6 +402,8 @@ class RandomPolicy:
     self.random = np.random.default_rng(seed)
 
   def predict(self, obs, deterministic=True):
+    """(actions, None) for a batch of observations, as SB3's `predict`: a uniform
+    turning rate in deg/s for the ship, a uniform action for the taxi."""
     n = len(next(iter(obs.values())) if isinstance(obs, dict) else obs)
     if self.task.world != "taxi":
       return self.random.uniform(-ship_core.MAX_TURN_RATE, ship_core.MAX_TURN_RATE, n), None

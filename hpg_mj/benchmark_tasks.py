@@ -49,13 +49,17 @@ class Task:
 
   @property
   def env_id(self):
+    """The Gymnasium id of its environment."""
     return ENV_IDS[self.name]
 
   @property
   def default_max_steps(self):
+    """Its world's own episode length in steps (the taxi's, or the ship's steer)."""
     return taxi_core.MAX_STEPS if self.world == "taxi" else ship_core.STEER_MAX_STEPS
 
   def env_kwargs(self, backend="analytic"):
+    """The keyword arguments that make its environment: the ship's backend, length,
+    rewards and level, or the taxi's length and capacity."""
     if self.world != "taxi":
       level = {} if self.level is None else {"level": self.level}
       return {"backend": backend, "max_steps": self.max_steps, "gate_reward": self.gate_reward,

@@ -402,6 +402,7 @@ def _add_run_options(p):
 
 
 def build_parser():
+  """The `hpg-mj` command line's argument parser, with every subcommand."""
   parser = _Parser(
       prog="hpg-mj", description="Hierarchical policy gradient benchmarks on MuJoCo.")
   parser.add_argument("--import", dest="imports", action="append", default=[],
@@ -601,6 +602,7 @@ def _parse(parser, argv):
 
 
 def main(argv=None):
+  """Runs `hpg-mj` with the arguments `argv` (the process's when None)."""
   import hpg_mj  # noqa: F401  (registers the Gymnasium ids)
   from hpg_mj._render_worker import RenderingUnavailable
   args = _parse(build_parser(), argv)

@@ -128,5 +128,7 @@ def _check_render_args(parser, args):
 
 
 def videos_defaults():
+  """The default width and height in pixels and frames at most of `hpg-mj render
+  videos`."""
   from hpg_mj.experiments import videos
   return videos.DEFAULT_WIDTH, videos.DEFAULT_HEIGHT, videos.DEFAULT_MAX_FRAMES

@@ -75,6 +75,7 @@ def versions():
 
 
 def sha256_text(text):
+  """The SHA-256 of `text` (UTF-8), in hex."""
   return hashlib.sha256(text.encode()).hexdigest()
 
 

@@ -75,6 +75,8 @@ def _errors(trajectory, reference):
 
 @dataclasses.dataclass
 class ShipVerification:
+  """What `hpg-mj verify ship` measured: the two ships' largest errors against the
+  continuous ODE."""
   controls: int
   starts: int
   seconds_per_start: float
@@ -85,6 +87,7 @@ class ShipVerification:
   mujoco_timestep_s: float
 
   def lines(self):
+    """Its report, as printed."""
     return [
         f"ship verification: {self.starts} random starts x {self.controls} random controls "
         f"(r uniform on [-15, 15] deg/s, each held 0.6 s: {self.seconds_per_start:.0f} s of "
@@ -287,6 +290,7 @@ def _deviation(got, want):
 
 @dataclasses.dataclass
 class GoldenCheck:
+  """One stored golden trajectory replayed on one path: its largest deviation."""
   task: str                 # "ship/steer"
   path: str                 # "analytic (Gymnasium)", "MuJoCo (dm_control)"
   deviation: float          # largest over observations and rewards
@@ -296,9 +300,11 @@ class GoldenCheck:
 
   @property
   def passed(self):
+    """Whether it was checked, its episode ends match and it is within tolerance."""
     return not self.problem and self.events_match and self.deviation <= self.tolerance
 
   def line(self):
+    """Its report line, as printed."""
     what = f"{self.task:<14} {self.path:<22}"
     if self.problem:
       return f"{what} FAIL  {self.problem}"
@@ -410,6 +416,8 @@ def drift_trajectory(state, controls, field):
 
 @dataclasses.dataclass
 class CurrentVerification:
+  """What `hpg-mj verify current` measured for one level's current: the two ships'
+  largest errors against the continuous ship."""
   level: str
   controls: int
   starts: int
@@ -420,6 +428,7 @@ class CurrentVerification:
   euler_heading_deg: float
 
   def line(self):
+    """Its report line, as printed."""
     return (f"  {self.level:<7} (water up to {self.max_current_m_s:.2f} m/s): MuJoCo "
             f"{self.mujoco_position_m:.4f} m, {self.mujoco_heading_deg:.4f} deg; analytic "
             f"(Euler) {self.euler_position_m:.4f} m, {self.euler_heading_deg:.4f} deg; "
@@ -465,6 +474,8 @@ def verify_current(controls=1000, starts=3, seed=0, levels=None):
 
 @dataclasses.dataclass
 class GoalVerification:
+  """What `hpg-mj verify goal` measured for one level: the two ships' episodes
+  compared."""
   level: str
   episodes: int
   analytic_passes: int          # episodes the scripted helmsman ended at the gate
@@ -473,6 +484,7 @@ class GoalVerification:
   gate_geoms_m: float           # the MuJoCo gate's posts against the rule's, largest
 
   def line(self):
+    """Its report line, as printed."""
     return (f"  {self.level:<7} {self.episodes} episodes: helmsman passed "
             f"{self.analytic_passes}; same end within a step on both ships "
             f"{self.same_outcome}; MuJoCo vs analytic position at most "
@@ -551,6 +563,8 @@ def verify_goal(episodes=20, seed=0, levels=None):
 
 @dataclasses.dataclass
 class RegattaVerification:
+  """What `hpg-mj verify regatta` measured for one level: the two ships' courses
+  against the continuous ship."""
   level: str
   episodes: int
   analytic_finishes: int        # courses the scripted helmsman sailed to the finish
@@ -563,6 +577,7 @@ class RegattaVerification:
   course_geoms_m: float         # the MuJoCo course's posts against the rule's, largest
 
   def line(self):
+    """Its report line, as printed."""
     return (f"  {self.level:<7} {self.episodes} courses, helmsman finished "
             f"{self.analytic_finishes}; against the continuous ship: MuJoCo "
             f"{self.mujoco_position_m:.4f} m, {self.mujoco_heading_deg:.4f} deg, same gates "

@@ -25,6 +25,8 @@ VECTOR_ENTRY_POINTS = {
 
 
 def register_all():
+  """Registers every hpg_mj Gymnasium id (and its vector entry point) not yet
+  registered; importing hpg_mj calls it."""
   for env_id, (entry_point, kwargs) in ENV_IDS.items():
     if env_id not in gymnasium.registry:
       gymnasium.register(id=env_id, entry_point=entry_point, kwargs=dict(kwargs),

@@ -20,9 +20,11 @@ class AnalyticBackend:
     self._state = np.zeros(4)
 
   def set_state(self, state):
+    """Puts the ship at `state` [x, y, theta_deg, theta_dot_deg]."""
     self._state[:] = state
 
   def state(self):
+    """The ship's state [x, y, theta_deg, theta_dot_deg] (a copy)."""
     return self._state.copy()
 
   def control(self, r_deg):
@@ -47,12 +49,16 @@ class MujocoBackend:
     self._nstep = core.SAMPLES_PER_CONTROL * self.physics._substeps_per_sample()
 
   def set_state(self, state):
+    """Puts the ship at `state` [x, y, theta_deg, theta_dot_deg]."""
     self.physics.set_ship_state(state)
 
   def state(self):
+    """The ship's state [x, y, theta_deg, theta_dot_deg]."""
     return self.physics.ship_state()
 
   def control(self, r_deg):
+    """One control step at turning command `r_deg` (deg/s): (the positions sampled,
+    the state after)."""
     physics = self.physics
     physics.set_turn_command(r_deg)
     physics.step(self._nstep)
@@ -74,6 +80,7 @@ def spaces_of(rules):
 
 
 def make_backend(name):
+  """The ship backend `name`: "analytic" or "mujoco"."""
   if name == "mujoco":
     return MujocoBackend()
   if name == "analytic":

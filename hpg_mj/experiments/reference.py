@@ -51,6 +51,7 @@ EXPERIMENTS = tuple(name for world in WORLDS.values() for name in world["experim
 
 
 def folder(out, quick=False):
+  """Where the reference run writes under `out` (reference/, or reference_quick/)."""
   return pathlib.Path(out) / ("reference_quick" if quick else "reference")
 
 

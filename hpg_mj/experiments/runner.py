@@ -232,6 +232,7 @@ def load_experiment(path):
 
 
 def shipped_experiments():
+  """The shipped experiment files: name -> path, by name."""
   return {p.stem: p for p in sorted(
       (p for folder in agents.shipped_tasks_dirs() for p in (folder / "experiments").glob("*.toml")),
       key=lambda p: p.stem)}

@@ -69,6 +69,7 @@ class RunInterrupted(Exception):
 
 
 def is_finished(run_dir):
+  """Whether the run in `run_dir` finished (it wrote its metrics.json)."""
   return (pathlib.Path(run_dir) / "metrics.json").is_file()
 
 

@@ -144,4 +144,5 @@ def tune(task, budget=None, episodes=None, seeds=None, progress=None, workers=1)
 
 
 def describe(changes):
+  """A tuning change as one line: "section.key = value, ..."."""
   return ", ".join(f"{s}.{k} = {v}" for s, keys in changes.items() for k, v in keys.items())

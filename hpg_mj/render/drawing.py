@@ -82,10 +82,13 @@ class ShipDrawing:
                                      max_geom=4000)
 
   def render_first(self):
+    """Draws one frame and throws it away (the first frame's set-up, paid early)."""
     self.render(state=np.array([500.0, 500.0, 0.0, 0.0]))
 
   def render(self, state, trail=(), target=None, camera="top", marks=(), gate=None,
              course=None, next_gate=0):
+    """The ship at `state` with its wake `trail` (x, y rows, m) and `marks`, its
+    target, gate or course placed: an RGB frame (height, width, 3), uint8."""
     model = self.physics.model.ptr
     camera_id = _camera_id(model, camera, "the ship model")
     self.physics.set_ship_state(state)
@@ -102,6 +105,7 @@ class ShipDrawing:
     return self._renderer.render().copy()
 
   def close(self):
+    """Frees its renderer."""
     self._renderer.close()
 
 
@@ -115,9 +119,13 @@ class PhysicsDrawing:
     self._renderers = {}   # (height, width) -> mujoco.Renderer
 
   def render_first(self):
+    """Draws one small frame and throws it away (the first frame's set-up, paid
+    early)."""
     self.render(height=16, width=16)
 
   def render(self, height, width, camera_id=-1, model_fields=None, data_fields=None):
+    """The model at the state arrays sent (`model_fields`, `data_fields`: name ->
+    array), seen from `camera_id`: an RGB frame (height, width, 3), uint8."""
     buffer = (self.model.vis.global_.offwidth, self.model.vis.global_.offheight)
     if not (1 <= width <= buffer[0] and 1 <= height <= buffer[1]):
       raise ValueError(f"{self.model_name}: a frame of {width} x {height} pixels does not fit "
@@ -135,5 +143,6 @@ class PhysicsDrawing:
     return renderer.render().copy()
 
   def close(self):
+    """Frees its renderers."""
     for renderer in self._renderers.values():
       renderer.close()

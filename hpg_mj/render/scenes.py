@@ -41,4 +41,5 @@ class ShipScene:
         next_gate=int(next_gate))
 
   def close(self):
+    """Stops its render worker."""
     self._worker.close()

@@ -20,6 +20,7 @@ class ShipPilot:
     self.last = None
 
   def reset(self):
+    """A new episode: the helmsman starts over."""
     self.phase = 0
     self.last = None
 
@@ -38,17 +39,20 @@ class ShipPilot:
 
 
 class RandomPolicy:
+  """Uniform random actions from an action space."""
+
   def __init__(self, action_space):
     self.action_space = action_space
 
   def reset(self):
-    pass
+    """A new episode: nothing to reset."""
 
   def __call__(self, obs):
     return self.action_space.sample()
 
 
 def make_policy(env, domain, task, policy):
+  """The policy `policy` ("random" or "scripted") for task `task` of `domain`."""
   if policy == "random":
     return RandomPolicy(env.action_space)
   if policy != "scripted":
@@ -115,12 +119,14 @@ class VideoWriter:
                               macro_block_size=16, pixelformat="yuv420p")
 
   def append_data(self, frame):
+    """Adds one RGB frame, opening the file at the first."""
     if self._writer is None:
       self._writer = self._open()
     self._writer.append_data(np.asarray(frame))
     self.frames += 1
 
   def close(self):
+    """Finishes the file."""
     if self._writer is not None:
       self._writer.close()
       self._writer = None

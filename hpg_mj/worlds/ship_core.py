@@ -225,6 +225,7 @@ def shaping_reward(x, y, theta_deg, goal_x, goal_y, width_deg=SHAPING_WIDTH_DEG)
 
 @numba.njit(cache=True)
 def is_diagonal(direction):
+  """Whether `direction` (0-7, eighths of a turn) is a diagonal one."""
   return direction % 2 == 1
 
 
@@ -250,6 +251,8 @@ def _rotate_cw(vx, vy, quarters):
 
 @numba.njit(cache=True)
 def local_start(direction):
+  """(x, y) in m of a local subtask's start in its frame: the diagonal's or the
+  straight's."""
   if direction % 2 == 1:
     return DIAGONAL_START[0], DIAGONAL_START[1]
   return STRAIGHT_START[0], STRAIGHT_START[1]
@@ -257,6 +260,8 @@ def local_start(direction):
 
 @numba.njit(cache=True)
 def local_goal(direction):
+  """(x, y) in m of a local subtask's goal in its frame: the diagonal's or the
+  straight's."""
   if direction % 2 == 1:
     return DIAGONAL_GOAL[0], DIAGONAL_GOAL[1]
   return STRAIGHT_GOAL[0], STRAIGHT_GOAL[1]

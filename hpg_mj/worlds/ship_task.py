@@ -72,6 +72,8 @@ class ShipRules:
     return np.array([x, y, core.wrap_deg(theta), theta_dot])
 
   def check_state(self, state, task_name):
+    """`state` as a float64 [x, y, theta_deg, theta_dot_deg] on its field, or
+    raises naming `task_name` (`ship_core.check_state`)."""
     return core.check_state(state, task_name, 0.0, self.size)
 
   def evaluate(self, samples, end_state, steps):

@@ -180,6 +180,7 @@ class Taxi(base.Task):
 
   @property
   def fuel_enabled(self):
+    """Whether the taxi has a fuel tank (the fuel task) or not (the classic one)."""
     return self.rules.fuel_enabled
 
   @property

@@ -74,10 +74,13 @@ NUM_FUEL_STATES = NUM_CLASSIC_STATES * NUM_FUEL_LEVELS  # 6500
 
 
 def num_actions(fuel_enabled: bool) -> int:
+  """The taxi's actions: 7 with the fuel task's Fillup, else 6."""
   return NUM_ACTIONS_FUEL if fuel_enabled else NUM_ACTIONS_CLASSIC
 
 
 def num_states(fuel_enabled: bool, capacity: int = FUEL_CAPACITY) -> int:
+  """The taxi's states: 500 classic ones, times the fuel levels 0..capacity in the
+  fuel task."""
   return NUM_CLASSIC_STATES * (capacity + 1) if fuel_enabled else NUM_CLASSIC_STATES
 
 
@@ -386,4 +389,5 @@ class TaxiRules:
                          self.fuel_station[0], self.fuel_station[1], self.capacity)
 
   def encode(self, state) -> int:
+    """The index of `state` (row, col, passenger, destination, fuel)."""
     return int(encode_state(state[0], state[1], state[2], state[3], state[4], self.fuel_enabled))

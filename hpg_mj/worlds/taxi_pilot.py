@@ -45,6 +45,7 @@ class TaxiPilot:
     self._routes = {}
 
   def reset(self):
+    """A new episode: nothing to reset."""
     pass
 
   def _route(self, target):

@@ -48,6 +48,7 @@ def encoded(obs, world):
 
 @numba.njit(cache=True, inline="always")
 def episode_over(episode):
+  """Whether the episode array says it has ended (delivered, out of fuel or cut)."""
   return episode[E_OUTCOME] != RUNNING
 
 
