@@ -71,6 +71,8 @@ def numba_steps_per_second(env_id, kwargs, n_envs, n_steps, seed=0):
 
 
 def main(argv=None):
+  """Runs the benchmark with the arguments `argv` (the process's when None) and
+  prints its table."""
   parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
   parser.add_argument("--envs", type=int, default=4096, help="episodes in the batch")
   parser.add_argument("--steps", type=int, default=1000, help="steps timed")

@@ -57,9 +57,12 @@ class Trainer:
 
   @property
   def steps_per_update(self):
+    """Control steps per `update`: n_envs x n_steps."""
     return self.section.n_envs * self.section.n_steps
 
   def init(self, key):
+    """A fresh `Runner`: Q-network, optimiser, an empty buffer and `n_envs` copies
+    started from `key`."""
     s = self.section
     net_key, env_key, key = jax.random.split(key, 3)
     q = ppo.init_mlp(net_key, [self.io.obs_size, *s.net_arch, self.io.n_outputs], 1.0)
@@ -158,6 +161,7 @@ class Trainer:
   # ---- without learning -------------------------------------------------------------
 
   def acting(self, runner):
+    """What acts without learning: the runner's Q-network."""
     return runner.q
 
   def episodes(self, q, starts, key, sample):

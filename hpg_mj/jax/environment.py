@@ -34,7 +34,11 @@ def record(cls):
   `dataclass`, which gymnax uses, without flax), with flax's `replace`."""
   cls = dataclasses.dataclass(frozen=True)(cls)
   names = [f.name for f in dataclasses.fields(cls)]
-  cls.replace = lambda self, **changes: dataclasses.replace(self, **changes)
+
+  def replace(self, **changes):
+    """A copy with the fields `changes` names replaced (flax's `replace`)."""
+    return dataclasses.replace(self, **changes)
+  cls.replace = replace
   return jax.tree_util.register_dataclass(cls, data_fields=names, meta_fields=[])
 
 
@@ -47,9 +51,11 @@ class Discrete(_DiscreteBase):
     self.dtype = jax.dtypes.canonicalize_dtype(jnp.int64)   # gymnax's jnp.int_, no warning
 
   def sample(self, key):
+    """An action drawn uniformly from 0..n-1 with `key`."""
     return jax.random.randint(key, self.shape, 0, self.n).astype(self.dtype)
 
   def contains(self, x):
+    """Whether `x` is one of its actions."""
     return jnp.logical_and(x >= 0, x < self.n)
 
   def __repr__(self):
@@ -67,10 +73,12 @@ class Box(_BoxBase):
     self.dtype = dtype
 
   def sample(self, key):
+    """An array drawn uniformly from [low, high] with `key`."""
     return jax.random.uniform(key, self.shape, minval=self.low,
                               maxval=self.high).astype(self.dtype)
 
   def contains(self, x):
+    """Whether every entry of `x` lies in [low, high]."""
     return jnp.logical_and(jnp.all(x >= self.low), jnp.all(x <= self.high))
 
   def __repr__(self):
@@ -86,6 +94,7 @@ class Environment:
 
   @property
   def default_params(self):
+    """The task's `EnvParams` as shipped."""
     raise NotImplementedError
 
   @functools.partial(jax.jit, static_argnames=("self",))
@@ -111,15 +120,19 @@ class Environment:
     return self.reset_env(key, params)
 
   def step_env(self, key, state, action, params):
+    """One step without the reset: `(obs, state, reward, done, info)`."""
     raise NotImplementedError
 
   def reset_env(self, key, params):
+    """A start drawn from `key`: `(obs, state)`."""
     raise NotImplementedError
 
   def get_obs(self, state, params=None, key=None):
+    """The observation of `state`."""
     raise NotImplementedError
 
   def is_terminal(self, state, params):
+    """Whether the episode has ended in `state` (terminated or out of time)."""
     raise NotImplementedError
 
   def discount(self, state, params):
@@ -128,19 +141,24 @@ class Environment:
 
   @property
   def name(self):
+    """The environment's name (its id for hpg_mj's tasks)."""
     return type(self).__name__
 
   @property
   def num_actions(self):
+    """The number of actions (1 for a continuous action)."""
     raise NotImplementedError
 
   def action_space(self, params=None):
+    """Its actions: a `Discrete` or a `Box`."""
     raise NotImplementedError
 
   def observation_space(self, params=None):
+    """Its observations: a `Box`."""
     raise NotImplementedError
 
   def state_space(self, params=None):
+    """Its states (none of hpg_mj's tasks gives one)."""
     raise NotImplementedError
 
 

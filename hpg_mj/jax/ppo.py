@@ -79,9 +79,11 @@ class ShipIO:
     self.scale = ship_core.MAX_TURN_RATE
 
   def observe(self, obs):
+    """The observation as the networks see it: each number onto [-1, 1]."""
     return ((obs - self.centre) / self.half).astype(jnp.float32)
 
   def act(self, u):
+    """The world's turning rate r = 15 u deg/s of the network's u."""
     return self.scale * u           # the world clips r to [-15, 15] (SPEC section 1)
 
 
@@ -96,14 +98,17 @@ class TaxiIO:
     self.n_outputs = env.num_actions
 
   def observe(self, obs):
+    """The observation as the networks see it: each number one-hot, concatenated."""
     return jnp.concatenate([jax.nn.one_hot(obs[..., k], n, dtype=jnp.float32)
                             for k, n in enumerate(self.sizes)], axis=-1)
 
   def act(self, action):
+    """The world's action: the network's action index as it is."""
     return action
 
 
 def io_for(env, params):
+  """What the networks see and act in `env`: a `ShipIO` or a `TaxiIO`."""
   if isinstance(env, jax_ship.ShipSteering):
     return ShipIO(env, params)
   if isinstance(env, jax_taxi.Taxi):
@@ -155,18 +160,23 @@ def _dense(key, n_in, n_out, scale):
 
 
 def init_mlp(key, sizes, last_scale):
+  """A fresh MLP of layer `sizes`, orthogonally initialised (gain sqrt(2), the last
+  layer's `last_scale`), biases 0."""
   keys = jax.random.split(key, len(sizes) - 1)
   return [_dense(k, a, b, math.sqrt(2.0) if i < len(sizes) - 2 else last_scale)
           for i, (k, a, b) in enumerate(zip(keys, sizes[:-1], sizes[1:]))]
 
 
 def mlp(layers, x):
+  """The MLP `layers` at x: tanh between layers, linear at the end."""
   for layer in layers[:-1]:
     x = jnp.tanh(x @ layer["kernel"] + layer["bias"])
   return x @ layers[-1]["kernel"] + layers[-1]["bias"]
 
 
 def init_networks(key, io, net_arch):
+  """Fresh actor and critic MLPs with hidden layers `net_arch` (and the Gaussian's
+  log_std, 0, for a continuous action)."""
   actor_key, critic_key = jax.random.split(key)
   hidden = list(net_arch)
   networks = {"actor": init_mlp(actor_key, [io.obs_size, *hidden, io.n_outputs], 0.01),
@@ -177,6 +187,7 @@ def init_networks(key, io, net_arch):
 
 
 def value(networks, x):
+  """The critic's V(x)."""
   return mlp(networks["critic"], x)[..., 0]
 
 
@@ -195,6 +206,7 @@ def log_prob_entropy(networks, io, x, action):
 
 
 def sample_action(networks, io, x, key):
+  """An action drawn from the policy at x: an index (softmax) or u (Gaussian)."""
   out = mlp(networks["actor"], x)
   if io.discrete:
     return jax.random.categorical(key, out)
@@ -202,6 +214,7 @@ def sample_action(networks, io, x, key):
 
 
 def greedy_action(networks, io, x):
+  """The policy's likeliest action at x: the best index, or the Gaussian's mean."""
   out = mlp(networks["actor"], x)
   return jnp.argmax(out, axis=-1) if io.discrete else out
 
@@ -209,6 +222,7 @@ def greedy_action(networks, io, x):
 # ---- Adam (Kingma and Ba 2015) after the gradient's global norm is clipped ------------
 
 def adam_init(params):
+  """Adam's fresh state for `params`: the step count and the moments, 0."""
   return {"count": jnp.zeros((), jnp.int32), "mu": jax.tree.map(jnp.zeros_like, params),
           "nu": jax.tree.map(jnp.zeros_like, params)}
 
@@ -241,6 +255,7 @@ class Runner(NamedTuple):
 
 
 class Transition(NamedTuple):
+  """One step of one copy's rollout, as PPO's update reads it."""
   x: jax.Array               # the observation as the networks see it
   action: jax.Array          # u (the ship) or the action index (the taxi)
   log_prob: jax.Array
@@ -269,9 +284,11 @@ class Trainer:
 
   @property
   def steps_per_update(self):
+    """Control steps per `update`: n_envs x n_steps."""
     return self.section.n_envs * self.section.n_steps
 
   def init(self, key):
+    """A fresh `Runner`: networks, optimiser and `n_envs` copies started from `key`."""
     net_key, env_key, key = jax.random.split(key, 3)
     networks = init_networks(net_key, self.io, self.section.net_arch)
     keys = jax.random.split(env_key, self.section.n_envs)
@@ -355,6 +372,8 @@ class Trainer:
   # ---- one update: a rollout, then n_epochs over its minibatches ---------------------
 
   def update(self, runner, _=None):
+    """One rollout of n_steps and PPO's epochs on it: (runner, per-step row sums of
+    shape (n_steps, len(row.fields)))."""
     runner, (transitions, rows) = jax.lax.scan(self._rollout_step, runner, None,
                                                self.section.n_steps)
     last_value = value(runner.networks, self.io.observe(runner.obs))

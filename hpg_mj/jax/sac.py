@@ -75,6 +75,7 @@ def init_mlp(key, sizes, copies=()):
 
 
 def mlp(layers, x):
+  """The MLP `layers` at x: ReLU between layers, linear at the end."""
   for layer in layers[:-1]:
     x = jax.nn.relu(x @ layer["kernel"] + layer["bias"])
   return x @ layers[-1]["kernel"] + layers[-1]["bias"]
@@ -97,6 +98,7 @@ def sample(actor, x, key):
 
 
 def greedy(actor, x):
+  """The greedy action at x: tanh of the Gaussian's mean."""
   return jnp.tanh(gaussian(actor, x)[0])
 
 
@@ -109,6 +111,7 @@ def q_values(critics, x, a):
 # ---- torch's Adam --------------------------------------------------------------------
 
 def adam_init(params):
+  """Adam's fresh state for `params` (`ppo.adam_init`)."""
   return ppo.adam_init(params)
 
 
@@ -171,13 +174,18 @@ class Trainer:
 
   @property
   def steps_per_update(self):
+    """Control steps per `update`: n_envs x n_steps."""
     return self.section.n_envs * self.section.n_steps
 
   @property
   def target_entropy(self):
+    """The entropy the temperature aims at: minus the action's dimension (SB3's
+    "auto")."""
     return -float(self.io.n_outputs)       # SB3's "auto": minus the action's dimension
 
   def init(self, key):
+    """A fresh `Runner`: networks, optimisers, an empty buffer and `n_envs` copies
+    started from `key`."""
     s, io = self.section, self.io
     actor_key, critic_key, env_key, key = jax.random.split(key, 4)
     actor = init_mlp(actor_key, [io.obs_size, *s.net_arch, 2 * io.n_outputs])
@@ -299,6 +307,7 @@ class Trainer:
   # ---- without learning -------------------------------------------------------------
 
   def acting(self, runner):
+    """What acts without learning: the runner's actor."""
     return runner.nets.actor
 
   def episodes(self, actor, starts, key, sample_policy):
