@@ -1,8 +1,10 @@
 """Score any policy on hpg_mj's tasks under the reports' protocol (SPEC section 7).
 
-    from hpg_mj import benchmark
-    result = benchmark.evaluate(lambda obs: 5.0, "ship")    # r = 5 deg/s everywhere
-    result.metrics["J"], result.metrics["J_normalized"], result.record["steps"]
+```python
+from hpg_mj import benchmark
+result = benchmark.evaluate(lambda obs: 5.0, "ship")    # r = 5 deg/s everywhere
+result.metrics["J"], result.metrics["J_normalized"], result.record["steps"]
+```
 
 `evaluate(policy, task)` takes
   - a function from one observation to one action (`batched=True`: from a batch

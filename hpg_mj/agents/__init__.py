@@ -1,12 +1,14 @@
 """Agents: every learner-on-a-task behind one interface (`base.Agent`), found by
 name in a registry that other packages extend.
 
-    from hpg_mj import agents
-    agents.register("my_agent", MyAgent)        # or the entry-point group below
-    task = agents.load_task("tasks/my_agent.toml")   # [task] kind = "my_agent"
-    agent = agents.build(task, seed=1)
-    record = agent.train(1000)
-    print(agent.metrics(record))
+```python
+from hpg_mj import agents
+agents.register("my_agent", MyAgent)        # or the entry-point group below
+task = agents.load_task("tasks/my_agent.toml")   # [task] kind = "my_agent"
+agent = agents.build(task, seed=1)
+record = agent.train(1000)
+print(agent.metrics(record))
+```
 
 An agent of one's own is found in three ways, none of which edits hpg_mj: a task
 file names its class by import path (`[task] kind = "my_pkg.agents:MyAgent"`); a

@@ -1,11 +1,13 @@
 """A hierarchy of one's own, from scratch: `ShipHierarchy`, the public base class of a
 user's hierarchy on the ship, run by the open machine (`hierarchy.program`).
 
-    class Waypoints(ShipHierarchy):
-      record_fields = ("passed", "steps", "return", "calls", "goto_runs")
+```python
+class Waypoints(ShipHierarchy):
+  record_fields = ("passed", "steps", "return", "calls", "goto_runs")
 
-      def graph(self):
-        return TaskGraph("root", [...])      # blocks, your rules, Child arguments
+  def graph(self):
+    return TaskGraph("root", [...])      # blocks, your rules, Child arguments
+```
 
 Its graph is compiled once (the first `train`), fused with the analytic ship and step
 by step through any Gymnasium or dm_control ship; its learned arrays are its state

@@ -1,9 +1,11 @@
 """Stable-Baselines3's `VecEnv` over hpg_mj's native vector environments: an
 adapter, not a fork (needs the extra: `pip install 'hpg_mj[sb3]'`).
 
-    from hpg_mj.envs import sb3
-    env = sb3.make_vec_env("hpg_mj/ShipSteering-v0", n_envs=8, seed=0, backend="analytic")
-    model = stable_baselines3.PPO("MlpPolicy", env).learn(100_000)
+```python
+from hpg_mj.envs import sb3
+env = sb3.make_vec_env("hpg_mj/ShipSteering-v0", n_envs=8, seed=0, backend="analytic")
+model = stable_baselines3.PPO("MlpPolicy", env).learn(100_000)
+```
 
 SB3's own `make_vec_env` steps N single environments one after another in Python
 (`DummyVecEnv`, each wrapped in a `Monitor`); `NativeVecEnv` steps all N copies in

@@ -3,54 +3,56 @@ record stored as it finishes, figures drawn from the stored records.
 
 An experiment file (tasks/experiments/*.toml):
 
-    [experiment]
-    name = "fig7_11"
-    description = "..."
-    tasks = ["ship_hybrid", "ship_flat_pg", "ship_actor_critic"]   # shipped names or paths
-    runs = 5
-    episodes = 50000
-    quick_runs = 2
-    quick_episodes = 5000
-    first_seed = 100           # optional (default 0): runs are seeds first_seed,
-                               # first_seed + 1, ...; none may be a task's tuning seed
-    tuning = false             # optional: true allows tuning seeds (not for publication)
-    greedy_at = [100, 1000]    # optional: also measure each run greedily on the fixed
-                               # starts after these many episodes (increasing, below
-                               # episodes; a quick run keeps those below its own), and
-                               # at its end: a "greedy_curve" figure's points
+```toml
+[experiment]
+name = "fig7_11"
+description = "..."
+tasks = ["ship_hybrid", "ship_flat_pg", "ship_actor_critic"]   # shipped names or paths
+runs = 5
+episodes = 50000
+quick_runs = 2
+quick_episodes = 5000
+first_seed = 100           # optional (default 0): runs are seeds first_seed,
+                           # first_seed + 1, ...; none may be a task's tuning seed
+tuning = false             # optional: true allows tuning seeds (not for publication)
+greedy_at = [100, 1000]    # optional: also measure each run greedily on the fixed
+                           # starts after these many episodes (increasing, below
+                           # episodes; a quick run keeps those below its own), and
+                           # at its end: a "greedy_curve" figure's points
 
-    [[figure]]                 # one table per figure; see tasks/experiments/*.toml
-    name = "fig7"
-    kind = "curve"             # a metric per 1,000 episodes, mean over runs, 95% bootstrap band
-    metric = "gate_passes"     # figures.METRICS
-    x = "episodes"             # or "steps" (primitive or control steps)
-    title = "Gate passes per 1,000 episodes"
-    ylabel = "gate passes"
-    paper = "the hybrid ahead of both flat learners"   # what the paper states
-    paper_order = ["ship_hybrid", "ship_flat_pg"]      # optional: the paper's ranking,
-    # or paper_best = "ship_hybrid" (its best only; paper_tasks = [...] the learners
-    # the paper's statement covers, default all); better = "higher" or "lower"
-    # optional: paper_value = 4.0 (drawn in), reference = "optimal" (taxi: the exact optimum)
+[[figure]]                 # one table per figure; see tasks/experiments/*.toml
+name = "fig7"
+kind = "curve"             # a metric per 1,000 episodes, mean over runs, 95% bootstrap band
+metric = "gate_passes"     # figures.METRICS
+x = "episodes"             # or "steps" (primitive or control steps)
+title = "Gate passes per 1,000 episodes"
+ylabel = "gate passes"
+paper = "the hybrid ahead of both flat learners"   # what the paper states
+paper_order = ["ship_hybrid", "ship_flat_pg"]      # optional: the paper's ranking,
+# or paper_best = "ship_hybrid" (its best only; paper_tasks = [...] the learners
+# the paper's statement covers, default all); better = "higher" or "lower"
+# optional: paper_value = 4.0 (drawn in), reference = "optimal" (taxi: the exact optimum)
 
-    [[figure]]
-    name = "efficiency"
-    kind = "greedy_curve"      # a greedy metric at each greedy_at point against the
-    metric = "gate_pass_rate"  # control (primitive) steps trained, log axis; mean over
-    title = "..."              # runs, 95% bootstrap band (figures.GREEDY_METRICS)
-    ylabel = "gate pass rate, greedy"
-    paper = "..."
+[[figure]]
+name = "efficiency"
+kind = "greedy_curve"      # a greedy metric at each greedy_at point against the
+metric = "gate_pass_rate"  # control (primitive) steps trained, log axis; mean over
+title = "..."              # runs, 95% bootstrap band (figures.GREEDY_METRICS)
+ylabel = "gate pass rate, greedy"
+paper = "..."
 
-    [[figure]]
-    name = "fig12"
-    kind = "trajectories"      # a trained hybrid's greedy episodes on the MuJoCo ship
-                               # (kind = "options": an option-critic's learned options,
-                               # `options_map`, with task, seed and starts)
-    task = "ship_hybrid"
-    seed = 100                 # whose final agent (one of the experiment's seeds)
-    starts = [[700.0, 700.0, 100.0, 3.65]]
-    video = true
-    title = "..."
-    paper = "..."
+[[figure]]
+name = "fig12"
+kind = "trajectories"      # a trained hybrid's greedy episodes on the MuJoCo ship
+                           # (kind = "options": an option-critic's learned options,
+                           # `options_map`, with task, seed and starts)
+task = "ship_hybrid"
+seed = 100                 # whose final agent (one of the experiment's seeds)
+starts = [[700.0, 700.0, 100.0, 3.65]]
+video = true
+title = "..."
+paper = "..."
+```
 
 Layout of the output folder (one per experiment):
 

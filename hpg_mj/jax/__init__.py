@@ -1,9 +1,11 @@
 """The ship and the taxi as pure-JAX environments, with gymnax's functional interface
 (the optional extra: `pip install hpg_mj[jax]`).
 
-    env, params = hpg_mj.jax.make("ShipSteering-v0")
-    obs, state = env.reset(key, params)
-    obs, state, reward, done, info = env.step(key, state, action, params)
+```python
+env, params = hpg_mj.jax.make("ShipSteering-v0")
+obs, state = env.reset(key, params)
+obs, state, reward, done, info = env.step(key, state, action, params)
+```
 
 Every function is jit-, vmap- and scan-able, and float64 is there with
 `jax.config.update("jax_enable_x64", True)`. The ids are the Gymnasium ids of

@@ -1,6 +1,8 @@
 """Steps per second of the JAX worlds against the native (numba) vector environments.
 
-    python -m hpg_mj.jax.bench [--envs 4096] [--steps 1000] [--x64]
+```bash
+python -m hpg_mj.jax.bench [--envs 4096] [--steps 1000] [--x64]
+```
 
 For each task, the same batch of `--envs` episodes under uniform random actions:
 the JAX environment's `step` (gymnax's, with its auto-reset) vmapped over the batch
