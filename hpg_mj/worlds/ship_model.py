@@ -57,7 +57,8 @@ def stop_profiler_clock():
 
   "Installing [mjcb_time] enables the built-in profiler, and keeps timing statistics in
   mjData.timer" (MuJoCo API reference, mjcb_time). The C library's default is none; the
-  Python bindings install a steady clock with every MjData (mujoco issue #2354), and
+  Python bindings install a steady clock with every MjData
+  ([mujoco#2354](https://github.com/google-deepmind/mujoco/issues/2354)), and
   `set_mjcb_time(None)` brings that clock back. Its 28 readings per mj_step cost this
   small model a third of its step (1.85 against 1.24 us here, hpg-mj bench envs), so a
   C clock that returns 0 (a compiled cfunc, never Python) takes its place: process-wide,
