@@ -55,4 +55,5 @@ class TaxiHierarchy(_taxi.TaxiMachineAgent):
 
   @property
   def obs_size(self):
+    """The observation's length: 5 with the fuel tank, 4 for the classic taxi."""
     return 5 if self.rules.fuel_enabled else 4

@@ -253,6 +253,8 @@ class ShipRegattaVectorEnv(vector.ShipSteeringVectorEnv):
     return self._courses.copy()
 
   def reset(self, *, seed=None, options=None):
+    """Starts the copies `options["reset_mask"]` selects (every copy by default):
+    `(observations, info)`, the info with each copy's `course`."""
     observations, info = super().reset(seed=seed, options=options)
     info["course"] = self._courses.copy()
     info["_course"] = info["_event"].copy()
