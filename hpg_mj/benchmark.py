@@ -10,7 +10,10 @@ result.metrics["J"], result.metrics["J_normalized"], result.record["steps"]
   - a function from one observation to one action (`batched=True`: from a batch
     of observations, shape (n, ...), to n actions),
   - any object with Stable-Baselines3's `predict(obs, deterministic=True)`
-    (called with a batch of observations; its first return value is the actions),
+    (called with a batch of observations; its first return value is the actions;
+    one that declares an `observation_space` or `action_space` other than the
+    task's is refused: a model trained on rescaled spaces is scored as
+    `evaluate(rescaled(model, task), task)`, `hpg_mj.benchmark_spaces`),
   - or an hpg_mj agent (`hpg_mj.agents.Agent`: its own greedy episodes,
     `Agent.evaluate_fixed`),
 and sails it greedily from the fixed seeded starts of every report (start i from
@@ -66,6 +69,8 @@ from hpg_mj.experiments.bounds import (KEYS, LADDER, LEVELS, SCORES, TASKS,  # n
                                        bounds)                        # (public here)
 from hpg_mj.benchmark_tasks import (ENV_IDS, Task, _count, _start_count,  # noqa: F401
                                     fixed_starts, optimal_returns, task_of)  # (public here)
+from hpg_mj import benchmark_spaces
+from hpg_mj.benchmark_spaces import rescaled  # noqa: F401  (public here)
 from hpg_mj.hierarchy import ship_rules
 from hpg_mj.worlds import ship_core
 from hpg_mj.worlds import taxi_core
@@ -141,6 +146,7 @@ def evaluate(policy, task=None, episodes=base.GREEDY_STARTS, max_steps=None, *,
     if isinstance(policy, base.Agent):
       record = _agent_record(policy, task, episodes, seed, backend, bar)
     else:
+      benchmark_spaces.check(policy, task)
       act, batched = _actor(policy, batched)
       record = sail(act, batched, task, starts, num_envs=num_envs, backend=backend, bar=bar)
   finally:

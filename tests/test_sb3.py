@@ -258,3 +258,60 @@ def test_the_task_files_load_without_importing_torch():
   out = subprocess.run([sys.executable, "-P", "-c", code], capture_output=True, text=True,
                        check=True)
   assert out.stdout.strip() == "[]"
+
+
+# ---- the scorer's input contract (hpg_mj.benchmark_spaces) ----
+
+def test_a_model_on_rescaled_spaces_is_refused_and_scored_through_rescaled():
+  """A model trained through RescaleAction acts on [-1, 1]: evaluate refuses it in one
+  line rather than take its actions as -1..1 deg/s; `rescaled` scores it as the
+  function 15 x its action would be, and maps observations rescaled to [-1, 1] too."""
+  import gymnasium
+  from gymnasium.wrappers import RescaleAction
+  from stable_baselines3 import PPO
+
+  from hpg_mj import benchmark
+  env = RescaleAction(gymnasium.make("hpg_mj/ShipSteering-v0", backend="analytic"), -1.0, 1.0)
+  model = PPO("MlpPolicy", env, seed=0)
+  with pytest.raises(ValueError, match=r"^the policy's action_space is Box \[-1, 1\] of shape "
+                     r"\(1,\) and the task 'ship' has Box \[-15, 15\] of shape \(1,\): .*"
+                     r"benchmark.rescaled\(model, 'ship'\)"):
+    benchmark.evaluate(model, "ship", episodes=3)
+  ours = benchmark.evaluate(benchmark.rescaled(model, "ship"), "ship", episodes=20, max_steps=60)
+  by_hand = benchmark.evaluate(
+      lambda obs: 15.0 * model.predict(obs, deterministic=True)[0], "ship", episodes=20,
+      max_steps=60, batched=True)
+  np.testing.assert_array_equal(ours.record, by_hand.record)
+  assert len(np.unique(ours.record["return"])) > 1
+
+  venv = sb3_env.make_vec_env("hpg_mj/ShipSteering-v0", n_envs=2, seed=0, rescale=True,
+                              backend="analytic")
+  unit = PPO("MlpPolicy", venv, seed=0)
+  with pytest.raises(ValueError, match=r"^the policy's observation_space is Box \[-1, 1\] of "
+                     r"shape \(4,\) and the task 'ship' has Box low \[-1.8, "):
+    benchmark.evaluate(unit, "ship", episodes=3)
+  seen, raw = [], []
+  policy = benchmark.rescaled(unit, "ship")
+  policy.model = type("Spy", (), {"predict": lambda self, obs, deterministic: (
+      seen.append(np.array(obs)) or unit.predict(obs, deterministic=deterministic))})()
+  benchmark.evaluate(policy, "ship", episodes=5, max_steps=1)
+  benchmark.evaluate(lambda obs: raw.append(np.array(obs)) or np.zeros(len(obs)), "ship",
+                     episodes=5, max_steps=1, batched=True)
+  assert np.abs(seen[0]).max() <= 1.0 and np.abs(raw[0]).max() > 100.0
+  np.testing.assert_allclose(seen[0], venv.observe(raw[0]), atol=1e-6)
+
+
+def test_rescaled_refuses_what_no_affine_map_takes_to_the_task():
+  import gymnasium
+  from stable_baselines3 import PPO
+
+  from hpg_mj import benchmark
+  taxi = PPO("MlpPolicy", gymnasium.make("hpg_mj/TaxiFuel-v0"), seed=0)
+  with pytest.raises(ValueError, match=r"^the policy's observation_space is MultiDiscrete"):
+    benchmark.evaluate(taxi, "ship", episodes=2)
+  with pytest.raises(ValueError, match=r"^benchmark.rescaled: the model's observation_space "
+                     r"MultiDiscrete\(\[ 5  5  5  4 13\]\) is no rescaling of the task 'ship'"):
+    benchmark.rescaled(taxi, "ship")
+  with pytest.raises(ValueError, match=r"^benchmark.rescaled: the model has no action_space"):
+    benchmark.rescaled(type("M", (), {"observation_space": taxi.observation_space})(), "ship")
+  assert benchmark.evaluate(taxi, "taxi_fuel", episodes=3).metrics["episodes"] == 3

@@ -1,0 +1,122 @@
+"""The scorer's input contract: a policy that declares its spaces (a Stable-Baselines3
+model's `observation_space` and `action_space`) is scored only on a task whose
+spaces they are, and `rescaled` adapts one trained on rescaled spaces.
+
+A model trained through `gymnasium.wrappers.RescaleAction` (or
+`hpg_mj.envs.sb3.make_vec_env(rescale=True)`) acts on [-1, 1]; scored as it is, its
+actions would be taken as turning rates of -1 to 1 deg/s. `benchmark.evaluate`
+refuses it in one line; `rescaled(model, task)` maps the task's observations onto
+the model's observation space and its actions back onto the task's, each bounded
+Box component affinely (low to low, high to high), as the wrappers did in training.
+"""
+import numpy as np
+
+
+def task_spaces(task):
+  """(observation space, action space) of one copy of the task's Gymnasium
+  environment (`benchmark_tasks.Task`), on the analytic backend."""
+  import gymnasium
+
+  import hpg_mj  # noqa: F401  (registers the ids)
+  env = gymnasium.make(task.env_id, **task.env_kwargs("analytic"))
+  try:
+    return env.observation_space, env.action_space
+  finally:
+    env.close()
+
+
+def _same(a, b):
+  """Whether two spaces are one: of one kind and shape, with the same bounds (a Box)
+  or count (Discrete) or components (Dict, MultiDiscrete); the dtypes may differ."""
+  if type(a) is not type(b):
+    return False
+  kind = type(a).__name__
+  if kind == "Box":
+    return (a.shape == b.shape and np.allclose(a.low, b.low, equal_nan=True)
+            and np.allclose(a.high, b.high, equal_nan=True))
+  if kind == "Dict":
+    return list(a.spaces) == list(b.spaces) and all(_same(a[k], b[k]) for k in a.spaces)
+  return a == b
+
+
+def _describe(space):
+  if type(space).__name__ == "Box":
+    low, high = np.unique(space.low), np.unique(space.high)
+    bound = (f"[{low[0]:g}, {high[0]:g}]" if low.size == high.size == 1 else
+             f"low {np.round(space.low, 4).tolist()}, high {np.round(space.high, 4).tolist()}")
+    return f"Box {bound} of shape {space.shape}"
+  return repr(space)
+
+
+def check(policy, task):
+  """One line (a ValueError) if `policy` declares an observation or action space
+  that is not the task's; nothing for a policy that declares none (a function)."""
+  declared = {which: getattr(policy, f"{which}_space", None)
+              for which in ("observation", "action")}
+  if all(space is None for space in declared.values()):
+    return
+  own = dict(zip(("observation", "action"), task_spaces(task)))
+  for which, space in declared.items():
+    if space is not None and not _same(space, own[which]):
+      raise ValueError(
+          f"the policy's {which}_space is {_describe(space)} and the task {task.name!r} has "
+          f"{_describe(own[which])}: a model trained on rescaled spaces (RescaleAction, "
+          "make_vec_env(rescale=True)) is scored through benchmark.rescaled(model, "
+          f"{task.name!r}), which maps them back")
+
+
+class Rescaled:
+  """A model trained on rescaled spaces, seen in the task's (`rescaled`): `predict`
+  maps a batch of the task's observations onto the model's observation space, asks
+  the model, and maps its actions onto the task's action space. Its
+  `observation_space` and `action_space` are the task's."""
+
+  def __init__(self, model, task_name, observation_space, action_space):
+    self.model = model
+    self.observation_space, self.action_space = observation_space, action_space
+    self._obs = _affine(observation_space, model.observation_space, model.observation_space,
+                        observation_space, "observation", task_name)
+    self._act = _affine(model.action_space, action_space, model.action_space, action_space,
+                        "action", task_name)
+
+  def predict(self, obs, deterministic=True):
+    """The model's actions in the task's units for a batch of the task's observations."""
+    inner = obs if self._obs is None else (np.asarray(obs) - self._obs[0]) * self._obs[1] \
+        + self._obs[2]
+    out = self.model.predict(inner, deterministic=deterministic)
+    action = out[0] if isinstance(out, tuple) else out
+    if self._act is not None:
+      action = (np.asarray(action, dtype=np.float64) - self._act[0]) * self._act[1] + self._act[2]
+    return action, None
+
+
+def _affine(source, target, model_space, task_space, which, task_name):
+  """(source low, scale, target low) taking `source` onto `target` (x' = (x - source
+  low) * scale + target low), or None where the two are one; one line where no affine
+  map of bounded Boxes of one shape takes one to the other."""
+  if _same(source, target):
+    return None
+  boxes = type(source).__name__ == type(target).__name__ == "Box"
+  if not (boxes and source.shape == target.shape and
+          all(np.isfinite(s.low).all() and np.isfinite(s.high).all() for s in (source, target))):
+    raise ValueError(f"benchmark.rescaled: the model's {which}_space {_describe(model_space)} "
+                     f"is no rescaling of the task {task_name!r}'s {_describe(task_space)}: "
+                     "only bounded Boxes of one shape map onto each other")
+  source_low = np.asarray(source.low, dtype=np.float64)
+  target_low = np.asarray(target.low, dtype=np.float64)
+  scale = (np.asarray(target.high, dtype=np.float64) - target_low) / \
+      (np.asarray(source.high, dtype=np.float64) - source_low)
+  return source_low, scale, target_low
+
+
+def rescaled(model, task, level=None):
+  """`model` (an object with SB3's `predict` and its `observation_space`,
+  `action_space`), trained on rescaled spaces, as a policy on `task`'s own (a name,
+  a ladder task at `level`, or a task file, as `benchmark.evaluate` takes them)."""
+  from hpg_mj.benchmark_tasks import task_of
+  for which in ("observation_space", "action_space"):
+    if getattr(model, which, None) is None:
+      raise ValueError(f"benchmark.rescaled: the model has no {which}; it needs both (an SB3 "
+                       "model has them)")
+  found = task_of(task, level=level)
+  return Rescaled(model, found.name, *task_spaces(found))
