@@ -136,7 +136,7 @@ SHIP_GYMNASIUM_IDS = {"steer": "hpg_mj/ShipSteering-v0",
                       "patrol": "hpg_mj/ShipPatrol-v0"}
 # The other ship domains, whose tasks are levels: domain -> its Gymnasium id (`level=`).
 SHIP_LEVEL_IDS = {"ship_current": "hpg_mj/ShipCurrent-v0", "ship_goal": "hpg_mj/ShipGoal-v0",
-                  "ship_regatta": "hpg_mj/ShipRegatta-v0"}
+                  "ship_regatta": "hpg_mj/ShipRegatta-v0", "ship_harbour": "hpg_mj/ShipHarbour-v0"}
 
 
 def _flat(obs):
@@ -189,8 +189,19 @@ def regatta_golden_first(level):
           "course": course}
 
 
+def harbour_golden_first(level):
+  """The harbour's first golden episode (reset options): 12 m south of the level's first
+  island heading north, into it (the episode runs aground on it; those after it draw
+  their starts)."""
+  from hpg_mj.worlds import ship_harbour_core as harbour_core
+  x, y, radius = harbour_core.level_obstacles(level)[0][0]
+  return {"state": (x, y - radius - 12.0, 0.0, 0.0)}
+
+
 def _golden_first(domain, task):
   """The reset options of a ship domain's first golden episode (None: drawn)."""
+  if domain == "ship_harbour":
+    return harbour_golden_first(task)
   if domain == "ship_goal":
     return GOAL_GOLDEN_FIRST
   if domain == "ship_regatta":
@@ -237,6 +248,8 @@ def ship_mujoco_rollout(task, actions=None, domain="ship"):
     kwargs.update(initial_state=first["state"], gate=first["gate"])
   elif domain == "ship_regatta":
     kwargs.update(initial_state=first["state"], course=first["course"])
+  elif domain == "ship_harbour":
+    kwargs["initial_state"] = first["state"]
   elif domain == "ship":
     kwargs["initial_state"] = SHIP_GOLDEN_STARTS.get(task)
   env = suite.load(domain, task, kwargs)
@@ -246,6 +259,8 @@ def ship_mujoco_rollout(task, actions=None, domain="ship"):
     env.task.initial_state = env.task.gate = None
   elif domain == "ship_regatta":
     env.task.initial_state = env.task.course = None
+  elif domain == "ship_harbour":
+    env.task.initial_state = None
   rows, rewards, ends = [flat(ts)], [], []
   for a in ship_golden_actions(task) if actions is None else actions:
     ts = env.step(a)

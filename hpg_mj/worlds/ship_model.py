@@ -19,6 +19,7 @@ from numba.extending import intrinsic
 from hpg_mj import _assets
 from hpg_mj import _headless
 from hpg_mj.worlds import ship_core as core
+from hpg_mj.worlds import ship_harbour_core as harbour_core
 
 with _headless.simulation_imports():   # no GL in the simulating process (SPEC section 9)
   import mujoco as mj
@@ -163,6 +164,24 @@ def _move_gate(model, ids, posts):
   # The compiler marked the line's frame as its body's turned by nothing, and MuJoCo
   # then never reads its geom_quat: it must read it now.
   model.geom_sameframe[ids[2]] = mj.mjtSameFrame.mjSAMEFRAME_NONE
+
+
+def harbour_obstacle_geoms(model, level):
+  """(island geom ids, pier geom ids) of the harbour's `level` (`ship_harbour_core`) in a
+  model of assets/ship_harbour.xml."""
+  islands, piers = harbour_core.level_obstacles(level)
+  name = lambda kind, k: mj.mj_name2id(model, mj.mjtObj.mjOBJ_GEOM, f"{level}_{kind}{k}")
+  return [name("island", k) for k in range(len(islands))], [name("pier", k)
+                                                            for k in range(len(piers))]
+
+
+def place_harbour_obstacles(model, level):
+  """Shows the harbour `level`'s obstacles where the model has them (up from the sea) and
+  hides every other level's below the sea and the rays (`_HIDDEN_Z`)."""
+  for other in harbour_core.LEVELS:
+    islands, piers = harbour_obstacle_geoms(model, other)
+    for i in islands + piers:
+      model.geom_pos[i][2] = 10.0 if other == level else _HIDDEN_Z
 
 
 class ShipPhysics(mujoco.Physics):
