@@ -204,6 +204,7 @@ class ShipHarbourVectorEnv(vector.ShipSteeringVectorEnv):
     self.level = level
     harbour_core.level_obstacles(level, "ShipHarbourVectorEnv")
     self._islands, self._piers = harbour_core.level_shapes(level)
+    self._cells = harbour_core.level_cells(level)
     super().__init__(num_envs, "steer", backend, strict, max_steps, gate_reward,
                      out_of_bounds_reward, autoreset_mode, render_mode)
     self.who = f"ShipHarbourVectorEnv({level}, backend={backend})"
@@ -238,14 +239,15 @@ class ShipHarbourVectorEnv(vector.ShipSteeringVectorEnv):
     self._ships.control(self._states, r, active, self._samples)
     harbour_core.step_batch(
         self._states, r, active, self._samples, self._steps, self._ships.integrate,
-        self._islands, self._piers, self.rules.max_steps, self.rules.success_reward,
+        self._islands, self._piers, self._cells, self.rules.max_steps, self.rules.success_reward,
         self.rules.failure_reward, (self._event, self._reward, self._terminated,
                                     self._truncated))
     return self._reward.copy(), self._terminated.copy(), self._truncated.copy()
 
   def _observations(self):
     if self._ships.integrate:
-      harbour_core.observe_batch(self._states, self._islands, self._piers, self._obs)
+      harbour_core.observe_batch(self._states, self._islands, self._piers, self._cells,
+                                 self._obs)
     else:
       self._obs[:, :4] = self._states
       for i, ship in enumerate(self._ships.ships):

@@ -18,6 +18,7 @@ assets/ship_harbour.xml on this path.
 """
 import collections
 
+import numba
 import numpy as np
 
 from hpg_mj import _assets
@@ -46,6 +47,22 @@ obstacle_geoms = ship_model.harbour_obstacle_geoms
 place_obstacles = ship_model.place_harbour_obstacles
 
 
+@numba.njit(cache=True)
+def sail_and_sense(calls, model, data, substeps, qpos, act, bow, rows, positions, state, flags,
+                   sensordata, readings):
+  """`ship_model.sail` (`calls[0]`, mj_step), then the rangefinders where the step ended:
+  the sensor stage switched on in the mjModel's `flags` (`ship_model.disableflags_view`),
+  mj_kinematics (`calls[1]`) and mj_sensorPos (`calls[2]`), switched off again; their
+  readings into `readings`. One compiled call per control step, as the steering ship's."""
+  ship_model.sail(calls[0], model, data, substeps, qpos, act, bow, rows, positions, state)
+  flags[0] &= ~_SENSOR
+  ship_model._c_call(calls[1], model, data)
+  ship_model._c_call(calls[2], model, data)
+  flags[0] |= _SENSOR
+  for j in range(readings.shape[0]):
+    readings[j] = sensordata[j]
+
+
 class Physics(ship.Physics):
   """The steering ship on assets/ship_harbour.xml: a level's obstacles, and the
   rangefinders, read once per control step (`ranges`)."""
@@ -56,10 +73,32 @@ class Physics(ship.Physics):
     super()._reload_from_data(data)
     model = self._model_ptr
     # Off while the ship sails (six MuJoCo steps a control step would cast every ray six
-    # times); `ranges` casts them once, where the step ended.
+    # times); they are cast once, where the step ended.
     model.opt.disableflags |= _SENSOR
     self._sensordata = self._data_ptr.sensordata
     self.level = None
+    self._flags = ship_model.disableflags_view(model)
+    self._calls = np.array([ship_model.MJ_STEP, ship_model.MJ_KINEMATICS,
+                            ship_model.MJ_SENSOR_POS], dtype=np.int64)
+    self._sensing = None
+    self._readings = None     # the readings of the last step, until the ship is moved
+
+  def set_ship_state(self, state):
+    self._readings = None
+    super().set_ship_state(state)
+
+  def _sail(self, substeps, rows, positions, state):
+    if self._flags is None or not self._calls.all():   # the bindings' way, then read
+      super()._sail(substeps, rows, positions, state)
+      self._readings = None
+      return
+    readings = self._readings = np.empty(harbour_core.RAYS)
+    args = (self._calls, self._addresses[0], self._addresses[1], substeps, self._qpos,
+            self._act, self._bow, rows, positions, state, self._flags, self._sensordata,
+            readings)
+    if self._sensing is None:      # numba's code for these types, typed once
+      self._sensing = sail_and_sense.compile(tuple(numba.typeof(a) for a in args))
+    self._sensing(*args)
 
   def place_obstacles(self, level):
     """The obstacles of `level` on the sea, every other level's hidden."""
@@ -69,7 +108,10 @@ class Physics(ship.Physics):
 
   def rangefinder_readings(self):
     """MuJoCo's rangefinder readings (m; -1 where a ray meets nothing) of the ship where it
-    is now: its kinematics, then the position-stage sensors, those alone enabled."""
+    is now (a new array): those the last step cast where it ended, or its kinematics,
+    then the position-stage sensors, those alone enabled."""
+    if self._readings is not None:
+      return self._readings.copy()
     model, data = self._model_ptr, self._data_ptr
     flags = model.opt.disableflags
     model.opt.disableflags = flags & ~_SENSOR

@@ -39,6 +39,11 @@ from hpg_mj.worlds import ship_core as core
 # takes about 24 s with the 5 s lag).
 BEARINGS_DEG = (-90.0, -60.0, -30.0, 0.0, 30.0, 60.0, 90.0)
 RAYS = len(BEARINGS_DEG)
+# Each ray's direction is the heading's turned by its bearing: the sum formulas on the
+# heading's one sine and cosine (a ship's step casts seven rays; 14 more sines and
+# cosines were most of the batch's step).
+_BEARING_SIN = np.array([math.sin(math.radians(b)) for b in BEARINGS_DEG])
+_BEARING_COS = np.array([math.cos(math.radians(b)) for b in BEARINGS_DEG])
 MAX_RANGE_M = 150.0
 OBSERVATION_SIZE = 4 + RAYS
 
@@ -102,6 +107,43 @@ def level_shapes(level):
   islands.setflags(write=False)
   frames.setflags(write=False)
   return islands, frames
+
+
+CELL_M = 25.0                    # the grid of obstacles near each cell (`level_cells`)
+CELLS = int(core.FIELD_SIZE / CELL_M)
+_TOUCH_REACH_M = 4.0             # > a control step's sailing (1.8 m) and a step off the field
+
+
+@functools.cache
+def level_cells(level):
+  """(2, CELLS, CELLS) int64 bit masks, read-only, of `level`'s obstacles (bit k: the k-th,
+  islands first) that a ship in each 25 m cell may see within MAX_RANGE_M ([0]) or touch
+  in one control step ([1]): the rays and the rule test those alone (most ships are near
+  few obstacles or none). Cells are measured from their centres with the half diagonal
+  and 2 m more (the last position of a step off the field lies in an edge cell)."""
+  islands, piers = level_shapes(level)
+  if len(islands) + len(piers) > 62:
+    raise ValueError(f"ship harbour: level {level!r} has more than 62 obstacles")
+  out = np.zeros((2, CELLS, CELLS), dtype=np.int64)
+  slack = CELL_M * math.sqrt(0.5) + 2.0
+  for i in range(CELLS):
+    for j in range(CELLS):
+      x, y = (i + 0.5) * CELL_M, (j + 0.5) * CELL_M
+      for k in range(len(islands) + len(piers)):
+        for which, reach in enumerate((MAX_RANGE_M, _TOUCH_REACH_M)):
+          if _within(x, y, islands, piers, k, reach + slack):
+            out[which, i, j] |= 1 << k
+  out.setflags(write=False)
+  return out
+
+
+@numba.njit(cache=True, inline="always")
+def _cell_mask(cells, which, x, y):
+  """`level_cells`' mask `which` of the cell of (x, y), clamped onto the field's cells."""
+  last = cells.shape[1] - 1
+  i = min(max(int(math.floor(x / CELL_M)), 0), last)
+  j = min(max(int(math.floor(y / CELL_M)), 0), last)
+  return cells[which, i, j]
 
 
 # ---- geometry: rays and segments against circles and rectangles ---------------------
@@ -196,30 +238,72 @@ def segment_touches(p0x, p0y, p1x, p1y, islands, piers, margin):
 
 # ---- one control step: the rule, and what the ship sees ------------------------------
 
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _within(x, y, islands, piers, k, reach):
+  """Whether (x, y) lies within `reach` m of obstacle k (the islands first, then the
+  piers), on squared distances (no square root: every ship tests every obstacle at
+  every step)."""
+  if k < islands.shape[0]:
+    dx, dy, grown = x - islands[k, 0], y - islands[k, 1], islands[k, 2] + reach
+    return dx * dx + dy * dy <= grown * grown
+  pier = piers[k - islands.shape[0]]
+  rx, ry = x - pier[0], y - pier[1]
+  qx = max(abs(rx * pier[2] + ry * pier[3]) - pier[4], 0.0)
+  qy = max(abs(rx * pier[3] - ry * pier[2]) - pier[5], 0.0)
+  return qx * qx + qy * qy <= reach * reach
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _near(samples, islands, piers, cells):
+  """A bit mask of the obstacles within reach of a step's track (those nearer its first
+  sample than its farthest sample is): the only ones its segments can touch."""
+  candidates = _cell_mask(cells, 1, samples[0, 0], samples[0, 1])
+  if candidates == 0:
+    return 0
+  reach2 = 0.0
+  for k in range(1, samples.shape[0]):
+    dx, dy = samples[k, 0] - samples[0, 0], samples[k, 1] - samples[0, 1]
+    reach2 = max(reach2, dx * dx + dy * dy)
+  reach = math.sqrt(reach2) * (1.0 + 1e-9) + 1e-9
+  mask = 0
+  for k in range(islands.shape[0] + piers.shape[0]):
+    if candidates & (1 << k) and _within(samples[0, 0], samples[0, 1], islands, piers, k,
+                                         reach):
+      mask |= 1 << k
+  return mask
+
+
 @numba.njit(cache=True, error_model="numpy")
-def harbour_event(samples, islands, piers):
+def harbour_event(samples, islands, piers, cells):
   """(event, k) of one control step's sampled positions (the module's rule): SUCCESS at
   the gate, FAILURE off the field, AGROUND on touching an obstacle, the first in time;
   k the sample at which it happened (NO_EVENT, 0 when none)."""
   gate = core.GATE
+  near = _near(samples, islands, piers, cells)   # mostly none: no segment tests at all
+  n = islands.shape[0]
   for k in range(1, samples.shape[0]):
     x0, y0, x1, y1 = samples[k - 1, 0], samples[k - 1, 1], samples[k, 0], samples[k, 1]
     if core.segment_crosses(x0, y0, x1, y1, gate[0, 0], gate[0, 1], gate[1, 0], gate[1, 1]):
       return core.SUCCESS, k
     if x1 < 0.0 or x1 > core.FIELD_SIZE or y1 < 0.0 or y1 > core.FIELD_SIZE:
       return core.FAILURE, k
-    if segment_touches(x0, y0, x1, y1, islands, piers, 0.0):
-      return AGROUND, k
+    if near:
+      for j in range(n + piers.shape[0]):
+        if near & (1 << j) and segment_touches(x0, y0, x1, y1, islands[j:j + 1] if j < n
+                                               else islands[:0], piers[j - n:j - n + 1]
+                                               if j >= n else piers[:0], 0.0):
+          return AGROUND, k
   return core.NO_EVENT, 0
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def ship_outcome(samples, islands, piers, steps, max_steps, gate_reward, out_of_bounds_reward):
+def ship_outcome(samples, islands, piers, cells, steps, max_steps, gate_reward,
+                 out_of_bounds_reward):
   """(event, reward, terminated, truncated) of one ship's control step, `steps` control
   steps in (this one counted): -1, `gate_reward` more at the gate,
   `out_of_bounds_reward` more off the field or on an obstacle; truncated after
   `max_steps`."""
-  event, _ = harbour_event(samples, islands, piers)
+  event, _ = harbour_event(samples, islands, piers, cells)
   reward = core.STEP_REWARD
   if event == core.SUCCESS:
     reward += gate_reward
@@ -230,8 +314,8 @@ def ship_outcome(samples, islands, piers, steps, max_steps, gate_reward, out_of_
 
 
 @numba.njit(cache=True, error_model="numpy")
-def step_batch(states, r_deg, active, samples, steps, integrate, islands, piers, max_steps,
-               gate_reward, out_of_bounds_reward, outcome):
+def step_batch(states, r_deg, active, samples, steps, integrate, islands, piers, cells,
+               max_steps, gate_reward, out_of_bounds_reward, outcome):
   """One control step of every `active` ship of a batch. With `integrate` the ships sail
   Equation 1 here (`ship_core.sail_batch`); without it `samples` and `states` already
   hold the step (the MuJoCo ships). Each active ship's `steps` grows by one and
@@ -244,25 +328,64 @@ def step_batch(states, r_deg, active, samples, steps, integrate, islands, piers,
       continue
     steps[i] += 1
     event[i], reward[i], terminated[i], truncated[i] = ship_outcome(
-        samples[i], islands, piers, steps[i], max_steps, gate_reward, out_of_bounds_reward)
+        samples[i], islands, piers, cells, steps[i], max_steps, gate_reward,
+        out_of_bounds_reward)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def ranges_into(state, islands, piers, out, at):
-  """The rangefinders' readings of the ship at `state` into out[at:at + RAYS]."""
+def _nearest(t0, t1, best):
+  """The first crossing t0, else t1 from inside, where it is nearer than `best`."""
+  t = t0 if t0 >= 0.0 else t1
+  return t if 0.0 <= t < best else best
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def ranges_into(state, islands, piers, cells, out, at):
+  """The rangefinders' readings of the ship at `state` into out[at:at + RAYS]: for each
+  obstacle within MAX_RANGE_M, each ray's first crossing of it (`ray_distance`'s
+  arithmetic, with what each obstacle shares among the rays worked out once and the
+  rays' directions by the sum formulas)."""
+  px, py = state[0], state[1]
   for j in range(RAYS):
-    rad = math.radians(state[2] + BEARINGS_DEG[j])
-    out[at + j] = ray_distance(state[0], state[1], math.sin(rad), math.cos(rad), islands,
-                               piers, MAX_RANGE_M)
+    out[at + j] = MAX_RANGE_M
+  candidates = _cell_mask(cells, 0, px, py)
+  if candidates == 0:
+    return
+  rad = math.radians(state[2])
+  sin, cos = math.sin(rad), math.cos(rad)
+  n = islands.shape[0]
+  for k in range(n + piers.shape[0]):
+    if not candidates & (1 << k) or not _within(px, py, islands, piers, k, MAX_RANGE_M):
+      continue
+    if k < n:
+      ox, oy = px - islands[k, 0], py - islands[k, 1]
+      c = ox * ox + oy * oy - islands[k, 2] * islands[k, 2]
+      for j in range(RAYS):
+        dx = sin * _BEARING_COS[j] + cos * _BEARING_SIN[j]
+        dy = cos * _BEARING_COS[j] - sin * _BEARING_SIN[j]
+        b = ox * dx + oy * dy
+        disc = b * b - c
+        if disc < 0.0 or (c > 0.0 and b > 0.0):      # missed, or outside and moving away
+          continue
+        root = math.sqrt(disc)
+        out[at + j] = _nearest(-b - root, -b + root, out[at + j])
+    else:
+      pier = piers[k - n]
+      for j in range(RAYS):
+        dx = sin * _BEARING_COS[j] + cos * _BEARING_SIN[j]
+        dy = cos * _BEARING_COS[j] - sin * _BEARING_SIN[j]
+        t0, t1 = _box_hits(px, py, dx, dy, pier, -np.inf, np.inf)
+        if t0 <= t1:
+          out[at + j] = _nearest(t0, t1, out[at + j])
 
 
 @numba.njit(cache=True, error_model="numpy")
-def observe_batch(states, islands, piers, out):
+def observe_batch(states, islands, piers, cells, out):
   """Each ship's observation, its state then its ranges, into the rows of `out`."""
   for i in range(states.shape[0]):
     for j in range(4):
       out[i, j] = states[i, j]
-    ranges_into(states[i], islands, piers, out[i], 4)
+    ranges_into(states[i], islands, piers, cells, out[i], 4)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -280,12 +403,36 @@ def inside(x, y, islands, piers):
   return segment_touches(x, y, x, y, islands, piers, 0.0)
 
 
+@numba.njit(cache=True, error_model="numpy")
+def start_of(draws, size, islands, piers, state):
+  """The start of `draws`, four uniforms on [0, 1) for the steering task's theta_deg,
+  theta_dot_deg, x and y in its order, scaled as numpy's `uniform` scales them (`low +
+  (high - low) * u`, to the bit), into `state` [x, y, theta_deg, theta_dot_deg]; False
+  where its position lies on an obstacle."""
+  theta = -180.0 + 360.0 * draws[0]
+  state[3] = -core.MAX_TURN_RATE + (2.0 * core.MAX_TURN_RATE) * draws[1]
+  state[0] = 0.0 + size * draws[2]
+  state[1] = 0.0 + size * draws[3]
+  state[2] = core.wrap_deg(theta)
+  return not inside(state[0], state[1], islands, piers)
+
+
+@functools.cache
+def _start_entry():
+  """`start_of`'s entry point for one start's arrays (a batch resets a few copies every
+  step; numba's dispatcher would type the arguments again at each)."""
+  f64 = numba.float64
+  return start_of.compile((f64[::1], f64, f64[:, ::1], f64[:, ::1], f64[::1]))
+
+
 def sample_start(rules, random, islands, piers):
-  """The steering task's uniform start (`rules.sample_start`), drawn again while its
-  position lies on an obstacle, from `random` (a Generator or RandomState)."""
+  """The steering task's uniform start (`rules.sample_start`: the same draws, to the bit,
+  from one call of the generator: its four `uniform`s cost a reset most of its time),
+  drawn again while its position lies on an obstacle; `random` a Generator or
+  RandomState."""
+  entry, state, size = _start_entry(), np.empty(4), float(rules.size)
   for _ in range(_START_TRIES):
-    state = rules.sample_start(random)
-    if not inside(state[0], state[1], islands, piers):
+    if entry(random.random(4), size, islands, piers, state):
       return state
   raise RuntimeError("ship harbour: no start off the obstacles in 10,000 draws")
 
@@ -304,8 +451,9 @@ def _one_ship():
   """`ship_outcome`'s and `ranges_into`'s entry points for one ship's arrays: numba's
   dispatcher would type their arguments again at each step (most of the call)."""
   f64, i64 = numba.float64, numba.int64
-  step = ship_outcome.compile((f64[:, ::1], f64[:, ::1], f64[:, ::1], i64, i64, f64, f64))
-  seen = ranges_into.compile((f64[::1], f64[:, ::1], f64[:, ::1], f64[::1], i64))
+  cells = i64[:, :, ::1]
+  step = ship_outcome.compile((f64[:, ::1], f64[:, ::1], f64[:, ::1], cells, i64, i64, f64, f64))
+  seen = ranges_into.compile((f64[::1], f64[:, ::1], f64[:, ::1], cells, f64[::1], i64))
   return step, seen
 
 
@@ -316,6 +464,7 @@ class OneShip:
   def __init__(self, level, max_steps, gate_reward=GATE_REWARD,
                out_of_bounds_reward=OUT_OF_BOUNDS_REWARD):
     self.islands, self.piers = level_shapes(level)
+    self.cells = level_cells(level)
     self.max_steps = int(max_steps)
     self.rewards = (float(gate_reward), float(out_of_bounds_reward))
     self._step, self._ranges = _one_ship()
@@ -323,7 +472,8 @@ class OneShip:
   def __call__(self, samples, steps):
     """(event, reward, terminated, truncated) after a control step that sampled `samples`
     (float64, C order), `steps` control steps in (this one counted)."""
-    return self._step(samples, self.islands, self.piers, steps, self.max_steps, *self.rewards)
+    return self._step(samples, self.islands, self.piers, self.cells, steps, self.max_steps,
+                      *self.rewards)
 
   def observe(self, state, readings=None):
     """The observation (a new array): `state` (float64, C order), then the ranges, the
@@ -331,7 +481,7 @@ class OneShip:
     out = np.empty(OBSERVATION_SIZE)
     out[:4] = state
     if readings is None:
-      self._ranges(state, self.islands, self.piers, out, 4)
+      self._ranges(state, self.islands, self.piers, self.cells, out, 4)
     else:
       seen_ranges(readings, out, 4)
     return out

@@ -86,16 +86,17 @@ def test_the_rays_in_closed_form_are_mujocos_rangefinders(physics, level):
 
 def test_ranges_in_closed_form():
   islands, piers = harbour_core.level_shapes("hard")
+  cells = harbour_core.level_cells("hard")
   out = np.empty(harbour_core.RAYS)
   # 60 m south of the island (400, 540) r 50 heading north: 10 m ahead, the rays at
   # 30 degrees meet it at 10.4 m... from sqrt(50^2 - (60 sin 30)^2) less 60 cos 30.
-  harbour_core.ranges_into(np.array([400.0, 480.0, 0.0, 0.0]), islands, piers, out, 0)
+  harbour_core.ranges_into(np.array([400.0, 480.0, 0.0, 0.0]), islands, piers, cells, out, 0)
   slant = 60.0 * math.cos(math.radians(30.0)) - math.sqrt(50.0 ** 2 - 30.0 ** 2)
   np.testing.assert_allclose(out, [150.0, 150.0, slant, 10.0, slant, 150.0, 150.0],
                              rtol=1e-14)
   # Heading east 50 m north of the breakwater's centre line: the starboard beam reads
   # the distance to its face (50 - 6 m); the pier at x = 220 is behind.
-  harbour_core.ranges_into(np.array([250.0, 450.0, 90.0, 0.0]), islands, piers, out, 0)
+  harbour_core.ranges_into(np.array([250.0, 450.0, 90.0, 0.0]), islands, piers, cells, out, 0)
   assert out[6] == 44.0 and out[0] == 150.0
   readings = np.array([-1.0, 3.5, 150.0, 151.0, 0.0, 20.0, -1.0])
   harbour_core.seen_ranges(readings, out, 0)
@@ -124,6 +125,26 @@ def test_touching_an_obstacle_ends_the_episode_with_the_out_of_bounds_penalty():
   assert custom(samples, 1) == (harbour_core.AGROUND, -301.0, True, False)
 
 
+@pytest.mark.parametrize("level", LEVELS)
+def test_the_cells_prune_no_obstacle_a_step_can_touch(level):
+  # Steps from everywhere, many near an obstacle: the rule, which tests only the
+  # obstacles its 25 m cell lists, runs aground exactly where testing every obstacle does.
+  islands, piers = harbour_core.level_shapes(level)
+  cells = harbour_core.level_cells(level)
+  rng = np.random.default_rng(2)
+  samples, aground = np.empty((4, 2)), 0
+  for x, y, theta, rate in zip(rng.uniform(-1, 1001, 4000), rng.uniform(-1, 1001, 4000),
+                               rng.uniform(-180, 180, 4000), rng.uniform(-15, 15, 4000)):
+    core.euler_control(np.array([x, y, theta, rate]), 0.0, samples)
+    event, _ = harbour_core.harbour_event(samples, islands, piers, cells)
+    touched = any(harbour_core.segment_touches(*samples[k - 1], *samples[k], islands, piers, 0.0)
+                  for k in range(1, 4))
+    assert (event == harbour_core.AGROUND) == (touched and event != core.SUCCESS
+                                               and event != core.FAILURE)
+    aground += event == harbour_core.AGROUND
+  assert aground > 30
+
+
 def test_bad_levels_and_starts_are_one_line_errors():
   with pytest.raises(ValueError, match=r"^ship harbour: unknown level 'windy'; allowed levels: "
                                        r"\['easy', 'medium', 'hard'\]$"):
@@ -145,3 +166,7 @@ def test_the_mujoco_model_is_the_steering_ship_bit_for_bit(physics):
       p.set_turn_command(r)
       p.step(6)
     np.testing.assert_array_equal(physics.stepped_state, steer.stepped_state)
+    # The rays cast in the step's compiled call are those cast afresh where it ended.
+    cast = physics.rangefinder_readings()
+    physics._readings = None
+    np.testing.assert_array_equal(physics.rangefinder_readings(), cast)
