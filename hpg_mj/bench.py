@@ -126,7 +126,7 @@ def bench_envs(min_seconds=1.0):
   rows.append(("dm_control ship steer (MuJoCo)", "control steps/s",
                _bench_dm_env(suite.load("ship", "steer", {"random": 0}), np.array([5.0]),
                              min_seconds)))
-  for domain in ("ship_current", "ship_goal", "ship_regatta"):
+  for domain in ("ship_current", "ship_goal", "ship_regatta", "ship_harbour"):
     rows.append((f"dm_control {domain} hard (MuJoCo)", "control steps/s",
                  _bench_dm_env(suite.load(domain, "hard", {"random": 0}), np.array([5.0]),
                                min_seconds)))
@@ -140,7 +140,7 @@ def bench_envs(min_seconds=1.0):
   env = gymnasium.make_vec("hpg_mj/ShipSteering-v0", 1024, backend="analytic")
   rows.append(("Gymnasium ShipSteering-v0 analytic, make_vec batch of 1024", "control steps/s",
                _bench_vector_env(env, rng.uniform(-15, 15, (97, 1024, 1)), min_seconds)))
-  for name in ("ShipCurrent", "ShipGoal", "ShipRegatta"):    # the ladder's, at their hardest
+  for name in ("ShipCurrent", "ShipGoal", "ShipRegatta", "ShipHarbour"):   # the ladder's, hardest
     env = gymnasium.make_vec(f"hpg_mj/{name}-v0", 1024, level="hard", backend="analytic")
     rows.append((f"Gymnasium {name}-v0 hard analytic, make_vec batch of 1024",
                  "control steps/s",
@@ -149,7 +149,7 @@ def bench_envs(min_seconds=1.0):
   rows.append(("Gymnasium ShipSteering-v0 mujoco, make_vec batch of 16 (loop)",
                "control steps/s",
                _bench_vector_env(env, rng.uniform(-15, 15, (97, 16, 1)), min_seconds, 20)))
-  for name in ("ShipCurrent", "ShipGoal", "ShipRegatta"):
+  for name in ("ShipCurrent", "ShipGoal", "ShipRegatta", "ShipHarbour"):
     env = gymnasium.make_vec(f"hpg_mj/{name}-v0", 16, level="hard", backend="mujoco")
     rows.append((f"Gymnasium {name}-v0 hard mujoco, make_vec batch of 16 (loop)",
                  "control steps/s",

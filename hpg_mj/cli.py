@@ -50,9 +50,19 @@ def _cmd_verify(args):
           "at the rule's, >= 95% the continuous ship's gates and ends):",
           "met" if ok else "NOT MET")
     return 0 if ok else 1
+  if args.what == "harbour":
+    results = verify.verify_harbour(episodes=args.starts, seed=args.seed)
+    print(f"harbour: {args.starts} episodes per level of the steering helmsman (blind to the "
+          "obstacles) on the analytic ship, its turning rates replayed on the MuJoCo ship")
+    for result in results:
+      print(result.line())
+    ok = all(result.passed for result in results)
+    print("  bounds (< 1.5 m apart, >= 95% same ends, rangefinders within 1e-9 m of the "
+          "closed form, obstacle geoms at the rule's):", "met" if ok else "NOT MET")
+    return 0 if ok else 1
   if args.what != "ship":
     raise SystemExit(f"hpg-mj verify: unknown check {args.what!r}; valid: ship, current, goal, "
-                     "regatta, golden")
+                     "regatta, harbour, golden")
   result = verify.verify_ship(controls=args.controls, starts=args.starts, seed=args.seed)
   print("\n".join(result.lines()))
   # SPEC section 1: within 0.25 m and 0.25 deg, and at most half the Euler model's error.
@@ -418,8 +428,11 @@ def build_parser():
                                     "(--starts episodes per level); "
                                     "regatta: the regatta's two ships, course by course "
                                     "(--starts courses per level); "
+                                    "harbour: the harbour's two ships and rangefinders, "
+                                    "episode by episode (--starts episodes per level); "
                                     "golden: every task's stored trajectory, replayed")
-  p.add_argument("what", choices=["ship", "current", "goal", "regatta", "golden"])
+  p.add_argument("what",
+                 choices=["ship", "current", "goal", "regatta", "harbour", "golden"])
   p.add_argument("--controls", type=_at_least(1), default=1000,
                  help="random 0.6 s controls per start")
   p.add_argument("--starts", type=_at_least(1), default=3, help="random starting states")

@@ -7,10 +7,10 @@ env = suite.load("ship", "steer")
 
 Domains and tasks are listed in `ALL_TASKS`, as in `dm_control.suite`.
 """
-from hpg_mj.worlds import ship, ship_current, ship_goal, ship_regatta, taxi
+from hpg_mj.worlds import ship, ship_current, ship_goal, ship_harbour, ship_regatta, taxi
 
 _DOMAINS = {"ship": ship, "taxi": taxi, "ship_current": ship_current, "ship_goal": ship_goal,
-            "ship_regatta": ship_regatta}
+            "ship_regatta": ship_regatta, "ship_harbour": ship_harbour}
 
 # (domain_name, task_name) for every task, in a fixed order.
 ALL_TASKS = tuple((domain_name, task_name)
@@ -25,8 +25,8 @@ def load(domain_name, task_name, task_kwargs=None, environment_kwargs=None,
   """Returns the dm_control environment of a domain and task.
 
   Args:
-    domain_name: `"ship"`, `"taxi"`, `"ship_current"`, `"ship_goal"` or
-      `"ship_regatta"`.
+    domain_name: `"ship"`, `"taxi"`, `"ship_current"`, `"ship_goal"`,
+      `"ship_regatta"` or `"ship_harbour"`.
     task_name: a task of that domain (see `TASKS_BY_DOMAIN`).
     task_kwargs: keyword arguments for the task constructor (for example
       `{"random": 0}` for a seed).

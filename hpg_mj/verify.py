@@ -1,6 +1,7 @@
 """`hpg-mj verify ship`: the two ships against the continuous ODE (SPEC section 1);
 `hpg-mj verify current`: the two ships in each level's current, likewise;
 `hpg-mj verify goal`, `hpg-mj verify regatta`: the two ships' episodes of those tasks;
+`hpg-mj verify harbour`: the two ships' episodes and MuJoCo's rangefinders;
 `hpg-mj verify golden`: the stored golden trajectories of every task, replayed.
 
 The continuous ship: d(theta_dot)/dt = (r - theta_dot)/T, d(theta)/dt = theta_dot,
@@ -9,6 +10,7 @@ Heading and turning rate have a closed form; the position is its integral,
 taken with 24-point Gauss-Legendre quadrature on every 0.2 s interval (the
 integrand is smooth, so this is exact to rounding).
 """
+import collections
 import dataclasses
 
 import numpy as np
@@ -139,7 +141,7 @@ SHIP_GYMNASIUM_IDS = {"steer": "hpg_mj/ShipSteering-v0",
                       "patrol": "hpg_mj/ShipPatrol-v0"}
 # The other ship domains, whose tasks are levels: domain -> its Gymnasium id (`level=`).
 SHIP_LEVEL_IDS = {"ship_current": "hpg_mj/ShipCurrent-v0", "ship_goal": "hpg_mj/ShipGoal-v0",
-                  "ship_regatta": "hpg_mj/ShipRegatta-v0"}
+                  "ship_regatta": "hpg_mj/ShipRegatta-v0", "ship_harbour": "hpg_mj/ShipHarbour-v0"}
 
 
 def _flat(obs):
@@ -192,8 +194,19 @@ def regatta_golden_first(level):
           "course": course}
 
 
+def harbour_golden_first(level):
+  """The harbour's first golden episode (reset options): 12 m south of the level's first
+  island heading north, into it (the episode runs aground on it; those after it draw
+  their starts)."""
+  from hpg_mj.worlds import ship_harbour_core as harbour_core
+  x, y, radius = harbour_core.level_obstacles(level)[0][0]
+  return {"state": (x, y - radius - 12.0, 0.0, 0.0)}
+
+
 def _golden_first(domain, task):
   """The reset options of a ship domain's first golden episode (None: drawn)."""
+  if domain == "ship_harbour":
+    return harbour_golden_first(task)
   if domain == "ship_goal":
     return GOAL_GOLDEN_FIRST
   if domain == "ship_regatta":
@@ -240,6 +253,8 @@ def ship_mujoco_rollout(task, actions=None, domain="ship"):
     kwargs.update(initial_state=first["state"], gate=first["gate"])
   elif domain == "ship_regatta":
     kwargs.update(initial_state=first["state"], course=first["course"])
+  elif domain == "ship_harbour":
+    kwargs["initial_state"] = first["state"]
   elif domain == "ship":
     kwargs["initial_state"] = SHIP_GOLDEN_STARTS.get(task)
   env = suite.load(domain, task, kwargs)
@@ -249,6 +264,8 @@ def ship_mujoco_rollout(task, actions=None, domain="ship"):
     env.task.initial_state = env.task.gate = None
   elif domain == "ship_regatta":
     env.task.initial_state = env.task.course = None
+  elif domain == "ship_harbour":
+    env.task.initial_state = None
   rows, rewards, ends = [flat(ts)], [], []
   for a in ship_golden_actions(task) if actions is None else actions:
     ts = env.step(a)
@@ -693,4 +710,95 @@ def verify_regatta(episodes=20, seed=0, levels=None):
       posts_off = max(posts_off, float(np.abs(drawn - posts).max()))
     results.append(RegattaVerification(level, episodes, finishes, *worst, mujoco_same,
                                        euler_same, posts_off))
+  return results
+
+
+# ---- `hpg-mj verify harbour`: the harbour's two ships and their rangefinders ----------
+
+@dataclasses.dataclass
+class HarbourVerification:
+  level: str
+  episodes: int
+  gates: int              # episodes the (blind) helmsman sailed through the gate
+  aground: int            # ... that ran aground on an obstacle
+  same: int               # MuJoCo episodes ending as the analytic ones, within a step
+  largest_m: float        # the two ships apart, largest
+  ranges_m: float         # MuJoCo's rangefinders against the closed form at its states
+  geoms_m: float          # the MuJoCo obstacles against the rule's shapes
+
+  def line(self):
+    return (f"  {self.level:<7} {self.episodes} episodes: gate {self.gates}, aground "
+            f"{self.aground}; MuJoCo ends alike {self.same}, ships at most "
+            f"{self.largest_m:.3f} m apart; rangefinders off the closed form by "
+            f"{self.ranges_m:.1e} m; obstacle geoms off the rule's by {self.geoms_m:.1e} m")
+
+  @property
+  def passed(self):
+    """The goal task's bounds (ships within 1.5 m, >= 95% alike ends), the rays within
+    1e-9 m of the closed form and the geoms at the rule's shapes."""
+    return (self.largest_m < 1.5 and self.same >= 0.95 * self.episodes
+            and self.ranges_m < 1e-9 and self.geoms_m < 1e-9)
+
+
+def _harbour_episode(env, seed, actions=None, start=None, steps=1500):
+  """(observations, events, turning rates) of one episode of `env` (a ShipHarbourEnv):
+  the steering task's helmsman (blind to the obstacles), or `actions` replayed (the
+  last held for one more control step, should the episode not have ended)."""
+  obs, _ = env.reset(seed=seed, options=start)
+  rows, events, chosen, phase = [obs], [None], [], 0
+  for t in range(steps if actions is None else len(actions) + 1):
+    if actions is None:
+      tx, ty, phase = core.gate_pilot_target(obs[:4], phase)
+      r = core.pilot_turn_rate(obs[:4], tx, ty)
+    else:
+      r = actions[min(t, len(actions) - 1)]
+    obs, _, terminated, truncated, info = env.step(np.array([r]))
+    rows.append(obs)
+    events.append(info["event"])
+    chosen.append(r)
+    if terminated or truncated:
+      break
+  return np.array(rows), events, chosen
+
+
+def verify_harbour(episodes=20, seed=0, levels=None):
+  """Per level, `episodes` episodes of the steering task's helmsman on the analytic
+  harbour, its turning rates replayed on the MuJoCo harbour from the same start: their
+  ends, the ships apart, MuJoCo's rangefinders against the closed-form rays at the
+  MuJoCo ship's states, and the obstacle geoms against the rule's shapes."""
+  import gymnasium
+
+  import hpg_mj  # noqa: F401  (registers the ids)
+  from hpg_mj.worlds import ship_harbour_core as harbour_core
+  from hpg_mj.worlds import ship_model
+  if episodes < 1:
+    raise ValueError(f"episodes must be positive, got {episodes}")
+  results = []
+  for level in levels or tuple(harbour_core.LEVELS):
+    harbour_core.level_obstacles(level, "hpg-mj verify harbour")
+    analytic = gymnasium.make("hpg_mj/ShipHarbour-v0", level=level,
+                              backend="analytic").unwrapped
+    mujoco = gymnasium.make("hpg_mj/ShipHarbour-v0", level=level, backend="mujoco").unwrapped
+    one = harbour_core.OneShip(level, core.STEER_MAX_STEPS)
+    counts, largest, ranges = collections.Counter(), 0.0, 0.0
+    for episode in range(episodes):
+      rows, events, actions = _harbour_episode(analytic, seed * 100_003 + episode)
+      replay, replay_events, _ = _harbour_episode(mujoco, None, actions,
+                                                  {"state": rows[0, :4]})
+      n = min(len(rows), len(replay))
+      largest = max(largest, float(np.hypot(*(rows[:n, :2] - replay[:n, :2]).T).max()))
+      closed = np.array([one.observe(np.ascontiguousarray(o[:4]))[4:] for o in replay])
+      ranges = max(ranges, float(np.abs(closed - replay[:, 4:]).max()))
+      counts[events[-1]] += 1
+      counts["same"] += (abs(len(replay) - len(rows)) <= 1
+                         and replay_events[-1] == events[-1])
+    model = mujoco.backend.physics.model.ptr
+    islands, piers = harbour_core.level_shapes(level)
+    island_ids, pier_ids = ship_model.harbour_obstacle_geoms(model, level)
+    drawn = [np.abs(model.geom_pos[i][:2] - row[:2]).max() for i, row in
+             zip(island_ids + pier_ids, list(islands) + list(piers))]
+    drawn += [abs(model.geom_size[i][0] - row[2]) for i, row in zip(island_ids, islands)]
+    drawn += [np.abs(model.geom_size[i][:2] - row[4:]).max() for i, row in zip(pier_ids, piers)]
+    results.append(HarbourVerification(level, episodes, counts["gate"], counts["obstacle"],
+                                       counts["same"], largest, ranges, float(max(drawn))))
   return results

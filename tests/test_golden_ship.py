@@ -61,12 +61,13 @@ def test_verify_golden_passes_every_task_and_fails_a_changed_one(tmp_path, capsy
   rows = [line.split() for line in out[1:-1]]
   assert [r[0] for r in rows] == ["ship/steer"] * 2 + ["ship/diagonal"] * 2 + \
       ["ship/straight"] * 2 + ["ship/patrol"] * 2 + ["taxi/fuel", "taxi/classic"] + \
-      [f"{domain}/{level}" for domain in ("ship_current", "ship_goal", "ship_regatta")
+      [f"{domain}/{level}" for domain in ("ship_current", "ship_goal", "ship_regatta",
+                                           "ship_harbour")
        for level in ("easy", "medium", "hard") for _ in range(2)]
   assert all("pass" in r for r in rows), out
   assert "largest deviation 0 (tolerance exact)" in out[1]          # the analytic ship
   assert "(tolerance 1e-06)" in out[2]                              # the MuJoCo ship
-  assert out[-1] == "  28 of 28 passed"
+  assert out[-1] == "  34 of 34 passed"
   # A stored trajectory that the installed code no longer gives fails, with its deviation.
   changed = tmp_path / "golden"
   shutil.copytree(GOLDEN, changed)
@@ -80,4 +81,4 @@ def test_verify_golden_passes_every_task_and_fails_a_changed_one(tmp_path, capsy
   out = capsys.readouterr().out
   assert "ship/diagonal  MuJoCo (dm_control)    FAIL  largest deviation 0.001 (tolerance 1e-06)" in out
   assert "taxi/classic   -                      FAIL  no golden trajectory stored" in out
-  assert "26 of 28 passed; FAILED: ship/diagonal MuJoCo (dm_control), taxi/classic -" in out
+  assert "32 of 34 passed; FAILED: ship/diagonal MuJoCo (dm_control), taxi/classic -" in out

@@ -22,7 +22,7 @@ def test_assets_load_from_the_installed_package():
 
 def test_unknown_model_lists_what_exists():
   with pytest.raises(FileNotFoundError, match=r"available: \['ship.xml', 'ship_current.xml', "
-                                              r"'ship_regatta.xml', 'taxi.xml'\]"):
+                                              r"'ship_harbour.xml', 'ship_regatta.xml', 'taxi.xml'\]"):
     _assets.read_model("boat.xml")
 
 

@@ -36,7 +36,8 @@ def test_all_tasks_listed():
                                   ("ship_current", "hard"), ("ship_goal", "easy"),
                                   ("ship_goal", "medium"), ("ship_goal", "hard"),
                                   ("ship_regatta", "easy"), ("ship_regatta", "medium"),
-                                  ("ship_regatta", "hard")}
+                                  ("ship_regatta", "hard"), ("ship_harbour", "easy"),
+                                  ("ship_harbour", "medium"), ("ship_harbour", "hard")}
 
 
 @pytest.mark.parametrize("domain,task", suite.ALL_TASKS)
@@ -106,7 +107,7 @@ def test_initial_states_are_random(domain, task):
 
 def test_unknown_domain_and_task_list_the_valid_ones():
   with pytest.raises(ValueError, match=r"unknown domain 'boat'.*'ship', 'ship_current', "
-                                       r"'ship_goal', 'ship_regatta', 'taxi'"):
+                                       r"'ship_goal', 'ship_harbour', 'ship_regatta', 'taxi'"):
     suite.load("boat", "steer")
   with pytest.raises(ValueError, match=r"unknown task 'sail'.*'diagonal', 'patrol', 'steer', 'straight'"):
     suite.load("ship", "sail")

@@ -11,6 +11,7 @@ ENV_IDS = {
     "hpg_mj/ShipCurrent-v0": ("hpg_mj.envs.ship_current:ShipCurrentEnv", {"level": "easy"}),
     "hpg_mj/ShipGoal-v0": ("hpg_mj.envs.ship_goal:ShipGoalEnv", {"level": "easy"}),
     "hpg_mj/ShipRegatta-v0": ("hpg_mj.envs.ship_regatta:ShipRegattaEnv", {"level": "easy"}),
+    "hpg_mj/ShipHarbour-v0": ("hpg_mj.envs.ship_harbour:ShipHarbourEnv", {"level": "easy"}),
     "hpg_mj/TaxiFuel-v0": ("hpg_mj.envs.taxi:TaxiEnv", {"fuel": True}),
     "hpg_mj/Taxi-v0": ("hpg_mj.envs.taxi:TaxiEnv", {"fuel": False}),
 }
@@ -21,6 +22,7 @@ VECTOR_ENTRY_POINTS = {
     "hpg_mj.envs.ship_current:ShipCurrentEnv": "hpg_mj.envs.ship_current:ShipCurrentVectorEnv",
     "hpg_mj.envs.ship_goal:ShipGoalEnv": "hpg_mj.envs.ship_goal:ShipGoalVectorEnv",
     "hpg_mj.envs.ship_regatta:ShipRegattaEnv": "hpg_mj.envs.ship_regatta:ShipRegattaVectorEnv",
+    "hpg_mj.envs.ship_harbour:ShipHarbourEnv": "hpg_mj.envs.ship_harbour:ShipHarbourVectorEnv",
 }
 
 

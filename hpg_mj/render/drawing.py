@@ -71,7 +71,8 @@ def _camera_id(model, camera, what):
 
 class ShipDrawing:
   """The field, the gate, the bounds, the ship at a state and its wake; on the model
-  `model` of assets/ (the regatta's draws its course too)."""
+  `model` of assets/ (the regatta's draws its course too, the harbour a level's
+  obstacles)."""
 
   def __init__(self, width=640, height=480, model="ship.xml"):
     from hpg_mj.worlds import ship_model
@@ -86,9 +87,9 @@ class ShipDrawing:
     self.render(state=np.array([500.0, 500.0, 0.0, 0.0]))
 
   def render(self, state, trail=(), target=None, camera="top", marks=(), gate=None,
-             course=None, next_gate=0):
+             course=None, next_gate=0, obstacles=None):
     """The ship at `state` with its wake `trail` (x, y rows, m) and `marks`, its
-    target, gate or course placed: an RGB frame (height, width, 3), uint8."""
+    target, gate, course or obstacles placed: an RGB frame (height, width, 3), uint8."""
     model = self.physics.model.ptr
     camera_id = _camera_id(model, camera, "the ship model")
     self.physics.set_ship_state(state)
@@ -96,6 +97,9 @@ class ShipDrawing:
     self.physics.place_gate(gate)
     if course is not None:
       self.physics.place_course(course, next_gate)
+    if obstacles is not None:           # the harbour's level: its obstacles, no other's
+      from hpg_mj.worlds import ship_model
+      ship_model.place_harbour_obstacles(model, obstacles)
     mujoco.mj_forward(model, self.physics.data.ptr)
     self._renderer.update_scene(self.physics.data.ptr, camera=camera_id)
     pixel = _pixel_size(model, camera_id, self.height)

@@ -22,14 +22,15 @@ class ShipScene:
     return self._worker.backend
 
   def render(self, state, trail=(), target=None, camera="top", marks=(), gate=None,
-             course=None, next_gate=0):
+             course=None, next_gate=0, obstacles=None):
     """An RGB frame (height, width, 3) of the ship at `state` [x, y, theta_deg, theta_dot_deg].
 
     `trail`: positions sailed so far, drawn as the wake. `target`: a subtask's
     goal disc. `marks`: positions drawn as dots (the root's decisions). `gate`: the
     gate's two posts, rows (x, y), where the goal task drew it (SPEC section 2's
     when None). `course`: the regatta's gates' posts, (gates, 2, 2), `next_gate` the
-    one to pass next (a scene of assets/ship_regatta.xml).
+    one to pass next (a scene of assets/ship_regatta.xml). `obstacles`: the harbour's
+    level whose obstacles show (a scene of assets/ship_harbour.xml).
     """
     return self._worker.render(
         state=np.asarray(state, dtype=np.float64),
@@ -38,7 +39,7 @@ class ShipScene:
         camera=camera, marks=np.asarray(marks, dtype=np.float64).reshape(-1, 2),
         gate=None if gate is None else np.asarray(gate, dtype=np.float64),
         course=None if course is None else np.asarray(course, dtype=np.float64),
-        next_gate=int(next_gate))
+        next_gate=int(next_gate), obstacles=obstacles)
 
   def close(self):
     """Stops its render worker."""

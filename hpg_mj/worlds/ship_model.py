@@ -19,6 +19,7 @@ from numba.extending import intrinsic
 from hpg_mj import _assets
 from hpg_mj import _headless
 from hpg_mj.worlds import ship_core as core
+from hpg_mj.worlds import ship_harbour_core as harbour_core
 
 with _headless.simulation_imports():   # no GL in the simulating process (SPEC section 9)
   import mujoco as mj
@@ -85,14 +86,15 @@ def bow_readings(qpos, act, bow, positions, state):
   state[3] = act[0]
 
 
-def _mj_step_address():
-  """The address of MuJoCo's C function `mj_step` in the library the bindings loaded
-  (loading a library already loaded gives the same one), or 0 where it is not found."""
+def _mj_address(function="mj_step"):
+  """The address of MuJoCo's C function `function` (of an mjModel and an mjData) in the
+  library the bindings loaded (loading a library already loaded gives the same one), or
+  0 where it is not found."""
   folder = os.path.dirname(mj.__file__)
   for name in sorted(os.listdir(folder)):
     if name.startswith("libmujoco") or name == "mujoco.dll":
       try:
-        return ctypes.cast(ctypes.CDLL(os.path.join(folder, name)).mj_step,
+        return ctypes.cast(getattr(ctypes.CDLL(os.path.join(folder, name)), function),
                            ctypes.c_void_p).value or 0
       except (OSError, AttributeError):
         return 0
@@ -100,7 +102,28 @@ def _mj_step_address():
 
 
 # `mj_step` called from compiled code (`sail`); 0: through the bindings (`ShipPhysics.step`).
-MJ_STEP = _mj_step_address()
+MJ_STEP = _mj_address("mj_step")
+# The harbour's rangefinders cast from compiled code after a step (`ship_harbour`).
+MJ_KINEMATICS = _mj_address("mj_kinematics")
+MJ_SENSOR_POS = _mj_address("mj_sensorPos")
+
+
+def disableflags_view(model):
+  """A numpy int32 array of one element over `model.opt.disableflags` in the mjModel's own
+  memory (its offset found by changing the field through the bindings and seeing which
+  word changed), for compiled code to switch a stage on and off; None where no single
+  word follows the field."""
+  words = (ctypes.c_int32 * 512).from_address(model._address)   # mjModel starts with
+  # its sizes, then mjOption: within its first 2 KB (the struct holds ~600 pointers more)
+  saved = int(model.opt.disableflags)
+  before = np.frombuffer(words, dtype=np.int32).copy()
+  model.opt.disableflags = saved ^ 0x2A5A5A5
+  after = np.frombuffer(words, dtype=np.int32).copy()
+  model.opt.disableflags = saved
+  changed = np.flatnonzero(before != after)
+  if len(changed) != 1 or before[changed[0]] != saved:
+    return None
+  return np.frombuffer(words, dtype=np.int32)[changed[0]:changed[0] + 1]
 
 
 @intrinsic
@@ -164,6 +187,28 @@ def _move_gate(model, ids, posts):
   # The compiler marked the line's frame as its body's turned by nothing, and MuJoCo
   # then never reads its geom_quat: it must read it now.
   model.geom_sameframe[ids[2]] = mj.mjtSameFrame.mjSAMEFRAME_NONE
+
+
+def harbour_obstacle_geoms(model, level):
+  """(island geom ids, pier geom ids) of the harbour's `level` (`ship_harbour_core`) in a
+  model of assets/ship_harbour.xml."""
+  islands, piers = harbour_core.level_obstacles(level)
+  name = lambda kind, k: mj.mj_name2id(model, mj.mjtObj.mjOBJ_GEOM, f"{level}_{kind}{k}")
+  return [name("island", k) for k in range(len(islands))], [name("pier", k)
+                                                            for k in range(len(piers))]
+
+
+def place_harbour_obstacles(model, level):
+  """Shows the harbour `level`'s obstacles where the model has them (up from the sea) and
+  hides every other level's below the sea and the rays (`_HIDDEN_Z`), transparent: a
+  ray skips a transparent geom before any arithmetic (MuJoCo's mj_ray), and seven rays
+  over every level's geoms were most of a MuJoCo control step."""
+  for other in harbour_core.LEVELS:
+    islands, piers = harbour_obstacle_geoms(model, other)
+    for i in islands + piers:
+      shown = other == level
+      model.geom_pos[i][2] = 10.0 if shown else _HIDDEN_Z
+      model.geom_rgba[i][3] = 1.0 if shown else 0.0
 
 
 class ShipPhysics(mujoco.Physics):

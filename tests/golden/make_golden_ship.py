@@ -18,7 +18,7 @@ HERE = pathlib.Path(__file__).resolve().parents[2] / "golden"
 
 TASKS = ("steer", "diagonal", "straight", "patrol", "current_easy", "current_medium",
          "current_hard", "goal_easy", "goal_medium", "goal_hard", "regatta_easy",
-         "regatta_medium", "regatta_hard")
+         "regatta_medium", "regatta_hard", "harbour_easy", "harbour_medium", "harbour_hard")
 
 
 def main(tasks=TASKS):
