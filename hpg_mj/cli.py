@@ -10,6 +10,7 @@ from hpg_mj.cli_types import _Parser, _at_least, _positive_seconds, _seed
 
 def _cmd_verify(args):
   from hpg_mj import verify
+  from hpg_mj import verify_ladder
   if args.what == "golden":
     print(f"golden trajectories from {verify.golden_dir()}, replayed against "
           f"{verify.golden_versions()}", flush=True)
@@ -21,7 +22,7 @@ def _cmd_verify(args):
         f"; FAILED: {', '.join(f'{c.task} {c.path}' for c in failed)}" if failed else ""))
     return 1 if failed else 0
   if args.what == "current":
-    results = verify.verify_current(controls=args.controls, starts=args.starts, seed=args.seed)
+    results = verify_ladder.verify_current(controls=args.controls, starts=args.starts, seed=args.seed)
     print(f"ship in a current: {args.starts} random starts x {args.controls} random controls "
           "per level, against the continuous ODE (largest position and heading errors)")
     for result in results:
@@ -30,7 +31,7 @@ def _cmd_verify(args):
     print("  bounds (< 0.25 m, < 0.25 deg, <= half the Euler error):", "met" if ok else "NOT MET")
     return 0 if ok else 1
   if args.what == "goal":
-    results = verify.verify_goal(episodes=args.starts, seed=args.seed)
+    results = verify_ladder.verify_goal(episodes=args.starts, seed=args.seed)
     print(f"goal-conditioned ship: {args.starts} episodes per level of the scripted helmsman "
           "on the analytic ship, its turning rates replayed on the MuJoCo ship")
     for result in results:
@@ -40,7 +41,7 @@ def _cmd_verify(args):
           "met" if ok else "NOT MET")
     return 0 if ok else 1
   if args.what == "regatta":
-    results = verify.verify_regatta(episodes=args.starts, seed=args.seed)
+    results = verify_ladder.verify_regatta(episodes=args.starts, seed=args.seed)
     print(f"regatta: {args.starts} courses per level sailed by the scripted helmsman on the "
           "analytic ship, its turning rates replayed on the MuJoCo and the continuous ship")
     for result in results:
@@ -51,7 +52,7 @@ def _cmd_verify(args):
           "met" if ok else "NOT MET")
     return 0 if ok else 1
   if args.what == "harbour":
-    results = verify.verify_harbour(episodes=args.starts, seed=args.seed)
+    results = verify_ladder.verify_harbour(episodes=args.starts, seed=args.seed)
     print(f"harbour: {args.starts} episodes per level of the steering helmsman (blind to the "
           "obstacles) on the analytic ship, its turning rates replayed on the MuJoCo ship")
     for result in results:

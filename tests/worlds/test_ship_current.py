@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from hpg_mj import verify
+from hpg_mj import verify_ladder
 from hpg_mj.worlds import ship_core as core
 from hpg_mj.worlds import ship_current
 from hpg_mj.worlds import ship_current_core as current_core
@@ -91,7 +92,7 @@ def test_the_mujoco_ship_crabs_with_the_water():
 @pytest.mark.parametrize("level", list(current_core.LEVELS))
 def test_both_ships_within_spec_bounds_of_the_continuous_ship(level):
   # SPEC section 1's bounds, kept in the current (`hpg-mj verify current`, shorter).
-  result, = verify.verify_current(controls=150, starts=1, seed=3, levels=[level])
+  result, = verify_ladder.verify_current(controls=150, starts=1, seed=3, levels=[level])
   assert result.passed, result.line()
   assert result.mujoco_position_m < 0.05 and result.euler_position_m > 0.05
 
@@ -101,7 +102,7 @@ def test_the_reference_solution_is_exact_for_uniform_water():
   controls = np.random.default_rng(4).uniform(-15, 15, 20)
   start = [200.0, 300.0, 10.0, 2.0]
   still = verify.exact_trajectory(start, controls)
-  moving = verify.exact_current_trajectory(start, controls, [0.7, -0.4, 0.0, 0.0])
+  moving = verify_ladder.exact_current_trajectory(start, controls, [0.7, -0.4, 0.0, 0.0])
   t = core.SAMPLING_INTERVAL * np.arange(1, len(still) + 1)
   np.testing.assert_allclose(moving[:, 0] - still[:, 0], 0.7 * t, atol=1e-6)
   np.testing.assert_allclose(moving[:, 1] - still[:, 1], -0.4 * t, atol=1e-6)

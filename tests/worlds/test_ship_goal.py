@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from hpg_mj import verify
+from hpg_mj import verify_ladder
 from hpg_mj.worlds import ship_core as core
 from hpg_mj.worlds import ship_goal_core as goal_core
 
@@ -109,7 +109,7 @@ def test_bad_levels_and_gates_are_one_line_errors():
 
 
 def test_verify_goal_the_two_ships_end_alike():
-  results = verify.verify_goal(episodes=6, seed=1)
+  results = verify_ladder.verify_goal(episodes=6, seed=1)
   assert [r.level for r in results] == ["easy", "medium", "hard"]
   for result in results:
     assert result.passed, result.line()
