@@ -26,7 +26,9 @@ from hpg_mj.agents import _taxi
 
 @dataclasses.dataclass(frozen=True)
 class HierarchyConfig:
-  """A ship hierarchy's task file: its [environment] (a subclass adds its own sections)."""
+  """A ship hierarchy's task file: its [environment] (a subclass adds its own sections).
+  Its defaults are the environments' own (leaving the field -100, MushroomRL's); the
+  shipped ship agents' task files set out_of_bounds_reward = -300 (SPEC section 10, D1)."""
   environment: _ship.ShipEnvironment = dataclasses.field(default_factory=_ship.ShipEnvironment)
 
 
