@@ -56,7 +56,8 @@ def _cmd_verify(args):
   result = verify.verify_ship(controls=args.controls, starts=args.starts, seed=args.seed)
   print("\n".join(result.lines()))
   # SPEC section 1: within 0.25 m and 0.25 deg, and at most half the Euler model's error.
-  ok = (result.mujoco_position_m < 0.25 and result.mujoco_heading_deg < 0.25
+  ok = (result.mujoco_position_m < verify.POSITION_BOUND_M
+        and result.mujoco_heading_deg < verify.HEADING_BOUND_DEG
         and result.mujoco_position_m <= 0.5 * result.euler_position_m)
   print("  bounds (< 0.25 m, < 0.25 deg, <= half the Euler error):", "met" if ok else "NOT MET")
   return 0 if ok else 1

@@ -18,6 +18,11 @@ from hpg_mj.worlds import ship_core as core
 
 _NODES, _WEIGHTS = np.polynomial.legendre.leggauss(24)
 
+# SPEC section 1's verification bounds: the MuJoCo ship within these of the continuous
+# ship (and the MJX ship of hpg_mj.jax.mjx_ship within them of the MuJoCo ship).
+POSITION_BOUND_M = 0.25
+HEADING_BOUND_DEG = 0.25
+
 
 def exact_trajectory(state, controls, speed=core.SPEED, time_constant=core.TIME_CONSTANT,
                      dt=core.SAMPLING_INTERVAL, samples_per_control=core.SAMPLES_PER_CONTROL):
@@ -439,7 +444,8 @@ class CurrentVerification:
   def passed(self):
     """SPEC section 1's bounds for the steering ship, kept in the current: within
     0.25 m and 0.25 deg, and at most half the Euler model's position error."""
-    return (self.mujoco_position_m < 0.25 and self.mujoco_heading_deg < 0.25
+    return (self.mujoco_position_m < POSITION_BOUND_M
+            and self.mujoco_heading_deg < HEADING_BOUND_DEG
             and self.mujoco_position_m <= 0.5 * self.euler_position_m)
 
 
@@ -593,7 +599,8 @@ class RegattaVerification:
     ship's gates, each within one control step (1.8 m of sailing), and ends alike. The
     Euler ship, metres off after the hard level's ten minutes of hairpins, is
     reported."""
-    return (self.mujoco_position_m < 0.25 and self.mujoco_heading_deg < 0.25
+    return (self.mujoco_position_m < POSITION_BOUND_M
+            and self.mujoco_heading_deg < HEADING_BOUND_DEG
             and self.mujoco_position_m <= 0.5 * self.euler_position_m
             and self.course_geoms_m < 1e-9 and self.mujoco_same >= 0.95 * self.episodes)
 
