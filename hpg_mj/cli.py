@@ -22,7 +22,8 @@ def _cmd_verify(args):
         f"; FAILED: {', '.join(f'{c.task} {c.path}' for c in failed)}" if failed else ""))
     return 1 if failed else 0
   if args.what == "current":
-    results = verify_ladder.verify_current(controls=args.controls, starts=args.starts, seed=args.seed)
+    results = verify_ladder.verify_current(controls=args.controls, starts=args.starts,
+                                           seed=args.seed)
     print(f"ship in a current: {args.starts} random starts x {args.controls} random controls "
           "per level, against the continuous ODE (largest position and heading errors)")
     for result in results:
@@ -67,7 +68,8 @@ def _cmd_verify(args):
   result = verify.verify_ship(controls=args.controls, starts=args.starts, seed=args.seed)
   print("\n".join(result.lines()))
   # SPEC section 1: within 0.25 m and 0.25 deg, and at most half the Euler model's error.
-  ok = (result.mujoco_position_m < 0.25 and result.mujoco_heading_deg < 0.25
+  ok = (result.mujoco_position_m < verify.POSITION_BOUND_M
+        and result.mujoco_heading_deg < verify.HEADING_BOUND_DEG
         and result.mujoco_position_m <= 0.5 * result.euler_position_m)
   print("  bounds (< 0.25 m, < 0.25 deg, <= half the Euler error):", "met" if ok else "NOT MET")
   return 0 if ok else 1

@@ -18,6 +18,11 @@ from hpg_mj.worlds import ship_core as core
 
 _NODES, _WEIGHTS = np.polynomial.legendre.leggauss(24)
 
+# SPEC section 1's verification bounds: the MuJoCo ship within these of the continuous
+# ship (and the MJX ship of hpg_mj.jax.mjx_ship within them of the MuJoCo ship).
+POSITION_BOUND_M = 0.25
+HEADING_BOUND_DEG = 0.25
+
 
 def exact_trajectory(state, controls, speed=core.SPEED, time_constant=core.TIME_CONSTANT,
                      dt=core.SAMPLING_INTERVAL, samples_per_control=core.SAMPLES_PER_CONTROL):

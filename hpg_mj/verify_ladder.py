@@ -6,7 +6,8 @@ import dataclasses
 
 import numpy as np
 
-from hpg_mj.verify import _errors, exact_trajectory, mujoco_trajectory
+from hpg_mj.verify import (HEADING_BOUND_DEG, POSITION_BOUND_M, _errors, exact_trajectory,
+                           mujoco_trajectory)
 from hpg_mj.worlds import ship
 from hpg_mj.worlds import ship_core as core
 
@@ -80,7 +81,8 @@ class CurrentVerification:
   def passed(self):
     """SPEC section 1's bounds for the steering ship, kept in the current: within
     0.25 m and 0.25 deg, and at most half the Euler model's position error."""
-    return (self.mujoco_position_m < 0.25 and self.mujoco_heading_deg < 0.25
+    return (self.mujoco_position_m < POSITION_BOUND_M
+            and self.mujoco_heading_deg < HEADING_BOUND_DEG
             and self.mujoco_position_m <= 0.5 * self.euler_position_m)
 
 
@@ -234,7 +236,8 @@ class RegattaVerification:
     ship's gates, each within one control step (1.8 m of sailing), and ends alike. The
     Euler ship, metres off after the hard level's ten minutes of hairpins, is
     reported."""
-    return (self.mujoco_position_m < 0.25 and self.mujoco_heading_deg < 0.25
+    return (self.mujoco_position_m < POSITION_BOUND_M
+            and self.mujoco_heading_deg < HEADING_BOUND_DEG
             and self.mujoco_position_m <= 0.5 * self.euler_position_m
             and self.course_geoms_m < 1e-9 and self.mujoco_same >= 0.95 * self.episodes)
 

@@ -21,8 +21,9 @@ ALLOWED = {
                "_paths", "taskfile", "storage", "jax"},
     "experiments": {"agents", "hierarchy", "learners", "worlds", "envs", "suite", "render",
                     "provenance", "_paths", "taskfile", "storage"},
-    # The JAX worlds (the `jax` extra) take the numba worlds' constants, nothing else.
-    "jax": {"worlds"},
+    # The JAX worlds (the `jax` extra) take the numba worlds' constants, nothing else;
+    # the MJX ship (the `mjx` extra) reads the shipped MJCF.
+    "jax": {"worlds", "_assets"},
 }
 
 
