@@ -29,16 +29,18 @@ destination, fuel)`, fuel left out in the classic "taxi"; action an integer
 0..6, 0..5 in the classic taxi), or a task file (its [environment]: a shipped
 name such as "ship_hybrid", a path, or a loaded `TaskFile`). The task ladder's
 (`LADDER`, SPEC section 11), each at a level of `LEVELS` (`level="hard"`, or
-"ship_goal/hard"): "ship_current", "ship_goal" and "ship_regatta", the Gymnasium
-environments' observations (the goal's a dictionary: `observation`,
-`achieved_goal`, `desired_goal`, each (n, 4) in a batch) and the turning rate; start
-i is the episode the environment lays out at `reset(seed=GREEDY_SEED + i)`.
+"ship_goal/hard"): "ship_current", "ship_goal", "ship_regatta" and "ship_harbour",
+the Gymnasium environments' observations (the goal's a dictionary: `observation`,
+`achieved_goal`, `desired_goal`, each (n, 4) in a batch; the harbour's the state and
+seven ranges, (n, 11)) and the turning rate; start i is the episode the environment
+lays out at `reset(seed=GREEDY_SEED + i)`.
 
 Metrics (one implementation each, shared with the agents' reports):
   ship   gate_pass_rate, steps_to_gate (mean control steps over the passes),
          mean_return (the task's rewards), J (MushroomRL's rewards, gamma 0.99,
-         `agents._ship.mushroom_j`), control_steps; the same for the current and
-         the goal (the pass: the goal reached)
+         `agents._ship.mushroom_j`), control_steps; the same for the current,
+         the goal (the pass: the goal reached) and the harbour (an obstacle
+         touched ends the episode as leaving the field does)
   regatta finish_rate, gates_passed (the mean gates passed), steps_to_finish
          (mean control steps over the finishes), mean_return, control_steps
   taxi   mean_return, optimum (the mean exact optimal return V* from the same
@@ -46,7 +48,8 @@ Metrics (one implementation each, shared with the agents' reports):
          optimum), delivery_rate, primitive_steps
 and each score of `SCORES` also normalized, `<score>_normalized` = 100 (score -
 random) / (best known - random), against the bounds of `bounds()` (SPEC section
-7.1; `hpg-mj bounds` computes them; the ladder's best known from `hpg_mj.planners`).
+7.1; `hpg-mj bounds` computes them; the ladder's best known from `hpg_mj.planners`,
+the harbour's from `hpg_mj.planners_harbour`).
 `official` says whether the evaluation ran the whole protocol (all fixed starts, the
 task's own step limit), the bounds'. The tasks and their fixed starts are
 `hpg_mj.benchmark_tasks`'.
@@ -576,11 +579,18 @@ BEST_IS = {
     "ship_regatta": ("per start, a rollout of the scripted helmsman gate by gate over the "
                      "whole course, each gate's way of taking it chosen by sailing every "
                      "candidate to the finish (planners.plan)"),
+    "ship_harbour": ("per start, the fewest control steps to the gate over first turns "
+                     "before a helmsman that heads down a distance field to the gate round "
+                     "the level's obstacles grown by a safety margin, one of five margins "
+                     "(planners.plan, planners_harbour)"),
 }
 REFERENCE_IS = {
     "ship_current": "a ship that turns at once, the least time of the grid's paths",
     "ship_goal": "the straight line to the gate (a lower bound)",
     "ship_regatta": "the shortest polyline through the gates in order (a lower bound)",
+    "ship_harbour": ("a point that turns at once on the shortest grid path round the "
+                     "obstacles, no margin (at least the shortest path, ~1.3% above it in "
+                     "open water)"),
 }
 CHECKED_STARTS = 5            # the first starts whose best known episodes the file keeps
 

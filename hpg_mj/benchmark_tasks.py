@@ -21,7 +21,8 @@ from hpg_mj.worlds import taxi_rules
 
 ENV_IDS = {"ship": "hpg_mj/ShipSteering-v0", "taxi_fuel": "hpg_mj/TaxiFuel-v0",
            "taxi": "hpg_mj/Taxi-v0", "ship_current": "hpg_mj/ShipCurrent-v0",
-           "ship_goal": "hpg_mj/ShipGoal-v0", "ship_regatta": "hpg_mj/ShipRegatta-v0"}
+           "ship_goal": "hpg_mj/ShipGoal-v0", "ship_regatta": "hpg_mj/ShipRegatta-v0",
+           "ship_harbour": "hpg_mj/ShipHarbour-v0"}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -145,8 +146,9 @@ def fixed_starts(task="ship", episodes=base.GREEDY_STARTS, seed=base.GREEDY_SEED
   `seed + i`, drawn as every agent of the task draws its starts; an array of rows.
 
   On the ladder's tasks (`LADDER`), start i is the episode the Gymnasium environment
-  lays out at `reset(seed=seed + i)`: the ship's state, then the goal's gate or the
-  regatta's course, from one generator. A dictionary of arrays, the reset options
+  lays out at `reset(seed=seed + i)`: the ship's state (the harbour's drawn again while
+  it lies on an obstacle), then the goal's gate or the regatta's course, from one
+  generator. A dictionary of arrays, the reset options
   that set it: "state" (n, 4), and "gate" (n, 3) rows [x, y, heading_deg] or
   "course" (n, gates, 3)."""
   task = task_of(task)
@@ -164,6 +166,7 @@ def _ladder_starts(task, episodes, seed):
   from gymnasium.utils import seeding
 
   from hpg_mj.worlds import ship_goal_core
+  from hpg_mj.worlds import ship_harbour_core
   from hpg_mj.worlds import ship_regatta_core
   from hpg_mj.worlds import ship_task
   _count("episodes", episodes)
@@ -172,7 +175,11 @@ def _ladder_starts(task, episodes, seed):
   states, extra = np.zeros((int(episodes), 4)), []
   for i in range(int(episodes)):
     generator, _ = seeding.np_random(int(seed) + i)    # as gymnasium.Env.reset does
-    states[i] = rules.sample_start(generator)
+    if task.name == "ship_harbour":                     # drawn again on an obstacle
+      states[i] = ship_harbour_core.sample_start(
+          rules, generator, *ship_harbour_core.level_shapes(task.level))
+    else:
+      states[i] = rules.sample_start(generator)
     if task.name == "ship_goal":                        # ship_goal_core.sample_gate's draws
       low, high, largest = ship_goal_core.level_range(task.level)
       extra.append([generator.uniform(low, high), generator.uniform(low, high),

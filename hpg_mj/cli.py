@@ -528,10 +528,10 @@ def build_parser():
                  "(hpg_mj.benchmark.evaluate); with an agent: greedy (default) or sampled")
   p.add_argument("--task", default=None, metavar="TASK",
                  help="with --policy: the task, one of ship, taxi_fuel, taxi, ship_current, "
-                      "ship_goal, ship_regatta (default ship)")
+                      "ship_goal, ship_regatta, ship_harbour (default ship)")
   p.add_argument("--level", default=None, metavar="LEVEL",
                  help="with --policy and a ladder task (ship_current, ship_goal, "
-                      "ship_regatta): easy (default), medium or hard")
+                      "ship_regatta, ship_harbour): easy (default), medium or hard")
   p.add_argument("--batched", action="store_true",
                  help="with --policy: the function takes a batch of observations")
   p.add_argument("--max-steps", type=_at_least(1), default=None,
@@ -555,7 +555,7 @@ def build_parser():
                  help="fixed starts (default 1000, the reports')")
   p.add_argument("--task", action="append", default=None, metavar="TASK",
                  help="only this task's bounds, as named in the file (ship, taxi_fuel, "
-                      "taxi, ship_current/easy, ..., ship_regatta/hard; repeatable); with "
+                      "taxi, ship_current/easy, ..., ship_harbour/hard; repeatable); with "
                       "--out they replace that task's in the file")
   p.add_argument("--quiet", action="store_true")
   p.set_defaults(func=_cmd_bounds)

@@ -25,6 +25,9 @@ alone (`Helmsman`).
   helmsman taking the gates after it; the best is kept up to that gate's pass. With
   the helmsman among the candidates, a rollout is never worse than the helmsman (its
   cost improvement), and each gate's choice sees the whole rest of the course.
+- harbour: the level's fixed map known, a helmsman down a distance field to the gate
+  round the obstacles grown by a safety margin, and first turns before it
+  (`hpg_mj.planners_harbour`, its own module).
 
 `plan` returns per start the outcome of the chosen episode, the numbers the
 benchmark's records hold, and, asked, the turning rates it sailed (to replay on the
@@ -38,31 +41,19 @@ import math
 import numba
 import numpy as np
 
+from hpg_mj import planners_harbour
+from hpg_mj.planners_shared import BACK_TURNS, FIRST_TURNS, INSET_M, STENCIL  # noqa: F401
+from hpg_mj.planners_shared import first_turn_rate as _turn
 from hpg_mj.worlds import ship_core as core
 from hpg_mj.worlds import ship_current_core as current_core
 from hpg_mj.worlds import ship_goal_core as goal_core
 from hpg_mj.worlds import ship_regatta_core as regatta_core
-
-INSET_M = 2.0                  # aim points stay this far inside a gate's posts
-FIRST_TURNS = np.arange(2, 35, 2, dtype=np.int64)   # full rudder one way for 2..34 steps,
-BACK_TURNS = np.array([0, 6], dtype=np.int64)       # then the other way for 0 or 6
 
 # ---- current -------------------------------------------------------------------------
 
 GRID_M = 5.0                   # the time field's grid
 MARGIN_M = 15.0                # its paths keep this far inside the field
 NEAR_GATE_M = 20.0             # within this of the gate the helmsman crabs straight at it
-
-
-def _stencil(reach=3):
-  """Grid steps (dx, dy) with |dx|, |dy| <= reach and no common divisor: 32 headings
-  for reach 3, at most 18.4 degrees apart."""
-  rows = [(dx, dy) for dx in range(-reach, reach + 1) for dy in range(-reach, reach + 1)
-          if (dx, dy) != (0, 0) and math.gcd(abs(dx), abs(dy)) == 1]
-  return np.array(rows, dtype=np.int64)
-
-
-STENCIL = _stencil()
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -176,17 +167,6 @@ def current_rate(state, field, t_field, spacing, margin):
   if norm == 0.0 or not math.isfinite(norm):
     return core.pilot_turn_rate(state, gx, gy)
   return core.pilot_turn_rate(state, x + 100.0 * hx / norm, y + 100.0 * hy / norm)
-
-
-@numba.njit(cache=True, inline="always")
-def _turn(steps, sign, first, back):
-  """The first turns' r at `steps` (full rudder `sign` for `first` steps, then the other
-  way for `back`), or NaN after them."""
-  if steps < first:
-    return sign * core.MAX_TURN_RATE
-  if steps < first + back:
-    return -sign * core.MAX_TURN_RATE
-  return np.nan
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -590,16 +570,20 @@ class Helmsman:
   scores it): the current's heads down the level's time field (`current_rate`), the
   goal's lines up with the episode's gate (`goal_rate`, reach HELMSMAN_REACH, slope
   HELMSMAN_SLOPE), the regatta's sails for the next gate's point on the shortest two
-  legs towards the gate after it, turning for that one early (`scripted_target`)."""
+  legs towards the gate after it, turning for that one early (`scripted_target`), the
+  harbour's heads down its level's distance field round the obstacles
+  (`planners_harbour.harbour_rate`)."""
 
   batched = True
 
   def __init__(self, name, level):
-    if name not in ("ship_current", "ship_goal", "ship_regatta"):
+    if name not in ("ship_current", "ship_goal", "ship_regatta", "ship_harbour"):
       raise ValueError(f"no ladder helmsman for task {name!r}; allowed: ship_current, "
-                       "ship_goal, ship_regatta")
+                       "ship_goal, ship_regatta, ship_harbour")
     self.name, self.level = name, level
-    if name == "ship_current":
+    if name == "ship_harbour":
+      planners_harbour.level_fields(level)
+    elif name == "ship_current":
       self.field = current_core.level_field(level)
       self.t_field = level_time_field(level)
     elif name == "ship_goal":
@@ -608,6 +592,8 @@ class Helmsman:
       regatta_core.level_layout(level)
 
   def __call__(self, obs):
+    if self.name == "ship_harbour":
+      return planners_harbour.helmsman(self.level, obs)
     if self.name == "ship_goal":
       states = np.ascontiguousarray(obs["observation"], dtype=np.float64).reshape(-1, 4)
       desired = np.ascontiguousarray(obs["desired_goal"], dtype=np.float64).reshape(-1, 4)
@@ -629,7 +615,8 @@ class Helmsman:
 def plan(name, level, starts, max_steps=core.STEER_MAX_STEPS, gate_reward=core.GATE_REWARD,
          out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD, actions=False):
   """The best known episode from each start of a ladder task (`hpg_mj.benchmark`'s
-  `fixed_starts` dictionary: "state", and "gate" or "course"). Returns (outcome,
+  `fixed_starts` dictionary: "state", and "gate" or "course"; the harbour's at `level`
+  from `planners_harbour`). Returns (outcome,
   choice, turning rates or None): outcome rows (passed, steps, return), on the regatta
   (finished, gates passed, steps, return); with `actions` the turning rates of each
   chosen episode, (n, max_steps), NaN after its end."""
@@ -656,9 +643,12 @@ def plan(name, level, starts, max_steps=core.STEER_MAX_STEPS, gate_reward=core.G
                          float(out_of_bounds_reward), 0.5 * spacing)
     _plan_regatta(states, courses, N_REGATTA_CANDIDATES, FIRST_TURNS, rules, outcome, choice,
                   rates)
+  elif name == "ship_harbour":
+    outcome, choice, rates = planners_harbour.plan(level, states, max_steps, gate_reward,
+                                                   out_of_bounds_reward, actions)
   else:
     raise ValueError(f"no ladder planner for task {name!r}; allowed: ship_current, ship_goal, "
-                     "ship_regatta")
+                     "ship_regatta, ship_harbour")
   return outcome, choice, (rates if actions else None)
 
 
@@ -669,9 +659,12 @@ def reference_steps(name, level, starts):
   time); to the goal's gate, the straight line to it over 1.8 m a step (a lower
   bound); round the regatta, the shortest polyline from the start through its gates
   in order (over 101 points across each, less the 2 m a gate their spacing may add:
-  a lower bound) over 1.8 m a step."""
+  a lower bound) over 1.8 m a step; in the harbour, the shortest grid path round the
+  obstacles (`planners_harbour.reference_steps`)."""
   states = np.asarray(starts["state"], dtype=np.float64).reshape(-1, 4)
   step_m = core.SPEED * core.CONTROL_INTERVAL
+  if name == "ship_harbour":
+    return planners_harbour.reference_steps(level, states)
   if name == "ship_current":
     t_field = level_time_field(level)
     return np.array([_time_at(t_field, GRID_M, MARGIN_M, s[0], s[1]) for s in states]) \

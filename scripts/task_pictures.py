@@ -13,6 +13,10 @@ and the scripted helmsman's wake to and through it (`ship_goal_core.pilot_target
 ship_regatta_<level>.png: a course of each level (laid out with seed 4) and the scripted
 helmsman's wake round it (`ship_regatta_core.pilot_target`), drawn when half its gates
 are passed: those grey, the next yellow, the rest white.
+
+ship_harbour_<level>.png: each level's obstacles (islands and piers) and the scripted
+helmsman's wake round them from one fixed start in the north-west
+(`planners_harbour.helmsman`, down the level's distance field to the gate).
 """
 import pathlib
 
@@ -21,6 +25,7 @@ import imageio.v2 as imageio
 import numpy as np
 
 import hpg_mj  # noqa: F401  (registers the ids)
+from hpg_mj import planners_harbour
 from hpg_mj.worlds import ship_core as core
 from hpg_mj.worlds import ship_goal_core as goal_core
 from hpg_mj.worlds import ship_regatta_core as regatta_core
@@ -28,6 +33,7 @@ from hpg_mj.worlds import ship_regatta_core as regatta_core
 OUT = pathlib.Path(__file__).resolve().parents[1] / "figures" / "tasks"
 START = [150.0, 850.0, 90.0, 0.0]      # the north-west, heading east
 STEPS = 500
+HARBOUR_START = [120.0, 920.0, 90.0, 0.0]     # the north-west corner, heading east
 
 
 def current_picture(level):
@@ -83,11 +89,26 @@ def regatta_picture(level, seed=4):
   return frame
 
 
+def harbour_picture(level):
+  """The level's obstacles and the scripted helmsman's way round them to the gate."""
+  env = gymnasium.make("hpg_mj/ShipHarbour-v0", level=level, backend="analytic",
+                       render_mode="rgb_array", width=480, height=360)
+  obs, _ = env.reset(options={"state": HARBOUR_START})
+  for _ in range(STEPS * 4):
+    obs, _, terminated, truncated, _ = env.step(planners_harbour.helmsman(level, obs))
+    if terminated or truncated:
+      break
+  frame = env.render()
+  env.close()
+  return frame
+
+
 def main():
   OUT.mkdir(parents=True, exist_ok=True)
   for level in ("easy", "medium", "hard"):
     for name, picture in (("ship_current", current_picture), ("ship_goal", goal_picture),
-                          ("ship_regatta", regatta_picture)):
+                          ("ship_regatta", regatta_picture),
+                          ("ship_harbour", harbour_picture)):
       imageio.imwrite(OUT / f"{name}_{level}.png", picture(level))
       print(OUT / f"{name}_{level}.png")
 

@@ -102,6 +102,28 @@ def test_the_scripted_helmsmen_score_between_the_bounds():
       assert result.metrics[f"{score}_normalized"] > 0.0, (key, score)
 
 
+def test_the_harbours_distance_field_goes_round_the_obstacles():
+  """The harbour's reference field (no margin, `planners_harbour`): 100 m due north of
+  the gate's centre in open water, nothing on an island, never shorter than the
+  straight line to the gate, and round the end of the hard level's western pier (x 214
+  to 226 m, up to y = 560 m) from (205, 480) at least the continuous shortest path (up
+  its side, across its end, straight to the gate's post) and within 4% of it."""
+  from hpg_mj import planners_harbour
+  node = lambda field, x, y: field[int(x / 5.0), int(y / 5.0)]
+  easy = planners_harbour._reference_field("easy")
+  assert node(easy, 400.0, 500.0) == 100.0 and np.isinf(node(easy, 400.0, 620.0))
+  grid = np.arange(easy.shape[0]) * planners_harbour.GRID_M
+  x, y = np.meshgrid(grid, grid, indexing="ij")
+  straight = np.hypot(np.clip(x, 350.0, 450.0) - x, 400.0 - y)
+  for level in benchmark.LEVELS:
+    field = planners_harbour._reference_field(level)
+    finite = np.isfinite(field)
+    assert np.all(field[finite] >= straight[finite])
+  shortest = np.hypot(214.0 - 205.0, 560.0 - 480.0) + 12.0 + np.hypot(350.0 - 226.0, 560.0 - 400.0)
+  hard = node(planners_harbour._reference_field("hard"), 205.0, 480.0)
+  assert shortest <= hard <= 1.04 * shortest
+
+
 @pytest.mark.parametrize("kwargs, message", [
     ({"task": "ship_goal", "level": "extreme"},
      "level 'extreme' of task 'ship_goal' is not known; allowed levels: "
@@ -110,10 +132,11 @@ def test_the_scripted_helmsmen_score_between_the_bounds():
      "level 'extreme' of task 'ship_regatta' is not known; allowed levels: "
      "['easy', 'medium', 'hard']"),
     ({"task": "ship", "level": "hard"},
-     "level='hard' is for the ladder's tasks ['ship_current', 'ship_goal', 'ship_regatta']; "
-     "task 'ship' has no levels"),
+     "level='hard' is for the ladder's tasks ['ship_current', 'ship_goal', 'ship_regatta', "
+     "'ship_harbour']; task 'ship' has no levels"),
     ({"task": "ship_currents"}, "task 'ship_currents' is not known; allowed: ship, taxi_fuel, "
-     "taxi, ship_current, ship_goal, ship_regatta (at a level: easy, medium, hard;"),
+     "taxi, ship_current, ship_goal, ship_regatta, ship_harbour (at a level: easy, medium, "
+     "hard;"),
 ])
 def test_a_bad_task_or_level_is_refused_in_one_line(kwargs, message):
   with pytest.raises(ValueError) as err:
@@ -125,9 +148,9 @@ def test_a_bad_task_or_level_is_refused_in_one_line(kwargs, message):
     (["--task", "ship_goal", "--level", "extreme"],
      "--level 'extreme' is not a level; allowed: easy, medium, hard"),
     (["--task", "ship_goals"], "--task 'ship_goals' is not a task; allowed: ship, taxi_fuel, "
-     "taxi, ship_current, ship_goal, ship_regatta"),
+     "taxi, ship_current, ship_goal, ship_regatta, ship_harbour"),
     (["--level", "hard"], "--level is for the ladder's tasks (ship_current, ship_goal, "
-     "ship_regatta), not --task ship"),
+     "ship_regatta, ship_harbour), not --task ship"),
 ])
 def test_hpg_mj_evaluate_refuses_a_bad_task_or_level_in_one_line(argv, message, capsys):
   assert cli.main(["evaluate", "--policy", "math:sin", *argv]) == 2

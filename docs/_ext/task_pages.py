@@ -59,10 +59,15 @@ TASKS = {
         f"a course of the {level} level and the scripted helmsman's wake through its "
         "first gates (grey), with the next (yellow) and the rest (white) to pass "
         "(`scripts/task_pictures.py`)") for level in ("easy", "medium", "hard")},
+    **{("ship_harbour", level): (
+        "hpg_mj/ShipHarbour-v0", f"figures/tasks/ship_harbour_{level}.png",
+        f"the {level} level's islands and piers and the scripted helmsman's wake round them "
+        "to the gate, down the level's distance field (the rangefinders' rays in yellow; "
+        "`scripts/task_pictures.py`)") for level in ("easy", "medium", "hard")},
 }
 
 # Domains whose tasks are the levels of one Gymnasium id (its `level` argument).
-_LEVEL_DOMAINS = ("ship_current", "ship_goal", "ship_regatta")
+_LEVEL_DOMAINS = ("ship_current", "ship_goal", "ship_regatta", "ship_harbour")
 
 # Gymnasium's make() arguments for building each id here: the analytic ship needs
 # neither MuJoCo nor a renderer.
@@ -72,7 +77,8 @@ _MAKE_KWARGS = {"hpg_mj/ShipSteering-v0": {"backend": "analytic"},
                 "hpg_mj/ShipPatrol-v0": {"backend": "analytic"},
                 "hpg_mj/ShipCurrent-v0": {"backend": "analytic"},
                 "hpg_mj/ShipGoal-v0": {"backend": "analytic"},
-                "hpg_mj/ShipRegatta-v0": {"backend": "analytic"}}
+                "hpg_mj/ShipRegatta-v0": {"backend": "analytic"},
+                "hpg_mj/ShipHarbour-v0": {"backend": "analytic"}}
 
 
 def page_name(domain, task):
@@ -223,7 +229,9 @@ def _spec_lines(spec):
 
 # dm_control (domain, task) -> its name in hpg_mj.benchmark (the tasks it scores)
 _BENCHMARK = {("ship", "steer"): "ship", ("taxi", "fuel"): "taxi_fuel",
-              ("taxi", "classic"): "taxi"}
+              ("taxi", "classic"): "taxi",
+              **{(domain, level): f"{domain}/{level}" for domain in _LEVEL_DOMAINS
+                 for level in ("easy", "medium", "hard")}}
 SCORE_ANY_POLICY = "../getting_started.md#score-any-policy"
 
 
@@ -232,8 +240,9 @@ def _scoring(domain, task):
   name = _BENCHMARK.get((domain, task))
   link = f"[Score any policy]({SCORE_ANY_POLICY})"
   if name is None:
+    names = dict.fromkeys(n.split("/")[0] for n in _BENCHMARK.values())
     return (f"{link}: `hpg_mj.benchmark.evaluate` scores a function, an SB3 model or an "
-            f"agent on {', '.join(f'`{n}`' for n in _BENCHMARK.values())}")
+            f"agent on {', '.join(f'`{n}`' for n in names)} (the ladder's at a level)")
   return (f"`hpg_mj.benchmark.evaluate(policy, {name!r})`: {link} (a function, an SB3 "
           "model, an agent)")
 

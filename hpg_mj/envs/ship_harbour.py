@@ -82,8 +82,16 @@ class ShipHarbourEnv(ship_env.ShipSteeringEnv):
   | 1 | `y`: the ship's position north | m |
   | 2 | `theta_deg`: the ship's heading, clockwise from north (+y), in [-180, 180) | deg |
   | 3 | `theta_dot_deg`: the ship's turning rate | deg/s |
-  | 4-10 | the ranges along rays at -90, -60, -30, 0, 30, 60, 90 deg from the | m |
-  | | heading (clockwise: negative to port), each 0 to 150 | |
+  | 4 | `range_port_90`: the range along the ray 90 deg to port (left) of the heading | m |
+  | 5 | `range_port_60`: the range along the ray 60 deg to port | m |
+  | 6 | `range_port_30`: the range along the ray 30 deg to port | m |
+  | 7 | `range_ahead`: the range along the heading | m |
+  | 8 | `range_starboard_30`: the range along the ray 30 deg to starboard (right) | m |
+  | 9 | `range_starboard_60`: the range along the ray 60 deg to starboard | m |
+  | 10 | `range_starboard_90`: the range along the ray 90 deg to starboard | m |
+
+  Each range is 0 to 150 m (bearings -90, -60, -30, 0, 30, 60, 90 deg from the heading,
+  clockwise, `ship_harbour_core.BEARINGS_DEG`).
 
   On MuJoCo the ranges are the rangefinder sensors of assets/ship_harbour.xml; on the
   analytic ship the same rays cast in closed form (they agree within 1e-9 m).

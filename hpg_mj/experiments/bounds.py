@@ -9,7 +9,7 @@ import pathlib
 TASKS = ("ship", "taxi_fuel", "taxi")
 # SPEC section 11's task ladder: each task at each level, its bounds under
 # "<task>/<level>" (`bounds_key`).
-LADDER = ("ship_current", "ship_goal", "ship_regatta")
+LADDER = ("ship_current", "ship_goal", "ship_regatta", "ship_harbour")
 LEVELS = ("easy", "medium", "hard")
 LADDER_KEYS = tuple(f"{name}/{level}" for name in LADDER for level in LEVELS)
 KEYS = TASKS + LADDER_KEYS
