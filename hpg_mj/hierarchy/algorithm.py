@@ -162,7 +162,7 @@ def begin(G):
   M.episode[E_STEPS] = 0
   M.episode[E_EVENT] = NO_EVENT
   M.total[0] = 0.0
-  call(G, 0, ROOT)
+  call(G, 0, np.int64(ROOT))
   return descend(G, 0)
 
 

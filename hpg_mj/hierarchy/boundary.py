@@ -52,18 +52,18 @@ def _as_state(value, n_states, fault, what):
     def state(value, n_states, fault, what):
       s = np.int64(value)
       if s < 0 or s >= n_states:
-        fail(fault, what, float(value), OUT_OF_RANGE, 0.0)
+        fail(fault, what, float(value), np.int64(OUT_OF_RANGE), 0.0)
       return s
     return state
   if isinstance(value, types.Float):
     def not_integer(value, n_states, fault, what):
-      fail(fault, what, float(value), NOT_AN_INTEGER, 0.0)
+      fail(fault, what, float(value), np.int64(NOT_AN_INTEGER), 0.0)
       return np.int64(0)
     return not_integer
   SEEN_TYPES[("state", str(value))] = str(value)
 
   def not_numbers(value, n_states, fault, what):
-    fail(fault, what, np.nan, NOT_NUMBERS, 0.0)
+    fail(fault, what, np.nan, np.int64(NOT_NUMBERS), 0.0)
     return np.int64(0)
   return not_numbers
 
@@ -77,10 +77,10 @@ def _as_features(value, out, fault, what):
   if _number(value):
     def one(value, out, fault, what):
       if out.shape[0] != 1:
-        fail(fault, what, np.nan, WRONG_LENGTH, 1.0)
+        fail(fault, what, np.nan, np.int64(WRONG_LENGTH), 1.0)
       v = float(value)
       if not math.isfinite(v):
-        fail(fault, what, v, NOT_FINITE, 1.0)
+        fail(fault, what, v, np.int64(NOT_FINITE), 1.0)
       out[0] = v
     return one
   if isinstance(value, types.UniTuple) and _number(value.dtype):
@@ -88,11 +88,11 @@ def _as_features(value, out, fault, what):
 
     def many(value, out, fault, what):
       if out.shape[0] != n:
-        fail(fault, what, np.nan, WRONG_LENGTH, float(n))
+        fail(fault, what, np.nan, np.int64(WRONG_LENGTH), float(n))
       for i in range(n):
         v = float(value[i])
         if not math.isfinite(v):
-          fail(fault, what, v, NOT_FINITE, float(n))
+          fail(fault, what, v, np.int64(NOT_FINITE), float(n))
         out[i] = v
     return many
   if isinstance(value, types.Tuple) and all(_number(t) for t in value.types):
@@ -100,18 +100,18 @@ def _as_features(value, out, fault, what):
 
     def mixed(value, out, fault, what):
       if out.shape[0] != n:
-        fail(fault, what, np.nan, WRONG_LENGTH, float(n))
+        fail(fault, what, np.nan, np.int64(WRONG_LENGTH), float(n))
       k = 0
       for v in numba.literal_unroll(value):
         f = float(v)
         if not math.isfinite(f):
-          fail(fault, what, f, NOT_FINITE, float(n))
+          fail(fault, what, f, np.int64(NOT_FINITE), float(n))
         out[k] = f
         k += 1
     return mixed
 
   def not_numbers(value, out, fault, what):
-    fail(fault, what, np.nan, NOT_NUMBERS, 0.0)
+    fail(fault, what, np.nan, np.int64(NOT_NUMBERS), 0.0)
   return not_numbers
 
 
@@ -128,17 +128,17 @@ def _as_event(value, fault, what):
     def event(value, fault, what):
       e = np.int64(value)
       if e != 0 and e != 1 and e != -1:
-        fail(fault, what, float(value), NOT_AN_EVENT, 0.0)
+        fail(fault, what, float(value), np.int64(NOT_AN_EVENT), 0.0)
       return e
     return event
   if isinstance(value, types.Float):
     def not_integer(value, fault, what):
-      fail(fault, what, float(value), NOT_AN_INTEGER, 0.0)
+      fail(fault, what, float(value), np.int64(NOT_AN_INTEGER), 0.0)
       return np.int64(0)
     return not_integer
 
   def not_numbers(value, fault, what):
-    fail(fault, what, np.nan, NOT_NUMBERS, 0.0)
+    fail(fault, what, np.nan, np.int64(NOT_NUMBERS), 0.0)
     return np.int64(0)
   return not_numbers
 
@@ -153,12 +153,12 @@ def _as_reward(value, fault, what):
     def reward(value, fault, what):
       g = float(value)
       if not math.isfinite(g):
-        fail(fault, what, g, NOT_FINITE, 0.0)
+        fail(fault, what, g, np.int64(NOT_FINITE), 0.0)
       return g
     return reward
 
   def not_numbers(value, fault, what):
-    fail(fault, what, np.nan, NOT_NUMBERS, 0.0)
+    fail(fault, what, np.nan, np.int64(NOT_NUMBERS), 0.0)
     return 0.0
   return not_numbers
 

@@ -307,12 +307,13 @@ class Program:
     call = self._call_text(s)
     args = ", ".join([settings, "M.obs", call, "M.samples"] if settings else ["M.obs", call])
     if s.view.gives == "state":
-      return [f"x{i} = boundary.as_state({fn}({args}), {s.size}, M.fault, {s._view_what})",
+      return [f"x{i} = boundary.as_state({fn}({args}), np.int64({s.size}), M.fault, "
+              f"np.int64({s._view_what}))",
               f"M.x[{i}, 0] = x{i}"]
     if s.view.writes:
       return [f"{fn}({args}, M.x[{i}, :{s.size + s.view.reflects}])"]
     return [f"boundary.as_features({fn}({args}), M.x[{i}, :{s.size}], M.fault, "
-            f"{s._view_what})"]
+            f"np.int64({s._view_what}))"]
 
   def _x(self, s):
     """The node's view as its learner reads it (after `_view_lines`)."""
@@ -358,7 +359,8 @@ class Program:
     return [f"{fn}({args})"]
 
   def _n(self, s):
-    """The learner's `n` (its number of children), and its mask if it reads one."""
+    """The learner's `n` (its number of children, a constant compiled into the kind's
+    code), and its mask if it reads one."""
     return (f"{s.n_children}, M.mask[{s.index}, :{s.n_children}]" if s.learner.masked else
             f"{s.n_children}")
 
@@ -402,7 +404,7 @@ class Program:
              f"call{i} = {self._call_text(s)}",
              f"said{i}, shaped{i} = {end}({args})" if s.end.gives_internal else
              f"said{i} = {end}({args})",
-             f"event{i} = boundary.as_event(said{i}, M.fault, {what})"]
+             f"event{i} = boundary.as_event(said{i}, M.fault, np.int64({what}))"]
     if s.reward is None:
       return lines + [f"return event{i}, 0.0"]
     if s.reward.from_termination:
@@ -412,7 +414,7 @@ class Program:
                      ["M.obs", f"call{i}", f"event{i}"])
     what = self._what(s.name, f"internal reward {rules_mod.rule_name(node.internal_reward)}",
                       "a finite number")
-    return lines + [f"return event{i}, boundary.as_reward({fn}({args}), M.fault, {what})"]
+    return lines + [f"return event{i}, boundary.as_reward({fn}({args}), M.fault, np.int64({what}))"]
 
   def _chosen_lines(self, s):
     if s.learner.continuous:
@@ -465,7 +467,7 @@ class Program:
           '  """A subtask\'s run ended: the schedule notes it if it watches the subtask."""']
     for k, name in enumerate(kind.watch(self.schedule_block)):
       L.append(f"  {'if' if k == 0 else 'elif'} node == {self.index[name]}:")
-      L.append(f"    {run}({S}, {k}, success)")
+      L.append(f"    {run}({S}, np.int64({k}), success)")
     L += ["  return None", "", "",
           "@numba.njit(**_JIT)", "def schedule_episode(G, learned):",
           f"  {episode}({S}, learned)", "", "",

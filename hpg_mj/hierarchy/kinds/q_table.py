@@ -35,7 +35,9 @@ def start(P, L, N):
 def choose(P, L, N, x, n, rng, learn, sample):
   """A child chosen in state x, epsilon-greedy over Q(x, .) (greedy when not
   `sample`)."""
-  a = qlambda.epsilon_greedy(L.q, x, n, P.epsilon[0] if sample else 0.0, rng)
+  # n as a number, as `observe`'s backup reaches it (`qlambda.smdp_step`): given the
+  # constant, epsilon_greedy and greedy were compiled twice.
+  a = qlambda.epsilon_greedy(L.q, x, np.int64(n), P.epsilon[0] if sample else 0.0, rng)
   N.last[0] = x
   N.last[1] = a
   return float(a)
