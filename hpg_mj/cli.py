@@ -444,9 +444,12 @@ def build_parser():
 
   p = sub.add_parser("render", help="write a video of one episode (of a task's scripted or "
                      "random policy, or with --agent of a saved agent)")
-  p.add_argument("--domain", choices=["ship", "taxi"], default=None, help="default ship")
+  p.add_argument("--domain", choices=["ship", "taxi", "ship_current", "ship_goal",
+                                      "ship_regatta", "ship_harbour"], default=None,
+                 help="default ship")
   p.add_argument("--task", default=None,
-                 help="ship: steer, diagonal, straight, patrol; taxi: fuel, classic")
+                 help="ship: steer, diagonal, straight, patrol; taxi: fuel, classic; the "
+                      "ladder's domains: a level, easy (default), medium, hard")
   p.add_argument("--policy", choices=["scripted", "random"], default=None,
                  help="default scripted")
   p.add_argument("--seed", type=_seed, default=0)

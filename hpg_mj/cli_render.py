@@ -30,14 +30,17 @@ def _cmd_render(args):
   from hpg_mj.render import video
   if getattr(args, "agent", None) is not None:
     return _render_agent(args)
-  _check_frame_size(f"{args.domain}.xml", args)
+  _check_frame_size(MODEL_FILES.get(args.domain, f"{args.domain}.xml"), args)
   args.out = _video_out(args, f"{VIDEOS_OUT}/{args.domain}_{args.task}_{args.policy}."
                               f"{'gif' if args.gif else 'mp4'}")
+  pilot = None
+  if args.domain in video.LADDER_IDS and args.policy == "scripted":
+    pilot = LadderPilot(args.domain, args.task)
   path, summary = video.render_task(args.domain, args.task, policy=args.policy, seed=args.seed,
                                     out=args.out, gif=args.gif, width=args.width,
                                     height=args.height, max_steps=args.max_steps,
                                     backend=args.backend,
-                                    frame_every=getattr(args, "stride", None))
+                                    frame_every=getattr(args, "stride", None), pilot=pilot)
   event = summary["info"].get("event") if isinstance(summary["info"], dict) else None
   print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB): {summary['steps']} steps, "
         f"return {summary['return']:.1f}" + (f", ended by {event}" if event else ""))
@@ -94,6 +97,32 @@ def _check_frame_size(model_file, args):
   _assets.check_frame_size(model_file, args.width, args.height, options=("--width", "--height"))
 
 
+# The MJCF a domain draws with, where it is not "<domain>.xml" (the goal's ship is the
+# steering task's, its gate moved).
+MODEL_FILES = {"ship_goal": "ship.xml"}
+
+
+class LadderPilot:
+  """The scripted helmsman of a ladder task at a level (`planners.Helmsman`, a batched
+  policy), one observation at a time, as `render_task` drives a pilot."""
+
+  def __init__(self, domain, level):
+    from hpg_mj import planners
+    if level not in ("easy", "medium", "hard"):
+      raise ValueError(f"--task {level!r}: the task of {domain} is its level; valid: easy, "
+                       "medium, hard")
+    self.helmsman = planners.Helmsman(domain, level)
+
+  def reset(self):
+    """A new episode: the helmsman keeps nothing between steps."""
+
+  def __call__(self, obs):
+    import numpy as np
+    batch = ({key: np.asarray(value)[None] for key, value in obs.items()}
+             if isinstance(obs, dict) else np.asarray(obs)[None])
+    return np.asarray(self.helmsman(batch), dtype=np.float64).reshape(-1)[:1]
+
+
 # `hpg-mj render` options that film a task's scripted or random policy, not an agent.
 RENDER_TASK_ONLY = ("domain", "task", "policy", "max_steps")
 RENDER_AGENT_ONLY = ("max_frames",)
@@ -117,7 +146,7 @@ def _check_render_args(parser, args):
     if given:
       parser.error(f"render: {', '.join(given)} only applies with --agent")
     args.domain = args.domain or "ship"
-    args.task = args.task or ("steer" if args.domain == "ship" else "fuel")
+    args.task = args.task or {"ship": "steer", "taxi": "fuel"}.get(args.domain, "easy")
     args.policy = args.policy or "scripted"
     args.width = args.width or 640
     args.height = args.height or 480

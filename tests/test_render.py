@@ -37,6 +37,24 @@ def test_taxi_clip_is_written_and_moves(tmp_path):
   _check_frames([f for f in imageio.mimread(path)])
 
 
+@pytest.mark.parametrize("domain", ["ship_harbour", "ship_goal"])
+def test_a_ladder_task_is_filmed_at_its_level_by_the_planners_helmsman(tmp_path, capsys, domain):
+  """`hpg-mj render --domain ship_harbour --task hard`: the ladder's domains, their
+  levels as tasks, the scripted helmsman the planners' (`cli_render.LadderPilot`)."""
+  from hpg_mj import cli
+  out = tmp_path / f"{domain}.gif"
+  assert cli.main(["render", "--domain", domain, "--task", "hard", "--seed", "1", "--out",
+                   str(out), "--width", "160", "--height", "128", "--max-steps", "12"]) == 0
+  assert capsys.readouterr().out.startswith(f"wrote {out} (")
+  _check_frames([np.asarray(f)[..., :3] for f in imageio.mimread(out)])
+  assert cli.main(["render", "--domain", domain, "--task", "steer", "--out",
+                   str(tmp_path / "x.gif")]) == 2
+  assert capsys.readouterr().err == (f"hpg-mj render: error: --task 'steer': the task of "
+                                     f"{domain} is its level; valid: easy, medium, hard\n")
+  with pytest.raises(ValueError, match=r"the scripted helmsman of ship_goal is the planners'"):
+    video.render_task("ship_goal", "easy", out=tmp_path / "y.gif")
+
+
 def test_random_policy_and_bad_arguments(tmp_path):
   with pytest.raises(ValueError, match=r"unknown policy 'clever'.*\['scripted', 'random'\]"):
     env = gymnasium.make("hpg_mj/ShipSteering-v0").unwrapped

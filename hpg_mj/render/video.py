@@ -57,6 +57,9 @@ def make_policy(env, domain, task, policy):
     return RandomPolicy(env.action_space)
   if policy != "scripted":
     raise ValueError(f"unknown policy {policy!r}; valid policies: {list(POLICIES)}")
+  if domain in LADDER_IDS:
+    raise ValueError(f"the scripted helmsman of {domain} is the planners' "
+                     "(hpg_mj.planners.Helmsman; hpg-mj render gives it): pass it as pilot")
   if domain == "ship":
     return ShipPilot(task)
   from hpg_mj.worlds import taxi_pilot
@@ -152,11 +155,20 @@ def write_video(frames, path, fps=20):
   return writer.path
 
 
+# The task ladder's domains (SPEC section 11): their tasks are the levels.
+LADDER_IDS = {"ship_current": "hpg_mj/ShipCurrent-v0", "ship_goal": "hpg_mj/ShipGoal-v0",
+              "ship_regatta": "hpg_mj/ShipRegatta-v0", "ship_harbour": "hpg_mj/ShipHarbour-v0"}
+LEVELS = ("easy", "medium", "hard")
+
+
 def render_task(domain, task, policy="scripted", seed=0, out=None, gif=False, width=640,
-                height=480, max_steps=None, backend="mujoco", fps=20, frame_every=None):
+                height=480, max_steps=None, backend="mujoco", fps=20, frame_every=None,
+                pilot=None):
   """Renders one episode of a task to a video file; returns (path, summary).
   `out`: default `runs/videos/<domain>_<task>_<policy>.mp4` (or .gif), in a folder
-  git ignores, never over the repository's showcase videos."""
+  git ignores, never over the repository's showcase videos. A ladder domain's
+  (`LADDER_IDS`) task is its level; its scripted `pilot` (a function of one
+  observation, `hpg-mj render` gives the planners' helmsman) is the caller's."""
   import gymnasium
 
   import hpg_mj  # noqa: F401  (registers the ids)
@@ -166,19 +178,28 @@ def render_task(domain, task, policy="scripted", seed=0, out=None, gif=False, wi
          ("ship", "patrol"): "hpg_mj/ShipPatrol-v0",
          ("taxi", "fuel"): "hpg_mj/TaxiFuel-v0",
          ("taxi", "classic"): "hpg_mj/Taxi-v0"}
-  if (domain, task) not in ids:
-    raise ValueError(f"unknown domain/task {domain}/{task}; valid: "
-                     f"{sorted(f'{d}/{t}' for d, t in ids)}")
   kwargs = {"render_mode": "rgb_array", "width": width, "height": height}
-  if domain == "ship":
+  if domain in LADDER_IDS:
+    if task not in LEVELS:
+      raise ValueError(f"unknown level {task!r} of {domain}; valid: {list(LEVELS)}")
+    env_id = LADDER_IDS[domain]
+    kwargs["level"] = task
+  elif (domain, task) in ids:
+    env_id = ids[(domain, task)]
+  else:
+    raise ValueError(f"unknown domain/task {domain}/{task}; valid: "
+                     f"{sorted(f'{d}/{t}' for d, t in ids)} and {sorted(LADDER_IDS)}/"
+                     f"{'|'.join(LEVELS)}")
+  if domain != "taxi":
     kwargs["backend"] = backend
   if task == "patrol" and max_steps is None:
     max_steps = PATROL_VIDEO_STEPS
-  env = gymnasium.make(ids[(domain, task)], **kwargs).unwrapped
+  env = gymnasium.make(env_id, **kwargs).unwrapped
   try:
-    pilot = make_policy(env, domain, task, policy)
+    if pilot is None or policy != "scripted":
+      pilot = make_policy(env, domain, task, policy)
     if frame_every is None:
-      frame_every = 2 if domain == "ship" else 1
+      frame_every = 1 if domain == "taxi" else 2
     frames, summary = record_episode(env, pilot, seed=seed, max_steps=max_steps,
                                      frame_every=frame_every)
   finally:
@@ -188,5 +209,5 @@ def render_task(domain, task, policy="scripted", seed=0, out=None, gif=False, wi
   out = pathlib.Path(out)
   if gif and out.suffix.lower() != ".gif":
     out = out.with_suffix(".gif")
-  fps = fps if domain == "ship" else 4
+  fps = 4 if domain == "taxi" else fps
   return write_video(frames, out, fps=fps), summary
