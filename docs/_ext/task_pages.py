@@ -254,6 +254,17 @@ def _make(domain, task):
   return gymnasium.make(env_id, **_MAKE_KWARGS.get(env_id, {}), **level)
 
 
+def _entry_point(env_id, domain, task):
+  """The page's entry-point row: the id's class and the arguments this page's task
+  gets. A ladder's id registers its easy level; the page's `level=` replaces it."""
+  entry_point, kwargs = envs.ENV_IDS[env_id]
+  if domain not in _LEVEL_DOMAINS or kwargs.get("level") == task:
+    return f"`{entry_point}` with `{kwargs!r}`"
+  here = {**kwargs, "level": task}
+  return (f"`{entry_point}` with `{here!r}` (the id registers `{kwargs!r}`; "
+          "`level=` replaces it)")
+
+
 def render(domain, task):
   """The Markdown of one task's page."""
   env_id, picture, caption = TASKS[(domain, task)]
@@ -276,7 +287,7 @@ def render(domain, task):
         ("Gymnasium", f"`gymnasium.make({env_id!r}{arguments})`"),
         ("vector", f"`gymnasium.make_vec({env_id!r}, num_envs=N{arguments})` "
                    f"(`{envs.VECTOR_ENTRY_POINTS[envs.ENV_IDS[env_id][0]]}`)"),
-        ("entry point", f"`{envs.ENV_IDS[env_id][0]}` with `{envs.ENV_IDS[env_id][1]!r}`"),
+        ("entry point", _entry_point(env_id, domain, task)),
         ("action space", f"`{env.action_space!r}`"),
         ("observation space", f"`{env.observation_space!r}`"),
         ("max episode steps", f"{limit:,} (`max_steps`: the environment's own limit, "
