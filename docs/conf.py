@@ -38,6 +38,9 @@ html_title = "hpg_mj"
 # are GitHub's heading anchors; MyST makes the same ones.
 myst_heading_anchors = 3
 myst_enable_extensions = ["colon_fence", "dollarmath", "fieldlist"]
+# Quotes and ellipses only: the reports quote command lines ("--seeds 3"), which the
+# default ("qDe") would print with an en dash.
+smartquotes_action = "qe"
 
 # The docstrings write `name` for code, as Markdown does.
 default_role = "code"
