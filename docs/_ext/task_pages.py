@@ -134,6 +134,12 @@ def task_paragraph(module_doc, task):
   return " ".join(match.group(1).split())
 
 
+def _sentence(text):
+  """A docstring's or a caption's fragment ("the full task: ...") as the page's
+  sentence: its first letter a capital."""
+  return text[:1].upper() + text[1:]
+
+
 def _shift_headings(text):
   """The manual's `##` sections one level down, under the page's "Manual"."""
   return re.sub(r"^(#+) ", r"#\1 ", text, flags=re.M)
@@ -338,8 +344,8 @@ def render(domain, task):
       task's: both run the same rules.
 
       """).format(title=f"{domain} / {task}: `{env_id}`", image=image, domain=domain,
-                  task=task, caption=caption, rows=rows,
-                  paragraph=task_paragraph(inspect.getdoc(module), task),
+                  task=task, caption=_sentence(caption), rows=rows,
+                  paragraph=_sentence(task_paragraph(inspect.getdoc(module), task)),
                   module=module.__name__, signature=signature,
                   constructor_doc=inspect.getdoc(constructor),
                   cls=f"{cls.__module__}.{cls.__qualname__}") \
