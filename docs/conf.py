@@ -33,11 +33,17 @@ root_doc = "index"
 exclude_patterns = ["_build"]
 html_theme = "furo"
 html_title = "hpg_mj"
+# _static/tables.css: the reports' wide tables fit the page's column.
+html_static_path = ["_static"]
+html_css_files = ["tables.css"]
 
 # SPEC.md's and the pages' section links (SPEC.md#7-evaluation-seeds-and-statistics)
 # are GitHub's heading anchors; MyST makes the same ones.
 myst_heading_anchors = 3
 myst_enable_extensions = ["colon_fence", "dollarmath", "fieldlist"]
+# Quotes and ellipses only: the reports quote command lines ("--seeds 3"), which the
+# default ("qDe") would print with an en dash.
+smartquotes_action = "qe"
 
 # The docstrings write `name` for code, as Markdown does.
 default_role = "code"
@@ -57,3 +63,18 @@ nitpick_ignore_regex = [
     ("py:class", r"[a-z][a-z ]*|ObsType|ActType|types\.\w+|Any|Callable|Sequence|Optional"),
     ("py:(class|obj)", r"hpg_mj(\.\w+)*\._\w+(\.\w+)*"),
 ]
+
+
+def _mark_long_words(app, doctree):
+  """Classes a table holding a word of 40 characters or more outside code (the
+  reports' task-file SHA-256s) `long-words`: _static/tables.css lets its cells break
+  anywhere, so that the hash does not squeeze the columns beside it."""
+  from docutils import nodes
+  for table in doctree.findall(nodes.table):
+    if any(len(word) >= 40 for text in table.findall(nodes.Text)
+           if not isinstance(text.parent, nodes.literal) for word in text.split()):
+      table["classes"].append("long-words")
+
+
+def setup(app):
+  app.connect("doctree-read", _mark_long_words)

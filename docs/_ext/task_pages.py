@@ -134,6 +134,12 @@ def task_paragraph(module_doc, task):
   return " ".join(match.group(1).split())
 
 
+def _sentence(text):
+  """A docstring's or a caption's fragment ("the full task: ...") as the page's
+  sentence: its first letter a capital."""
+  return text[:1].upper() + text[1:]
+
+
 def _shift_headings(text):
   """The manual's `##` sections one level down, under the page's "Manual"."""
   return re.sub(r"^(#+) ", r"#\1 ", text, flags=re.M)
@@ -254,6 +260,17 @@ def _make(domain, task):
   return gymnasium.make(env_id, **_MAKE_KWARGS.get(env_id, {}), **level)
 
 
+def _entry_point(env_id, domain, task):
+  """The page's entry-point row: the id's class and the arguments this page's task
+  gets. A ladder's id registers its easy level; the page's `level=` replaces it."""
+  entry_point, kwargs = envs.ENV_IDS[env_id]
+  if domain not in _LEVEL_DOMAINS or kwargs.get("level") == task:
+    return f"`{entry_point}` with `{kwargs!r}`"
+  here = {**kwargs, "level": task}
+  return (f"`{entry_point}` with `{here!r}` (the id registers `{kwargs!r}`; "
+          "`level=` replaces it)")
+
+
 def render(domain, task):
   """The Markdown of one task's page."""
   env_id, picture, caption = TASKS[(domain, task)]
@@ -276,7 +293,7 @@ def render(domain, task):
         ("Gymnasium", f"`gymnasium.make({env_id!r}{arguments})`"),
         ("vector", f"`gymnasium.make_vec({env_id!r}, num_envs=N{arguments})` "
                    f"(`{envs.VECTOR_ENTRY_POINTS[envs.ENV_IDS[env_id][0]]}`)"),
-        ("entry point", f"`{envs.ENV_IDS[env_id][0]}` with `{envs.ENV_IDS[env_id][1]!r}`"),
+        ("entry point", _entry_point(env_id, domain, task)),
         ("action space", f"`{env.action_space!r}`"),
         ("observation space", f"`{env.observation_space!r}`"),
         ("max episode steps", f"{limit:,} (`max_steps`: the environment's own limit, "
@@ -327,8 +344,8 @@ def render(domain, task):
       task's: both run the same rules.
 
       """).format(title=f"{domain} / {task}: `{env_id}`", image=image, domain=domain,
-                  task=task, caption=caption, rows=rows,
-                  paragraph=task_paragraph(inspect.getdoc(module), task),
+                  task=task, caption=_sentence(caption), rows=rows,
+                  paragraph=_sentence(task_paragraph(inspect.getdoc(module), task)),
                   module=module.__name__, signature=signature,
                   constructor_doc=inspect.getdoc(constructor),
                   cls=f"{cls.__module__}.{cls.__qualname__}") \
