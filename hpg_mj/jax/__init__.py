@@ -28,11 +28,13 @@ ENV_IDS = {
     "hpg_mj/ShipPatrol-v0": ("hpg_mj.jax.ship:ShipSteering", {"task": "patrol"}),
     "hpg_mj/TaxiFuel-v0": ("hpg_mj.jax.taxi:Taxi", {"fuel": True}),
     "hpg_mj/Taxi-v0": ("hpg_mj.jax.taxi:Taxi", {"fuel": False}),
+    # The task ladder's (SPEC section 11): `level` is a constructor argument, as the
+    # Gymnasium environments' (`make(id, level="hard")`), the default given here.
+    "hpg_mj/ShipCurrent-v0": ("hpg_mj.jax.ship_current:ShipCurrent", {"level": "easy"}),
 }
 
 # The Gymnasium ids not in JAX yet (the task ladder's, SPEC section 11): `make` says so.
-NOT_YET = ("hpg_mj/ShipCurrent-v0", "hpg_mj/ShipGoal-v0", "hpg_mj/ShipRegatta-v0",
-           "hpg_mj/ShipHarbour-v0")
+NOT_YET = ("hpg_mj/ShipGoal-v0", "hpg_mj/ShipRegatta-v0", "hpg_mj/ShipHarbour-v0")
 
 PREFIX = "hpg_mj/"
 INSTALL = "pip install hpg_mj[jax]"
@@ -60,17 +62,24 @@ def _require_jax():
     raise ImportError(f"hpg_mj.jax needs JAX, which is not installed: {INSTALL}") from error
 
 
-def make(env_id, **params):
+def make(env_id, level=None, **params):
   """`(env, params)` for an hpg_mj id, as `gymnax.make`: the environment and its
   default `EnvParams`, with `params` (field names of its `EnvParams`, for example
   `max_steps_in_episode=1000` or `out_of_bounds_reward=-300.0`) replacing defaults.
+  `level` ("easy", "medium" or "hard") picks a task ladder's level (SPEC section
+  11; None: "easy"), as the Gymnasium environments' argument.
 
-  Raises ValueError naming the id or parameter and what is allowed, ImportError
-  naming the extra to install where JAX is missing.
+  Raises ValueError naming the id, level or parameter and what is allowed,
+  ImportError naming the extra to install where JAX is missing.
   """
   name = canonical_id(env_id)
   _require_jax()
   path, kwargs = ENV_IDS[name]
+  if level is not None:
+    if "level" not in kwargs:
+      raise ValueError(f"{name} has no levels (level={level!r}); the ids with levels: "
+                       f"{sorted(i[len(PREFIX):] for i, e in ENV_IDS.items() if 'level' in e[1])}")
+    kwargs = {**kwargs, "level": level}
   module, cls = path.split(":")
   env = getattr(importlib.import_module(module), cls)(env_id=name, **kwargs)
   defaults = env.default_params
