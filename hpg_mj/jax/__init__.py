@@ -31,10 +31,11 @@ ENV_IDS = {
     # The task ladder's (SPEC section 11): `level` is a constructor argument, as the
     # Gymnasium environments' (`make(id, level="hard")`), the default given here.
     "hpg_mj/ShipCurrent-v0": ("hpg_mj.jax.ship_current:ShipCurrent", {"level": "easy"}),
+    "hpg_mj/ShipGoal-v0": ("hpg_mj.jax.ship_goal:ShipGoal", {"level": "easy"}),
 }
 
 # The Gymnasium ids not in JAX yet (the task ladder's, SPEC section 11): `make` says so.
-NOT_YET = ("hpg_mj/ShipGoal-v0", "hpg_mj/ShipRegatta-v0", "hpg_mj/ShipHarbour-v0")
+NOT_YET = ("hpg_mj/ShipRegatta-v0", "hpg_mj/ShipHarbour-v0")
 
 PREFIX = "hpg_mj/"
 INSTALL = "pip install hpg_mj[jax]"

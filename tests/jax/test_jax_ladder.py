@@ -1,6 +1,7 @@
 """The task ladder's JAX worlds equal their analytic numba worlds (issue 42; SPEC
 section 11): for each task and level, 1,000 starts drawn as the numba world draws
-them (numpy's generator seeded 1,000,000 + i), given to both worlds, sailed under the same seeded
+them (numpy's generator seeded 1,000,000 + i, the ship and then what the level
+adds: the goal's gate), given to both worlds, sailed under the same seeded
 controls by `hpg_mj.jax` (vmapped, scanned) and by the compiled batch steps of the
 native vector environments, give in float64 the same observations to 1e-9, the
 same rewards and the same endings at the same steps. Float32 is measured against
@@ -18,8 +19,10 @@ pytest.importorskip("jax.numpy")   # not `jax`: tests/ is on sys.path and holds 
 import jax  # noqa: E402
 
 import hpg_mj.jax as hpg_jax  # noqa: E402
+from hpg_mj.jax import ship_goal  # noqa: E402
 from hpg_mj.worlds import ship_core as core  # noqa: E402
 from hpg_mj.worlds import ship_current_core as current_core  # noqa: E402
+from hpg_mj.worlds import ship_goal_core as goal_core  # noqa: E402
 from hpg_mj.worlds import ship_task  # noqa: E402
 
 N = 1000
@@ -74,7 +77,64 @@ class CurrentWorld:
                                                 400.0 + 150.0 * side)
 
 
-WORLDS = {"current": CurrentWorld}
+class GoalWorld:
+  """The numba goal-conditioned ships, stepped as `ShipGoalVectorEnv`'s analytic batch:
+  `task_step_batch` sails them, then `judge_batch` judges the goals."""
+
+  id = "ShipGoal-v0"
+
+  def __init__(self, level, limit, n=N):
+    self.level = level
+    rules = ship_task.ShipRules("steer", limit)
+    starts, gates, desired = [], [], []
+    for i in range(n):
+      rng = _rng(i)          # as the Gymnasium environment's reset: the ship, then the gate
+      starts.append(rules.sample_start(rng))
+      # The gate JAX is given, [x, y, heading_deg], is the generator's own draws: read
+      # on a copy, and the rule's gate from them is `sample_gate`'s, to the bit.
+      low, high, largest = goal_core.LEVELS[level]
+      copy = np.random.Generator(type(rng.bit_generator)())
+      copy.bit_generator.state = rng.bit_generator.state
+      gates.append([copy.uniform(low, high), copy.uniform(low, high),
+                    copy.uniform(-largest, largest)])
+      desired.append(goal_core.sample_gate(rng, goal_core.LEVELS[level]))
+      assert np.array_equal(desired[-1], goal_core.check_gate(gates[-1], "test"))
+    self.starts, self.gates = np.array(starts), np.array(gates)
+    self.desired = np.array(desired)
+    self.ships = self.starts.copy()
+    self.limit, self.rules = limit, rules
+    self.samples = np.zeros((n, core.SAMPLES_PER_CONTROL + 1, 2))
+    self.steps = np.zeros(n, np.int64)
+    self.achieved = np.array([goal_core.goal_of(s) for s in self.starts])
+    self.outcome = (np.zeros(n, np.int64), np.zeros(n), np.zeros(n, np.bool_),
+                    np.zeros(n, np.bool_))
+
+  def jax_starts(self, env, params):
+    return jax.vmap(lambda s, g: env.reset_to(s, g, params))(self.starts, self.gates)
+
+  def step(self, r, live):
+    core.task_step_batch(self.ships, r, live, self.samples, self.steps, True, True,
+                         np.zeros(2), core.FIELD_SIZE, self.limit, self.rules.success_reward,
+                         self.rules.failure_reward, self.outcome)
+    goal_core.judge_batch(self.ships, live, self.steps, self.desired, self.limit,
+                          self.rules.success_reward, self.rules.failure_reward, self.achieved,
+                          self.outcome)
+    return self.outcome
+
+  def observations(self):
+    return np.concatenate([self.ships, self.achieved, self.desired], axis=1)
+
+  def targets(self, ships, phase, rows):
+    """`ship_goal_core.pilot_target` over rows of ships: 150 m before the gate on its
+    line of approach until within 40 m, then 60 m past its centre."""
+    d = self.desired[rows]
+    before = d[:, :2] - 150.0 * d[:, 2:]
+    phase |= np.hypot(*(ships[:, :2] - before).T) < 40.0
+    target = np.where(phase[:, None], d[:, :2] + 60.0 * d[:, 2:], before)
+    return target[:, 0], target[:, 1]
+
+
+WORLDS = {"current": CurrentWorld, "goal": GoalWorld}
 
 
 def helmsman(ships, target_x, target_y):
@@ -185,7 +245,7 @@ def _compare(task, level, limit, x64, seed):
 
 
 # (task, level) -> the step limit: the gate, leaving the field and truncation all come.
-LIMITS = {("current", level): 600 for level in LEVELS}
+LIMITS = {("current", level): 600 for level in LEVELS} | {("goal", level): 800 for level in LEVELS}
 
 
 @pytest.mark.parametrize("case", sorted(LIMITS), ids="-".join)
@@ -210,10 +270,64 @@ def test_a_level_is_the_worlds_default_parameters():
     _, params = hpg_jax.make("ShipCurrent-v0", level=level)
     assert (params.uniform_x, params.uniform_y, params.river, params.cross) == \
         current_core.LEVELS[level]
-  assert hpg_jax.make("ShipCurrent-v0")[1] == hpg_jax.make("ShipCurrent-v0", level="easy")[1]
+    _, params = hpg_jax.make("hpg_mj/ShipGoal-v0", level=level)
+    assert (params.gate_low, params.gate_high, params.gate_heading_deg) == \
+        goal_core.LEVELS[level]
+  assert hpg_jax.make("ShipGoal-v0")[1] == hpg_jax.make("ShipGoal-v0", level="easy")[1]
   with pytest.raises(ValueError, match=r"^hpg_mj/ShipCurrent-v0: unknown level 'stormy'; "
                                        r"allowed levels: \['easy', 'medium', 'hard'\]$"):
     hpg_jax.make("ShipCurrent-v0", level="stormy")
   with pytest.raises(ValueError, match=r"^hpg_mj/ShipSteering-v0 has no levels \(level='hard'\); "
-                                       r"the ids with levels: \['ShipCurrent-v0'\]"):
+                                       r"the ids with levels: \['ShipCurrent-v0', 'ShipGoal-v0'"):
     hpg_jax.make("ShipSteering-v0", level="hard")
+
+
+def test_the_goals_gates_are_drawn_from_the_levels_ranges():
+  env, _ = hpg_jax.make("ShipGoal-v0")
+  n = 1000
+  reset = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))   # one compile: a level is params
+  for seed, level in enumerate(LEVELS):
+    params = hpg_jax.make("ShipGoal-v0", level=level)[1]
+    keys = jax.random.split(jax.random.PRNGKey(seed), n)
+    obs, state = reset(keys, params)
+    parts = {k: np.asarray(v, np.float64) for k, v in ship_goal.split_obs(obs).items()}
+    low, high, largest = goal_core.LEVELS[level]
+    gate = parts["desired_goal"]
+    assert np.array_equal(gate, np.asarray(state.desired, np.float64))
+    assert (gate[:, :2] >= low).all() and (gate[:, :2] <= high).all()
+    heading = np.abs(np.degrees(np.arctan2(gate[:, 2], gate[:, 3])))
+    assert largest * 0.99 < heading.max() <= largest + 1e-3
+    assert np.allclose(np.hypot(gate[:, 2], gate[:, 3]), 1.0, atol=1e-6)
+    ship = parts["observation"]
+    assert np.allclose(parts["achieved_goal"][:, 2], np.sin(np.radians(ship[:, 2])), atol=1e-5)
+    assert (ship[:, :2] >= 0.0).all() and (ship[:, :2] <= 1000.0).all()
+    space = env.observation_space(params)
+    assert (np.asarray(obs) >= space.low).all() and (np.asarray(obs) <= space.high).all()
+
+
+def test_the_goals_compute_reward_is_the_numba_rule(x64):
+  """Relabelled goals (what Hindsight Experience Replay asks): the JAX rule gives
+  `ship_goal_core.compute_reward`'s rewards exactly, gates passed or not."""
+  rng = np.random.default_rng(7)
+  desired = np.array([goal_core.sample_gate(rng, goal_core.LEVELS["hard"]) for _ in range(4000)])
+  achieved = desired.copy()
+  achieved[:, :2] += rng.uniform(-60.0, 60.0, (4000, 2)) * rng.uniform(0.0, 1.0, (4000, 1)) ** 3
+  turn = np.radians(rng.uniform(-90.0, 90.0, 4000))
+  achieved[:, 2:] = np.stack([desired[:, 2] * np.cos(turn) + desired[:, 3] * np.sin(turn),
+                              desired[:, 3] * np.cos(turn) - desired[:, 2] * np.sin(turn)], 1)
+  achieved[::7, :2] = rng.uniform(-50.0, 1050.0, (len(range(0, 4000, 7)), 2))  # off the field too
+  env, params = hpg_jax.make("ShipGoal-v0", level="hard", gate_reward=50.0)
+  expected = goal_core.compute_reward(achieved, desired, 50.0, -100.0)
+  got = np.asarray(jax.jit(env.compute_reward)(achieved, desired, params))
+  assert np.array_equal(got, expected)
+  assert {-1.0, 49.0, -101.0} <= set(expected.tolist())
+  assert float(env.compute_reward(achieved[0], desired[0])) == goal_core.compute_reward(
+      achieved[0], desired[0], 100.0, -100.0)
+
+
+@pytest.fixture
+def x64():
+  previous = jax.config.jax_enable_x64
+  jax.config.update("jax_enable_x64", True)
+  yield
+  jax.config.update("jax_enable_x64", previous)
