@@ -10,9 +10,10 @@ obs, state, reward, done, info = env.step(key, state, action, params)
 Every function is jit-, vmap- and scan-able, and float64 is there with
 `jax.config.update("jax_enable_x64", True)`. The ids are the Gymnasium ids of
 `hpg_mj.envs` (`hpg_mj/ShipSteering-v0`, ...), with or without the `hpg_mj/`
-prefix. In float64 the JAX worlds equal the analytic numba worlds step by step
-(SPEC sections 1-3, 5 and 8; tests/jax); those, the dm_control and the Gymnasium
-tasks stay the reference. See docs/jax.md.
+prefix; the task ladder's take a `level` (`make("ShipGoal-v0", level="hard")`). In
+float64 the JAX worlds equal the analytic numba worlds step by step (SPEC sections
+1-3, 5, 8 and 11; tests/jax); those, the dm_control and the Gymnasium tasks stay
+the reference. See docs/jax.md.
 
 Nothing else in hpg_mj imports JAX, and this module imports it only in `make`
 (the environments' modules import it when loaded), so the registry below is
