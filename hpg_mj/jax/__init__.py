@@ -10,9 +10,10 @@ obs, state, reward, done, info = env.step(key, state, action, params)
 Every function is jit-, vmap- and scan-able, and float64 is there with
 `jax.config.update("jax_enable_x64", True)`. The ids are the Gymnasium ids of
 `hpg_mj.envs` (`hpg_mj/ShipSteering-v0`, ...), with or without the `hpg_mj/`
-prefix. In float64 the JAX worlds equal the analytic numba worlds step by step
-(SPEC sections 1-3, 5 and 8; tests/jax); those, the dm_control and the Gymnasium
-tasks stay the reference. See docs/jax.md.
+prefix; the task ladder's take a `level` (`make("ShipGoal-v0", level="hard")`). In
+float64 the JAX worlds equal the analytic numba worlds step by step (SPEC sections
+1-3, 5, 8 and 11; tests/jax); those, the dm_control and the Gymnasium tasks stay
+the reference. See docs/jax.md.
 
 Nothing else in hpg_mj imports JAX, and this module imports it only in `make`
 (the environments' modules import it when loaded), so the registry below is
@@ -28,11 +29,14 @@ ENV_IDS = {
     "hpg_mj/ShipPatrol-v0": ("hpg_mj.jax.ship:ShipSteering", {"task": "patrol"}),
     "hpg_mj/TaxiFuel-v0": ("hpg_mj.jax.taxi:Taxi", {"fuel": True}),
     "hpg_mj/Taxi-v0": ("hpg_mj.jax.taxi:Taxi", {"fuel": False}),
+    # The task ladder's (SPEC section 11): `level` is a constructor argument, as the
+    # Gymnasium environments' (`make(id, level="hard")`), the default given here.
+    "hpg_mj/ShipCurrent-v0": ("hpg_mj.jax.ship_current:ShipCurrent", {"level": "easy"}),
+    "hpg_mj/ShipGoal-v0": ("hpg_mj.jax.ship_goal:ShipGoal", {"level": "easy"}),
 }
 
 # The Gymnasium ids not in JAX yet (the task ladder's, SPEC section 11): `make` says so.
-NOT_YET = ("hpg_mj/ShipCurrent-v0", "hpg_mj/ShipGoal-v0", "hpg_mj/ShipRegatta-v0",
-           "hpg_mj/ShipHarbour-v0")
+NOT_YET = ("hpg_mj/ShipRegatta-v0", "hpg_mj/ShipHarbour-v0")
 
 PREFIX = "hpg_mj/"
 INSTALL = "pip install hpg_mj[jax]"
@@ -60,17 +64,24 @@ def _require_jax():
     raise ImportError(f"hpg_mj.jax needs JAX, which is not installed: {INSTALL}") from error
 
 
-def make(env_id, **params):
+def make(env_id, level=None, **params):
   """`(env, params)` for an hpg_mj id, as `gymnax.make`: the environment and its
   default `EnvParams`, with `params` (field names of its `EnvParams`, for example
   `max_steps_in_episode=1000` or `out_of_bounds_reward=-300.0`) replacing defaults.
+  `level` ("easy", "medium" or "hard") picks a task ladder's level (SPEC section
+  11; None: "easy"), as the Gymnasium environments' argument.
 
-  Raises ValueError naming the id or parameter and what is allowed, ImportError
-  naming the extra to install where JAX is missing.
+  Raises ValueError naming the id, level or parameter and what is allowed,
+  ImportError naming the extra to install where JAX is missing.
   """
   name = canonical_id(env_id)
   _require_jax()
   path, kwargs = ENV_IDS[name]
+  if level is not None:
+    if "level" not in kwargs:
+      raise ValueError(f"{name} has no levels (level={level!r}); the ids with levels: "
+                       f"{sorted(i[len(PREFIX):] for i, e in ENV_IDS.items() if 'level' in e[1])}")
+    kwargs = {**kwargs, "level": level}
   module, cls = path.split(":")
   env = getattr(importlib.import_module(module), cls)(env_id=name, **kwargs)
   defaults = env.default_params

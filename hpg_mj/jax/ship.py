@@ -226,7 +226,7 @@ class ShipSteering(environment.Environment):
 
   def reset_env(self, key, params):
     state = self._draw_start(key)
-    return self.get_obs(state), state
+    return self.get_obs(state, params), state
 
   def reset_to(self, ship_state, params=None):
     """`(obs, state)` starting exactly at `ship_state` = `[x, y, theta_deg,
@@ -238,12 +238,13 @@ class ShipSteering(environment.Environment):
                        f"theta_dot_deg] of shape (4,), got shape {arr.shape}")
     if environment.is_concrete(arr):
       core.check_state(np.asarray(arr, dtype=np.float64), self.env_id, 0.0, self.size)
-    return self._start_at(arr)
+    return self._start_at(arr, params)
 
   @functools.partial(jax.jit, static_argnames=("self",))
-  def _start_at(self, arr):
+  def _start_at(self, arr, params=None):
+    params = self.default_params if params is None else params
     state = self._state(arr[0], arr[1], arr[2], arr[3])
-    return self.get_obs(state), state
+    return self.get_obs(state, params), state
 
   # ---- one control step ---------------------------------------------------------
 
@@ -256,10 +257,14 @@ class ShipSteering(environment.Environment):
     # Clipped as the Gymnasium environment's default (non-strict); SPEC section 1.
     return jnp.clip(arr.reshape(()).astype(dtype), -core.MAX_TURN_RATE, core.MAX_TURN_RATE)
 
+  def _sail(self, state, r_deg, params):
+    """One control interval from `state` (`sail`; a world with water moving sails
+    its own): the end state and the sampled positions."""
+    return sail(state.x, state.y, state.theta_deg, state.theta_dot_deg, r_deg, params)
+
   def step_env(self, key, state, action, params):
     r = self._turn_rate(action, state.x.dtype)
-    x, y, theta, rate, positions = sail(state.x, state.y, state.theta_deg, state.theta_dot_deg,
-                                        r, params)
+    x, y, theta, rate, positions = self._sail(state, r, params)
     time = state.time + 1
     # `ship_core.task_outcome`, the sums in its order.
     reward = jnp.asarray(core.STEP_REWARD, x.dtype)
@@ -279,7 +284,7 @@ class ShipSteering(environment.Environment):
     info = {}
     if self.continuing:
       # SPEC section 8: leaving the field puts the ship at a fresh uniform start.
-      info["state_before_restart"] = self.get_obs(end)
+      info["state_before_restart"] = self.get_obs(end, params)
       fresh = self._draw_start(key).replace(time=time, event=event)
       end = jax.tree.map(lambda a, b: jnp.where(event == core.FAILURE, a, b), fresh, end)
       terminated = jnp.asarray(False)
@@ -288,4 +293,4 @@ class ShipSteering(environment.Environment):
     truncated = ~terminated & (time >= params.max_steps_in_episode)
     info.update(terminated=terminated, truncated=truncated, event=event,
                 discount=jnp.where(terminated, 0.0, 1.0).astype(x.dtype))
-    return self.get_obs(end), end, reward, terminated | truncated, info
+    return self.get_obs(end, params), end, reward, terminated | truncated, info
