@@ -16,3 +16,18 @@ __version__ = "0.1.0"
 from hpg_mj import envs as _envs  # registers the Gymnasium ids
 
 _envs.register_all()
+
+# Imported on first use (PEP 562), so that `import hpg_mj` stays light and the front
+# page's `hpg_mj.benchmark.evaluate(...)` works after `import hpg_mj` alone: it had
+# raised AttributeError in a fresh interpreter. (The JAX extra stays an explicit
+# `import hpg_mj.jax`.)
+_SUBMODULES = ("agents", "benchmark", "experiments", "hierarchy", "learners", "planners",
+               "render", "suite", "taskfile", "verify", "worlds")
+
+
+def __getattr__(name):
+  """A subpackage or module of `_SUBMODULES`, imported when first asked for."""
+  if name in _SUBMODULES:
+    import importlib
+    return importlib.import_module(f"hpg_mj.{name}")
+  raise AttributeError(f"module 'hpg_mj' has no attribute {name!r}")

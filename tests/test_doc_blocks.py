@@ -6,6 +6,7 @@ which must replace text that is in its block. The README's blocks that a test of
 their own runs and checks (RUN_ELSEWHERE) are not run twice."""
 import pathlib
 import re
+import subprocess
 import sys
 import tempfile
 
@@ -81,6 +82,16 @@ def test_every_python_block_runs(name, tmp_path, monkeypatch):
   namespace = {"__name__": "doc_block"}
   for k, code in enumerate(blocks(SOURCES[name])):
     exec(compile(code, f"{name}, Python block {k + 1}", "exec"), namespace)
+
+
+def test_the_front_pages_block_runs_in_a_fresh_interpreter(tmp_path):
+  """As a newcomer pastes it: run beside the other pages, their imports had hidden that
+  `hpg_mj.benchmark` was no attribute of the package until something imported it."""
+  code = "".join(blocks((REPO / "docs" / "index.md").read_text()))
+  done = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True,
+                        text=True, timeout=600)
+  assert done.returncode == 0, done.stderr[-3000:]
+  assert "'gate_pass_rate'" in done.stdout
 
 
 def test_a_reduction_that_replaces_nothing_is_refused():
