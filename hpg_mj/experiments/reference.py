@@ -41,7 +41,7 @@ WORLDS = {
              "scores": (("gate_pass_rate", "gate pass rate", 3), ("J", "J", 2)),
              "steps": ("control_steps", "control steps")},
     "taxi": {"experiments": ("reference_taxi_hierarchy", "reference_taxi_option_critic",
-                             "reference_taxi"),
+                             "reference_taxi", "reference_taxi_ppo_jax"),
              "title": "Taxi-fuel: greedy return against primitive steps trained",
              "panels": (("mean_return", "mean return, greedy"),),
              "scores": (("mean_return", "return", 3),),
