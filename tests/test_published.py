@@ -139,3 +139,23 @@ def test_a_table_shown_twice_with_another_number_is_a_disagreement():
   cell = re.search(r"\| (-?\d+\.\d+ \[-?\d+\.\d+, -?\d+\.\d+\]) \|", text).group(1)
   included["docs/stale.md"] = [("an older copy", text.replace(cell, "0.537 [0.1, 0.9]", 1))]
   assert {table for _, _, table in _disagreements(included)} >= {"learner"}
+
+
+def test_the_full_reports_reference_section_is_the_reference_report(tmp_path):
+  """figures/REPORT.md kept an older copy of the reference report's section after the
+  reference was made again on its own; `python docs/_ext/published.py` now makes the
+  section again (`figures.replace_section`), and the site's build stops on a stale one."""
+  from hpg_mj.experiments import figures
+  assert not figures.replace_section(REPO / "figures", "reference", write=False)
+  import shutil
+  shutil.copy(REPO / "figures" / "REPORT.md", tmp_path / "REPORT.md")
+  (tmp_path / "reference").mkdir()
+  text = (REPO / "figures/reference/REPORT.md").read_text()
+  cell = re.search(r"\| (-?\d+\.\d+ \[-?\d+\.\d+, -?\d+\.\d+\]) \|", text).group(1)
+  (tmp_path / "reference" / "REPORT.md").write_text(text.replace(cell, "0.537 [0.1, 0.9]", 1))
+  before = (tmp_path / "REPORT.md").read_text()
+  assert figures.replace_section(tmp_path, "reference")
+  after = (tmp_path / "REPORT.md").read_text()
+  assert "0.537 [0.1, 0.9]" in after and "0.537 [0.1, 0.9]" not in before
+  assert after.split("## reference: ")[0] == before.split("## reference: ")[0]
+  assert not figures.replace_section(tmp_path, "reference")

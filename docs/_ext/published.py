@@ -289,10 +289,19 @@ def updated(text, where):
   return _PART.sub(fill, text)
 
 
+def _full_report_stale(write=False):
+  """Whether figures/REPORT.md's reference section differs from the reference report
+  it is made of (`figures.replace_section`; `write`: make it again)."""
+  from hpg_mj.experiments import figures
+  return figures.replace_section(REPO / "figures", "reference", write=write)
+
+
 def stale():
-  """The pages whose published parts differ from what the reports make now."""
+  """The pages whose published parts differ from what the reports make now, and the
+  full report if its reference section is an older copy."""
   return [page for page in pages()
-          if updated((REPO / page).read_text(), page) != (REPO / page).read_text()]
+          if updated((REPO / page).read_text(), page) != (REPO / page).read_text()] + \
+      ([FULL] if _full_report_stale() else [])
 
 
 def _check(app):
@@ -318,6 +327,8 @@ def main(argv):
     if new != text:
       path.write_text(new)
       print(f"{page}: made again from its reports")
+  if _full_report_stale(write=True):
+    print(f"{FULL}: its reference section made again from {REFERENCE}")
   return 0
 
 

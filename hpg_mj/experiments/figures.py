@@ -501,6 +501,15 @@ def provenance_lines(results):
   return lines
 
 
+def report_section(out, name):
+  """The lines OUT/<name>/REPORT.md gives OUT/REPORT.md: its headings one level down,
+  its pictures' links through its folder."""
+  report = pathlib.Path(out) / name / "REPORT.md"
+  text = re.sub(r"(!\[[^\]]*\]\()(?![a-z]+://|/)", rf"\g<1>{name}/",
+                report.read_text()).splitlines()
+  return ["#" + line if line.startswith("#") else line for line in text] + [""]
+
+
 def write_combined_report(out, names):
   """OUT/REPORT.md after `hpg-mj reproduce`: each experiment's REPORT.md in turn, so
   that one file sets every figure beside the paper."""
@@ -508,11 +517,26 @@ def write_combined_report(out, names):
   lines = ["# Reproduction of Ghavamzadeh & Mahadevan (2003)", "",
            "Each section is the REPORT.md of one experiment folder below this one.", ""]
   for name in names:
-    report = out / name / "REPORT.md"
-    if report.is_file():
-      # Its pictures are in its folder: their links gain the folder's name.
-      text = re.sub(r"(!\[[^\]]*\]\()(?![a-z]+://|/)", rf"\g<1>{name}/",
-                    report.read_text()).splitlines()
-      lines += ["#" + line if line.startswith("#") else line for line in text] + [""]
+    if (out / name / "REPORT.md").is_file():
+      lines += report_section(out, name)
   (out / "REPORT.md").write_text("\n".join(lines))
   return out / "REPORT.md"
+
+
+def replace_section(out, name, write=True):
+  """OUT/REPORT.md with its section of experiment `name` made again from
+  OUT/<name>/REPORT.md, the other sections as they are: for a report remade on its
+  own (the reference's, from runs kept elsewhere), so that the combined report never
+  keeps an older copy of it. Returns whether the section differed (`write=False`:
+  only says so)."""
+  path = pathlib.Path(out) / "REPORT.md"
+  text = path.read_text()
+  start = re.search(rf"^## {re.escape(name)}: ", text, re.M)
+  if start is None:
+    raise ValueError(f"{path} has no section of {name!r} (a heading '## {name}: ...')")
+  end = re.compile(r"^## ", re.M).search(text, start.end())
+  new = (text[:start.start()] + "\n".join(report_section(out, name)) +
+         ("\n" + text[end.start():] if end else ""))
+  if write and new != text:
+    path.write_text(new)
+  return new != text
