@@ -154,9 +154,39 @@ class TaxiRow:
 
 # ---- the networks: CleanRL's and SB3's MLPs, tanh, orthogonal initialisation -----
 
+def _householder_q(a):
+  """Q of the thin QR of `a` (m x k, m >= k) with R's diagonal positive, by Householder
+  reflections in plain jnp. Not jnp.linalg.qr: vmapped over seeds, that is LAPACK's
+  batched QR, whose kernel splits the batch over XLA's intra-op pool and waits for it;
+  two such kernels run at once on a 2-core machine hold both of the pool's threads
+  waiting on each other, and a test run hung so for good (jaxlib 0.10.2)."""
+  m, k = a.shape
+  rows = jnp.arange(m)
+
+  def reflect(j, qr):
+    q, r = qr
+    x = jnp.where(rows >= j, r[:, j], 0.0)
+    alpha = jnp.where(r[j, j] >= 0.0, -1.0, 1.0) * jnp.sqrt(jnp.sum(x * x))
+    v = x - alpha * (rows == j)
+    norm2 = jnp.sum(v * v)
+    v = jnp.where(norm2 > 0.0, v / jnp.sqrt(jnp.where(norm2 > 0.0, norm2, 1.0)), 0.0)
+    return q - 2.0 * jnp.outer(q @ v, v), r - 2.0 * jnp.outer(v, v @ r)
+
+  q, r = jax.lax.fori_loop(0, k, reflect, (jnp.eye(m, dtype=a.dtype), a))
+  return q[:, :k] * jnp.sign(jnp.diagonal(r)[:k])
+
+
+def orthogonal(key, n_in, n_out, scale):
+  """jax.nn.initializers.orthogonal(scale)(key, (n_in, n_out), float32): the same
+  normal draw and the same matrix (to rounding), its QR by `_householder_q`."""
+  tall = n_in >= n_out
+  a = jax.random.normal(key, (n_in, n_out) if tall else (n_out, n_in), jnp.float32)
+  q = _householder_q(a)
+  return scale * (q if tall else q.T)
+
+
 def _dense(key, n_in, n_out, scale):
-  return {"kernel": jax.nn.initializers.orthogonal(scale)(key, (n_in, n_out), jnp.float32),
-          "bias": jnp.zeros(n_out, jnp.float32)}
+  return {"kernel": orthogonal(key, n_in, n_out, scale), "bias": jnp.zeros(n_out, jnp.float32)}
 
 
 def init_mlp(key, sizes, last_scale):
