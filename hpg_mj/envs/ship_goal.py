@@ -201,12 +201,7 @@ class ShipGoalVectorEnv(vector.ShipSteeringVectorEnv):
 
   def _start(self, indices, options):
     super()._start(indices, options)
-    given = options.get("gate")
-    if given is not None:
-      given = np.asarray(given, dtype=np.float64)
-      if given.shape not in ((3,), (self.num_envs, 3)):
-        raise ValueError(f"{self.who}: options['gate'] must be one gate (3,) or one per copy "
-                         f"({self.num_envs}, 3), got shape {given.shape}")
+    given = self._option_rows(options, "gate", 3, "gate")
     for i in indices.tolist():
       if given is None:
         self._desired[i] = goal_core.sample_gate(self._rngs[i], self.level_range)

@@ -227,12 +227,7 @@ class ShipHarbourVectorEnv(vector.ShipSteeringVectorEnv):
     return super()._make_ships(backend)      # analytic: sailed in `step_batch`
 
   def _start(self, indices, options):
-    given = options.get("state")
-    if given is not None:
-      given = np.asarray(given, dtype=np.float64)
-      if given.shape not in ((4,), (self.num_envs, 4)):
-        raise ValueError(f"{self.who}: options['state'] must be one state (4,) or one per "
-                         f"copy ({self.num_envs}, 4), got shape {given.shape}")
+    given = self._option_rows(options, "state", 4, "state")
     for i in indices.tolist():
       if given is None:
         state = harbour_core.sample_start(self.rules, self._rngs[i], self._islands,
@@ -262,8 +257,6 @@ class ShipHarbourVectorEnv(vector.ShipSteeringVectorEnv):
         harbour_core.seen_ranges(ship.readings(), self._obs[i], 4)
     return self._obs.copy()
 
-  def _event_names(self, active):
-    names = np.full(self.num_envs, None, dtype=object)
-    for i in np.flatnonzero(active & (self._event != core.NO_EVENT)).tolist():
-      names[i] = harbour_core.EVENT_NAMES[int(self._event[i])]
-    return names
+  def _event_table(self):
+    """The harbour's events' names by number."""
+    return harbour_core.EVENT_NAMES

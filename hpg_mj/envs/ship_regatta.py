@@ -298,11 +298,9 @@ class ShipRegattaVectorEnv(vector.ShipSteeringVectorEnv):
     regatta_core.observe_batch(self._states, self._courses, self._next, self._obs)
     return self._obs.copy()
 
-  def _event_names(self, active):
-    names = np.full(self.num_envs, None, dtype=object)
-    for i in np.flatnonzero(active & (self._event != core.NO_EVENT)).tolist():
-      names[i] = regatta_core.EVENT_NAMES[int(self._event[i])]
-    return names
+  def _event_table(self):
+    """The regatta's events' names by number."""
+    return regatta_core.EVENT_NAMES
 
   def _step_info(self, active):
     info = super()._step_info(active)

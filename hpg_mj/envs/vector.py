@@ -303,13 +303,20 @@ class ShipSteeringVectorEnv(_BatchedEnv):
     raise ValueError(f"unknown ship backend {backend!r}; valid backends: "
                      f"{list(ship_env.BACKENDS)}")
 
+  def _option_rows(self, options, key, size, what):
+    """options[key] as float64: one row (size,) for every copy or one per copy
+    (num_envs, size); None where not given; else one line."""
+    given = options.get(key)
+    if given is None:
+      return None
+    given = np.asarray(given, dtype=np.float64)
+    if given.shape not in ((size,), (self.num_envs, size)):
+      raise ValueError(f"{self.who}: options[{key!r}] must be one {what} ({size},) or one per "
+                       f"copy ({self.num_envs}, {size}), got shape {given.shape}")
+    return given
+
   def _start(self, indices, options):
-    given = options.get("state")
-    if given is not None:
-      given = np.asarray(given, dtype=np.float64)
-      if given.shape not in ((4,), (self.num_envs, 4)):
-        raise ValueError(f"{self.who}: options['state'] must be one state (4,) or one per "
-                         f"copy ({self.num_envs}, 4), got shape {given.shape}")
+    given = self._option_rows(options, "state", 4, "state")
     for i in indices.tolist():
       if given is None:
         state = self.rules.sample_start(self._rngs[i])
@@ -358,9 +365,14 @@ class ShipSteeringVectorEnv(_BatchedEnv):
 
   def _event_names(self, active):
     names = np.full(self.num_envs, None, dtype=object)
+    table = self._event_table()
     for i in np.flatnonzero(active & (self._event != ship_core.NO_EVENT)).tolist():
-      names[i] = self.rules.event_names[int(self._event[i])]
+      names[i] = table[int(self._event[i])]
     return names
+
+  def _event_table(self):
+    """The events' names by number (the rules')."""
+    return self.rules.event_names
 
   def _step_info(self, active):
     info = {"event": self._event_names(active), "_event": np.ones(self.num_envs, np.bool_),
