@@ -236,15 +236,22 @@ class ShipSteeringEnv(gymnasium.Env):
     self._trail = [obs[:2].copy()]
     return obs, {"event": None}
 
-  def step(self, action):
+  def _sail(self, action):
+    """One control step of the ship under `action` (checked, clipped as `strict` says):
+    the step counted and, when rendering, the wake drawn on. Returns (the positions
+    sampled in it, the state after it)."""
     r = _validation.bounded_scalar_action(action, -core.MAX_TURN_RATE, core.MAX_TURN_RATE,
                                           strict=self.strict, task=self._name,
                                           name="turning rate r (deg/s)")
-    samples, obs = self.backend.control(r)
+    samples, state = self.backend.control(r)
     self._steps += 1
-    reward, terminated, truncated, event = self.rules.judge(samples, obs, self._steps)
     if self.render_mode is not None:
       self._trail.extend(samples[1:].copy())
+    return samples, state
+
+  def step(self, action):
+    samples, obs = self._sail(action)
+    reward, terminated, truncated, event = self.rules.judge(samples, obs, self._steps)
     info = {"event": event, "positions": samples}   # each backend's new array
     if event is not None and self.rules.restarts(event):   # SPEC section 8: a fresh start
       info["state_before_restart"] = obs   # where it left (a learner's last step sees it)

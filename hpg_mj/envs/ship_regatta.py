@@ -8,7 +8,6 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
-from hpg_mj import _validation
 from hpg_mj.envs import ship as ship_env
 from hpg_mj.envs import vector
 from hpg_mj.worlds import ship_core as core
@@ -194,17 +193,11 @@ class ShipRegattaEnv(ship_env.ShipSteeringEnv):
                                        "course": self.course}
 
   def step(self, action):
-    r = _validation.bounded_scalar_action(action, -core.MAX_TURN_RATE, core.MAX_TURN_RATE,
-                                          strict=self.strict, task=self._name,
-                                          name="turning rate r (deg/s)")
-    samples, state = self.backend.control(r)
-    self._steps += 1
+    samples, state = self._sail(action)
     passed = self._ship.next_gate
     event, reward, terminated, truncated = self._ship(samples, self._steps)
     if self._ship.next_gate != passed:
       self._place_course()
-    if self.render_mode is not None:
-      self._trail.extend(samples[1:].copy())
     info = {"event": regatta_core.EVENT_NAMES[event], "gates_passed": self._ship.next_gate,
             "positions": samples}
     return self._ship.observe(state), reward, terminated, truncated, info
