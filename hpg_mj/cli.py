@@ -8,6 +8,26 @@ from hpg_mj.cli_render import VIDEOS_OUT, _check_render_args, _cmd_render
 from hpg_mj.cli_types import _Parser, _at_least, _positive_seconds, _seed
 
 
+# `hpg-mj verify` of the task ladder: the check (hpg_mj.verify_ladder), its header and
+# the bounds its `passed` holds.
+LADDER_CHECKS = {
+    "current": ("verify_current", "ship in a current: {starts} random starts x {controls} "
+                "random controls per level, against the continuous ODE (largest position and "
+                "heading errors)", "< 0.25 m, < 0.25 deg, <= half the Euler error"),
+    "goal": ("verify_goal", "goal-conditioned ship: {starts} episodes per level of the "
+             "scripted helmsman on the analytic ship, its turning rates replayed on the MuJoCo "
+             "ship", "< 1.5 m apart, the gate's geoms at the rule's, >= 95% same ends"),
+    "regatta": ("verify_regatta", "regatta: {starts} courses per level sailed by the scripted "
+                "helmsman on the analytic ship, its turning rates replayed on the MuJoCo and "
+                "the continuous ship", "MuJoCo < 0.25 m, < 0.25 deg, <= half the Euler error, "
+                "its course's geoms at the rule's, >= 95% the continuous ship's gates and ends"),
+    "harbour": ("verify_harbour", "harbour: {starts} episodes per level of the steering "
+                "helmsman (blind to the obstacles) on the analytic ship, its turning rates "
+                "replayed on the MuJoCo ship", "< 1.5 m apart, >= 95% same ends, "
+                "rangefinders within 1e-9 m of the closed form, obstacle geoms at the rule's"),
+}
+
+
 def _cmd_verify(args):
   from hpg_mj import verify
   from hpg_mj import verify_ladder
@@ -21,46 +41,16 @@ def _cmd_verify(args):
     print(f"  {len(checks) - len(failed)} of {len(checks)} passed" + (
         f"; FAILED: {', '.join(f'{c.task} {c.path}' for c in failed)}" if failed else ""))
     return 1 if failed else 0
-  if args.what == "current":
-    results = verify_ladder.verify_current(controls=args.controls, starts=args.starts,
-                                           seed=args.seed)
-    print(f"ship in a current: {args.starts} random starts x {args.controls} random controls "
-          "per level, against the continuous ODE (largest position and heading errors)")
+  if args.what in LADDER_CHECKS:
+    name, header, bounds = LADDER_CHECKS[args.what]
+    check = getattr(verify_ladder, name)
+    results = (check(controls=args.controls, starts=args.starts, seed=args.seed)
+               if args.what == "current" else check(episodes=args.starts, seed=args.seed))
+    print(header.format(starts=args.starts, controls=args.controls))
     for result in results:
       print(result.line())
     ok = all(result.passed for result in results)
-    print("  bounds (< 0.25 m, < 0.25 deg, <= half the Euler error):", "met" if ok else "NOT MET")
-    return 0 if ok else 1
-  if args.what == "goal":
-    results = verify_ladder.verify_goal(episodes=args.starts, seed=args.seed)
-    print(f"goal-conditioned ship: {args.starts} episodes per level of the scripted helmsman "
-          "on the analytic ship, its turning rates replayed on the MuJoCo ship")
-    for result in results:
-      print(result.line())
-    ok = all(result.passed for result in results)
-    print("  bounds (< 1.5 m apart, the gate's geoms at the rule's, >= 95% same ends):",
-          "met" if ok else "NOT MET")
-    return 0 if ok else 1
-  if args.what == "regatta":
-    results = verify_ladder.verify_regatta(episodes=args.starts, seed=args.seed)
-    print(f"regatta: {args.starts} courses per level sailed by the scripted helmsman on the "
-          "analytic ship, its turning rates replayed on the MuJoCo and the continuous ship")
-    for result in results:
-      print(result.line())
-    ok = all(result.passed for result in results)
-    print("  bounds (MuJoCo < 0.25 m, < 0.25 deg, <= half the Euler error, its course's geoms "
-          "at the rule's, >= 95% the continuous ship's gates and ends):",
-          "met" if ok else "NOT MET")
-    return 0 if ok else 1
-  if args.what == "harbour":
-    results = verify_ladder.verify_harbour(episodes=args.starts, seed=args.seed)
-    print(f"harbour: {args.starts} episodes per level of the steering helmsman (blind to the "
-          "obstacles) on the analytic ship, its turning rates replayed on the MuJoCo ship")
-    for result in results:
-      print(result.line())
-    ok = all(result.passed for result in results)
-    print("  bounds (< 1.5 m apart, >= 95% same ends, rangefinders within 1e-9 m of the "
-          "closed form, obstacle geoms at the rule's):", "met" if ok else "NOT MET")
+    print(f"  bounds ({bounds}):", "met" if ok else "NOT MET")
     return 0 if ok else 1
   if args.what != "ship":
     raise SystemExit(f"hpg-mj verify: unknown check {args.what!r}; valid: ship, current, goal, "
