@@ -42,6 +42,7 @@ import numba
 import numpy as np
 
 from hpg_mj import planners_harbour
+from hpg_mj import planners_shared as shared
 from hpg_mj.planners_shared import BACK_TURNS, FIRST_TURNS, INSET_M, STENCIL  # noqa: F401
 from hpg_mj.planners_shared import first_turn_rate as _turn
 from hpg_mj.worlds import ship_core as core
@@ -163,10 +164,7 @@ def current_rate(state, field, t_field, spacing, margin):
     h = 0.5 * spacing
     hx = _time_at(t_field, spacing, margin, x - h, y) - _time_at(t_field, spacing, margin, x + h, y)
     hy = _time_at(t_field, spacing, margin, x, y - h) - _time_at(t_field, spacing, margin, x, y + h)
-  norm = math.hypot(hx, hy)
-  if norm == 0.0 or not math.isfinite(norm):
-    return core.pilot_turn_rate(state, gx, gy)
-  return core.pilot_turn_rate(state, x + 100.0 * hx / norm, y + 100.0 * hy / norm)
+  return shared.down_gradient_rate(state, hx, hy, gx, gy)
 
 
 @numba.njit(cache=True, error_model="numpy")

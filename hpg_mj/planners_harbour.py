@@ -167,10 +167,7 @@ def harbour_rate(state, field, spacing):
   h = 0.5 * spacing
   hx = _distance_at(field, spacing, x - h, y) - _distance_at(field, spacing, x + h, y)
   hy = _distance_at(field, spacing, x, y - h) - _distance_at(field, spacing, x, y + h)
-  norm = math.hypot(hx, hy)
-  if norm == 0.0 or not math.isfinite(norm):
-    return core.pilot_turn_rate(state, gx, gy)
-  return core.pilot_turn_rate(state, x + 100.0 * hx / norm, y + 100.0 * hy / norm)
+  return shared.down_gradient_rate(state, hx, hy, gx, gy)
 
 
 @numba.njit(cache=True, error_model="numpy")

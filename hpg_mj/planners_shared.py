@@ -34,3 +34,14 @@ def first_turn_rate(steps, sign, first, back):
   if steps < first + back:
     return -sign * core.MAX_TURN_RATE
   return np.nan
+
+
+@numba.njit(cache=True, inline="always")
+def down_gradient_rate(state, hx, hy, gx, gy):
+  """r to head 100 m along (hx, hy), a field's falling gradient at the ship; straight at
+  (gx, gy) where that gradient is not defined (zero, or not finite)."""
+  norm = math.hypot(hx, hy)
+  if norm == 0.0 or not math.isfinite(norm):
+    return core.pilot_turn_rate(state, gx, gy)
+  x, y = state[0], state[1]
+  return core.pilot_turn_rate(state, x + 100.0 * hx / norm, y + 100.0 * hy / norm)
