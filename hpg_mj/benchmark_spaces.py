@@ -56,13 +56,15 @@ def check(policy, task):
   if all(space is None for space in declared.values()):
     return
   own = dict(zip(("observation", "action"), task_spaces(task)))
+  # A ladder task's spaces are its level's: the remedy names the level.
+  name = task.name if task.level is None else f"{task.name}/{task.level}"
   for which, space in declared.items():
     if space is not None and not _same(space, own[which]):
       raise ValueError(
-          f"the policy's {which}_space is {_describe(space)} and the task {task.name!r} has "
+          f"the policy's {which}_space is {_describe(space)} and the task {name!r} has "
           f"{_describe(own[which])}: a model trained on rescaled spaces (RescaleAction, "
-          "make_vec_env(rescale=True)) is scored through benchmark.rescaled(model, "
-          f"{task.name!r}), which maps them back")
+          f"make_vec_env(rescale=True)) is scored through benchmark.rescaled(model, {name!r}), "
+          "which maps them back")
 
 
 class Rescaled:
@@ -119,4 +121,5 @@ def rescaled(model, task, level=None):
       raise ValueError(f"benchmark.rescaled: the model has no {which}; it needs both (an SB3 "
                        "model has them)")
   found = task_of(task, level=level)
-  return Rescaled(model, found.name, *task_spaces(found))
+  name = found.name if found.level is None else f"{found.name}/{found.level}"
+  return Rescaled(model, name, *task_spaces(found))

@@ -315,3 +315,25 @@ def test_rescaled_refuses_what_no_affine_map_takes_to_the_task():
   with pytest.raises(ValueError, match=r"^benchmark.rescaled: the model has no action_space"):
     benchmark.rescaled(type("M", (), {"observation_space": taxi.observation_space})(), "ship")
   assert benchmark.evaluate(taxi, "taxi_fuel", episodes=3).metrics["episodes"] == 3
+
+
+def test_a_ladder_model_is_refused_naming_its_level_and_scored_at_it():
+  """A newcomer's PPO on the current at level medium: the refusal named the task alone,
+  and `rescaled(model, 'ship_current')` (easy's spaces) then failed; it names the level."""
+  import gymnasium
+  from gymnasium.wrappers import RescaleAction
+  from stable_baselines3 import PPO
+
+  from hpg_mj import benchmark
+  env = RescaleAction(gymnasium.make("hpg_mj/ShipCurrent-v0", level="medium"), -1.0, 1.0)
+  model = PPO("MlpPolicy", env, seed=0)
+  with pytest.raises(ValueError, match=r"the task 'ship_current/medium' has Box \[-15, 15\].*"
+                     r"benchmark.rescaled\(model, 'ship_current/medium'\)"):
+    benchmark.evaluate(model, "ship_current", level="medium", episodes=2)
+  with pytest.raises(ValueError, match=r"observation_space .* the task 'ship_current/medium' has"
+                     r".*benchmark.rescaled\(model, 'ship_current/medium'\)"):
+    benchmark.evaluate(benchmark.rescaled(model, "ship_current"), "ship_current/medium",
+                       episodes=2)
+  scored = benchmark.evaluate(benchmark.rescaled(model, "ship_current/medium"),
+                              "ship_current/medium", episodes=3, max_steps=20)
+  assert scored.metrics["level"] == "medium" and scored.metrics["episodes"] == 3
