@@ -440,6 +440,8 @@ def build_parser():
   p.add_argument("--task", default=None,
                  help="ship: steer, diagonal, straight, patrol; taxi: fuel, classic; the "
                       "ladder's domains: a level, easy (default), medium, hard")
+  p.add_argument("--level", default=None, choices=["easy", "medium", "hard"],
+                 help="the ladder's domains: the level (as --task; `hpg-mj evaluate`'s name)")
   p.add_argument("--policy", choices=["scripted", "random"], default=None,
                  help="default scripted")
   p.add_argument("--seed", type=_seed, default=0)

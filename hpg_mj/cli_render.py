@@ -124,7 +124,7 @@ class LadderPilot:
 
 
 # `hpg-mj render` options that film a task's scripted or random policy, not an agent.
-RENDER_TASK_ONLY = ("domain", "task", "policy", "max_steps")
+RENDER_TASK_ONLY = ("domain", "task", "level", "policy", "max_steps")
 RENDER_AGENT_ONLY = ("max_frames",)
 
 
@@ -146,6 +146,13 @@ def _check_render_args(parser, args):
     if given:
       parser.error(f"render: {', '.join(given)} only applies with --agent")
     args.domain = args.domain or "ship"
+    if args.level is not None:
+      from hpg_mj.render import video
+      if args.domain not in video.LADDER_IDS or args.task not in (None, args.level):
+        parser.error(f"render: --level {args.level} is a level of the ladder's domains "
+                     "(--domain ship_current, ship_goal, ship_regatta, ship_harbour), given "
+                     "once (--level or --task)")
+      args.task = args.level
     args.task = args.task or {"ship": "steer", "taxi": "fuel"}.get(args.domain, "easy")
     args.policy = args.policy or "scripted"
     args.width = args.width or 640

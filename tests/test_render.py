@@ -51,6 +51,9 @@ def test_a_ladder_task_is_filmed_at_its_level_by_the_planners_helmsman(tmp_path,
                    str(tmp_path / "x.gif")]) == 2
   assert capsys.readouterr().err == (f"hpg-mj render: error: --task 'steer': the task of "
                                      f"{domain} is its level; valid: easy, medium, hard\n")
+  with pytest.raises(SystemExit):
+    cli.main(["render", "--level", "hard", "--out", str(tmp_path / "z.gif")])
+  assert "--level hard is a level of the ladder's domains" in capsys.readouterr().err
   with pytest.raises(ValueError, match=r"the scripted helmsman of ship_goal is the planners'"):
     video.render_task("ship_goal", "easy", out=tmp_path / "y.gif")
 
