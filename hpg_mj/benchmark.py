@@ -231,6 +231,38 @@ def _actor(policy, batched):
                    "predict(obs, deterministic=True) or an hpg_mj agent")
 
 
+class Pilot:
+  """A policy as `evaluate` takes it (a function, `batched` or not, or an object with
+  `predict`), acting on one observation at a time, as a video's episode needs
+  (`hpg-mj render --policy module:name`): its space checked against `task`'s first
+  (`benchmark_spaces.check`)."""
+
+  def __init__(self, policy, task, batched=None):
+    self.task = task_of(task)
+    benchmark_spaces.check(policy, self.task)
+    self.act, self.batched = _actor(policy, batched)
+
+    self.steps = 0
+
+  def reset(self):
+    """A new episode: its steps are counted from 0 (for the error a raise gives)."""
+    self.steps = 0
+
+  def __call__(self, obs):
+    try:
+      if not self.batched:
+        out = self.act(obs)
+      else:
+        batch = ({key: np.asarray(value)[None] for key, value in obs.items()}
+                 if isinstance(obs, dict) else np.asarray(obs)[None])
+        out = np.asarray(self.act(batch))[0]
+    except Exception as err:
+      raise PolicyError(f"the policy raised at step {self.steps}: {type(err).__name__}: "
+                        f"{err}") from err
+    self.steps += 1
+    return out
+
+
 def _rows(obs, index):
   """Rows `index` of a batch of observations (an array, or a dictionary of arrays)."""
   if isinstance(obs, dict):

@@ -5,7 +5,7 @@ import sys
 from hpg_mj.cli_experiments import (FIGURE_EXPERIMENTS, _cmd_reproduce, _cmd_run,  # noqa: F401
                                     _cmd_tune)
 from hpg_mj.cli_render import VIDEOS_OUT, _check_render_args, _cmd_render
-from hpg_mj.cli_types import _Parser, _at_least, _positive_seconds, _seed
+from hpg_mj.cli_types import _Parser, _at_least, _positive_seconds, _render_policy, _seed
 
 
 # `hpg-mj verify` of the task ladder: the check (hpg_mj.verify_ladder), its header and
@@ -442,8 +442,10 @@ def build_parser():
                       "ladder's domains: a level, easy (default), medium, hard")
   p.add_argument("--level", default=None, choices=["easy", "medium", "hard"],
                  help="the ladder's domains: the level (as --task; `hpg-mj evaluate`'s name)")
-  p.add_argument("--policy", choices=["scripted", "random"], default=None,
-                 help="default scripted")
+  p.add_argument("--policy", type=_render_policy, default=None, metavar="POLICY",
+                 help="scripted (default), random, or your own as `hpg-mj evaluate "
+                 "--policy` takes it: module:name or path/file.py:name (a function obs -> "
+                 "action, or an object with predict(obs, deterministic=True))")
   p.add_argument("--seed", type=_seed, default=0)
   p.add_argument("--out", default=None, help="output path (.mp4 or .gif; default in "
                  f"{VIDEOS_OUT}/, named after the task or the agent)")

@@ -31,10 +31,14 @@ def _cmd_render(args):
   if getattr(args, "agent", None) is not None:
     return _render_agent(args)
   _check_frame_size(MODEL_FILES.get(args.domain, f"{args.domain}.xml"), args)
-  args.out = _video_out(args, f"{VIDEOS_OUT}/{args.domain}_{args.task}_{args.policy}."
+  own = args.policy not in ("scripted", "random")       # module:name, the user's
+  named = args.policy.rsplit(":", 1)[-1] if own else args.policy
+  args.out = _video_out(args, f"{VIDEOS_OUT}/{args.domain}_{args.task}_{named}."
                               f"{'gif' if args.gif else 'mp4'}")
   pilot = None
-  if args.domain in video.LADDER_IDS and args.policy == "scripted":
+  if own:
+    pilot = _user_pilot(args)
+  elif args.domain in video.LADDER_IDS and args.policy == "scripted":
     pilot = LadderPilot(args.domain, args.task)
   path, summary = video.render_task(args.domain, args.task, policy=args.policy, seed=args.seed,
                                     out=args.out, gif=args.gif, width=args.width,
@@ -45,6 +49,28 @@ def _cmd_render(args):
   print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB): {summary['steps']} steps, "
         f"return {summary['return']:.1f}" + (f", ended by {event}" if event else ""))
   return 0
+
+
+# The benchmark's task (`hpg_mj.benchmark.task_of`) of a filmed domain and task, where
+# a user's policy can be scored (and so filmed) on it.
+_BENCHMARK_TASKS = {("ship", "steer"): "ship", ("taxi", "fuel"): "taxi_fuel",
+                    ("taxi", "classic"): "taxi"}
+
+
+def _user_pilot(args):
+  """`--policy module:name`: the user's policy, as `hpg-mj evaluate --policy` loads
+  and checks it (`benchmark.Pilot`), on the benchmark's task of --domain/--task."""
+  from hpg_mj import benchmark
+  from hpg_mj.render import video
+  if args.domain in video.LADDER_IDS:
+    task = f"{args.domain}/{args.task}"
+  elif (args.domain, args.task) in _BENCHMARK_TASKS:
+    task = _BENCHMARK_TASKS[(args.domain, args.task)]
+  else:
+    raise ValueError(f"--policy {args.policy}: a policy of your own is filmed on the "
+                     "benchmark's tasks (ship/steer, taxi/fuel, taxi/classic and the ladder's "
+                     f"domains), not {args.domain}/{args.task}")
+  return benchmark.Pilot(benchmark.load_policy(args.policy), task)
 
 
 def _render_agent(args):

@@ -46,3 +46,12 @@ class _Parser(argparse.ArgumentParser):
 
   def error(self, message):
     self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see {self.prog} --help)\n")
+
+
+def _render_policy(text):
+  """An argparse type: `hpg-mj render --policy`, scripted, random or module:name (the
+  user's, loaded when the video is made)."""
+  if text in ("scripted", "random") or (":" in text and text.rsplit(":", 1)[1]):
+    return text
+  raise argparse.ArgumentTypeError(f"{text!r}: give scripted, random, or your own policy as "
+                                   "module:name or path/file.py:name")

@@ -58,6 +58,42 @@ def test_a_ladder_task_is_filmed_at_its_level_by_the_planners_helmsman(tmp_path,
     video.render_task("ship_goal", "easy", out=tmp_path / "y.gif")
 
 
+def test_a_users_own_policy_is_filmed_as_hpg_mj_evaluate_scores_it(tmp_path, capsys):
+  """`hpg-mj render --policy path/file.py:name`: the user's function (or an object
+  with `predict`), loaded and checked as `hpg-mj evaluate --policy` does, on a
+  benchmark task; elsewhere, or a policy that does not load, one line."""
+  from hpg_mj import cli
+  (tmp_path / "mine.py").write_text(
+      "import numpy as np\n"
+      "def hard_left(obs):\n"
+      "  return np.array([15.0])\n"
+      "class Model:\n"
+      "  def predict(self, obs, deterministic=True):\n"
+      "    return np.full((len(obs['observation']), 1), -15.0), None\n"
+      "model = Model()\n")
+  out = tmp_path / "left.gif"
+  assert cli.main(["render", "--policy", f"{tmp_path / 'mine.py'}:hard_left", "--seed", "2",
+                   "--backend", "analytic", "--max-steps", "9", "--width", "160",
+                   "--height", "128", "--stride", "3", "--out", str(out)]) == 0
+  assert capsys.readouterr().out.startswith(f"wrote {out} (")
+  frames = [np.asarray(f)[..., :3] for f in imageio.mimread(out)]
+  _check_frames(frames)
+  assert cli.main(["render", "--policy", f"{tmp_path / 'mine.py'}:model", "--domain",
+                   "ship_goal", "--level", "easy", "--max-steps", "3", "--out",
+                   str(tmp_path / "model.gif")]) == 0      # SB3's predict, on a batch of 1
+  capsys.readouterr()
+  assert cli.main(["render", "--policy", f"{tmp_path / 'mine.py'}:Model", "--domain",
+                   "ship_goal", "--out", str(tmp_path / "class.gif")]) == 2   # the class
+  assert capsys.readouterr().err.startswith(
+      "hpg-mj render: error: the policy raised at step 0: TypeError: ")
+  assert cli.main(["render", "--policy", f"{tmp_path / 'mine.py'}:hard_left", "--task",
+                   "patrol", "--out", str(tmp_path / "p.gif")]) == 2
+  assert "a policy of your own is filmed on the benchmark's tasks" in capsys.readouterr().err
+  with pytest.raises(SystemExit):
+    cli.main(["render", "--policy", "clever", "--out", str(tmp_path / "c.gif")])
+  assert "give scripted, random, or your own policy as module:name" in capsys.readouterr().err
+
+
 def test_random_policy_and_bad_arguments(tmp_path):
   with pytest.raises(ValueError, match=r"unknown policy 'clever'.*\['scripted', 'random'\]"):
     env = gymnasium.make("hpg_mj/ShipSteering-v0").unwrapped

@@ -168,7 +168,9 @@ def render_task(domain, task, policy="scripted", seed=0, out=None, gif=False, wi
   `out`: default `runs/videos/<domain>_<task>_<policy>.mp4` (or .gif), in a folder
   git ignores, never over the repository's showcase videos. A ladder domain's
   (`LADDER_IDS`) task is its level; its scripted `pilot` (a function of one
-  observation, `hpg-mj render` gives the planners' helmsman) is the caller's."""
+  observation, `hpg-mj render` gives the planners' helmsman) is the caller's.
+  `pilot`, where given, is filmed (with `reset()` and a call per observation; `policy`
+  then only names the file), else `policy` ("scripted" or "random")."""
   import gymnasium
 
   import hpg_mj  # noqa: F401  (registers the ids)
@@ -196,7 +198,7 @@ def render_task(domain, task, policy="scripted", seed=0, out=None, gif=False, wi
     max_steps = PATROL_VIDEO_STEPS
   env = gymnasium.make(env_id, **kwargs).unwrapped
   try:
-    if pilot is None or policy != "scripted":
+    if pilot is None:
       pilot = make_policy(env, domain, task, policy)
     if frame_every is None:
       frame_every = 1 if domain == "taxi" else 2
