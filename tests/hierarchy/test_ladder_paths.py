@@ -1,0 +1,33 @@
+"""On the task ladder the open machine's two paths are one algorithm: fused with a
+task's compiled world (`Program.run_world`) and step by step through its Gymnasium
+environment, a fixed seed gives the same rows, parameters and generator, so the
+fused loop's world steps and observes as the environment does (the goal's
+dictionary flattened) and both draw the episode's start alike."""
+import gymnasium
+import numpy as np
+
+import hpg_mj  # noqa: F401
+from hpg_mj.hierarchy import ladder
+from hpg_mj.learners import rng
+from hpg_mj.worlds import ship_goal_core
+
+
+def test_the_fused_world_observes_as_the_environment():
+  """The goal's world, stepped by its compiled functions, writes the Gymnasium
+  dictionary flattened (observation, achieved_goal, desired_goal), to the bit."""
+  world = ladder.world("ship_goal", "hard")
+  start = world.draw(rng.make_state(7))
+  env = gymnasium.make("hpg_mj/ShipGoal-v0", level="hard", backend="analytic").unwrapped
+  obs, _ = env.reset(options=world.options(start))
+  state, mine, samples = world.new_state(), np.zeros(world.obs_size), np.zeros((4, 2))
+  world.reset(world.params, state, start, mine)
+  np.testing.assert_array_equal(mine, ship_goal_core.flatten(obs))
+  assert list(obs) == list(ship_goal_core.OBSERVATION_KEYS)
+  for k in range(1, 40):
+    r = 15.0 * np.sin(0.3 * k)
+    obs, reward, terminated, truncated, info = env.step(np.array([r]))
+    event, got, ended, cut = world.step(world.params, state, r, samples, mine, k)
+    np.testing.assert_array_equal(mine, ship_goal_core.flatten(obs))
+    np.testing.assert_array_equal(samples, info["positions"])
+    assert (got, ended, cut) == (reward, terminated, truncated)
+
