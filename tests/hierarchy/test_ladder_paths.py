@@ -31,3 +31,24 @@ def test_the_fused_world_observes_as_the_environment():
     np.testing.assert_array_equal(samples, info["positions"])
     assert (got, ended, cut) == (reward, terminated, truncated)
 
+
+
+def test_the_gate_frame_is_an_isometry_of_the_ship():
+  """Sailing and then mapping into a gate's frame equals mapping and then sailing
+  (SPEC section 3's demand of a frame), and the steering task's gate is its own frame."""
+  from hpg_mj.hierarchy.kinds import gate_frame
+  from hpg_mj.worlds import ship_core as core
+  gate = (612.0, 233.0, np.sin(np.radians(-131.0)), np.cos(np.radians(-131.0)))
+  ship = np.array([480.0, 310.0, 37.0, -4.0])
+  framed, mapped = np.zeros(4), np.zeros(4)
+  gate_frame.framed_ship(ship, *gate, framed)
+  samples = np.zeros((4, 2))
+  for k in range(200):
+    r = 15.0 * np.sin(0.05 * k)
+    core.euler_control(ship, r, samples)
+    core.euler_control(framed, r, samples)
+    gate_frame.framed_ship(ship, *gate, mapped)
+    np.testing.assert_allclose(mapped[:2], framed[:2], atol=1e-9)
+    assert abs(core.wrap_deg(mapped[2] - framed[2])) < 1e-9 and mapped[3] == framed[3]
+  gate_frame.framed_ship(ship, 400.0, 400.0, 0.0, 1.0, mapped)
+  np.testing.assert_array_equal(mapped, ship)
