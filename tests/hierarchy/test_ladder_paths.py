@@ -3,13 +3,58 @@ task's compiled world (`Program.run_world`) and step by step through its Gymnasi
 environment, a fixed seed gives the same rows, parameters and generator, so the
 fused loop's world steps and observes as the environment does (the goal's
 dictionary flattened) and both draw the episode's start alike."""
+import dataclasses
+
 import gymnasium
 import numpy as np
+import pytest
 
 import hpg_mj  # noqa: F401
+from hpg_mj.agents.base import GREEDY_SEED
+from hpg_mj.agents import ship_ladder_hybrid
 from hpg_mj.hierarchy import ladder
 from hpg_mj.learners import rng
 from hpg_mj.worlds import ship_goal_core
+
+
+def _agent(cls, task, level, seed):
+  config = cls.Config()
+  environment = dataclasses.replace(config.environment, world=task, level=level,
+                                    out_of_bounds_reward=-300.0)
+  return cls(dataclasses.replace(config, environment=environment), seed=seed)
+
+
+# Levels where an untrained ship meets the task's own events (the current's strongest
+# water, the regatta's closest gates, the harbour's most obstacles).
+CASES = [(ship_ladder_hybrid.ShipLadderHybrid, "ship_current", "hard", 30),
+         (ship_ladder_hybrid.ShipLadderHybrid, "ship_goal", "medium", 30),
+         (ship_ladder_hybrid.ShipLadderHybrid, "ship_regatta", "hard", 30),
+         (ship_ladder_hybrid.ShipLadderHybrid, "ship_harbour", "hard", 30)]
+
+
+@pytest.mark.parametrize("cls,task,level,episodes", CASES,
+                         ids=[f"{c.name}-{t}" for c, t, _, _ in CASES])
+def test_fused_and_stepwise_paths_give_identical_rows(cls, task, level, episodes):
+  fused, stepwise = _agent(cls, task, level, 4), _agent(cls, task, level, 4)
+  a = fused.train(episodes, "analytic")
+  env = gymnasium.make(f"hpg_mj/{ladder.ENV_IDS[task]}", level=level, backend="analytic",
+                       out_of_bounds_reward=-300.0)
+  b = stepwise.train_stepwise(env, episodes)
+  np.testing.assert_array_equal(a, b)
+  assert a["steps"].sum() > 2000 and len(np.unique(a["steps"])) > episodes // 2
+  pa, pb = fused.parameters(), stepwise.parameters()
+  assert sorted(pa) == sorted(pb)
+  for name in pa:
+    np.testing.assert_array_equal(pa[name], pb[name], err_msg=name)
+    if name.endswith(".theta"):
+      assert np.any(pa[name] != 0.0), name           # it learned something
+  np.testing.assert_array_equal(fused.rng_state, stepwise.rng_state)
+  # Greedy from the reports' fixed starts (the benchmark's), the same too.
+  starts, rows = fused.fixed_starts(3), []
+  for i in range(3):
+    stepwise.set_seed(GREEDY_SEED + i)
+    rows.append(stepwise.run_stepwise(env, 1, learn=False, start=starts[i]))
+  np.testing.assert_array_equal(fused.evaluate_fixed(3), np.concatenate(rows))
 
 
 def test_the_fused_world_observes_as_the_environment():
@@ -30,7 +75,6 @@ def test_the_fused_world_observes_as_the_environment():
     np.testing.assert_array_equal(mine, ship_goal_core.flatten(obs))
     np.testing.assert_array_equal(samples, info["positions"])
     assert (got, ended, cut) == (reward, terminated, truncated)
-
 
 
 def test_the_gate_frame_is_an_isometry_of_the_ship():
