@@ -20,8 +20,8 @@ saved agent records its class's import path, so another process finds it too.
 
 Shipped: ship_hybrid, ship_beyond (past the paper's route, SPEC section 8),
 ship_flat_pg, ship_actor_critic, ship_patrol (continuing, SPEC section 8), the hybrid
-on the task ladder (ship_ladder_hybrid: SPEC section 11, the task and level named by
-the task file), taxi_hpg,
+and flat PGRL on the task ladder (ship_ladder_hybrid, ship_ladder_flat_pg: SPEC section
+11, the task and level named by the task file), taxi_hpg,
 taxi_maxq, taxi_flat_q, the learned hierarchies ship_option_critic and taxi_option_critic
 (each one module here); PPO and DQN in JAX (jax_ppo, jax_dqn, with `hpg_mj[jax]`); and Stable-Baselines3's PPO and SAC on
 the ship, PPO and DQN on the taxi (`hpg_mj.agents.sb3`, with the extra
@@ -66,6 +66,7 @@ _SHIPPED = {
     "ship_patrol": "hpg_mj.agents.ship_patrol:ShipPatrol",
     # the task ladder's (SPEC section 11): each task and level named by its task file
     "ship_ladder_hybrid": "hpg_mj.agents.ship_ladder_hybrid:ShipLadderHybrid",
+    "ship_ladder_flat_pg": "hpg_mj.agents.ship_ladder_flat_pg:ShipLadderFlatPG",
     "taxi_hpg": "hpg_mj.agents.taxi_hpg:TaxiHPG",
     "taxi_maxq": "hpg_mj.agents.taxi_maxq:TaxiMAXQ",
     "taxi_flat_q": "hpg_mj.agents.taxi_flat_q:TaxiFlatQ",

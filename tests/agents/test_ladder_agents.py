@@ -24,7 +24,8 @@ from hpg_mj.learners.tiles import TileCoder
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
 LADDER_FILES = {f"{task}_{agent}": (task, kind) for task in bounds.LADDER
-                for agent, kind in (("hybrid", "ship_ladder_hybrid"),)}
+                for agent, kind in (("hybrid", "ship_ladder_hybrid"),
+                                    ("flat_pg", "ship_ladder_flat_pg"))}
 
 
 @pytest.mark.parametrize("name", sorted(LADDER_FILES))
@@ -106,7 +107,7 @@ def test_agents_are_scored_from_the_benchmarks_fixed_starts():
   starts = agent.fixed_starts(4)
   np.testing.assert_array_equal(starts[:, :4], options["state"])
   np.testing.assert_array_equal(starts[:, 4:], options["gate"])
-  regatta = agents.build(agents.load_task("ship_regatta_hybrid"), seed=0)
+  regatta = agents.build(agents.load_task("ship_regatta_flat_pg"), seed=0)
   options = benchmark.fixed_starts("ship_regatta/easy", 2)
   np.testing.assert_array_equal(regatta.fixed_starts(2)[:, 4:],
                                 options["course"].reshape(2, -1))

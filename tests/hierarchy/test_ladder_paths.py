@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 import hpg_mj  # noqa: F401
-from hpg_mj.agents.base import GREEDY_SEED
+from hpg_mj.agents import ship_ladder_flat_pg
 from hpg_mj.agents import ship_ladder_hybrid
+from hpg_mj.agents.base import GREEDY_SEED
 from hpg_mj.hierarchy import ladder
 from hpg_mj.learners import rng
 from hpg_mj.worlds import ship_goal_core
@@ -29,7 +30,9 @@ def _agent(cls, task, level, seed):
 CASES = [(ship_ladder_hybrid.ShipLadderHybrid, "ship_current", "hard", 30),
          (ship_ladder_hybrid.ShipLadderHybrid, "ship_goal", "medium", 30),
          (ship_ladder_hybrid.ShipLadderHybrid, "ship_regatta", "hard", 30),
-         (ship_ladder_hybrid.ShipLadderHybrid, "ship_harbour", "hard", 30)]
+         (ship_ladder_hybrid.ShipLadderHybrid, "ship_harbour", "hard", 30),
+         (ship_ladder_flat_pg.ShipLadderFlatPG, "ship_current", "medium", 20),
+         (ship_ladder_flat_pg.ShipLadderFlatPG, "ship_goal", "hard", 20)]
 
 
 @pytest.mark.parametrize("cls,task,level,episodes", CASES,
