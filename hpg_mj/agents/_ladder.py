@@ -43,16 +43,34 @@ def world_of(env):
                       env.max_steps, env.finish_reward)
 
 
-def regatta_metrics(record):
+def regatta_returns(record, env):
+  """Each regatta episode's return under SPEC section 11's rewards (-1 a control step,
+  +100 each gate but the last, +500 the last, -100 off the field: those its bounds are
+  on), whatever rewards the agent trained with (`env`, its [environment]): from its
+  steps, gates and finish (record fields passed, gates, steps, return). An episode that
+  neither finished nor ran to `max_steps` left the field; one that stopped at
+  `max_steps` left it only if its return holds the out-of-bounds reward."""
+  steps, gates = record["steps"], record["gates"]
+  finished = record["passed"] > 0
+  trained = -steps + env.gate_reward * gates
+  left = ~finished & ((steps < env.max_steps) | (
+      (env.out_of_bounds_reward != 0.0) &
+      np.isclose(record["return"], trained + env.out_of_bounds_reward)))
+  return (-steps + regatta_core.GATE_REWARD * (gates - finished)
+          + regatta_core.FINISH_REWARD * finished + regatta_core.OUT_OF_BOUNDS_REWARD * left)
+
+
+def regatta_metrics(record, env):
   """What a regatta record (fields passed: finished, gates, steps, return) says over all
   its episodes, as the benchmark names it: the finish rate, the mean gates passed, the
-  control steps over the finishes, the mean return."""
+  control steps over the finishes, the mean return under SPEC section 11's rewards
+  (`regatta_returns`: its score, whatever rewards trained the agent)."""
   finished = record["passed"] > 0
   n = len(record)
   return {"finish_rate": float(finished.mean()) if n else None,
           "gates_passed": float(record["gates"].mean()) if n else None,
           "steps_to_finish": float(record["steps"][finished].mean()) if finished.any() else None,
-          "mean_return": float(record["return"].mean()) if n else None}
+          "mean_return": float(regatta_returns(record, env).mean()) if n else None}
 
 
 class LadderAdapter(executor.GymAdapter):
@@ -184,10 +202,20 @@ class LadderMachineAgent(base.MachineAgent, _ship.ShipAgent):
   def metrics(self, record):
     """The benchmark's metrics of the task (`hpg_mj.benchmark.metrics_of`) over the last
     `metric_window` episodes: the gate's (gate_pass_rate, steps_to_gate, mean_return,
-    J) or the regatta's (finish_rate, gates_passed, steps_to_finish, mean_return)."""
+    J) or the regatta's (finish_rate, gates_passed, steps_to_finish, and mean_return
+    under SPEC section 11's rewards, its score: `regatta_returns`)."""
     if self.config.environment.world != "ship_regatta":
       return super().metrics(record)
     w = record[-self.metric_window:]
-    return {"episodes_measured": int(len(w)), **regatta_metrics(w),
+    return {"episodes_measured": int(len(w)), **regatta_metrics(w, self.config.environment),
             "control_steps": int(record["steps"].sum())}
+
+  def scored(self, record):
+    """Its record as the benchmark's (`hpg_mj.benchmark`): {field: values} of passed,
+    steps, return, or the regatta's finished, gates, steps and its return under SPEC
+    section 11's rewards (`regatta_returns`)."""
+    if self.config.environment.world != "ship_regatta":
+      return {name: record[name] for name in ("passed", "steps", "return")}
+    return {"finished": record["passed"], "gates": record["gates"], "steps": record["steps"],
+            "return": regatta_returns(record, self.config.environment)}
 

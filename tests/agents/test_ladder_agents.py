@@ -137,3 +137,28 @@ def test_the_command_line_trains_evaluates_and_renders_a_ladder_agent(tmp_path, 
                    "--height", "128"]) == 0
   assert "a greedy episode" in capsys.readouterr().out
   assert gif.stat().st_size > 1000
+
+
+def test_the_regattas_score_is_its_return_under_its_own_rewards():
+  """A regatta agent trained with other rewards (D1's -300) is scored by its return
+  under SPEC section 11's, as every policy is: the same greedy episodes of an agent on
+  the task's own rewards return exactly that."""
+  from hpg_mj.agents import _ladder
+  from hpg_mj.agents.ship_ladder_hybrid import ShipLadderHybrid
+  records = {}
+  for out_of_bounds in (-100.0, -300.0):
+    config = ShipLadderHybrid.Config()
+    config = dataclasses.replace(config, environment=dataclasses.replace(
+        config.environment, world="ship_regatta", level="hard", max_steps=150,
+        out_of_bounds_reward=out_of_bounds))
+    agent = ShipLadderHybrid(config, seed=1)
+    records[out_of_bounds] = (agent, agent.evaluate_fixed(40))
+  own, other = records[-100.0][1], records[-300.0][1]
+  np.testing.assert_array_equal(own["steps"], other["steps"])
+  assert (own["steps"] == 150).any() and (own["steps"] < 150).any()    # truncated and left
+  assert (own["return"] != other["return"]).any()
+  agent = records[-300.0][0]
+  np.testing.assert_array_equal(_ladder.regatta_returns(other, agent.config.environment),
+                                own["return"])
+  assert agent.metrics(other)["mean_return"] == pytest.approx(own["return"].mean())
+  np.testing.assert_array_equal(agent.scored(other)["finished"], other["passed"])
