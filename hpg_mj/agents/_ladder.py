@@ -12,12 +12,20 @@ from hpg_mj.agents import _ship
 from hpg_mj.agents import base
 from hpg_mj import taskfile
 from hpg_mj.taskfile import param
+from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy import executor
 from hpg_mj.hierarchy import ladder
 from hpg_mj.hierarchy.graph import Step
 from hpg_mj.worlds import ship_core as core
 from hpg_mj.worlds import ship_ladder
 from hpg_mj.worlds import ship_regatta_core as regatta_core
+
+# Where each task's observation holds the gate whose frame the reference learners'
+# views read (`blocks.GateFrame`; None: the steering task's own gate, the ship's pose
+# as it is).
+GATE_FRAMES = {"ship_current": None, "ship_harbour": None,
+               "ship_goal": blocks.GateFrame(at=8),                    # the desired goal
+               "ship_regatta": blocks.GateFrame(at=4, relative=True)}  # the next gate, seen
 
 
 @dataclasses.dataclass(frozen=True)

@@ -16,7 +16,6 @@ import dataclasses
 from hpg_mj.agents import _ladder
 from hpg_mj.agents import hierarchy
 from hpg_mj.agents import ship_flat_pg
-from hpg_mj.agents import ship_ladder_hybrid
 from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy.graph import Primitive, Subtask, TaskGraph
 from hpg_mj.worlds import ship_core as core
@@ -53,7 +52,7 @@ class ShipLadderFlatPG(hierarchy.ShipLadderHierarchy):
     """One node over the whole task: Eq. 3 with the episode's rewards (z <- 0 at its
     start), choosing the turning rate every 0.6 s from the tiles of the ship's state
     (in the gate's frame on the goal and the regatta)."""
-    frame = ship_ladder_hybrid.FRAMES[self.config.environment.world]
+    frame = _ladder.GATE_FRAMES[self.config.environment.world]
     view = blocks.StateTiles(self.coder) if frame is None else \
         blocks.GateTiles(frame, self.coder)
     return TaskGraph("policy", [

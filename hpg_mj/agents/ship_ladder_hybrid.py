@@ -37,13 +37,6 @@ from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy import ship_rules as rules
 from hpg_mj.worlds import ship_core as core
 
-# Where each task's observation holds the gate whose frame the views read (none: the
-# steering task's own gate, the ship's pose as it is).
-FRAMES = {"ship_current": None, "ship_harbour": None,
-          "ship_goal": blocks.GateFrame(at=8),                  # the desired goal
-          "ship_regatta": blocks.GateFrame(at=4, relative=True)}  # the next gate, seen
-
-
 @dataclasses.dataclass(frozen=True)
 class Config:
   """The task file's schema: [environment] (the ladder's task and level), and the
@@ -76,7 +69,7 @@ class ShipLadderHybrid(hierarchy.ShipLadderHierarchy):
 
   def graph(self):
     """Figure 3 (SPEC section 3) with the task's views (the module docstring)."""
-    frame = FRAMES[self.config.environment.world]
+    frame = _ladder.GATE_FRAMES[self.config.environment.world]
     view = blocks.GridCell(rules.ROOT_CELL_M, rules.ROOT_GRID) if frame is None else \
         blocks.GateCell(frame, rules.ROOT_CELL_M, rules.ROOT_GRID)
     return ship_hybrid.figure3(self.root, view, blocks.Never(), self.low, self.coder,
