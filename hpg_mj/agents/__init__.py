@@ -19,7 +19,9 @@ or `import_module`); or an installed package lists it in the entry-point group
 saved agent records its class's import path, so another process finds it too.
 
 Shipped: ship_hybrid, ship_beyond (past the paper's route, SPEC section 8),
-ship_flat_pg, ship_actor_critic, ship_patrol (continuing, SPEC section 8), taxi_hpg,
+ship_flat_pg, ship_actor_critic, ship_patrol (continuing, SPEC section 8), the hybrid
+and flat PGRL on the task ladder (ship_ladder_hybrid, ship_ladder_flat_pg: SPEC section
+11, the task and level named by the task file), taxi_hpg,
 taxi_maxq, taxi_flat_q, the learned hierarchies ship_option_critic and taxi_option_critic
 (each one module here); PPO and DQN in JAX (jax_ppo, jax_dqn, with `hpg_mj[jax]`); and Stable-Baselines3's PPO and SAC on
 the ship, PPO and DQN on the taxi (`hpg_mj.agents.sb3`, with the extra
@@ -43,7 +45,8 @@ def __getattr__(name):
   if name in ("ShipAgent", "ShipEnvironment"):
     from hpg_mj.agents import _ship
     return getattr(_ship, name)
-  if name in ("ShipHierarchy", "HierarchyConfig", "TaxiHierarchy", "TaxiHierarchyConfig"):
+  if name in ("ShipHierarchy", "HierarchyConfig", "TaxiHierarchy", "TaxiHierarchyConfig",
+              "ShipLadderHierarchy", "LadderHierarchyConfig"):
     from hpg_mj.agents import hierarchy
     return getattr(hierarchy, name)
   if name in ("TaxiAgent", "TaxiEnvironment"):
@@ -61,6 +64,9 @@ _SHIPPED = {
     "ship_actor_critic": "hpg_mj.agents.ship_actor_critic:ShipActorCritic",
     "ship_option_critic": "hpg_mj.agents.ship_option_critic:ShipOptionCritic",
     "ship_patrol": "hpg_mj.agents.ship_patrol:ShipPatrol",
+    # the task ladder's (SPEC section 11): each task and level named by its task file
+    "ship_ladder_hybrid": "hpg_mj.agents.ship_ladder_hybrid:ShipLadderHybrid",
+    "ship_ladder_flat_pg": "hpg_mj.agents.ship_ladder_flat_pg:ShipLadderFlatPG",
     "taxi_hpg": "hpg_mj.agents.taxi_hpg:TaxiHPG",
     "taxi_maxq": "hpg_mj.agents.taxi_maxq:TaxiMAXQ",
     "taxi_flat_q": "hpg_mj.agents.taxi_flat_q:TaxiFlatQ",

@@ -297,6 +297,7 @@ class MachineAgent(Agent):
   end_field = "passed"
   illegal_field = "illegal"          # the field of ROW_ILLEGAL (a patrol: departures)
   machine_world = None               # the program's `world` (the taxi's), if any
+  fused_world = None                 # a world the program is fused with (a ladder task's)
   root_args = None
   obs_size = 4                       # the observation's length (the taxi's: 5, or 4 classic)
 
@@ -306,7 +307,8 @@ class MachineAgent(Agent):
     is the one it runs)."""
     if self._machine is None:
       self._machine = program_mod.Program(self.graph(), root_args=self.root_args,
-                                          obs_size=self.obs_size, world=self.machine_world)
+                                          obs_size=self.obs_size, world=self.machine_world,
+                                          fused=self.fused_world)
     return self._machine
 
   def graph(self):

@@ -1,5 +1,6 @@
 """A hierarchy of one's own, from scratch: `ShipHierarchy`, the public base class of a
-user's hierarchy on the ship, run by the open machine (`hierarchy.program`).
+user's hierarchy on the ship, run by the open machine (`hierarchy.program`), and
+`ShipLadderHierarchy`, the same on a task of the ladder (SPEC section 11) at a level.
 
 ```python
 class Waypoints(ShipHierarchy):
@@ -20,6 +21,7 @@ calls below the root) and, per subtask, `{node}_runs`, `{node}_successes`.
 """
 import dataclasses
 
+from hpg_mj.agents import _ladder
 from hpg_mj.agents import _ship
 from hpg_mj.agents import _taxi
 
@@ -30,6 +32,15 @@ class HierarchyConfig:
   Its defaults are the environments' own (leaving the field -100, MushroomRL's); the
   shipped ship agents' task files set out_of_bounds_reward = -300 (SPEC section 10, D1)."""
   environment: _ship.ShipEnvironment = dataclasses.field(default_factory=_ship.ShipEnvironment)
+
+
+@dataclasses.dataclass(frozen=True)
+class LadderHierarchyConfig:
+  """A ladder hierarchy's task file: its [environment], which names the task and its
+  level (`world = "ship_goal"`, `level = "hard"`) with the task's rewards and step limit
+  (a subclass adds its own sections)."""
+  environment: _ladder.LadderEnvironment = dataclasses.field(
+      default_factory=_ladder.LadderEnvironment)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -44,6 +55,28 @@ class ShipHierarchy(_ship.ShipMachineAgent):
 
   Config = HierarchyConfig
   record_fields = ("passed", "steps", "return", "calls")
+
+
+class ShipLadderHierarchy(_ladder.LadderMachineAgent):
+  """A user's hierarchy on a task of the ladder (SPEC section 11) at a level, named by
+  its [environment] (`LadderHierarchyConfig`): give `graph()`. The open machine runs it
+  fused with the task's analytic world (`Program.run_world`: the world's own compiled
+  rules, millions of control steps a second) and step by step through the task's
+  Gymnasium environment (`make_env`; a trained agent is evaluated and rendered there),
+  the same rows for a fixed seed. Its rules read the observation the environment gives
+  (`obs_size` numbers): the current's state and water (6), the goal's dictionary
+  flattened as observation, achieved_goal, desired_goal (12), the regatta's state, two
+  gates and the gates left (11), the harbour's state and seven ranges (11); the ship's
+  [x, y, theta_deg, theta_dot_deg] first on every task, so the steering task's views
+  (`blocks.GridCell`, `blocks.LocalTiles`) read it as they are. Its metrics are the
+  benchmark's for the task (`hpg_mj.benchmark`), scored from its fixed starts
+  (`evaluate_fixed`) and normalized against its bounds by `hpg-mj train` and `evaluate`.
+  Its record: the fields of `record_fields` among passed (the gate; the regatta's
+  finish), steps, return, gates (the regatta's passed), calls and `{node}_runs`,
+  `{node}_successes`."""
+
+  Config = LadderHierarchyConfig
+  record_fields = ("passed", "steps", "return", "gates", "calls")
 
 
 class TaxiHierarchy(_taxi.TaxiMachineAgent):

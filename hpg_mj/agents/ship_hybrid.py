@@ -68,16 +68,22 @@ def coder(low):
                          tuple(low.tiles), (False, False, True, False), low.tilings)
 
 
-def figure3(root, view, termination, low, coder, max_steps, epsilon, per_decision=False):
+def figure3(root, view, termination, low, coder, max_steps, epsilon, per_decision=False,
+            frame=None):
   """Figure 3's graph of blocks (SPEC section 3): the root (learner `root`, its `view`
   and `termination`) calls, for each of eight directions, the diagonal or the
   straight subtask (the GaussianCMACs `low`) in its local frame (`coder`'s tiles,
   `max_steps` control steps), under the held epsilon of `epsilon` (a [root] section:
-  its epsilon, threshold, window, every and divisor)."""
+  its epsilon, threshold, window, every and divisor). With a `frame`
+  (`blocks.GateFrame`) the local frames stand in the frame of the gate where each call
+  began (`blocks.GateLocalTiles`, `blocks.GateLocalGoal`: the ladder's goal, regatta)."""
   def subtask(name, learner):
-    return Subtask(name, children=["turn"], learner=learner, view=blocks.LocalTiles(coder),
-                   termination=blocks.LocalGoal(max_steps),
-                   internal_reward=blocks.Shaping(), reward=blocks.STEP)  # only the -1s
+    local_view, local_end = (blocks.LocalTiles(coder), blocks.LocalGoal(max_steps)) \
+        if frame is None else (blocks.GateLocalTiles(frame, coder),
+                               blocks.GateLocalGoal(frame, max_steps))
+    return Subtask(name, children=["turn"], learner=learner, view=local_view,
+                   termination=local_end, internal_reward=blocks.Shaping(),
+                   reward=blocks.STEP)  # only the -1s
 
   return TaskGraph("root", [
       Subtask("root", learner=root, view=view, termination=termination,

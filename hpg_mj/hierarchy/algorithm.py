@@ -26,8 +26,9 @@ events end its children's calls only, and it ends by its own termination). So
 a graph compiles only the kinds it holds, a user's rules and kinds among them, and the
 algorithm never asks which kind a node holds. Its state is one record of named
 arrays (`Frames`), the same on both paths: fused with the analytic ship (`run_ship`)
-or the taxi's rules (`run_taxi`), and step by step under any environment (`begin`,
-`advance`).
+or the taxi's rules (`run_taxi`) or a ladder task's world (`run_world`: the world's own
+functions, `world_draw` ..., bound per graph), and step by step under any environment
+(`begin`, `advance`).
 """
 import collections
 
@@ -123,6 +124,30 @@ def schedule_decided(G):
 ROOT = 0
 SEEN_STEP = (False,)
 CONTINUING = False
+
+
+# ---- the world a program is fused with (bound per graph by `hierarchy.program`) ------
+
+def world_draw(W, S, rng_state, start):
+  """An episode's start (the ship's state and the task's layout) drawn from the run's
+  generator into `start` (`hierarchy.ladder`)."""
+  raise NotImplementedError("bound per graph by hierarchy.program (Program(fused=...))")
+
+
+def world_reset(W, S, start, obs):
+  """The world's state `S` set from `start`; the observation into `obs`."""
+  raise NotImplementedError("bound per graph by hierarchy.program (Program(fused=...))")
+
+
+def world_step(W, S, action, samples, obs, steps):
+  """One primitive step under `action`, `steps` steps in: the positions sampled and the
+  observation written; returns (event, reward, terminated, truncated)."""
+  raise NotImplementedError("bound per graph by hierarchy.program (Program(fused=...))")
+
+
+def world_end(W, S, event):
+  """An ended episode's (the row's end, its ROW_ILLEGAL column)."""
+  raise NotImplementedError("bound per graph by hierarchy.program (Program(fused=...))")
 
 
 # ---- Algorithm 1 ----------------------------------------------------------------
@@ -338,6 +363,35 @@ def run_taxi(G, n_episodes, rng_state, world, record, starts):
       if over:
         break
     write_row(M, record[e], episode[taxi_rules.E_OUTCOME], episode[taxi_rules.E_ILLEGAL])
+  arrays.copy_into(rng_state, M.rng)
+
+
+@numba.njit(**_ENTRY)
+def run_world(G, n_episodes, rng_state, W, S, record, starts, start):
+  """`n_episodes` episodes fused with the world the program binds (a ladder task,
+  `hierarchy.ladder`: its parameters `W`, its state `S`): each from `starts[e % k]`
+  (k > 0 rows) or from a start drawn from the generator (`world_draw`, into `start`);
+  the world steps as its Gymnasium environment does, and the graph sees its
+  observation. Record rows as `run_ship`'s, ROW_END and ROW_ILLEGAL the world's
+  `world_end` (the ladder's: passed the gate or finished; the regatta's gates)."""
+  M = G.M
+  arrays.copy_into(M.rng, rng_state)
+  for e in range(n_episodes):
+    if starts.shape[0] > 0:
+      arrays.copy_into(start, starts[e % starts.shape[0]])
+    else:
+      world_draw(W, S, M.rng, start)
+    world_reset(W, S, start, M.obs)
+    action = begin(G)
+    event = NO_EVENT
+    while True:
+      event, reward, terminated, truncated = world_step(W, S, action, M.samples, M.obs,
+                                                        M.episode[E_STEPS] + 1)
+      over, action = step(G, reward, terminated, truncated)
+      if over:
+        break
+    end, illegal = world_end(W, S, event)
+    write_row(M, record[e], end, illegal)
   arrays.copy_into(rng_state, M.rng)
 
 

@@ -56,6 +56,12 @@ Views (what a node's learner sees of the world's state):
                                route's, `GatePoints`), as CMAC tiles; errors beyond
                                `reflect_deg` to one side reflected onto the other,
                                with the drawn turning rate negated (SPEC section 8)
+  GateCell(frame, cell_m, grid), GateTiles(frame, coder), GateLocalTiles(frame, coder)
+                               GridCell, StateTiles and LocalTiles of the ship in
+                               the frame of a gate the observation holds
+                               (`GateFrame(at, relative)`: the ladder's goal and
+                               regatta), which puts it where the steering task's
+                               gate stands; a call's frame is the gate where it began
   TaxiState()                  the taxi's full state, as its index (a flat QTable)
   TaxiAbstraction(subtask)     the taxi hierarchy's abstract state of `subtask`
 
@@ -78,6 +84,9 @@ Terminations and internal rewards:
                                within 10 m, its frame left, or max_steps control
                                steps; with `internal_reward=Shaping()` its G is the
                                heading shaping and the local +100 / -100
+  GateLocalGoal(frame, max_steps)
+                               LocalGoal in the frame of the gate where the call
+                               began (`GateFrame`)
   TargetReached(max_steps)     an AimTiles node's end: through the gate or within
                                its GatePoints' `radius_m` of an approach point
                                (success), off the
@@ -227,6 +236,46 @@ class LocalTiles:
 class StateTiles:
   """The world's state as it is, coded by `coder`."""
   coder: tiles_mod.TileCoder
+
+
+@dataclasses.dataclass(frozen=True)
+class GateFrame:
+  """Where the observation holds a gate (SPEC section 11's goal and regatta), whose frame
+  the gate views read the ship in: at `at`, [x, y, sin, cos] of its centre and heading
+  (the goal's desired goal), or, `relative`, [ahead, starboard, heading less the
+  ship's] (the regatta's next gate). The frame puts the gate where the steering task's
+  stands, its centre at (400, 400), its heading north (`kinds.gate_frame`)."""
+  at: int
+  relative: bool = False
+
+
+@dataclasses.dataclass(frozen=True)
+class GateCell:
+  """GridCell of the ship's (x, y) in the gate's frame (`GateFrame`) of the observation."""
+  frame: GateFrame
+  cell_m: float = 50.0
+  grid: int = 20
+
+
+@dataclasses.dataclass(eq=False)
+class GateTiles:
+  """The ship's state in the gate's frame of the observation, coded by `coder`."""
+  frame: GateFrame
+  coder: tiles_mod.TileCoder
+
+
+@dataclasses.dataclass(eq=False)
+class GateLocalTiles:
+  """LocalTiles in the gate's frame of the observation where the call began."""
+  frame: GateFrame
+  coder: tiles_mod.TileCoder
+
+
+@dataclasses.dataclass(frozen=True)
+class GateLocalGoal:
+  """LocalGoal in the gate's frame of the observation where the call began."""
+  frame: GateFrame
+  max_steps: int = 300
 
 
 @dataclasses.dataclass(frozen=True)

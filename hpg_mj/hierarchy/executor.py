@@ -20,15 +20,18 @@ from hpg_mj.hierarchy.graph import Call, Primitive, Step
 
 
 class GymAdapter:
-  """A Gymnasium environment; `reset(start)` uses `options={"state": start}`."""
+  """A Gymnasium environment; `reset(start)` uses `options={"state": start}` (a
+  dictionary `start`: the options themselves, a ladder task's state and gate or course)."""
 
   def __init__(self, env):
     self.env = env
     self.values = env.step     # `step`'s fields as the environment gives them (`step_values`)
 
   def reset(self, start=None):
-    """Starts an episode (at `start`, a state, if given); returns its observation."""
-    options = None if start is None else {"state": start}
+    """Starts an episode (at `start`, a state or the reset options, if given); returns
+    its observation."""
+    options = None if start is None else dict(start) if isinstance(start, dict) else \
+        {"state": start}
     obs, _ = self.env.reset(options=options)
     return obs
 
@@ -41,7 +44,9 @@ class GymAdapter:
 class DmControlAdapter:
   """A dm_control environment; observations are flattened in their dict order.
 
-  A fixed start is handed to the task through its `initial_state` attribute.
+  A fixed start is handed to the task through its `initial_state` attribute (a
+  dictionary of reset options: "state" so, each other option to the task's attribute of
+  its name, the ladder's `gate` or `course`).
   Positions sampled inside a step (the ship's) come from the physics: its
   `sampled_positions()`, a new array each step (`worlds.ship_model`), is handed on
   as it is.
@@ -63,7 +68,10 @@ class DmControlAdapter:
   def reset(self, start=None):
     """Starts an episode (at `start`, a state, if given); returns its observation
     flattened into one float64 vector."""
-    if start is not None:
+    if isinstance(start, dict):
+      for key, value in start.items():
+        setattr(self.env.task, "initial_state" if key == "state" else key, value)
+    elif start is not None:
       self.env.task.initial_state = start
     return self._flat(self.env.reset())
 

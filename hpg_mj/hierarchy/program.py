@@ -70,11 +70,12 @@ class Program:
   observation it runs on (4: the ship's x, y, theta, theta rate). `world`: the
   world's own settings, given to the kinds that read it (a kind whose `settings`
   takes a `world` parameter: the taxi's, `taxi_rules.world_config`), and to
-  `run_taxi`."""
+  `run_taxi`. `fused`: a ladder task's world (`hierarchy.ladder.World`), whose functions
+  the graph's module binds (`run_world`) and whose observation the program's."""
 
-  def __init__(self, graph, root_args=None, obs_size=4, world=None):
-    self.graph = graph
-    self.obs_size = int(obs_size)
+  def __init__(self, graph, root_args=None, obs_size=4, world=None, fused=None):
+    self.graph, self.fused = graph, fused
+    self.obs_size = int(obs_size if fused is None else fused.obs_size)
     self.world = world
     # The root last (the agents' records read the nodes' counters so).
     self.names = [n for n in graph.nodes if n != graph.root] + [graph.root]
@@ -493,6 +494,8 @@ class Program:
     L.append(f"SEEN_STEP = {seen!r}")
     root = next(s for s in self._subtasks if s.name == self.graph.root)
     L.append(f"CONTINUING = {bool(root.end.continuing)!r}")
+    if self.fused is not None:              # only this world is compiled in (`run_world`)
+      L += [f"{name} = {self._function(fn)}" for name, fn in self.fused.functions.items()]
     fields = ["M"] + [f for f, _ in self._records]
     L.append(f"Graph = collections.namedtuple('Graph', {tuple(fields)!r})")
     self._text = "\n".join(L) + "\n"
@@ -647,6 +650,23 @@ class Program:
               np.ascontiguousarray(self.world, dtype=np.int64), rows, starts)
     return rows
 
+  def run_world(self, episodes, learn, sample, rng_state, starts=None):
+    """`episodes` episodes fused with the program's world (`fused`), from `starts` (rows,
+    used in turn; None: drawn). Rows as `run`'s (`algorithm.run_world`)."""
+    if self.fused is None:
+      raise GraphError("Program.run_world: this program was built without a world (fused=)")
+    if self._world is None:                  # the world's state, and a start's row
+      self._world = (self.fused.new_state(), np.zeros(self.fused.start_size))
+    self._flags(learn, sample)
+    rows = np.zeros((int(episodes), algorithm.ROW_COUNTERS + 3 * len(self.names)))
+    starts = np.ascontiguousarray(np.zeros(0) if starts is None else starts,
+                                  dtype=np.float64).reshape(-1, self.fused.start_size)
+    self._run(self._module.run_world, np.int64(episodes), rng_state, self.fused.params,
+              self._world[0], rows, starts, self._world[1])
+    return rows
+
+  _world = None
+
   def _observation(self, obs):
     """`obs` as a float64 vector in C order of the program's length (as it is, if it
     is one), else a one-line refusal."""
@@ -721,7 +741,8 @@ class Program:
 
   def run_stepwise(self, env, episodes, learn, sample, rng_state, start, ended, on_call=None):
     """`episodes` episodes through `env` (any Gymnasium or dm_control environment),
-    each from `start()`; `ended(last step)` gives the row's end. Rows as `run`'s.
+    each from `start()`; `ended(last step)` gives the row's end (or a pair: the end and
+    its ROW_ILLEGAL column). Rows as `run`'s.
     `on_call(call)`, if given, is told of every subtask called below the root (a
     `graph.Call`: its node, its arguments, the observation where it was called)."""
     from hpg_mj.hierarchy import executor
@@ -740,8 +761,10 @@ class Program:
         obs, reward, terminated, truncated, info = step(action)
         over, action = self.advance(obs, reward, terminated, truncated, info, learn, sample,
                                     rng_state)
-      rows[i, algorithm.ROW_END] = ended(executor.Step(obs, float(reward), bool(terminated),
-                                                       bool(truncated), info))
+      end = ended(executor.Step(obs, float(reward), bool(terminated), bool(truncated), info))
+      if isinstance(end, tuple):             # (the row's end, its ROW_ILLEGAL column)
+        end, rows[i, algorithm.ROW_ILLEGAL] = end
+      rows[i, algorithm.ROW_END] = end
       rows[i, algorithm.ROW_STEPS] = self.episode_steps
       rows[i, algorithm.ROW_RETURN] = self.episode_return
       rows[i, algorithm.ROW_COUNTERS:] = self.counters()

@@ -18,6 +18,7 @@ Each component varies only along the other axis, so the flow has no divergence (
 is neither made nor lost). Polynomials, not sines: a sampling interval of Equation 1
 costs one sine and one cosine, and the field adds a few multiplications to it.
 """
+import collections
 import math
 
 import numba
@@ -109,3 +110,69 @@ def currents_of(states, field, out):
   """The water's velocity at each ship's position: rows (c_x, c_y) into `out`."""
   for i in range(states.shape[0]):
     out[i, 0], out[i, 1] = current_at(field, states[i, 0], states[i, 1])
+
+
+# ---- the world as pure functions over a state and its parameters -------------------
+# (gymnax's shape; the open machine's fused loop, `hierarchy.algorithm.run_world`,
+# calls them, and they step as the Gymnasium environment's analytic backend does: the
+# same compiled rules, so both paths give the same numbers.)
+
+EnvParams = collections.namedtuple("EnvParams", ("field", "rewards", "max_steps"))
+EnvParams.__doc__ = """The current's task: the level's field (`LEVELS`' four numbers),
+[gate reward, out-of-bounds reward], the control steps before truncation."""
+EnvState = collections.namedtuple("EnvState", ("ship",))
+EnvState.__doc__ = """The world's state: the ship's [x, y, theta_deg, theta_dot_deg]."""
+START_SIZE = 4                # an episode's start: the ship's state
+OBSERVATION_SIZE = 6
+
+
+def env_params(level, gate_reward=core.GATE_REWARD, out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD,
+               max_steps=core.STEER_MAX_STEPS):
+  """The `EnvParams` of `level` with the environment's rewards and step limit."""
+  return EnvParams(level_field(level), np.array([gate_reward, out_of_bounds_reward],
+                                                dtype=np.float64), np.int64(max_steps))
+
+
+def env_state(params):
+  """A fresh `EnvState` (the fused loop's scratch)."""
+  return EnvState(np.zeros(4))
+
+
+@numba.njit(cache=True, error_model="numpy")
+def observe_into(params, ship, obs):
+  """The Gymnasium environment's observation of `ship` into `obs` (6): its state, then
+  the water's velocity where it is."""
+  for j in range(4):
+    obs[j] = ship[j]
+  obs[4], obs[5] = current_at(params.field, ship[0], ship[1])
+
+
+@numba.njit(cache=True, error_model="numpy")
+def env_reset(params, state, start, obs):
+  """An episode from `start` (the ship's state; its heading wrapped as the environment's
+  `reset(options={"state": ...})` wraps it); its observation into `obs`."""
+  ship = state.ship
+  for j in range(4):
+    ship[j] = start[j]
+  ship[2] = core.wrap_deg(start[2])
+  observe_into(params, ship, obs)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def env_step(params, state, r_deg, samples, obs, steps):
+  """One control step at turning rate `r_deg` (clipped to [-15, 15] deg/s, as the
+  environment clips it), `steps` control steps in (this one counted): the positions
+  sampled into `samples`, the observation into `obs`; returns (event, reward,
+  terminated, truncated) as `ShipCurrentEnv.step` (the steering task's gate and field)."""
+  r = min(max(r_deg, -core.MAX_TURN_RATE), core.MAX_TURN_RATE)
+  drift_control(state.ship, r, samples, params.field)
+  event, reward = core.global_outcome(samples, params.rewards[0], params.rewards[1])
+  terminated = event != core.NO_EVENT
+  observe_into(params, state.ship, obs)
+  return event, reward, terminated, (not terminated) and steps >= params.max_steps
+
+
+@numba.njit(cache=True, error_model="numpy")
+def env_end(params, state, event):
+  """An ended episode's (passed the gate: 1 or 0, 0)."""
+  return (1.0 if event == core.SUCCESS else 0.0), 0.0

@@ -16,6 +16,7 @@ gate's. A ship sails at most 1.8 m in a control step, so one that crosses the li
 between the posts heading with the gate ends that step inside the window: the pass is
 seen at the end of the step that crosses the line, from the goals alone.
 """
+import collections
 import functools
 import math
 
@@ -213,3 +214,93 @@ def check_gate(gate, who):
     raise ValueError(f"{who}: gate {arr.tolist()} puts its posts at {posts.round(2).tolist()}; "
                      f"allowed: both posts on the field [0, {core.FIELD_SIZE}] m")
   return desired
+
+
+# ---- the world as pure functions over a state and its parameters -------------------
+# (gymnax's shape; the open machine's fused loop, `hierarchy.algorithm.run_world`,
+# calls them, and they step as the Gymnasium environment's analytic backend does.)
+
+EnvParams = collections.namedtuple("EnvParams", ("level", "rewards", "max_steps"))
+EnvParams.__doc__ = """The goal's task: the level's (lowest centre coordinate, highest,
+largest heading in deg), [gate reward, out-of-bounds reward], the control steps before
+truncation."""
+EnvState = collections.namedtuple("EnvState", ("ship", "desired"))
+EnvState.__doc__ = """The world's state: the ship's [x, y, theta_deg, theta_dot_deg] and
+the desired goal [x, y, sin, cos] of the episode's gate."""
+START_SIZE = 7                # the ship's state, then the gate [x, y, heading_deg]
+OBSERVATION_SIZE = 12
+# The Gymnasium dictionary flattened in this order (its own order, and the manual's):
+# the state first, where a view of the steering ship's pose reads it.
+OBSERVATION_KEYS = ("observation", "achieved_goal", "desired_goal")
+
+
+def env_params(level, gate_reward=core.GATE_REWARD, out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD,
+               max_steps=core.STEER_MAX_STEPS):
+  """The `EnvParams` of `level` with the environment's rewards and step limit."""
+  return EnvParams(np.array(level_range(level), dtype=np.float64),
+                   np.array([gate_reward, out_of_bounds_reward], dtype=np.float64),
+                   np.int64(max_steps))
+
+
+def env_state(params):
+  """A fresh `EnvState` (the fused loop's scratch)."""
+  return EnvState(np.zeros(4), np.zeros(4))
+
+
+def flatten(observation):
+  """The Gymnasium dictionary as one float64 vector (12), keys in `OBSERVATION_KEYS`'
+  order: what `env_reset` and `env_step` write."""
+  return np.concatenate([observation[key] for key in OBSERVATION_KEYS]).astype(np.float64)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def observe_into(state, obs):
+  """The flattened observation (`flatten`) of `state` into `obs`: the ship's state, its
+  achieved goal (`goal_of`), the desired goal."""
+  ship = state.ship
+  theta = math.radians(ship[2])
+  for j in range(4):
+    obs[j] = ship[j]
+    obs[8 + j] = state.desired[j]
+  obs[4] = ship[0]
+  obs[5] = ship[1]
+  obs[6] = math.sin(theta)
+  obs[7] = math.cos(theta)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def env_reset(params, state, start, obs):
+  """An episode from `start` (the ship's state, then the gate [x, y, heading_deg], each
+  made as the environment's `reset(options={"state": ..., "gate": ...})` makes it); its
+  observation into `obs`."""
+  ship = state.ship
+  for j in range(4):
+    ship[j] = start[j]
+  ship[2] = core.wrap_deg(start[2])
+  heading = math.radians(start[6])
+  state.desired[0] = start[4]
+  state.desired[1] = start[5]
+  state.desired[2] = math.sin(heading)
+  state.desired[3] = math.cos(heading)
+  observe_into(state, obs)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def env_step(params, state, r_deg, samples, obs, steps):
+  """One control step at turning rate `r_deg` (clipped to [-15, 15] deg/s), `steps`
+  control steps in (this one counted): the positions sampled into `samples`, the
+  flattened observation into `obs`; returns (event, reward, terminated, truncated) as
+  `ShipGoalEnv.step` (the module's rule on the achieved goal)."""
+  r = min(max(r_deg, -core.MAX_TURN_RATE), core.MAX_TURN_RATE)
+  core.euler_control(state.ship, r, samples, core.SPEED, core.TIME_CONSTANT,
+                     core.SAMPLING_INTERVAL)
+  observe_into(state, obs)
+  event, reward = outcome_of(obs[4:8], state.desired, params.rewards[0], params.rewards[1])
+  terminated = event != core.NO_EVENT
+  return event, reward, terminated, (not terminated) and steps >= params.max_steps
+
+
+@numba.njit(cache=True, error_model="numpy")
+def env_end(params, state, event):
+  """An ended episode's (reached the gate: 1 or 0, 0)."""
+  return (1.0 if event == core.SUCCESS else 0.0), 0.0

@@ -25,6 +25,7 @@ obstacle along it, MAX_RANGE_M where none lies within MAX_RANGE_M ("nothing seen
 MuJoCo's rangefinder reads -1 there, `seen_ranges` maps it). From inside an obstacle
 (the last position of a step that ran aground) a ray reads the way out, as MuJoCo's.
 """
+import collections
 import functools
 import math
 
@@ -491,3 +492,74 @@ def pilot_target(state, phase):
   """The steering task's scripted helmsman (`ship_core.gate_pilot_target`), blind to the
   obstacles: for checks and pictures; the planners' helmsman goes round them."""
   return core.gate_pilot_target(state, phase)
+
+
+# ---- the world as pure functions over a state and its parameters -------------------
+# (gymnax's shape; the open machine's fused loop, `hierarchy.algorithm.run_world`,
+# calls them, and they step as the Gymnasium environment's analytic backend does.)
+
+EnvParams = collections.namedtuple("EnvParams", ("islands", "piers", "cells", "rewards",
+                                                 "max_steps"))
+EnvParams.__doc__ = """The harbour's task: the level's islands and pier frames
+(`level_shapes`) and its cells (`level_cells`), [gate reward, out-of-bounds reward], the
+control steps before truncation."""
+EnvState = collections.namedtuple("EnvState", ("ship", "draws"))
+EnvState.__doc__ = """The world's state: the ship's [x, y, theta_deg, theta_dot_deg];
+`draws`, scratch for one try at a start (`start_of`)."""
+START_SIZE = 4                # an episode's start: the ship's state
+
+
+def env_params(level, gate_reward=GATE_REWARD, out_of_bounds_reward=OUT_OF_BOUNDS_REWARD,
+               max_steps=core.STEER_MAX_STEPS):
+  """The `EnvParams` of `level` with the environment's rewards and step limit."""
+  islands, piers = level_shapes(level)
+  return EnvParams(islands, piers, level_cells(level),
+                   np.array([gate_reward, out_of_bounds_reward], dtype=np.float64),
+                   np.int64(max_steps))
+
+
+def env_state(params):
+  """A fresh `EnvState` (the fused loop's scratch)."""
+  return EnvState(np.zeros(4), np.zeros(4))
+
+
+@numba.njit(cache=True, error_model="numpy")
+def observe_into(params, ship, obs):
+  """The observation of `ship` into `obs` (11): its state, then the ranges."""
+  for j in range(4):
+    obs[j] = ship[j]
+  ranges_into(ship, params.islands, params.piers, params.cells, obs, 4)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def env_reset(params, state, start, obs):
+  """An episode from `start` (the ship's state, off the obstacles; its heading wrapped as
+  the environment's `reset(options={"state": ...})` wraps it); its observation into
+  `obs`."""
+  ship = state.ship
+  for j in range(4):
+    ship[j] = start[j]
+  ship[2] = core.wrap_deg(start[2])
+  observe_into(params, ship, obs)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def env_step(params, state, r_deg, samples, obs, steps):
+  """One control step at turning rate `r_deg` (clipped to [-15, 15] deg/s), `steps`
+  control steps in (this one counted): the positions sampled into `samples`, the
+  observation into `obs`; returns (event, reward, terminated, truncated) as
+  `ShipHarbourEnv.step` (`ship_outcome`)."""
+  r = min(max(r_deg, -core.MAX_TURN_RATE), core.MAX_TURN_RATE)
+  core.euler_control(state.ship, r, samples, core.SPEED, core.TIME_CONSTANT,
+                     core.SAMPLING_INTERVAL)
+  event, reward, terminated, truncated = ship_outcome(
+      samples, params.islands, params.piers, params.cells, steps, params.max_steps,
+      params.rewards[0], params.rewards[1])
+  observe_into(params, state.ship, obs)
+  return event, reward, terminated, truncated
+
+
+@numba.njit(cache=True, error_model="numpy")
+def env_end(params, state, event):
+  """An ended episode's (passed the gate: 1 or 0, 0)."""
+  return (1.0 if event == core.SUCCESS else 0.0), 0.0

@@ -29,6 +29,7 @@ gate and the one after it as the ship sees them, `[ahead_m, right_m, heading_deg
 heading less the ship's, wrapped to [-180, 180)), and the gates left to pass. At the last
 gate (and after the finish) the second is the last again.
 """
+import collections
 import functools
 import math
 
@@ -311,3 +312,80 @@ def pilot_target(state, phase, course, next_gate, reach):
   rad = math.radians(heading)
   return goal_core.pilot_target(state, phase, np.array([x, y, math.sin(rad), math.cos(rad)]),
                                 reach)
+
+
+# ---- the world as pure functions over a state and its parameters -------------------
+# (gymnax's shape; the open machine's fused loop, `hierarchy.algorithm.run_world`,
+# calls them, and they step as the Gymnasium environment's analytic backend does.)
+
+EnvParams = collections.namedtuple("EnvParams", ("layout", "rewards", "max_steps"))
+EnvParams.__doc__ = """The regatta's task: the level's (gates, spacing, smallest turn,
+largest turn), [gate reward, finish reward, out-of-bounds reward], the control steps
+before truncation."""
+EnvState = collections.namedtuple("EnvState", ("ship", "next_gate", "course", "posts", "draws"))
+EnvState.__doc__ = """The world's state: the ship's [x, y, theta_deg, theta_dot_deg], the
+gate to pass next (int64[1]), the course (gates, 3) and its posts (gates, 2, 2); `draws`,
+scratch for one try at laying a course (`lay_course`)."""
+
+
+def start_size(level):
+  """The length of an episode's start: the ship's state, then the course's rows."""
+  return 4 + 3 * level_layout(level)[0]
+
+
+def env_params(level, gate_reward=GATE_REWARD, finish_reward=FINISH_REWARD,
+               out_of_bounds_reward=OUT_OF_BOUNDS_REWARD, max_steps=core.STEER_MAX_STEPS):
+  """The `EnvParams` of `level` with the environment's rewards and step limit."""
+  return EnvParams(np.array(level_layout(level), dtype=np.float64),
+                   np.array([gate_reward, finish_reward, out_of_bounds_reward], dtype=np.float64),
+                   np.int64(max_steps))
+
+
+def env_state(params):
+  """A fresh `EnvState` (the fused loop's scratch)."""
+  gates = int(params.layout[0])
+  return EnvState(np.zeros(4), np.zeros(1, dtype=np.int64), np.zeros((gates, 3)),
+                  np.zeros((gates, 2, 2)), np.zeros(draws_per_course(gates)))
+
+
+@numba.njit(cache=True, error_model="numpy")
+def env_reset(params, state, start, obs):
+  """An episode from `start` (the ship's state, then the course's rows [x, y,
+  heading_deg], each made as the environment's `reset(options={"state": ...,
+  "course": ...})` makes it: headings wrapped); its observation into `obs`."""
+  ship = state.ship
+  for j in range(4):
+    ship[j] = start[j]
+  ship[2] = core.wrap_deg(start[2])
+  course = state.course
+  for k in range(course.shape[0]):
+    course[k, 0] = start[4 + 3 * k]
+    course[k, 1] = start[5 + 3 * k]
+    course[k, 2] = core.wrap_deg(start[6 + 3 * k])
+  posts_into(course, state.posts)
+  state.next_gate[0] = 0
+  observe(ship, course, 0, obs)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def env_step(params, state, r_deg, samples, obs, steps):
+  """One control step at turning rate `r_deg` (clipped to [-15, 15] deg/s), `steps`
+  control steps in (this one counted): the positions sampled into `samples`, the
+  observation into `obs`; returns (event, reward, terminated, truncated) as
+  `ShipRegattaEnv.step` (`ship_outcome`)."""
+  r = min(max(r_deg, -core.MAX_TURN_RATE), core.MAX_TURN_RATE)
+  core.euler_control(state.ship, r, samples, core.SPEED, core.TIME_CONSTANT,
+                     core.SAMPLING_INTERVAL)
+  rewards = params.rewards
+  event, reward, next_gate, terminated, truncated = ship_outcome(
+      samples, state.posts, state.next_gate[0], steps, params.max_steps, rewards[0], rewards[1],
+      rewards[2])
+  state.next_gate[0] = next_gate
+  observe(state.ship, state.course, next_gate, obs)
+  return event, reward, terminated, truncated
+
+
+@numba.njit(cache=True, error_model="numpy")
+def env_end(params, state, event):
+  """An ended episode's (finished the course: 1 or 0, the gates passed)."""
+  return (1.0 if event == core.SUCCESS else 0.0), float(state.next_gate[0])

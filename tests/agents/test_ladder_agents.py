@@ -1,0 +1,164 @@
+"""The task ladder's agents (SPEC section 11): the shipped task files load as their task
+and level; a user's `ShipLadderHierarchy` of its own rules saves its state by node
+name and resumes to the numbers of a run never stopped; the agents are scored from
+the benchmark's own fixed starts, against its bounds; and the command line trains,
+evaluates and renders one."""
+import dataclasses
+import json
+import math
+import pathlib
+
+import numba
+import numpy as np
+import pytest
+
+from hpg_mj import agents
+from hpg_mj import benchmark
+from hpg_mj import cli
+from hpg_mj.agents import ShipLadderHierarchy
+from hpg_mj.experiments import bounds
+from hpg_mj.hierarchy import blocks
+from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
+from hpg_mj.hierarchy.kinds.rules import Abstraction, Features, Termination
+from hpg_mj.learners.tiles import TileCoder
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+LADDER_FILES = {f"{task}_{agent}": (task, kind) for task in bounds.LADDER
+                for agent, kind in (("hybrid", "ship_ladder_hybrid"),
+                                    ("flat_pg", "ship_ladder_flat_pg"))}
+
+
+@pytest.mark.parametrize("name", sorted(LADDER_FILES))
+def test_the_shipped_task_files_name_their_task_and_level(name):
+  task = agents.load_task(name)
+  world, kind = LADDER_FILES[name]
+  assert task.kind == kind and task.path == REPO / "tasks" / f"{name}.toml"
+  agent = agents.build(task, seed=0)
+  assert (agent.config.environment.world, agent.config.environment.level) == (world, "easy")
+  assert bounds.task_name(agent) == f"{world}/easy"
+  assert agent.figure == ("finish_rate" if world == "ship_regatta" else "gate_pass_rate")
+  assert task.section("protocol")["tuning_seeds"] == list(range(10))
+
+
+# ---- a user's hierarchy on the goal ----------------------------------------------------
+
+@numba.njit
+def side(obs, call):
+  """The root's state: whether the ship is before the gate's line (0) or past it (1)."""
+  ahead = (obs[0] - obs[8]) * obs[10] + (obs[1] - obs[9]) * obs[11]
+  return 0 if ahead < 0.0 else 1
+
+
+@numba.njit
+def aim(obs, call):
+  """The heading error towards the point `call.reach` m before the gate, and the turn."""
+  x, y = obs[8] - call.reach * obs[10], obs[9] - call.reach * obs[11]
+  bearing = math.degrees(math.atan2(x - obs[0], y - obs[1]))
+  return ((obs[2] - bearing + 180.0) % 360.0 - 180.0, obs[3])
+
+
+@numba.njit
+def arrived(obs, call):
+  x, y = obs[8] - call.reach * obs[10], obs[9] - call.reach * obs[11]
+  if math.hypot(x - obs[0], y - obs[1]) < 30.0:
+    return 1
+  return -1 if call.steps >= 150 else 0
+
+
+class GoalApproach(ShipLadderHierarchy):
+  """A root that picks how far before the gate to aim, by the side of its line."""
+  record_fields = ("passed", "steps", "return", "calls", "goto_successes")
+
+  def graph(self):
+    coder = TileCoder(low=(-180, -15), high=(180, 15), n_tiles=(12, 6), wrap=(True, False))
+    goto = Subtask("goto", children=["turn"], view=Features(aim),
+                   termination=Termination(arrived),
+                   learner=blocks.GaussianCMAC(coder, alpha=0.02), reward=blocks.STEP)
+    root = Subtask("root", children=[Child("goto", reach=r) for r in (-40.0, 60.0, 150.0)],
+                   view=Abstraction(side), termination=blocks.Never(),
+                   learner=blocks.QTable(2, epsilon=0.2))
+    return TaskGraph("root", [root, goto, Primitive("turn")])
+
+
+def _goal_config(max_steps=600):
+  config = GoalApproach.Config()
+  return dataclasses.replace(config, environment=dataclasses.replace(
+      config.environment, world="ship_goal", level="easy", max_steps=max_steps))
+
+
+def test_a_users_ladder_hierarchy_saves_by_node_name_and_resumes_exactly(tmp_path):
+  agent = GoalApproach(_goal_config(), seed=3)
+  record = agent.train(150)
+  assert agent.obs_size == 12 and record["calls"].sum() > 150
+  state = agent.state()
+  assert {"rng_state", "root.q", "goto.theta", "goto.values"} <= set(state)
+  assert np.any(state["root.q"] != 0.0) and np.any(state["goto.theta"] != 0.0)
+  agents.save(agent, tmp_path / "a", record)
+  loaded, loaded_record, _ = agents.load(tmp_path / "a")
+  np.testing.assert_array_equal(loaded_record, record)
+  np.testing.assert_array_equal(agent.train(40), loaded.train(40))
+  for name, value in agent.state().items():
+    np.testing.assert_array_equal(loaded.state()[name], value, err_msg=name)
+
+
+def test_agents_are_scored_from_the_benchmarks_fixed_starts():
+  agent = agents.build(agents.load_task("ship_goal_hybrid"), seed=0)
+  options = benchmark.fixed_starts("ship_goal/easy", 4)
+  starts = agent.fixed_starts(4)
+  np.testing.assert_array_equal(starts[:, :4], options["state"])
+  np.testing.assert_array_equal(starts[:, 4:], options["gate"])
+  regatta = agents.build(agents.load_task("ship_regatta_flat_pg"), seed=0)
+  options = benchmark.fixed_starts("ship_regatta/easy", 2)
+  np.testing.assert_array_equal(regatta.fixed_starts(2)[:, 4:],
+                                options["course"].reshape(2, -1))
+  result = benchmark.evaluate(agent, episodes=3, progress=False)
+  assert result.metrics["task"] == "ship_goal" and result.metrics["level"] == "easy"
+  assert {"J_normalized", "gate_pass_rate_normalized"} <= set(result.metrics)
+  np.testing.assert_array_equal(result.record["steps"], agent.evaluate_fixed(3)["steps"])
+
+
+def test_the_command_line_trains_evaluates_and_renders_a_ladder_agent(tmp_path, capsys):
+  text = (REPO / "tasks" / "ship_regatta_hybrid.toml").read_text()
+  path = tmp_path / "regatta.toml"
+  path.write_text(text.replace("max_steps = 5000", "max_steps = 40"))
+  out = tmp_path / "agent"
+  assert cli.main(["train", str(path), "--episodes", "30", "--out", str(out), "--json",
+                   "--quiet"]) == 0
+  metrics = json.loads(capsys.readouterr().out)
+  assert metrics["episodes_measured"] == 30
+  assert {"finish_rate", "gates_passed", "mean_return_normalized",
+          "finish_rate_normalized"} <= set(metrics)
+  for backend in ("analytic", "mujoco"):
+    assert cli.main(["evaluate", str(out), "--episodes", "2", "--backend", backend,
+                     "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["episodes_measured"] == 2
+  gif = tmp_path / "regatta.gif"
+  assert cli.main(["render", "--agent", str(out), "--out", str(gif), "--width", "160",
+                   "--height", "128"]) == 0
+  assert "a greedy episode" in capsys.readouterr().out
+  assert gif.stat().st_size > 1000
+
+
+def test_the_regattas_score_is_its_return_under_its_own_rewards():
+  """A regatta agent trained with other rewards (D1's -300) is scored by its return
+  under SPEC section 11's, as every policy is: the same greedy episodes of an agent on
+  the task's own rewards return exactly that."""
+  from hpg_mj.agents import _ladder
+  from hpg_mj.agents.ship_ladder_hybrid import ShipLadderHybrid
+  records = {}
+  for out_of_bounds in (-100.0, -300.0):
+    config = ShipLadderHybrid.Config()
+    config = dataclasses.replace(config, environment=dataclasses.replace(
+        config.environment, world="ship_regatta", level="hard", max_steps=150,
+        out_of_bounds_reward=out_of_bounds))
+    agent = ShipLadderHybrid(config, seed=1)
+    records[out_of_bounds] = (agent, agent.evaluate_fixed(40))
+  own, other = records[-100.0][1], records[-300.0][1]
+  np.testing.assert_array_equal(own["steps"], other["steps"])
+  assert (own["steps"] == 150).any() and (own["steps"] < 150).any()    # truncated and left
+  assert (own["return"] != other["return"]).any()
+  agent = records[-300.0][0]
+  np.testing.assert_array_equal(_ladder.regatta_returns(other, agent.config.environment),
+                                own["return"])
+  assert agent.metrics(other)["mean_return"] == pytest.approx(own["return"].mean())
+  np.testing.assert_array_equal(agent.scored(other)["finished"], other["passed"])
