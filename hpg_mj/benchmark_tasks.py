@@ -136,6 +136,10 @@ def _task_of_environment(task):
     raise ValueError(f"{where}: not one of the benchmark's tasks {list(TASKS)} (the full "
                      "ship task or the taxi, episodic)")
   env = holder.config.environment
+  if "/" in name:                       # a ladder task at its level
+    name, level = name.split("/")
+    return Task(name, int(env.max_steps), float(env.gate_reward),
+                float(env.out_of_bounds_reward), level=level)
   if name == "ship":
     return Task(name, int(env.max_steps), float(env.gate_reward), float(env.out_of_bounds_reward))
   return Task(name, int(env.max_steps), capacity=int(env.capacity))
@@ -162,37 +166,12 @@ def fixed_starts(task="ship", episodes=base.GREEDY_STARTS, seed=base.GREEDY_SEED
 
 
 def _ladder_starts(task, episodes, seed):
-  """`fixed_starts` of a ladder task: each environment's reset, drawn alike."""
-  from gymnasium.utils import seeding
-
-  from hpg_mj.worlds import ship_goal_core
-  from hpg_mj.worlds import ship_harbour_core
-  from hpg_mj.worlds import ship_regatta_core
-  from hpg_mj.worlds import ship_task
+  """`fixed_starts` of a ladder task: each environment's reset, drawn alike
+  (`worlds.ship_ladder.fixed_starts`, which the ladder's agents read too)."""
+  from hpg_mj.worlds import ship_ladder
   _count("episodes", episodes)
   _count("seed", seed)
-  rules = ship_task.ShipRules("steer")
-  states, extra = np.zeros((int(episodes), 4)), []
-  for i in range(int(episodes)):
-    generator, _ = seeding.np_random(int(seed) + i)    # as gymnasium.Env.reset does
-    if task.name == "ship_harbour":                     # drawn again on an obstacle
-      states[i] = ship_harbour_core.sample_start(
-          rules, generator, *ship_harbour_core.level_shapes(task.level))
-    else:
-      states[i] = rules.sample_start(generator)
-    if task.name == "ship_goal":                        # ship_goal_core.sample_gate's draws
-      low, high, largest = ship_goal_core.level_range(task.level)
-      extra.append([generator.uniform(low, high), generator.uniform(low, high),
-                    generator.uniform(-largest, largest)])
-    elif task.name == "ship_regatta":
-      extra.append(ship_regatta_core.sample_course(
-          generator, ship_regatta_core.level_layout(task.level)))
-  if task.name == "ship_goal":
-    return {"state": states, "gate": np.array(extra, dtype=np.float64).reshape(-1, 3)}
-  if task.name == "ship_regatta":
-    gates = ship_regatta_core.level_layout(task.level)[0]
-    return {"state": states, "course": np.array(extra, dtype=np.float64).reshape(-1, gates, 3)}
-  return {"state": states}
+  return ship_ladder.fixed_starts(task.name, task.level, episodes, seed)
 
 
 def _start_count(starts):

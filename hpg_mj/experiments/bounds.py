@@ -38,8 +38,8 @@ def bounds_key(name, level=None):
 
 
 def task_name(agent):
-  """The benchmark task an agent acts on ("ship", "taxi_fuel", "taxi"), or None
-  (a subtask, a continuing agent). An agent whose record rows are control steps but
+  """The benchmark task an agent acts on ("ship", "taxi_fuel", "taxi", or a ladder task
+  at its level, "ship_goal/hard"), or None (a subtask, a continuing agent). An agent whose record rows are control steps but
   whose scores are over the task's episodes (`per_episode_scores`, the SB3 agents)
   acts on the task."""
   if getattr(agent, "record_steps", None) is not None and \
@@ -51,6 +51,8 @@ def task_name(agent):
     return "ship"
   if world == "taxi":
     return "taxi_fuel" if env.fuel else "taxi"
+  if world in LADDER and getattr(env, "level", None) in LEVELS:
+    return bounds_key(world, env.level)
   return None
 
 

@@ -1,0 +1,41 @@
+"""The task ladder's fixed starts (SPEC sections 7 and 11): start i of every report is
+the episode the Gymnasium environment lays out at `reset(seed=seed + i)`, the ship's
+state (the harbour's drawn again while it lies on an obstacle), then the goal's gate or
+the regatta's course, from one generator. One rule, read by the scorer
+(`hpg_mj.benchmark`) and by the agents that act on the ladder, so that both sail from
+the same starts."""
+import numpy as np
+
+from hpg_mj.worlds import ship_goal_core
+from hpg_mj.worlds import ship_harbour_core
+from hpg_mj.worlds import ship_regatta_core
+from hpg_mj.worlds import ship_task
+
+
+def fixed_starts(task, level, episodes, seed):
+  """The fixed starts of ladder task `task` ("ship_current", "ship_goal", "ship_regatta",
+  "ship_harbour") at `level`: a dictionary of arrays, the reset options that set them:
+  "state" (n, 4), and "gate" (n, 3) rows [x, y, heading_deg] or "course" (n, gates, 3)."""
+  from gymnasium.utils import seeding
+  rules = ship_task.ShipRules("steer")
+  states, extra = np.zeros((int(episodes), 4)), []
+  for i in range(int(episodes)):
+    generator, _ = seeding.np_random(int(seed) + i)    # as gymnasium.Env.reset does
+    if task == "ship_harbour":                          # drawn again on an obstacle
+      states[i] = ship_harbour_core.sample_start(
+          rules, generator, *ship_harbour_core.level_shapes(level))
+    else:
+      states[i] = rules.sample_start(generator)
+    if task == "ship_goal":                             # ship_goal_core.sample_gate's draws
+      low, high, largest = ship_goal_core.level_range(level)
+      extra.append([generator.uniform(low, high), generator.uniform(low, high),
+                    generator.uniform(-largest, largest)])
+    elif task == "ship_regatta":
+      extra.append(ship_regatta_core.sample_course(
+          generator, ship_regatta_core.level_layout(level)))
+  if task == "ship_goal":
+    return {"state": states, "gate": np.array(extra, dtype=np.float64).reshape(-1, 3)}
+  if task == "ship_regatta":
+    gates = ship_regatta_core.level_layout(level)[0]
+    return {"state": states, "course": np.array(extra, dtype=np.float64).reshape(-1, gates, 3)}
+  return {"state": states}
