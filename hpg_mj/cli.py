@@ -206,7 +206,7 @@ def _cmd_train(args):
   from hpg_mj import storage
   from hpg_mj.agents import window
   from hpg_mj.experiments import bounds
-  task = agents.load_task(args.task_file)
+  task = agents.load_task(args.task_file, args.set)
   seed = task.protocol.seed if args.seed is None else args.seed
   episodes = task.protocol.episodes if args.episodes is None else args.episodes
   out = pathlib.Path(args.out) if args.out else pathlib.Path("runs") / f"{task.path.stem}-seed{seed}"
@@ -471,6 +471,9 @@ def build_parser():
                  help="override [protocol] episodes (a continuing agent's: record rows, "
                  "hours for ship_patrol)")
   p.add_argument("--seed", type=_seed, default=None, help="override [protocol] seed")
+  p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                 help="set a key of the task file, e.g. environment.level=hard (repeatable; "
+                 "saved with the agent)")
   p.add_argument("--backend", choices=["analytic", "mujoco"], default=None)
   p.add_argument("--out", default=None, help="agent folder (default runs/<task>-seed<S>)")
   p.add_argument("--force", action="store_true",

@@ -273,14 +273,16 @@ def shipped_tasks():
   return {p.stem: p for folder in shipped_tasks_dirs() for p in sorted(folder.glob("*.toml"))}
 
 
-def load_task(path):
-  """Loads a task file by path, or a shipped one by name (`ship_hybrid`)."""
+def load_task(path, assignments=()):
+  """Loads a task file by path, or a shipped one by name (`ship_hybrid`), with keys set
+  by `assignments` ("section.key=value" each, `taskfile.assigned`; `hpg-mj train --set`)."""
   if not pathlib.Path(path).exists() and str(path) in shipped_tasks():
     path = shipped_tasks()[str(path)]
   elif not pathlib.Path(path).exists():
     raise taskfile.TaskFileError(f"{path}: no such task file, and no shipped task of that "
                                  f"name; shipped: {sorted(shipped_tasks())}")
-  return taskfile.load(path, _Registry)
+  task = taskfile.load(path, _Registry)
+  return taskfile.assigned(task, assignments, _Registry) if assignments else task
 
 
 def build(task, seed=None):
