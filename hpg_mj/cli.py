@@ -226,6 +226,8 @@ def _cmd_train(args):
   metrics.update(window.described(agent, len(record)))   # the rows the metrics are over
   metrics.update(bounds.normalized(bounds.task_name(agent), metrics))   # SPEC section 7.1
   metrics.update(agent.final_metrics(record))    # e.g. a continuing agent's comparisons
+  if isinstance(metrics.get("greedy"), dict):    # a greedy measure: normalized too (7.1)
+    metrics["greedy"].update(bounds.normalized(bounds.task_name(agent), metrics["greedy"]))
   metrics.update({"task": str(task.path), "seed": seed, "episodes": episodes,
                   "backend": args.backend or agent.backend,
                   # wall = compile + train: numba's compiling (0 once cached) apart, so

@@ -21,7 +21,8 @@ saved agent records its class's import path, so another process finds it too.
 Shipped: ship_hybrid, ship_beyond (past the paper's route, SPEC section 8),
 ship_flat_pg, ship_actor_critic, ship_patrol (continuing, SPEC section 8), taxi_hpg,
 taxi_maxq, taxi_flat_q, the learned hierarchies ship_option_critic and taxi_option_critic
-(each one module here); PPO and DQN in JAX (jax_ppo, jax_dqn, with `hpg_mj[jax]`); and Stable-Baselines3's PPO and SAC on
+(each one module here); PPO and DQN in JAX (jax_ppo, jax_dqn, with `hpg_mj[jax]`; PPO on
+the task ladder too, jax_ppo_ladder); and Stable-Baselines3's PPO and SAC on
 the ship, PPO and DQN on the taxi (`hpg_mj.agents.sb3`, with the extra
 `pip install 'hpg_mj[sb3]'`).
 """
@@ -76,6 +77,8 @@ _SHIPPED = {
     "taxi_ppo_jax": "hpg_mj.agents.jax_ppo:TaxiPPOJax",
     "taxi_dqn_jax": "hpg_mj.agents.jax_dqn:TaxiDQNJax",
     "ship_sac_jax": "hpg_mj.agents.jax_sac:ShipSACJax",
+    # PPO in JAX on the task ladder's JAX worlds, the task and level named by the file
+    "ladder_ppo_jax": "hpg_mj.agents.jax_ppo_ladder:LadderPPOJax",
 }
 _registered = {}          # name -> class, or "module:Class" until first used
 _entry_points_read = False
