@@ -210,9 +210,14 @@ def _agent_record(agent, task, episodes, seed, backend, bar, chunk=50):
     bar.update(n)
   got = np.concatenate(parts) if parts else agent.empty_record()
   record = np.zeros(len(got), dtype=record_dtype(task.world))
+  # An agent whose training rows sum the episodes ended in them (the Stable-Baselines3
+  # and JAX agents: gates, return_sum, ...) evaluates a row an episode in those fields.
+  summed = ({"passed": "gates", "finished": "gates", "gates": "gates_passed",
+             "return": "return_sum"} if "return_sum" in got.dtype.names and
+            task.world != "taxi" else {})
   for name in record.dtype.names:
-    if name in got.dtype.names:
-      record[name] = got[name]
+    if summed.get(name, name) in got.dtype.names:
+      record[name] = got[summed.get(name, name)]
   return record
 
 

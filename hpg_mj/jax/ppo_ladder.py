@@ -10,6 +10,8 @@ and the regatta's when they land) and acts r = 15 u deg/s. This module adds
   task's success: the gate, the goal's gate, the regatta's finish, `info["event"]`
   1; any other ending before the clock, leaving the field or touching an obstacle,
   counts as leaving for J; the regatta's gates passed from `info["gates_passed"]`);
+- `LadderTrainer`: the greedy (or sampled) episodes from the ladder's starts, given
+  as the Gymnasium reset's options (the goal's gate with the ship's state);
 - `flat`: the Gymnasium observation as the JAX world's one array (the goal's
   dictionary in `GOAL_KEYS` order, `hpg_mj.jax.ship_goal`'s slices);
 - `compiled`: the loop's jitted functions, `init` among them, and the policy's;

@@ -123,6 +123,10 @@ def test_the_greedy_measure_is_the_ladder_scorer_s(current):
   for key in ("gate_pass_rate", "mean_return"):
     assert mine[key] == result.metrics[key], key
   assert mine["J"] == pytest.approx(result.metrics["J"], abs=1e-5)
+  # The scorer given the agent itself reads its rows (a row an episode) by their names.
+  of_agent = benchmark.evaluate(agent, episodes=16, progress=False).record
+  for name in ("passed", "steps", "return"):
+    np.testing.assert_array_equal(of_agent[name], result.record[name], err_msg=name)
   assert bounds.task_name(agent) == "ship_current/easy"
   space = policy.action_space
   assert (space.low[0], space.high[0], policy.observation_space.shape) == (-15.0, 15.0, (6,))
