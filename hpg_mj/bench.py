@@ -196,8 +196,8 @@ def bench_task(path, min_seconds=2.0):
 
   task = agents.load_task(path)
   agent = agents.build(task, seed=0)
-  unit = "control steps/s" if task.section("environment")["world"].startswith("ship") else \
-      "primitive steps/s"       # (the ship and the ladder's ships, "ship_goal", ...)
+  unit = "primitive steps/s" if task.section("environment")["world"] == "taxi" else \
+      "control steps/s"                    # the ship's tasks, the ladder's among them
   chunk = 1000
   if agent.record_steps:                   # a continuing agent: rows of an hour each
     chunk = 20

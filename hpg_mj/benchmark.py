@@ -211,9 +211,17 @@ def _agent_record(agent, task, episodes, seed, backend, bar, chunk=50):
   got = np.concatenate(parts) if parts else agent.empty_record()
   record = np.zeros(len(got), dtype=record_dtype(task.world))
   # An agent that says how its record reads as the benchmark's (a ladder agent's
-  # `scored`: the regatta's finish, its return under the task's rewards), else by name.
-  fields = agent.scored(got) if hasattr(agent, "scored") else \
-      {name: got[name] for name in got.dtype.names}
+  # `scored`: the regatta's finish, its return under the task's rewards), else by name;
+  # an agent whose training rows sum the episodes ended in them (the Stable-Baselines3
+  # and JAX agents: gates, return_sum, ...) evaluates a row an episode in those fields.
+  if hasattr(agent, "scored"):
+    fields = agent.scored(got)
+  else:
+    summed = ({"passed": "gates", "finished": "gates", "gates": "gates_passed",
+               "return": "return_sum"} if "return_sum" in got.dtype.names and
+              task.world != "taxi" else {})
+    fields = {name: got[summed.get(name, name)] for name in record.dtype.names
+              if summed.get(name, name) in got.dtype.names}
   for name in record.dtype.names:
     if name in fields:
       record[name] = fields[name]

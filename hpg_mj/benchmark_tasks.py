@@ -13,6 +13,7 @@ from hpg_mj.agents import base
 from hpg_mj.experiments import bounds as bounds_mod
 from hpg_mj.experiments.bounds import LADDER, LEVELS, TASKS
 from hpg_mj.worlds import ship_core
+from hpg_mj.worlds import ship_ladder
 from hpg_mj.worlds import taxi_core
 from hpg_mj.worlds import taxi_rules
 
@@ -20,9 +21,7 @@ from hpg_mj.worlds import taxi_rules
 # ---- tasks ---------------------------------------------------------------------------
 
 ENV_IDS = {"ship": "hpg_mj/ShipSteering-v0", "taxi_fuel": "hpg_mj/TaxiFuel-v0",
-           "taxi": "hpg_mj/Taxi-v0", "ship_current": "hpg_mj/ShipCurrent-v0",
-           "ship_goal": "hpg_mj/ShipGoal-v0", "ship_regatta": "hpg_mj/ShipRegatta-v0",
-           "ship_harbour": "hpg_mj/ShipHarbour-v0"}
+           "taxi": "hpg_mj/Taxi-v0", **ship_ladder.ENV_IDS}
 
 
 @dataclasses.dataclass(frozen=True)

@@ -402,6 +402,67 @@ def loads(text, path, registry):
                   control_steps, label, tuning_section)
 
 
+def assigned(task, assignments, registry):
+  """The task file `task` (a `TaskFile`) with keys set, each assignment
+  "section.key=value" (`hpg-mj train --set environment.level=hard`): the value in
+  TOML (a string may go unquoted), written over the line `key = ...` of the file's
+  [section] (every key of a section has one), and the text loaded again, so that it
+  is checked as a task file is and an agent saved with it rebuilds the same
+  configuration. One line naming the assignment where it is malformed, or where
+  the file has no such section or key."""
+  text = task.text
+  for assignment in assignments:
+    name, sep, raw = str(assignment).partition("=")
+    section, dot, key = name.strip().rpartition(".")
+    if not (sep and dot and section and key):
+      raise TaskFileError(f"{task.path}: --set {assignment!r}: give SECTION.KEY=VALUE, for "
+                          "example environment.level=hard")
+    try:
+      value = tomllib.loads(f"v = {raw.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+      value = raw.strip()                  # a bare word: a string
+    text = _set_line(text, task.path, section, key, value, assignment)
+  return loads(text, task.path, registry)
+
+
+def _set_line(text, path, section, key, value, assignment):
+  """`text` with the line `key = ...` of its [section] rewritten to `value`."""
+  lines = text.splitlines(keepends=True)
+  headers = [(i, line.split("]")[0].strip(" \t[")) for i, line in enumerate(lines)
+             if line.lstrip().startswith("[")]
+  starts = [i for i, name in headers if name == section]
+  if not starts:
+    raise TaskFileError(f"{path}: --set {assignment!r}: the file has no [{section}]; its "
+                        f"sections: {[name for _, name in headers]}")
+  end = next((i for i, _ in headers if i > starts[0]), len(lines))
+  keys = {}
+  for i in range(starts[0] + 1, end):
+    left, sep, _ = lines[i].partition("=")
+    if sep and not left.lstrip().startswith("#"):
+      keys[left.strip()] = i
+  if key not in keys:
+    raise TaskFileError(f"{path}: --set {assignment!r}: [{section}] has no key {key!r}; its "
+                        f"keys: {sorted(keys)}")
+  try:
+    lines[keys[key]] = f"{key} = {_toml_value(value)}    # set by --set\n"
+  except TypeError:
+    raise TaskFileError(f"{path}: --set {assignment!r}: the value is no number, string, "
+                        "boolean or list") from None
+  changed = "".join(lines)
+  try:
+    new = tomllib.loads(changed)
+  except tomllib.TOMLDecodeError:
+    new = None
+  old = table = tomllib.loads(text)
+  for part in section.split("."):
+    table = table[part]
+  table[key] = value
+  if new != old:               # a value written over several lines: refused, not guessed
+    raise TaskFileError(f"{path}: --set {assignment!r}: [{section}] {key} is not on one line "
+                        "of the file; change it there")
+  return changed
+
+
 # [tuning]: what a task file's hyper-parameters were tuned over, by `hpg-mj tune`
 # (SPEC section 7: every learner of a figure gets the same budget, on the tuning
 # seeds). Its [tuning.grid] names each tuned key by its section, e.g.

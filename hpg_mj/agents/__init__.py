@@ -23,7 +23,8 @@ ship_flat_pg, ship_actor_critic, ship_patrol (continuing, SPEC section 8), the h
 and flat PGRL on the task ladder (ship_ladder_hybrid, ship_ladder_flat_pg: SPEC section
 11, the task and level named by the task file), taxi_hpg,
 taxi_maxq, taxi_flat_q, the learned hierarchies ship_option_critic and taxi_option_critic
-(each one module here); PPO and DQN in JAX (jax_ppo, jax_dqn, with `hpg_mj[jax]`); and Stable-Baselines3's PPO and SAC on
+(each one module here); PPO and DQN in JAX (jax_ppo, jax_dqn, with `hpg_mj[jax]`; PPO on
+the task ladder too, jax_ppo_ladder); and Stable-Baselines3's PPO and SAC on
 the ship, PPO and DQN on the taxi (`hpg_mj.agents.sb3`, with the extra
 `pip install 'hpg_mj[sb3]'`).
 """
@@ -82,6 +83,8 @@ _SHIPPED = {
     "taxi_ppo_jax": "hpg_mj.agents.jax_ppo:TaxiPPOJax",
     "taxi_dqn_jax": "hpg_mj.agents.jax_dqn:TaxiDQNJax",
     "ship_sac_jax": "hpg_mj.agents.jax_sac:ShipSACJax",
+    # PPO in JAX on the task ladder's JAX worlds, the task and level named by the file
+    "ladder_ppo_jax": "hpg_mj.agents.jax_ppo_ladder:LadderPPOJax",
 }
 _registered = {}          # name -> class, or "module:Class" until first used
 _entry_points_read = False
@@ -279,14 +282,16 @@ def shipped_tasks():
   return {p.stem: p for folder in shipped_tasks_dirs() for p in sorted(folder.glob("*.toml"))}
 
 
-def load_task(path):
-  """Loads a task file by path, or a shipped one by name (`ship_hybrid`)."""
+def load_task(path, assignments=()):
+  """Loads a task file by path, or a shipped one by name (`ship_hybrid`), with keys set
+  by `assignments` ("section.key=value" each, `taskfile.assigned`; `hpg-mj train --set`)."""
   if not pathlib.Path(path).exists() and str(path) in shipped_tasks():
     path = shipped_tasks()[str(path)]
   elif not pathlib.Path(path).exists():
     raise taskfile.TaskFileError(f"{path}: no such task file, and no shipped task of that "
                                  f"name; shipped: {sorted(shipped_tasks())}")
-  return taskfile.load(path, _Registry)
+  task = taskfile.load(path, _Registry)
+  return taskfile.assigned(task, assignments, _Registry) if assignments else task
 
 
 def build(task, seed=None):

@@ -45,6 +45,31 @@ class LadderEnvironment(taskfile.Section):
   max_steps: int = param(core.STEER_MAX_STEPS, "control steps, then truncated", low=1)
 
 
+def make_env(env, api, backend, kwargs, dictionary=False):
+  """The ladder task of an [environment] section (`LadderEnvironment`) with its rewards
+  and step limit: Gymnasium's (`ship_ladder.ENV_IDS`) on `backend`, or dm_control's
+  suite task (its level); `dictionary`: an agent that reads the goal's Gymnasium
+  dictionary, which dm_control's goal does not give (refused in one line)."""
+  settings = {"max_steps": env.max_steps, "gate_reward": env.gate_reward,
+              "out_of_bounds_reward": env.out_of_bounds_reward}
+  if env.world == "ship_regatta":
+    settings["finish_reward"] = env.finish_reward
+  if api == "gymnasium":
+    import gymnasium
+
+    import hpg_mj  # noqa: F401  (registers the ids)
+    return gymnasium.make(ship_ladder.ENV_IDS[env.world], level=env.level,
+                          backend=backend, **settings, **kwargs)
+  if api == "dm_control":
+    if dictionary and env.world == "ship_goal":
+      raise ValueError("ship_goal's dm_control task observes the gate as (position, "
+                       "heading), not the Gymnasium dictionary its agents read; use "
+                       "api='gymnasium'")
+    from hpg_mj import suite
+    return suite.load(env.world, env.level, {"random": 0, **settings, **kwargs})
+  raise ValueError(f"unknown environment api {api!r}; allowed: ['gymnasium', 'dm_control']")
+
+
 def world_of(env):
   """The `hierarchy.ladder.World` of an [environment] section."""
   return ladder.world(env.world, env.level, env.gate_reward, env.out_of_bounds_reward,
@@ -130,25 +155,7 @@ class LadderMachineAgent(base.MachineAgent, _ship.ShipAgent):
     return self.world.obs_size
 
   def make_env(self, api="gymnasium", backend="analytic", **kwargs):
-    env = self.config.environment
-    settings = {"max_steps": env.max_steps, "gate_reward": env.gate_reward,
-                "out_of_bounds_reward": env.out_of_bounds_reward}
-    if env.world == "ship_regatta":
-      settings["finish_reward"] = env.finish_reward
-    if api == "gymnasium":
-      import gymnasium
-
-      import hpg_mj  # noqa: F401  (registers the ids)
-      return gymnasium.make(f"hpg_mj/{ladder.ENV_IDS[env.world]}", level=env.level,
-                            backend=backend, **settings, **kwargs)
-    if api == "dm_control":
-      if env.world == "ship_goal":
-        raise ValueError("ship_goal's dm_control task observes the gate as (position, "
-                         "heading), not the Gymnasium dictionary its agents read; use "
-                         "api='gymnasium'")
-      from hpg_mj import suite
-      return suite.load(env.world, env.level, {"random": 0, **settings, **kwargs})
-    raise ValueError(f"unknown environment api {api!r}; allowed: ['gymnasium', 'dm_control']")
+    return make_env(self.config.environment, api, backend, kwargs, dictionary=True)
 
   def start_state(self):
     """A start row drawn from the agent's generator (`hierarchy.ladder`)."""

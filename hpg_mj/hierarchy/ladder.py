@@ -27,12 +27,10 @@ from hpg_mj.worlds import ship_core as core
 from hpg_mj.worlds import ship_current_core as current_core
 from hpg_mj.worlds import ship_goal_core as goal_core
 from hpg_mj.worlds import ship_harbour_core as harbour_core
+from hpg_mj.worlds import ship_ladder
 from hpg_mj.worlds import ship_regatta_core as regatta_core
 
-TASKS = ("ship_current", "ship_goal", "ship_regatta", "ship_harbour")   # SPEC section 11
-LEVELS = ("easy", "medium", "hard")
-ENV_IDS = {"ship_current": "ShipCurrent-v0", "ship_goal": "ShipGoal-v0",
-           "ship_regatta": "ShipRegatta-v0", "ship_harbour": "ShipHarbour-v0"}
+TASKS, LEVELS = ship_ladder.TASKS, ship_ladder.LEVELS         # SPEC section 11
 _START_TRIES = 10_000       # the harbour's draws of a start off the obstacles
 
 

@@ -66,15 +66,16 @@ from hpg_mj.worlds import taxi_rules  # noqa: E402
 # ---- what the networks see, and what they act ------------------------------------
 
 class ShipIO:
-  """The ship: observations onto [-1, 1] from the observation Box, a Gaussian over
-  u, the world's turning rate r = 15 u deg/s."""
+  """The ship (the steering tasks, and the task ladder's worlds, which see more): each
+  number of the observation onto [-1, 1] from the observation Box, a Gaussian over u,
+  the world's turning rate r = 15 u deg/s."""
   discrete = False
 
   def __init__(self, env, params):
     space = env.observation_space(params)
     self.centre = (space.high + space.low) / 2.0
     self.half = (space.high - space.low) / 2.0
-    self.obs_size = 4
+    self.obs_size = int(space.shape[0])   # 4; the ladder's worlds see more (hpg_mj.jax)
     self.n_outputs = 1
     self.scale = ship_core.MAX_TURN_RATE
 
@@ -451,13 +452,14 @@ def step_env(env, params, key, state, action):
   return obs, state, obs_end, reward, done, info
 
 
-def sail(trainer, act, starts, key):
-  """One episode from each start (its world state vector, as `reset_to` takes it),
-  all at once, `act(x, key)` choosing the actions from what the networks see.
-  Returns the rows of `trainer.row` (one an episode) and each episode's length."""
+def sail(trainer, act, starts, key, start=None):
+  """One episode from each start (its world state vector, as `reset_to` takes it;
+  any batch of starts `start(one)` makes an `(obs, state)` of), all at once,
+  `act(x, key)` choosing the actions from what the networks see. Returns the rows
+  of `trainer.row` (one an episode) and each episode's length."""
   env, io = trainer.env, trainer.io
-  obs, state = jax.vmap(env._start_at)(starts)
-  n = starts.shape[0]
+  obs, state = jax.vmap(start or env._start_at)(starts)
+  n = obs.shape[0]
 
   def cond(carry):
     return ~jnp.all(carry[3])

@@ -11,6 +11,13 @@ from hpg_mj.worlds import ship_harbour_core
 from hpg_mj.worlds import ship_regatta_core
 from hpg_mj.worlds import ship_task
 
+TASKS = ("ship_current", "ship_goal", "ship_regatta", "ship_harbour")   # SPEC section 11
+LEVELS = ("easy", "medium", "hard")
+# Each task's Gymnasium id (`gymnasium.make(ENV_IDS[task], level=...)`; the JAX
+# environments, where a task has one, are registered under the same id).
+ENV_IDS = {task: f"hpg_mj/{name}-v0" for task, name in zip(
+    TASKS, ("ShipCurrent", "ShipGoal", "ShipRegatta", "ShipHarbour"))}
+
 
 def fixed_starts(task, level, episodes, seed):
   """The fixed starts of ladder task `task` ("ship_current", "ship_goal", "ship_regatta",

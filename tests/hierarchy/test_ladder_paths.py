@@ -16,6 +16,7 @@ from hpg_mj.agents.base import GREEDY_SEED
 from hpg_mj.hierarchy import ladder
 from hpg_mj.learners import rng
 from hpg_mj.worlds import ship_goal_core
+from hpg_mj.worlds import ship_ladder
 
 
 def _agent(cls, task, level, seed):
@@ -40,7 +41,7 @@ CASES = [(ship_ladder_hybrid.ShipLadderHybrid, "ship_current", "hard", 30),
 def test_fused_and_stepwise_paths_give_identical_rows(cls, task, level, episodes):
   fused, stepwise = _agent(cls, task, level, 4), _agent(cls, task, level, 4)
   a = fused.train(episodes, "analytic")
-  env = gymnasium.make(f"hpg_mj/{ladder.ENV_IDS[task]}", level=level, backend="analytic",
+  env = gymnasium.make(ship_ladder.ENV_IDS[task], level=level, backend="analytic",
                        out_of_bounds_reward=-300.0)
   b = stepwise.train_stepwise(env, episodes)
   np.testing.assert_array_equal(a, b)
