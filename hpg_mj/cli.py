@@ -511,12 +511,13 @@ def build_parser():
 
   p = sub.add_parser("reproduce", help="the paper's figures from the shipped experiments")
   p.add_argument("figure", nargs="?", default="all",
-                 help="all, fig6, fig7, ..., fig12, beyond (SPEC section 8), or reference "
-                      "(the reference scores and sample-efficiency figures)")
+                 help="all, fig6, fig7, ..., fig12, beyond (SPEC section 8), reference "
+                      "(the reference scores and sample-efficiency figures), or ladder (the "
+                      "task ladder's reference table, SPEC section 11)")
   _add_run_options(p)
   p.add_argument("--existing", action="store_true",
-                 help="reference only: draw from the runs already finished under --out, "
-                      "run nothing")
+                 help="reference and ladder only: draw from the runs already finished "
+                      "under --out, run nothing")
   p.add_argument("--earlier", metavar="RUNS_JSONL",
                  help="reference only: for each seed whose run is not finished under --out, "
                       "its metrics from an earlier report's runs.jsonl (for example "

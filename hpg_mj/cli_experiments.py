@@ -144,17 +144,19 @@ def _cmd_reproduce(args):
     return _reproduce_beyond(args)
   if args.figure == "reference":
     return _reproduce_reference(args)
+  if args.figure == "ladder":
+    return _reproduce_ladder(args)
   if args.existing:
-    raise ValueError("--existing draws `reproduce reference` from the runs found; the "
-                     "paper's figures rerun their experiments (allowed: reproduce reference "
-                     "--existing)")
+    raise ValueError("--existing draws `reproduce reference` and `reproduce ladder` from the "
+                     "runs found; the paper's figures rerun their experiments (allowed: "
+                     "reproduce reference --existing, reproduce ladder --existing)")
   if args.figure == "all":
     names = list(dict.fromkeys(FIGURE_EXPERIMENTS.values()))
   elif args.figure in FIGURE_EXPERIMENTS:
     names = [FIGURE_EXPERIMENTS[args.figure]]
   else:
     raise ValueError(f"unknown figure {args.figure!r}; valid: all, "
-                     f"{', '.join(FIGURE_EXPERIMENTS)}, beyond, reference")
+                     f"{', '.join(FIGURE_EXPERIMENTS)}, beyond, reference, ladder")
   rc = 0
   for name in names:
     rc |= _cmd_run(argparse.Namespace(**{**vars(args), "experiment_file": name}))
@@ -203,4 +205,24 @@ def _reproduce_reference(args):
            if (pathlib.Path(args.out) / (n + suffix) / "REPORT.md").is_file()]
   combined = figures.write_combined_report(args.out, names + [report.parent.name])
   print(f"reproduce reference: {report}, {report.parent / 'table.md'} and {combined}")
+  return rc
+
+
+def _reproduce_ladder(args):
+  """The task ladder's reference table and figure (hpg_mj.experiments.ladder): runs the
+  ladder's experiments (resuming unfinished runs; with --existing none; PPO's only where
+  JAX is installed, `pip install 'hpg_mj[jax]'`), then writes them from the runs
+  finished."""
+  import importlib.util
+
+  from hpg_mj.experiments import ladder
+  rc = 0
+  if not args.existing:
+    for name in ladder.EXPERIMENTS:
+      if name.endswith("_jax") and importlib.util.find_spec("jax") is None:
+        print(f"reproduce ladder: {name} skipped (needs JAX: pip install 'hpg_mj[jax]')")
+        continue
+      rc |= _cmd_run(argparse.Namespace(**{**vars(args), "experiment_file": name}))
+  report = ladder.write(args.out, quick=args.quick)
+  print(f"reproduce ladder: {report}")
   return rc

@@ -91,7 +91,11 @@ EXPERIMENT_SCHEMA = {"name": "str", "description": "str", "tasks": "str_list", "
 # first_seed: the runs' first seed; tuning = true: an experiment on tuning seeds
 # (for tuning or tests), whose reports say they are not for publication.
 EXPERIMENT_OPTIONAL = {"first_seed": ("int_min", 0), "tuning": "bool",
-                       "greedy_at": "int_list_any"}
+                       "greedy_at": "int_list_any", "levels": "str_list"}
+# levels = ["easy", "hard"]: each task file (a ladder task's, SPEC section 11) is run at
+# each level, as `hpg-mj train --set environment.level=...` runs it, under the name
+# "<file>_<level>"; the task file so made is written into the experiment's folder
+# (OUT/<name>/tasks/), where its runs read it.
 
 # [[figure]] tables (taskfile's types): every figure needs the common keys and
 # those of its kind; the optional ones may be left out.
@@ -202,6 +206,8 @@ def load_experiment(path):
                                  f"gives runs seeds up to {last_seed}; allowed: seeds in "
                                  f"0..{rng.MAX_SEED}")
   tasks = [agents.load_task(t) for t in section["tasks"]]   # refused here, before any run
+  if "levels" in section:
+    tasks = _at_levels(path, tasks, section["levels"])
   for t in tasks:                                   # OUT/<experiment>/<task file's name>/
     _paths.check_name(t.path.stem, f"{path}: [experiment] tasks: the name of {t.path}",
                       taskfile.TaskFileError)
@@ -231,6 +237,48 @@ def load_experiment(path):
                                  f"curve plots one point per {figures.BLOCK:,} episodes, so "
                                  f"allowed: >= {figures.BLOCK}")
   return dict(section, path=path, task_files=tasks, figures=figures_)
+
+
+def _at_levels(path, tasks, levels):
+  """Each task file at each of `levels` (`levels` above): its [environment] level set,
+  named "<file>_<level>" (its `path`, the name of the file `task_path` writes)."""
+  import dataclasses
+  if not levels or len(set(levels)) < len(levels):
+    raise taskfile.TaskFileError(f"{path}: [experiment] levels = {levels}; allowed: one or "
+                                 "more levels, each once")
+  out = []
+  for task in tasks:
+    if "level" not in task.section("environment"):
+      raise taskfile.TaskFileError(f"{path}: [experiment] levels: {task.path.name} has no "
+                                   "[environment] level (only the ladder's tasks have levels)")
+    for level in levels:
+      at = agents.load_task(task.path, [f"environment.level={level}"])
+      out.append(dataclasses.replace(at, path=pathlib.Path(f"{task.path.stem}_{level}.toml"),
+                                     label=f"{at.name}, {level}"))
+  return out
+
+
+def task_path(experiment, task, root):
+  """The file a run of `task` reads: the task file itself, or, for a task at a level
+  (`levels`), the copy under ROOT/tasks/ (written by `run_experiment`)."""
+  if "levels" not in experiment:
+    return str(task.path)
+  return str(pathlib.Path(root) / "tasks" / task.path.name)
+
+
+def _write_level_files(experiment, root):
+  """The task files at their levels (`levels`), under ROOT/tasks/; one already there
+  with other text is refused (another experiment's, or changed since)."""
+  if "levels" not in experiment:
+    return
+  (pathlib.Path(root) / "tasks").mkdir(parents=True, exist_ok=True)
+  for task in experiment["task_files"]:
+    target = pathlib.Path(task_path(experiment, task, root))
+    if target.is_file() and target.read_text() != task.text:
+      raise ValueError(f"{target} holds another text than {experiment['path'].name} makes "
+                       "now (the task file changed since its runs began?); use another --out")
+    if not target.is_file():
+      target.write_text(task.text)
 
 
 def shipped_experiments():
@@ -264,7 +312,8 @@ def jobs(experiment, out, quick=False):
   root = folder(experiment, out, quick)
   # Seed by seed, so that the first runs the workers pick up are of different tasks
   # and compile (numba, cached for the later runs) different code at the same time.
-  return [(str(task.path), seed, episodes, str(root / task.path.stem / f"seed{seed}"))
+  return [(task_path(experiment, task, root), seed, episodes,
+           str(root / task.path.stem / f"seed{seed}"))
           for seed in seeds(experiment, quick) for task in experiment["task_files"]]
 
 
@@ -406,6 +455,8 @@ def run_experiment(experiment, out, quick=False, workers=None, progress=None, on
         raise ValueError(f"{job[3]} holds a finished run of {done} episodes, but "
                          f"{experiment['path'].name} asks for {job[2]}; use another --out")
   todo = [job for job in all_jobs if not runs.is_finished(job[3])]
+  if todo:
+    _write_level_files(experiment, root)
   on_wait = on_wait or (lambda message: print(message, file=sys.stderr, flush=True))
   for job in todo:
     holder = locks.holder_if_locked(pathlib.Path(job[3]))
@@ -431,8 +482,8 @@ def run_experiment(experiment, out, quick=False, workers=None, progress=None, on
       _run_processes(todo, workers, options, poll, on_finished)
   results = {}
   for task in experiment["task_files"]:
-    results[task.path.stem] = [runs.read_metrics(job[3])
-                               for job in all_jobs if job[0] == str(task.path)]
+    results[task.path.stem] = [runs.read_metrics(job[3]) for job in all_jobs
+                               if job[0] == task_path(experiment, task, root)]
   return results, root, time.perf_counter() - start
 
 

@@ -195,7 +195,8 @@ def test_earlier_runs_complete_the_seeds_not_run_here(tmp_path, capsys):
 
 def test_existing_is_refused_for_the_papers_figures(tmp_path, capsys):
   assert cli.main(["reproduce", "fig6", "--existing", "--out", str(tmp_path)]) == 2
-  assert "--existing draws `reproduce reference` from the runs found" in capsys.readouterr().err
+  assert "--existing draws `reproduce reference` and `reproduce ladder` from the runs found" \
+      in capsys.readouterr().err
 
 
 def test_tuning_runs_give_each_learner_its_grid_on_the_same_first_tuning_seeds(tmp_path):

@@ -1,0 +1,240 @@
+"""`hpg-mj reproduce ladder`: the task ladder's reference table (SPEC section 11), every
+reference learner on every task and level, normalized against the task's bounds, and
+whether each level leaves headroom.
+
+The runs are those of the ladder's experiment files (tasks/experiments/ladder_*.toml:
+each learner's task file at every level, `levels`), each measured greedily at its end
+on the level's fixed 1,000 starts (SPEC section 7). Made from whatever runs have
+finished under OUT, so that it says what was run:
+
+    OUT/ladder/ladder.png, .csv   per task, the normalized score at each level, a bar
+                                  per learner with its 95% interval
+    OUT/ladder/REPORT.md          per task: the table (normalized scores, the success
+                                  rate, the runs), who leads at each level and whether
+                                  the lead is distinguishable; the headroom checks
+    OUT/ladder/runs.jsonl         each finished run's metrics.json, a line each
+
+A cell is the mean over runs with its 95% bootstrap interval (`stats`); normalized: 0
+the random policy, 100 the best known (`bounds`). The headroom checks: at `easy` a
+hierarchy reaches >= 90, at `hard` no learner reaches 70 (else the level is not hard).
+"""
+import json
+import pathlib
+
+import numpy as np
+
+from hpg_mj.experiments import bounds
+from hpg_mj.experiments import figures
+from hpg_mj.experiments import runner
+from hpg_mj.experiments import runs
+from hpg_mj.experiments import stats
+
+# Per task: its experiments, and the scores (each normalized) its table gives, the first
+# the one the figure, the leads and the headroom checks read.
+TASKS = {
+    "ship_current": ("ladder_current", "ladder_current_ppo_jax"),
+    "ship_goal": ("ladder_goal", "ladder_goal_ppo_jax"),
+    "ship_regatta": ("ladder_regatta",),
+    "ship_harbour": ("ladder_harbour",),
+}
+EXPERIMENTS = tuple(name for names in TASKS.values() for name in names)
+LEVELS = bounds.LEVELS
+EASY_AT_LEAST, HARD_BELOW = 90.0, 70.0     # the headroom checks' bounds (normalized)
+# The learners that count as hierarchies for the easy check (their agents' tags).
+HIERARCHY_KINDS = ("ship_ladder_hybrid",)
+
+
+def scores(task):
+  """The task's scores, each normalized (`bounds.SCORES`): J and the gate pass rate;
+  the regatta's mean return and finish rate."""
+  return bounds.SCORES[bounds.bounds_key(task, LEVELS[0])]
+
+
+def folder(out, quick=False):
+  """Where the ladder's report is written under `out` (ladder/, or ladder_quick/)."""
+  return pathlib.Path(out) / ("ladder_quick" if quick else "ladder")
+
+
+def shipped():
+  """{task: [its experiments, loaded]} of `TASKS` (those whose files are shipped)."""
+  files = runner.shipped_experiments()
+  return {task: [runner.load_experiment(name) for name in names if name in files]
+          for task, names in TASKS.items()}
+
+
+def collect(out, quick=False, experiments=None):
+  """{task: [{"experiment", "learner" (its task file's stem), "label", "kind", "runs":
+  {level: [each finished run's metrics]}}]} over `experiments` ({task: [experiments,
+  loaded]}, each with `levels`; default `shipped()`); a learner with no finished run
+  has empty lists."""
+  found = {}
+  for task, loaded in (shipped() if experiments is None else experiments).items():
+    found[task] = []
+    for experiment in loaded:
+      root = runner.folder(experiment, out, quick)
+      learners = {}
+      for variant in experiment["task_files"]:
+        level = variant.section("environment")["level"]
+        stem = variant.path.stem[:-len(level) - 1]       # "<file>_<level>"
+        entry = learners.setdefault(stem, {"experiment": experiment["name"], "learner": stem,
+                                           "label": variant.name.rsplit(", ", 1)[0],
+                                           "kind": variant.kind,
+                                           "runs": {lv: [] for lv in LEVELS}})
+        for seed in runner.seeds(experiment, quick):
+          run = root / variant.path.stem / f"seed{seed}"
+          if runs.is_finished(run):
+            entry["runs"][level].append(runs.read_metrics(run))
+      found[task].extend(learners.values())
+  return found
+
+
+def normalized(task, runs_, score):
+  """Each run's greedy `score`, normalized against the task's bounds at the run's level
+  (as its metrics hold it)."""
+  return [m["greedy"].get(f"{score}_normalized", np.nan) for m in runs_]
+
+
+def _summary(values):
+  return stats.summary([np.nan if v is None else v for v in values]) if values else None
+
+
+def leads(task, entries):
+  """Per level: (the leading learner's label, its summary, whether its interval lies
+  above every other learner's), over the learners with runs at that level."""
+  score = scores(task)[0]
+  out = {}
+  for level in LEVELS:
+    ranked = sorted(((e["label"], _summary(normalized(task, e["runs"][level], score)))
+                     for e in entries if e["runs"][level]),
+                    key=lambda pair: -pair[1]["mean"])
+    if ranked:
+      label, best = ranked[0]
+      out[level] = (label, best, all(stats.separated(best, s) and best["mean"] > s["mean"]
+                                     for _, s in ranked[1:]) and len(ranked) > 1)
+  return out
+
+
+def headroom(task, entries):
+  """The issue's two checks: (a hierarchy reaches >= 90 at easy, no learner reaches 70 at
+  hard), each None where its runs are missing; on the mean over runs."""
+  score = scores(task)[0]
+
+  def mean(entry, level):
+    values = normalized(task, entry["runs"][level], score)
+    return float(np.nanmean(values)) if values else None
+  easy = [mean(e, "easy") for e in entries if e["kind"] in HIERARCHY_KINDS]
+  easy = [v for v in easy if v is not None]
+  hard = [v for v in (mean(e, "hard") for e in entries) if v is not None]
+  return (max(easy) >= EASY_AT_LEAST if easy else None,
+          max(hard) < HARD_BELOW if hard else None)
+
+
+def table(task, entries):
+  """The task's table (markdown lines): per learner and level, each score normalized
+  with its 95% interval, and its runs."""
+  head = ["learner"] + [f"{level}: {s}, normalized" for level in LEVELS for s in scores(task)]
+  head += ["runs (easy, medium, hard)"]
+  lines = ["| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
+  for e in entries:
+    cells = [e["label"]]
+    for level in LEVELS:
+      for score in scores(task):
+        values = normalized(task, e["runs"][level], score)
+        cells.append(stats.format_summary(_summary(values), 1, iqm=False) if values else "-")
+    cells.append(", ".join(str(len(e["runs"][level])) for level in LEVELS))
+    lines.append("| " + " | ".join(cells) + " |")
+  return lines
+
+
+def draw(root, found):
+  """ladder.png (a panel per task: a bar per learner at each level, its 95% interval)
+  and ladder.csv (the same numbers)."""
+  import matplotlib
+  matplotlib.use("Agg")
+  import matplotlib.pyplot as plt
+  tasks = [t for t, entries in found.items() if any(any(e["runs"].values()) for e in entries)]
+  if not tasks:
+    return None
+  fig, axes = plt.subplots(1, len(tasks), figsize=(4.2 * len(tasks), 3.6), squeeze=False)
+  rows = ["task,level,learner,score,mean,low,high,runs"]
+  for ax, task in zip(axes[0], tasks):
+    entries = [e for e in found[task] if any(e["runs"].values())]
+    score = scores(task)[0]
+    width = 0.8 / max(len(entries), 1)
+    for k, e in enumerate(entries):
+      means, errors = [], [[], []]
+      for level in LEVELS:
+        s = _summary(normalized(task, e["runs"][level], score))
+        if s is None or np.isnan(s["mean"]):
+          means.append(np.nan)
+          errors[0].append(0.0)
+          errors[1].append(0.0)
+          continue
+        means.append(s["mean"])
+        errors[0].append(s["mean"] - s["low"])
+        errors[1].append(s["high"] - s["mean"])
+        rows.append(f"{task},{level},{e['label']},{score}_normalized,{s['mean']:.4f},"
+                    f"{s['low']:.4f},{s['high']:.4f},{s['n']}")
+      x = np.arange(len(LEVELS)) - 0.4 + width * (k + 0.5)
+      ax.bar(x, means, width, yerr=errors, capsize=2, label=e["label"])
+    ax.axhline(100.0, color="k", lw=0.6, ls="--")
+    ax.axhline(0.0, color="k", lw=0.6)
+    ax.set_xticks(range(len(LEVELS)), LEVELS)
+    ax.set_title(task)
+    ax.set_ylabel(f"{score}, normalized (greedy)")
+    ax.legend(fontsize=7)
+  fig.tight_layout()
+  path = root / "ladder.png"
+  fig.savefig(path, dpi=110)
+  plt.close(fig)
+  (root / "ladder.csv").write_text("\n".join(rows) + "\n")
+  return path
+
+
+def _verdict(value, yes, no):
+  return "not run yet" if value is None else (yes if value else no)
+
+
+def write(out, quick=False, experiments=None):
+  """Draws the figure and writes REPORT.md and runs.jsonl under OUT/ladder (ladder_quick
+  with `quick`) from the finished runs (`collect`, of `experiments`); returns
+  REPORT.md's path."""
+  root = folder(out, quick)
+  root.mkdir(parents=True, exist_ok=True)
+  found = collect(out, quick, experiments)
+  lines = ["# ladder: the task ladder's reference table", "",
+           "Each learner trained on held-out seeds (never a tuning seed) at each level, then "
+           "measured greedily on the level's fixed 1,000 starts (SPEC sections 7 and 11). "
+           "Each cell: the mean over runs [95% bootstrap confidence interval of the mean], "
+           "normalized: 0 the random policy, 100 the best known (SPEC section 7.1's table "
+           "of the ladder's bounds).", ""]
+  if quick:
+    lines += ["**QUICK protocol** (`--quick`): fewer runs and episodes, not for "
+              "publication.", ""]
+  picture = draw(root, found)
+  if picture is not None:
+    lines += ["![the ladder](ladder.png)", "", "`ladder.png`: per task, each learner's "
+              f"greedy {', '.join(sorted({scores(t)[0] for t in found}))} normalized at "
+              "each level, a bar with its 95% interval (`ladder.csv`: the numbers).", ""]
+  made = {}
+  for task, entries in found.items():
+    lines += [f"## {task}", "", *table(task, entries), ""]
+    for level, (label, best, clear) in leads(task, entries).items():
+      lines.append(f"- {level}: {label} leads ({stats.format_summary(best, 1, iqm=False)}); "
+                   + ("its interval lies above every other learner's." if clear else
+                      "not distinguishable from the next (their intervals overlap)."))
+    easy, hard = headroom(task, entries)
+    lines += [f"- headroom: a hierarchy reaches {EASY_AT_LEAST:.0f} at easy: "
+              f"{_verdict(easy, 'yes', 'no')}; no learner reaches {HARD_BELOW:.0f} at hard: "
+              f"{_verdict(hard, 'yes', 'no: the level is not hard enough')}.", ""]
+    for e in entries:
+      for level in LEVELS:
+        if e["runs"][level]:
+          made[f"{e['learner']}_{level}"] = e["runs"][level]
+  lines += figures.provenance_lines(made)
+  (root / "REPORT.md").write_text("\n".join(lines) + "\n")
+  with open(root / "runs.jsonl", "w") as f:
+    for name, metrics in made.items():
+      for m in metrics:
+        f.write(json.dumps({"task": name, **m}) + "\n")
+  return root / "REPORT.md"

@@ -1,0 +1,96 @@
+"""The task ladder's reference table (issue 41, item 3): an experiment file runs each
+ladder task file at each of its `levels` (the file's [environment] level set, the copy
+written where its runs read it), and `hpg-mj reproduce ladder` tables and draws the
+runs found, with who leads at each level and the headroom checks."""
+import json
+
+import numpy as np
+import pytest
+
+from hpg_mj.experiments import ladder, runner
+from experiment_file import assert_refused
+
+EXPERIMENT = """
+[experiment]
+name = "tiny_ladder"
+description = "the current's hybrid at two levels"
+tasks = ["ship_current_hybrid"]
+levels = [{levels}]
+runs = 1
+episodes = 1000
+quick_runs = 1
+quick_episodes = 1000
+first_seed = 1000
+
+[[figure]]
+name = "tiny_ladder"
+kind = "curve"
+metric = "gate_passes"
+x = "episodes"
+title = "gate passes"
+ylabel = "gate passes per 1,000 episodes"
+paper = "none"
+"""
+
+
+def test_an_experiment_runs_each_task_at_each_level_and_the_ladder_report_reads_them(
+    tmp_path):
+  path = tmp_path / "tiny_ladder.toml"
+  path.write_text(EXPERIMENT.format(levels='"hard", "easy"'))
+  experiment = runner.load_experiment(path)
+  assert [t.path.stem for t in experiment["task_files"]] == ["ship_current_hybrid_hard",
+                                                             "ship_current_hybrid_easy"]
+  assert experiment["task_files"][0].name == "Hierarchical hybrid (current), hard"
+  out = tmp_path / "out"
+  results, root, _ = runner.run_experiment(experiment, out)
+  copy = root / "tasks" / "ship_current_hybrid_hard.toml"
+  assert 'level = "hard"' in copy.read_text()               # what its runs read
+  assert json.loads((root / "ship_current_hybrid_hard" / "seed1000" / "metrics.json")
+                    .read_text())["task"] == "ship_current_hybrid_hard"
+  hard = results["ship_current_hybrid_hard"][0]["greedy"]
+  easy = results["ship_current_hybrid_easy"][0]["greedy"]
+  assert {"J_normalized", "gate_pass_rate_normalized"} <= set(hard)
+  assert hard != easy                                       # other bounds, other starts
+  # A file changed since its runs began is not run over them.
+  copy.write_text(copy.read_text() + "\n# edited\n")
+  (root / "ship_current_hybrid_hard" / "seed1000" / "metrics.json").unlink()
+  with pytest.raises(ValueError, match="holds another text than tiny_ladder.toml makes now"):
+    runner.run_experiment(experiment, out)
+
+  report = ladder.write(out, experiments={"ship_current": [experiment]})
+  text = report.read_text()
+  assert "## ship_current" in text and "| Hierarchical hybrid (current) |" in text
+  assert "- easy: Hierarchical hybrid (current) leads (" in text   # (hard: unfinished now)
+  assert "- headroom: a hierarchy reaches 90 at easy: " in text
+  assert (report.parent / "ladder.png").is_file()
+  rows = (report.parent / "ladder.csv").read_text().splitlines()
+  assert rows[0] == "task,level,learner,score,mean,low,high,runs" and len(rows) == 2  # easy
+  mean = float(rows[1].split(",")[4])
+  assert np.isclose(mean, easy["J_normalized"], atol=1e-4)   # (written to 4 places)
+  lines = (report.parent / "runs.jsonl").read_text().splitlines()
+  assert {json.loads(line)["task"] for line in lines} == {"ship_current_hybrid_easy"}
+
+
+def test_levels_are_refused_in_one_line_where_they_cannot_apply(tmp_path):
+  assert_refused(tmp_path, EXPERIMENT.format(levels='"easy", "easy"'),
+                 r"\[experiment\] levels = \['easy', 'easy'\]; allowed: one or more levels, "
+                 "each once")
+  assert_refused(tmp_path, EXPERIMENT.format(levels='"extreme"'),
+                 r"ship_current_hybrid.toml: \[environment\] level = 'extreme' is not "
+                 r"allowed; allowed: \['easy', 'medium', 'hard'\]")
+  assert_refused(tmp_path, EXPERIMENT.format(levels='"easy"').replace(
+      '"ship_current_hybrid"', '"ship_hybrid"'),
+      r"\[experiment\] levels: ship_hybrid.toml has no \[environment\] level \(only the "
+      r"ladder's tasks have levels\)")
+
+
+def test_the_shipped_ladder_experiments_load_and_run_past_the_tuning_seeds():
+  loaded = ladder.shipped()
+  assert set(loaded) == set(ladder.TASKS)
+  for task, experiments in loaded.items():
+    assert experiments, task
+    for experiment in experiments:
+      assert experiment["levels"] == ["easy", "medium", "hard"]
+      assert experiment["first_seed"] > 9 and not experiment["tuning"]
+      worlds = {t.section("environment")["world"] for t in experiment["task_files"]}
+      assert worlds == {task}
