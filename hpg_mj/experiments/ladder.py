@@ -18,13 +18,13 @@ A cell is the mean over runs with its 95% bootstrap interval (`stats`); normaliz
 the random policy, 100 the best known (`bounds`). The headroom checks: at `easy` a
 hierarchy reaches >= 90, at `hard` no learner reaches 70 (else the level is not hard).
 """
-import json
 import pathlib
 
 import numpy as np
 
 from hpg_mj.experiments import bounds
 from hpg_mj.experiments import figures
+from hpg_mj.experiments import reference
 from hpg_mj.experiments import runner
 from hpg_mj.experiments import runs
 from hpg_mj.experiments import stats
@@ -233,8 +233,5 @@ def write(out, quick=False, experiments=None):
           made[f"{e['learner']}_{level}"] = e["runs"][level]
   lines += figures.provenance_lines(made)
   (root / "REPORT.md").write_text("\n".join(lines) + "\n")
-  with open(root / "runs.jsonl", "w") as f:
-    for name, metrics in made.items():
-      for m in metrics:
-        f.write(json.dumps({"task": name, **m}) + "\n")
+  reference.write_runs(root / "runs.jsonl", made)
   return root / "REPORT.md"

@@ -234,8 +234,14 @@ def write(out, quick=False, earlier=None):
   (root / "table.md").write_text("\n".join(table_md).rstrip() + "\n")
   lines += figures.provenance_lines({k: v for k, v in made.items() if v})
   (root / "REPORT.md").write_text("\n".join(lines) + "\n")
-  with open(root / "runs.jsonl", "w") as f:
+  write_runs(root / "runs.jsonl", made)
+  return root / "REPORT.md"
+
+
+def write_runs(path, made):
+  """runs.jsonl: each run's metrics, a line each, with its task's name ({name: [metrics
+  of each run]}); `read_earlier` reads it back."""
+  with open(path, "w") as f:
     for task, metrics in made.items():
       for m in metrics:
         f.write(json.dumps({"task": task, **m}) + "\n")
-  return root / "REPORT.md"
