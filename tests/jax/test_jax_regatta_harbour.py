@@ -1,7 +1,12 @@
-"""What the regatta draws in JAX, where its generator is JAX's and not numpy's (SPEC
-section 11): the course laid by the numba rule itself (the same course from the same
+"""What the regatta and the harbour draw in JAX, where their generator is JAX's and
+not numpy's (SPEC section 11; their trajectories are tests/jax/test_jax_ladder.py's):
+the regatta's course laid by the numba rule itself (the same course from the same
 uniforms), every course from a key keeping the layout's rules and drawn as the numba
-world draws its courses, laid afresh by the auto-reset only where an episode ended."""
+world draws its courses, laid afresh by the auto-reset only where an episode ended;
+the harbour's starts off its obstacles, and its rangefinders the numba world's on
+the same states."""
+import math
+
 import numpy as np
 import pytest
 from scipy import stats
@@ -11,8 +16,10 @@ import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 
 import hpg_mj.jax as hpg_jax  # noqa: E402
+from hpg_mj.jax import ship_harbour  # noqa: E402
 from hpg_mj.jax import ship_regatta  # noqa: E402
 from hpg_mj.worlds import ship_core as core  # noqa: E402
+from hpg_mj.worlds import ship_harbour_core as harbour_core  # noqa: E402
 from hpg_mj.worlds import ship_regatta_core as regatta_core  # noqa: E402
 
 LEVELS = ("easy", "medium", "hard")
@@ -119,3 +126,46 @@ def test_the_auto_reset_lays_courses_by_the_rule_only_where_an_episode_ended():
                          (new[:, last, 0], numba[:, last, 0]), (turns, numba_turns)):
       assert stats.ks_2samp(ours, theirs).pvalue > 1e-4, level
     assert 0.45 < (turns > 0).mean() < 0.55, level
+
+
+def test_the_harbours_starts_are_off_the_obstacles_and_its_ranges_the_numbas(x64):
+  """2,000 starts a level from JAX keys (float64): on the field, none on an obstacle
+  (`ship_harbour_core.inside`), some drawn again (the obstacles cover 3-9% of the
+  field); the observation's ranges equal the numba world's on the same states."""
+  env, _ = hpg_jax.make("ShipHarbour-v0")
+  reset = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))
+  n = 2000
+  for seed, level in enumerate(LEVELS):
+    params = hpg_jax.make("ShipHarbour-v0", level=level)[1]
+    obs, _ = reset(np.asarray(jax.random.split(jax.random.PRNGKey(seed), n)), params)
+    obs = np.asarray(obs)
+    ships = obs[:, :4]
+    islands, piers = harbour_core.level_shapes(level)
+    assert ((ships[:, :2] >= 0.0) & (ships[:, :2] <= core.FIELD_SIZE)).all()
+    assert not any(harbour_core.inside(x, y, islands, piers) for x, y in ships[:, :2])
+    expected = np.zeros((n, harbour_core.OBSERVATION_SIZE))
+    harbour_core.observe_batch(np.ascontiguousarray(ships), islands, piers,
+                               harbour_core.level_cells(level), expected)
+    assert np.abs(obs - expected).max() < 1e-9
+    assert (obs[:, 4:] < harbour_core.MAX_RANGE_M).any(axis=1).mean() > 0.1
+    space = env.observation_space(params)
+    assert ((obs >= np.asarray(space.low)) & (obs <= np.asarray(space.high))).all()
+
+
+def test_the_harbour_refuses_a_start_on_an_obstacle_and_its_levels_are_parameters():
+  env, params = hpg_jax.make("ShipHarbour-v0", level="hard")
+  with pytest.raises(ValueError, match=r"^hpg_mj/ShipHarbour-v0: start position \(400.0, "
+                                       r"540.0\) lies on an obstacle"):
+    env.reset_to(np.array([400.0, 540.0, 0.0, 0.0]), params)
+  islands, piers = harbour_core.LEVELS["hard"]
+  assert params.islands == islands and params.piers == piers
+  easy = hpg_jax.make("ShipHarbour-v0")[1]
+  assert easy.islands[:2] == harbour_core.LEVELS["easy"][0] and easy.piers == ((0.0,) * 5,) * 4
+  # A harbour of one's own: one island across the steering task's start, in parameters.
+  mine = params.replace(islands=((500.0, 500.0, 100.0),) + ((0.0,) * 3,) * 5,
+                        piers=((0.0,) * 5,) * 4)
+  obs, _ = env.reset_to(np.array([500.0, 300.0, 0.0, 0.0]), mine)
+  assert math.isclose(float(obs[7]), 100.0, rel_tol=1e-5)     # the ray ahead meets it
+  with pytest.raises(ValueError, match=r"^hpg_mj/ShipRegatta-v0: a course is 8 gates"):
+    hpg_jax.make("ShipRegatta-v0", level="hard")[0].reset_to(
+        np.array([500.0, 500.0, 0.0, 0.0]), np.array([[500.0, 500.0, 0.0]] * 3))
