@@ -126,8 +126,8 @@ class Environment:
     """The start `step` puts in place of an episode that ended (`done`): `reset_env`'s
     from `key`, which gymnax computes for every copy, ended or not, and selects. A
     task whose start is costly overrides it to compute the start only where `done`
-    (the regatta's course, through `where_needed`); for a copy not done it may return
-    anything of the start's shapes."""
+    (the regatta's course, the harbour's rays: `where_needed`); for a copy not done
+    it may return anything of the start's shapes."""
     return self.reset_env(key, params)
 
   def step_env(self, key, state, action, params):
@@ -179,9 +179,9 @@ def where_needed(fn):
   shapes and dtypes where not. Unbatched that is a `lax.cond`; vmapped (where a
   `cond` would compute both branches for every copy) it calls `fn` once for each
   copy that needs it, one after another, and its loops then end with that copy's
-  own work, not the batch's longest. For a costly start drawn by rejection (the
-  regatta's course) that few copies need at a step: gymnax's `step` computes a
-  reset for every copy at every step. Composes with jit, scan and nested vmap (an
+  own work, not the batch's longest. For a costly start (the regatta's course, laid
+  by rejection; the harbour's rays) that few copies need at a step: gymnax's `step`
+  computes a reset for every copy at every step. Composes with jit, scan and nested vmap (an
   outer vmap batches the loop); not differentiable (`custom_vmap`'s limit)."""
 
   def skipped(*args):

@@ -23,6 +23,8 @@ a constructor argument, as the Gymnasium environment's, and gives the defaults.
 The start is the steering task's uniform start, drawn again (from the next part of
 the key) while its position lies on an obstacle, as the numba world's
 (`ship_harbour_core.sample_start`), at most `ship_harbour_core.START_TRIES` times.
+`step`'s start (gymnax's auto-reset) is computed only for the copies whose episode
+ended (`environment.where_needed`): its rays are most of a step's work.
 The numba world skips the obstacles out of a ship's reach by a grid of masks
 (`level_cells`); here every obstacle is tested, with the same reach tests after
 the grid's, which change no result.
@@ -215,6 +217,7 @@ class ShipHarbour(ship.ShipSteering):
     self.level = level
     self.obstacles = level_obstacles(level, env_id or "ShipHarbour")
     super().__init__("steer", env_id or f"ShipHarbour({level})")
+    self._reset_where = environment.where_needed(self.reset_env)
 
   @property
   def default_params(self):
@@ -255,6 +258,12 @@ class ShipHarbour(ship.ShipSteering):
 
     _, _, state = jax.lax.while_loop(on_obstacle, draw, draw((key, jnp.int32(0), None)))
     return self.get_obs(state, params), state
+
+  def auto_reset(self, key, params, done):
+    """`reset_env`'s start, computed only where `done` (`environment.where_needed`):
+    its rays and its draws off the obstacles are most of a step's work, and few
+    copies end at a step."""
+    return self._reset_where(done, key, jax.tree.map(jnp.asarray, params))
 
   def reset_to(self, ship_state, params=None):
     """`(obs, state)` starting exactly at `ship_state` = `[x, y, theta_deg,

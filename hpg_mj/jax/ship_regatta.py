@@ -31,9 +31,10 @@ numpy's: the courses are drawn alike, not the same ones.
 Laying a course is a loop of trials whose length varies a great deal (an easy course
 is laid again half the time, after 50 trials of one gate), and gymnax's `step`
 computes a start for every copy at every step; under vmap each loop would run as
-long as the batch's longest. So the course is laid through
-`environment.where_needed`: vmapped, only for the copies whose episode ended, one
-after another, each loop as long as its own (`ShipRegatta.auto_reset`).
+long as the batch's longest. So `step`'s start goes through
+`environment.where_needed`: vmapped, it is computed only for the copies whose
+episode ended, one after another, each loop as long as its own
+(`ShipRegatta.auto_reset`).
 """
 import functools
 
@@ -150,10 +151,6 @@ def sample_course(key, gates, spacing, smallest_turn_deg, largest_turn_deg):
   return jnp.where(laid, course, jnp.nan)
 
 
-# Laid only where an episode needs a new course, also under vmap (module docstring).
-_course_where = environment.where_needed(sample_course)
-
-
 def posts_of(course):
   """The posts of every gate of a course, (rows, 2, 2): rows (x, y), left then right of
   a ship passing it (`ship_regatta_core.posts_into`)."""
@@ -216,6 +213,7 @@ class ShipRegatta(ship.ShipSteering):
     self.level = level
     self.layout = regatta_core.level_layout(level, env_id or "ShipRegatta")
     super().__init__("steer", env_id or f"ShipRegatta({level})")
+    self._reset_where = environment.where_needed(self.reset_env)
 
   @property
   def default_params(self):
@@ -261,24 +259,19 @@ class ShipRegatta(ship.ShipSteering):
                         course=course, posts=posts_of(course),
                         next_gate=jnp.asarray(0, jnp.int32))
 
-  def _start(self, key, params, needed):
-    ship_key, course_key = jax.random.split(key)
-    dtype = environment.float_dtype()
-    course = _course_where(needed, course_key, jnp.asarray(params.gates, jnp.int32),
-                           *(jnp.asarray(v, dtype) for v in (
-                               params.spacing, params.smallest_turn_deg,
-                               params.largest_turn_deg)))
-    state = self._on_course(self._draw_start(ship_key), course)
-    return self.get_obs(state, params), state
-
   def reset_env(self, key, params):
     """The ship uniform on the field (the steering task's start), then the course
     (`sample_course`), each from its half of `key`."""
-    return self._start(key, params, jnp.asarray(True))
+    ship_key, course_key = jax.random.split(key)
+    course = sample_course(course_key, params.gates, params.spacing, params.smallest_turn_deg,
+                           params.largest_turn_deg)
+    state = self._on_course(self._draw_start(ship_key), course)
+    return self.get_obs(state, params), state
 
   def auto_reset(self, key, params, done):
-    """`reset_env`'s start, the course laid only where `done` (module docstring)."""
-    return self._start(key, params, done)
+    """`reset_env`'s start, computed only where `done` (`environment.where_needed`;
+    module docstring)."""
+    return self._reset_where(done, key, jax.tree.map(jnp.asarray, params))
 
   def reset_to(self, ship_state, course, params=None):
     """`(obs, state)` starting exactly at `ship_state` = `[x, y, theta_deg,

@@ -129,27 +129,49 @@ def test_the_auto_reset_lays_courses_by_the_rule_only_where_an_episode_ended():
 
 
 def test_the_harbours_starts_are_off_the_obstacles_and_its_ranges_the_numbas(x64):
-  """2,000 starts a level from JAX keys (float64): on the field, none on an obstacle
-  (`ship_harbour_core.inside`), some drawn again (the obstacles cover 3-9% of the
-  field); the observation's ranges equal the numba world's on the same states."""
+  """Per level, 512 copies stepped by `step` vmapped and scanned over 40 steps, hard
+  over in episodes of 10 (float64): where one ended, the new state and observation
+  are `reset`'s from the second half of the step's key (computed through
+  `where_needed`); every new start (about 2,000 a level) is on the field and off the
+  obstacles (`ship_harbour_core.inside`), and its observation, the rangefinders
+  included, is the numba world's on the same state."""
   env, _ = hpg_jax.make("ShipHarbour-v0")
+  n, steps = 512, 40
   reset = jax.jit(jax.vmap(env.reset, in_axes=(0, None)))
-  n = 2000
+
+  @jax.jit
+  def rollout(state, key, params):
+    def body(state, key):
+      keys = jax.random.split(key, n)
+      obs, state, _, done, _ = jax.vmap(env.step, in_axes=(0, 0, 0, None))(
+          keys, state, jnp.full((n, 1), 15.0), params)
+      return state, (jax.vmap(lambda k: jax.random.split(k)[1])(keys), obs, state, done)
+    return jax.lax.scan(body, state, jax.random.split(key, steps))
+
   for seed, level in enumerate(LEVELS):
-    params = hpg_jax.make("ShipHarbour-v0", level=level)[1]
-    obs, _ = reset(np.asarray(jax.random.split(jax.random.PRNGKey(seed), n)), params)
-    obs = np.asarray(obs)
-    ships = obs[:, :4]
+    params = hpg_jax.make("ShipHarbour-v0", level=level, max_steps_in_episode=10)[1]
+    keys = np.asarray(jax.random.split(jax.random.PRNGKey(seed), n + 1))
+    _, start = reset(keys[:n], params)
+    _, (resets, obs, states, done) = rollout(start, keys[n], params)
+    done, obs = np.asarray(done), np.asarray(obs)
+    assert done.any(axis=0).all() and done.sum() >= 3 * n
+    assert (np.asarray(states.time)[done] == 0).all()
+    fresh_obs, fresh = reset(np.asarray(resets)[done][:n], params)
+    assert np.array_equal(obs[done][:n], np.asarray(fresh_obs))
+    for name in ("x", "y", "theta_deg", "theta_dot_deg"):
+      assert np.array_equal(np.asarray(getattr(states, name))[done][:n],
+                            np.asarray(getattr(fresh, name))), name
+    new = obs[done]
     islands, piers = harbour_core.level_shapes(level)
-    assert ((ships[:, :2] >= 0.0) & (ships[:, :2] <= core.FIELD_SIZE)).all()
-    assert not any(harbour_core.inside(x, y, islands, piers) for x, y in ships[:, :2])
-    expected = np.zeros((n, harbour_core.OBSERVATION_SIZE))
-    harbour_core.observe_batch(np.ascontiguousarray(ships), islands, piers,
+    assert ((new[:, :2] >= 0.0) & (new[:, :2] <= core.FIELD_SIZE)).all()
+    assert not any(harbour_core.inside(x, y, islands, piers) for x, y in new[:, :2])
+    expected = np.zeros(new.shape)
+    harbour_core.observe_batch(np.ascontiguousarray(new[:, :4]), islands, piers,
                                harbour_core.level_cells(level), expected)
-    assert np.abs(obs - expected).max() < 1e-9
-    assert (obs[:, 4:] < harbour_core.MAX_RANGE_M).any(axis=1).mean() > 0.1
+    assert np.abs(new - expected).max() < 1e-9
+    assert (new[:, 4:] < harbour_core.MAX_RANGE_M).any(axis=1).mean() > 0.1
     space = env.observation_space(params)
-    assert ((obs >= np.asarray(space.low)) & (obs <= np.asarray(space.high))).all()
+    assert ((new >= np.asarray(space.low)) & (new <= np.asarray(space.high))).all()
 
 
 def test_the_harbour_refuses_a_start_on_an_obstacle_and_its_levels_are_parameters():
