@@ -16,7 +16,6 @@ import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 
 import hpg_mj.jax as hpg_jax  # noqa: E402
-from hpg_mj.jax import ship_harbour  # noqa: E402
 from hpg_mj.jax import ship_regatta  # noqa: E402
 from hpg_mj.worlds import ship_core as core  # noqa: E402
 from hpg_mj.worlds import ship_harbour_core as harbour_core  # noqa: E402
