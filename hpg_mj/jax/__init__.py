@@ -9,8 +9,9 @@ obs, state, reward, done, info = env.step(key, state, action, params)
 
 Every function is jit-, vmap- and scan-able, and float64 is there with
 `jax.config.update("jax_enable_x64", True)`. The ids are the Gymnasium ids of
-`hpg_mj.envs` (`hpg_mj/ShipSteering-v0`, ...), with or without the `hpg_mj/`
-prefix; the task ladder's take a `level` (`make("ShipGoal-v0", level="hard")`). In
+`hpg_mj.envs` (`hpg_mj/ShipSteering-v0`, ...), every one of them, with or without
+the `hpg_mj/` prefix; the task ladder's four take a `level` (`make("ShipGoal-v0",
+level="hard")`). In
 float64 the JAX worlds equal the analytic numba worlds step by step (SPEC sections
 1-3, 5, 8 and 11; tests/jax); those, the dm_control and the Gymnasium tasks stay
 the reference. See docs/jax.md.
@@ -33,10 +34,9 @@ ENV_IDS = {
     # Gymnasium environments' (`make(id, level="hard")`), the default given here.
     "hpg_mj/ShipCurrent-v0": ("hpg_mj.jax.ship_current:ShipCurrent", {"level": "easy"}),
     "hpg_mj/ShipGoal-v0": ("hpg_mj.jax.ship_goal:ShipGoal", {"level": "easy"}),
+    "hpg_mj/ShipRegatta-v0": ("hpg_mj.jax.ship_regatta:ShipRegatta", {"level": "easy"}),
+    "hpg_mj/ShipHarbour-v0": ("hpg_mj.jax.ship_harbour:ShipHarbour", {"level": "easy"}),
 }
-
-# The Gymnasium ids not in JAX yet (the task ladder's, SPEC section 11): `make` says so.
-NOT_YET = ("hpg_mj/ShipRegatta-v0", "hpg_mj/ShipHarbour-v0")
 
 PREFIX = "hpg_mj/"
 INSTALL = "pip install hpg_mj[jax]"
@@ -45,10 +45,6 @@ INSTALL = "pip install hpg_mj[jax]"
 def canonical_id(env_id):
   """The registered id of `env_id`, given with or without the `hpg_mj/` prefix."""
   name = env_id if not isinstance(env_id, str) or env_id.startswith(PREFIX) else PREFIX + env_id
-  if name in NOT_YET:
-    raise ValueError(f"{env_id!r} has no JAX environment yet (only its Gymnasium and "
-                     "dm_control ones); hpg_mj.jax ids: "
-                     f"{sorted(i[len(PREFIX):] for i in ENV_IDS)}")
   if name not in ENV_IDS:
     short = sorted(i[len(PREFIX):] for i in ENV_IDS)
     raise ValueError(f"unknown hpg_mj.jax environment id {env_id!r}; valid ids: {short} "

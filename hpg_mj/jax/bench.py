@@ -6,7 +6,8 @@ python -m hpg_mj.jax.bench [--envs 4096] [--steps 1000] [--x64]
 python -m hpg_mj.jax.bench --mjx [--ships 1,64,1024,4096] [--steps 100] [--x64]
 ```
 
-For each task, the same batch of `--envs` episodes under uniform random actions:
+For each task (the ship, the taxi with fuel, the regatta and the harbour at their hard
+level), the same batch of `--envs` episodes under uniform random actions:
 the JAX environment's `step` (gymnax's, with its auto-reset) vmapped over the batch
 and scanned over `--steps` steps in one jitted call, timed after its compilation
 (reported apart); and `gymnasium.make_vec(id, num_envs, ...)` stepped `--steps`
@@ -26,16 +27,20 @@ import time
 
 import numpy as np
 
+# name -> (id, the native vector environment's arguments; a `level` goes to both).
 TASKS = {"ship": ("ShipSteering-v0", {"backend": "analytic"}),
-         "taxi_fuel": ("TaxiFuel-v0", {})}
+         "taxi_fuel": ("TaxiFuel-v0", {}),
+         "regatta/hard": ("ShipRegatta-v0", {"backend": "analytic", "level": "hard"}),
+         "harbour/hard": ("ShipHarbour-v0", {"backend": "analytic", "level": "hard"})}
 
 
-def jax_steps_per_second(env_id, n_envs, n_steps, seed=0):
-  """(steps/s, compile seconds) of the vmapped, scanned JAX environment."""
+def jax_steps_per_second(env_id, n_envs, n_steps, seed=0, level=None):
+  """(steps/s, compile seconds) of the vmapped, scanned JAX environment (at `level`,
+  for the task ladder's)."""
   import jax
 
   from hpg_mj import jax as hpg_jax
-  env, params = hpg_jax.make(env_id)
+  env, params = hpg_jax.make(env_id, level=level)
   space = env.action_space(params)
   step = jax.vmap(env.step, in_axes=(0, 0, 0, None))
 
@@ -213,9 +218,10 @@ def main(argv=None):
   print(f"{args.envs} environments x {args.steps} steps, JAX on {jax.devices()[0]} "
         f"({'float64' if args.x64 else 'float32'})")
   for task, (env_id, kwargs) in TASKS.items():
-    jax_rate, compile_s = jax_steps_per_second(env_id, args.envs, args.steps)
+    jax_rate, compile_s = jax_steps_per_second(env_id, args.envs, args.steps,
+                                               level=kwargs.get("level"))
     numba_rate = numba_steps_per_second(env_id, kwargs, args.envs, args.steps)
-    print(f"{task:10s} JAX {jax_rate:13,.0f} steps/s (compiled in {compile_s:.1f} s)   "
+    print(f"{task:12s} JAX {jax_rate:13,.0f} steps/s (compiled in {compile_s:.1f} s)   "
           f"numba vector env {numba_rate:13,.0f} steps/s   x{jax_rate / numba_rate:.2f}")
 
 

@@ -7,7 +7,9 @@ rejax): `reset(key, params)` -> `(obs, state)`, `step(key, state, action, params
 -> `(obs, state, reward, done, info)`, where `step` resets an episode that ended,
 in the same call, from the second half of its key (gymnax's auto-reset), and
 `done` is `terminated or truncated`. `step_env` and `reset_env` are the task's own,
-without the auto-reset. Everything is jit-, vmap- and scan-able.
+without the auto-reset. Everything is jit-, vmap- and scan-able. gymnax computes the
+reset for every copy at every step and selects; a task whose start is costly
+computes it only where an episode ended (`Environment.auto_reset`, `where_needed`).
 
 gymnax itself is not a dependency (it brings flax, orbax and seaborn, and rejax
 0.1.3 needs gymnax < 1): the records are frozen dataclasses registered as JAX
@@ -21,6 +23,7 @@ import functools
 
 import jax
 import jax.numpy as jnp
+from jax import custom_batching
 
 try:   # gymnax's spaces as bases, only where gymnax is installed (module docstring)
   from gymnax.environments import spaces as _gymnax_spaces
@@ -107,7 +110,7 @@ class Environment:
       params = self.default_params
     key_step, key_reset = jax.random.split(key)
     obs_st, state_st, reward, done, info = self.step_env(key_step, state, action, params)
-    obs_re, state_re = self.reset_env(key_reset, params)
+    obs_re, state_re = self.auto_reset(key_reset, params, done)
     state = jax.tree.map(lambda x, y: jax.lax.select(done, x, y), state_re, state_st)
     obs = jax.lax.select(done, obs_re, obs_st)
     return obs, state, reward, done, info
@@ -117,6 +120,14 @@ class Environment:
     """A start drawn from `key`: `(obs, state)`."""
     if params is None:
       params = self.default_params
+    return self.reset_env(key, params)
+
+  def auto_reset(self, key, params, done):
+    """The start `step` puts in place of an episode that ended (`done`): `reset_env`'s
+    from `key`, which gymnax computes for every copy, ended or not, and selects. A
+    task whose start is costly overrides it to compute the start only where `done`
+    (the regatta's course, the harbour's rays: `where_needed`); for a copy not done
+    it may return anything of the start's shapes."""
     return self.reset_env(key, params)
 
   def step_env(self, key, state, action, params):
@@ -160,6 +171,46 @@ class Environment:
   def state_space(self, params=None):
     """Its states (none of hpg_mj's tasks gives one)."""
     raise NotImplementedError
+
+
+def where_needed(fn):
+  """`fn` computed only where it is needed, also under vmap: the function returned,
+  `lazy(needed, *args)`, is `fn(*args)` where `needed` is true and zeros of its
+  shapes and dtypes where not. Unbatched that is a `lax.cond`; vmapped (where a
+  `cond` would compute both branches for every copy) it calls `fn` once for each
+  copy that needs it, one after another, and its loops then end with that copy's
+  own work, not the batch's longest. For a costly start (the regatta's course, laid
+  by rejection; the harbour's rays) that few copies need at a step: gymnax's `step`
+  computes a reset for every copy at every step. Composes with jit, scan and nested vmap (an
+  outer vmap batches the loop); not differentiable (`custom_vmap`'s limit)."""
+
+  def skipped(*args):
+    return jax.tree.map(lambda s: jnp.zeros(s.shape, s.dtype), jax.eval_shape(fn, *args))
+
+  @custom_batching.custom_vmap
+  def lazy(needed, *args):
+    return jax.lax.cond(needed, fn, skipped, *args)
+
+  @lazy.def_vmap
+  def lazy_batched(axis_size, in_batched, needed, *args):
+    needed_batched, *args_batched = in_batched
+    if not needed_batched:
+      needed = jnp.broadcast_to(needed, (axis_size,))
+
+    def copy(j):     # copy j's arguments: a batched leaf's row j, an unbatched leaf whole
+      return fn(*(jax.tree.map(lambda leaf, batched: leaf[j] if batched else leaf, arg, flags)
+                  for arg, flags in zip(args, args_batched)))
+
+    shapes = jax.eval_shape(copy, 0)
+    out = jax.tree.map(lambda s: jnp.zeros((axis_size, *s.shape), s.dtype), shapes)
+    which = jnp.nonzero(needed, size=axis_size, fill_value=0)[0]
+
+    def one(i, out):
+      j = which[i]
+      return jax.tree.map(lambda rows, row: rows.at[j].set(row), out, copy(j))
+    out = jax.lax.fori_loop(0, jnp.sum(needed, dtype=jnp.int32), one, out)
+    return out, jax.tree.map(lambda _: True, shapes)
+  return lazy
 
 
 def float_dtype():

@@ -77,7 +77,7 @@ GATE_REWARD = core.GATE_REWARD
 AGROUND = -3
 EVENT_NAMES = {core.NO_EVENT: None, core.SUCCESS: "gate", core.FAILURE: "out_of_bounds",
                AGROUND: "obstacle"}
-_START_TRIES = 10_000
+START_TRIES = 10_000
 
 
 def level_obstacles(level, who="ship harbour"):
@@ -432,7 +432,7 @@ def sample_start(rules, random, islands, piers):
   drawn again while its position lies on an obstacle; `random` a Generator or
   RandomState."""
   entry, state, size = _start_entry(), np.empty(4), float(rules.size)
-  for _ in range(_START_TRIES):
+  for _ in range(START_TRIES):
     if entry(random.random(4), size, islands, piers, state):
       return state
   raise RuntimeError("ship harbour: no start off the obstacles in 10,000 draws")

@@ -50,7 +50,7 @@ MAX_GATES = max(gates for gates, _, _, _ in LEVELS.values())   # the MJCF's cour
 
 LOW, HIGH = 100.0, 900.0           # m, where gate centres lie: posts 50 m inside the field
 MIN_SEPARATION = 110.0             # m between any two gates' centres (> their 100 m width)
-_TRIES = 50                        # draws of a gate's turn before the course is laid again
+TRIES = 50                        # draws of a gate's turn before the course is laid again
 
 # SPEC section 11's rewards: every gate but the last, the last, and off the field.
 GATE_REWARD = 100.0
@@ -87,14 +87,14 @@ def lay_course(draws, spacing, smallest, largest, course):
   """Lays `course` (rows [x, y, heading_deg], filled in place) by the module's rule from
   `draws`, uniforms on [0, 1) (`draws_per_course` of them): the first gate's x, y and
   heading, then a turn and a side for each try of each gate. False where a gate finds
-  no room in `_TRIES` turns (the caller lays the course again with new draws)."""
+  no room in `TRIES` turns (the caller lays the course again with new draws)."""
   course[0, 0] = LOW + (HIGH - LOW) * draws[0]
   course[0, 1] = LOW + (HIGH - LOW) * draws[1]
   course[0, 2] = -180.0 + 360.0 * draws[2]
   at = 3
   for k in range(1, course.shape[0]):
     placed = False
-    for _ in range(_TRIES):
+    for _ in range(TRIES):
       turn = smallest + (largest - smallest) * draws[at]
       side = 1.0 if draws[at + 1] < 0.5 else -1.0
       at += 2
@@ -118,7 +118,7 @@ def lay_course(draws, spacing, smallest, largest, course):
 
 def draws_per_course(gates):
   """The uniforms one try at laying a course of `gates` takes (`lay_course`)."""
-  return 3 + 2 * _TRIES * (int(gates) - 1)
+  return 3 + 2 * TRIES * (int(gates) - 1)
 
 
 def sample_course(random, layout):

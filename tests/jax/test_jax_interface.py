@@ -29,10 +29,7 @@ def x64():
 
 def test_the_ids_are_the_gymnasium_ids():
   from hpg_mj import envs
-  assert set(hpg_jax.ENV_IDS) | set(hpg_jax.NOT_YET) == set(envs.ENV_IDS)
-  assert not set(hpg_jax.ENV_IDS) & set(hpg_jax.NOT_YET)
-  with pytest.raises(ValueError, match=r"^'ShipRegatta-v0' has no JAX environment yet"):
-    hpg_jax.make("ShipRegatta-v0")
+  assert set(hpg_jax.ENV_IDS) == set(envs.ENV_IDS)
   env, params = hpg_jax.make("ShipSteering-v0")
   same, same_params = hpg_jax.make("hpg_mj/ShipSteering-v0")
   assert env.name == same.name == "hpg_mj/ShipSteering-v0" and params == same_params
@@ -165,3 +162,28 @@ def test_with_gymnax_installed_the_spaces_are_gymnaxs():
   spaces = pytest.importorskip("gymnax.environments.spaces")
   assert isinstance(hpg_jax.make("Taxi-v0")[0].action_space(), spaces.Discrete)
   assert isinstance(hpg_jax.make("ShipSteering-v0")[0].action_space(), spaces.Box)
+
+
+def test_where_needed_computes_only_the_copies_that_need_it():
+  """`environment.where_needed`: `fn` where needed, zeros elsewhere, alike unbatched,
+  vmapped (its rule: one copy at a time), vmapped twice and under jit; an unbatched
+  argument is shared by every copy. (One compile: the four ways in one function.)"""
+  def fn(key, scale):
+    return {"draw": scale * jax.random.uniform(key, (3,)), "count": jnp.int32(7)}
+  lazy = environment.where_needed(fn)
+
+  @jax.jit
+  def four_ways(needed, keys):
+    return (jax.vmap(fn, in_axes=(0, None))(keys, 2.0),
+            jax.vmap(lazy, in_axes=(0, 0, None))(needed, keys, 2.0),
+            jax.vmap(jax.vmap(lazy, in_axes=(0, 0, None)), in_axes=(0, 0, None))(
+                needed.reshape(2, 3), keys.reshape(2, 3, 2), 2.0),
+            [lazy(needed[i], keys[i], 2.0) for i in range(2)])
+
+  needed = np.array([True, False, True, True, False, False])
+  want, got, twice, alone = four_ways(needed, jax.random.split(jax.random.PRNGKey(4), 6))
+  for name in ("draw", "count"):
+    assert np.array_equal(got[name][needed], want[name][needed])
+    assert not np.asarray(got[name][~needed]).any()
+    assert np.array_equal(np.asarray(twice[name]).reshape(got[name].shape), got[name])
+    assert np.array_equal(alone[0][name], want[name][0]) and not np.asarray(alone[1][name]).any()
