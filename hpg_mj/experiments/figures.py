@@ -165,8 +165,13 @@ def draw_curve(root, fig, tasks, records_by_task, optimal=None, protocol=None):
 
 # greedy_curve figures: the greedy metrics of each world (SPEC sections 7, 7.1) whose
 # value at each `greedy_at` point is drawn against the steps trained.
-GREEDY_METRICS = {"ship": ("gate_pass_rate", "steps_to_gate", "J", "J_normalized",
-                           "gate_pass_rate_normalized"),
+_SHIP_GREEDY = ("gate_pass_rate", "steps_to_gate", "J", "J_normalized",
+                "gate_pass_rate_normalized")
+GREEDY_METRICS = {"ship": _SHIP_GREEDY, "ship_current": _SHIP_GREEDY, "ship_goal": _SHIP_GREEDY,
+                  "ship_harbour": _SHIP_GREEDY,
+                  "ship_regatta": ("finish_rate", "gates_passed", "steps_to_finish",
+                                   "mean_return", "mean_return_normalized",
+                                   "finish_rate_normalized"),
                   "taxi": ("mean_return", "mean_return_normalized")}
 STEPS_KEYS = ("control_steps", "primitive_steps")   # a run's steps trained (metrics.json)
 
@@ -174,6 +179,9 @@ STEPS_KEYS = ("control_steps", "primitive_steps")   # a run's steps trained (met
 def check_greedy_curve(fig, tasks):
   """Why a greedy_curve figure cannot be drawn from these tasks, or None."""
   world = tasks[0].section("environment")["world"]
+  if world not in GREEDY_METRICS:
+    return f"the {world}'s runs have no greedy metrics to draw; allowed worlds: " \
+        f"{sorted(GREEDY_METRICS)}"
   allowed = GREEDY_METRICS[world]
   if fig["metric"] not in allowed:
     return f"metric = {fig['metric']!r}; allowed for the {world}: {list(allowed)}"

@@ -94,3 +94,17 @@ def test_the_shipped_ladder_experiments_load_and_run_past_the_tuning_seeds():
       assert experiment["first_seed"] > 9 and not experiment["tuning"]
       worlds = {t.section("environment")["world"] for t in experiment["task_files"]}
       assert worlds == {task}
+
+
+def test_a_ladder_experiment_draws_the_greedy_metrics_of_its_task(tmp_path):
+  """A greedy_curve of a ladder task draws that task's greedy metrics (the regatta's are
+  its finish and return, not J)."""
+  text = EXPERIMENT.format(levels='"easy"').replace("ship_current_hybrid",
+                                                    "ship_regatta_hybrid")
+  curve = text.replace('kind = "curve"\nmetric = "gate_passes"\nx = "episodes"',
+                       'kind = "greedy_curve"\nmetric = "{metric}"')
+  path = tmp_path / "regatta.toml"
+  path.write_text(curve.format(metric="finish_rate_normalized"))
+  assert runner.load_experiment(path)["figures"][0]["metric"] == "finish_rate_normalized"
+  assert_refused(tmp_path, curve.format(metric="J"),
+                 r"metric = 'J'; allowed for the ship_regatta: \['finish_rate', ")
