@@ -21,24 +21,11 @@ from hpg_mj import benchmark  # noqa: E402
 from hpg_mj import cli  # noqa: E402
 from hpg_mj.experiments import bounds  # noqa: E402
 from hpg_mj.jax import ppo_ladder  # noqa: E402
-
-SMALL = {"n_envs = 64": "n_envs = 8", "n_steps = 128": "n_steps = 16",
-         "batch_size = 2048": "batch_size = 64", "n_epochs = 4": "n_epochs = 2"}
-
-
-def task_file(folder, name="ship_current_ppo_jax", changes=SMALL):
-  text = agents.shipped_tasks()[name].read_text()
-  for old, new in changes.items():
-    assert old in text, (name, old)
-    text = text.replace(old, new)
-  path = folder / f"{name}.toml"
-  path.write_text(text)
-  return path
-
+from jax_task_file import SMALL, task_file  # noqa: E402
 
 @pytest.fixture(scope="module")
 def small(tmp_path_factory):
-  return task_file(tmp_path_factory.mktemp("ladder_ppo"))
+  return task_file(tmp_path_factory.mktemp("ladder_ppo"), "ship_current_ppo_jax")
 
 
 @pytest.fixture(scope="module")
@@ -213,7 +200,8 @@ def test_cli_trains_with_a_level_set_and_prints_the_scorer_s_normalised_score(sm
   """The file says medium, `--set` easy (the small run compiled already): `hpg-mj train`
   prints the greedy measure on easy's 1,000 fixed starts normalized against easy's
   bounds, `hpg-mj evaluate` the same on the first 8."""
-  path = task_file(tmp_path, changes={**SMALL, 'level = "easy"': 'level = "medium"'})
+  path = task_file(tmp_path, "ship_current_ppo_jax",
+                   {**SMALL, 'level = "easy"': 'level = "medium"'})
   out = tmp_path / "agent"
   assert cli.main(["train", str(path), "--set", "environment.level=easy", "--episodes", "1",
                    "--out", str(out), "--quiet", "--json"]) == 0
