@@ -105,6 +105,19 @@ def low_arrays(agent):
       el.Trace(*[state[f"{name}.{f}"] for f in el.Trace._fields]), state[f"{name}.values"]))
 
 
+def subtask_metrics(w):
+  """Calls per episode and the diagonal and straight subtasks' success rates over the
+  record rows `w` (Figure 3's graph's counters)."""
+  diag_runs, str_runs = w["diagonal_runs"].sum(), w["straight_runs"].sum()
+  return {
+      "calls_per_episode": float(w["calls"].mean()) if len(w) else None,
+      "diagonal_success_rate": float(w["diagonal_successes"].sum() / diag_runs)
+                               if diag_runs else None,
+      "straight_success_rate": float(w["straight_successes"].sum() / str_runs)
+                               if str_runs else None,
+  }
+
+
 class ShipHybrid(hierarchy.ShipHierarchy):
   """Figure 3's graph of blocks, run by the open machine (`hierarchy.program`) on both
   paths; its state is the program's, by node name (`root.q`, `diagonal.theta`, ...,
@@ -147,14 +160,4 @@ class ShipHybrid(hierarchy.ShipHierarchy):
   def metrics(self, record):
     """The ship's metrics, with calls per episode and the diagonal and straight
     subtasks' success rates over the last `metric_window` episodes."""
-    out = super().metrics(record)
-    w = record[-self.metric_window:]
-    diag_runs, str_runs = w["diagonal_runs"].sum(), w["straight_runs"].sum()
-    out.update({
-        "calls_per_episode": float(w["calls"].mean()) if len(w) else None,
-        "diagonal_success_rate": float(w["diagonal_successes"].sum() / diag_runs)
-                                 if diag_runs else None,
-        "straight_success_rate": float(w["straight_successes"].sum() / str_runs)
-                                 if str_runs else None,
-    })
-    return out
+    return {**super().metrics(record), **subtask_metrics(record[-self.metric_window:])}

@@ -83,14 +83,5 @@ class ShipLadderHybrid(hierarchy.ShipLadderHierarchy):
     """The task's benchmark metrics (`ShipLadderHierarchy`), with calls per episode and
     the diagonal and straight subtasks' success rates over the last `metric_window`
     episodes."""
-    out = super().metrics(record)
-    w = record[-self.metric_window:]
-    diag_runs, str_runs = w["diagonal_runs"].sum(), w["straight_runs"].sum()
-    out.update({
-        "calls_per_episode": float(w["calls"].mean()) if len(w) else None,
-        "diagonal_success_rate": float(w["diagonal_successes"].sum() / diag_runs)
-                                 if diag_runs else None,
-        "straight_success_rate": float(w["straight_successes"].sum() / str_runs)
-                                 if str_runs else None,
-    })
-    return out
+    return {**super().metrics(record),
+            **ship_hybrid.subtask_metrics(record[-self.metric_window:])}

@@ -78,6 +78,22 @@ def wrap_deg(angle):
   return shifted % 360.0 - 180.0
 
 
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def place(ship, start):
+  """`ship` set to the state `start` [x, y, theta_deg, theta_dot_deg], its heading wrapped
+  (as an environment's `reset(options={"state": ...})` wraps it)."""
+  for j in range(4):
+    ship[j] = start[j]
+  ship[2] = wrap_deg(start[2])
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def clipped(r_deg):
+  """A turning rate clipped to [-MAX_TURN_RATE, MAX_TURN_RATE] deg/s, as the
+  environments clip their action."""
+  return min(max(r_deg, -MAX_TURN_RATE), MAX_TURN_RATE)
+
+
 def wrap_deg_array(angles):
   """`wrap_deg` for an array of angles (numpy; `wrap_deg` takes one float)."""
   return (np.asarray(angles, dtype=np.float64) + 180.0) % 360.0 - 180.0

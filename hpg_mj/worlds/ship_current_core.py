@@ -152,9 +152,7 @@ def env_reset(params, state, start, obs):
   """An episode from `start` (the ship's state; its heading wrapped as the environment's
   `reset(options={"state": ...})` wraps it); its observation into `obs`."""
   ship = state.ship
-  for j in range(4):
-    ship[j] = start[j]
-  ship[2] = core.wrap_deg(start[2])
+  core.place(ship, start)
   observe_into(params, ship, obs)
 
 
@@ -164,7 +162,7 @@ def env_step(params, state, r_deg, samples, obs, steps):
   environment clips it), `steps` control steps in (this one counted): the positions
   sampled into `samples`, the observation into `obs`; returns (event, reward,
   terminated, truncated) as `ShipCurrentEnv.step` (the steering task's gate and field)."""
-  r = min(max(r_deg, -core.MAX_TURN_RATE), core.MAX_TURN_RATE)
+  r = core.clipped(r_deg)
   drift_control(state.ship, r, samples, params.field)
   event, reward = core.global_outcome(samples, params.rewards[0], params.rewards[1])
   terminated = event != core.NO_EVENT

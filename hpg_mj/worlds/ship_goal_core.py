@@ -274,9 +274,7 @@ def env_reset(params, state, start, obs):
   made as the environment's `reset(options={"state": ..., "gate": ...})` makes it); its
   observation into `obs`."""
   ship = state.ship
-  for j in range(4):
-    ship[j] = start[j]
-  ship[2] = core.wrap_deg(start[2])
+  core.place(ship, start)
   heading = math.radians(start[6])
   state.desired[0] = start[4]
   state.desired[1] = start[5]
@@ -291,7 +289,7 @@ def env_step(params, state, r_deg, samples, obs, steps):
   control steps in (this one counted): the positions sampled into `samples`, the
   flattened observation into `obs`; returns (event, reward, terminated, truncated) as
   `ShipGoalEnv.step` (the module's rule on the achieved goal)."""
-  r = min(max(r_deg, -core.MAX_TURN_RATE), core.MAX_TURN_RATE)
+  r = core.clipped(r_deg)
   core.euler_control(state.ship, r, samples, core.SPEED, core.TIME_CONSTANT,
                      core.SAMPLING_INTERVAL)
   observe_into(state, obs)

@@ -537,9 +537,7 @@ def env_reset(params, state, start, obs):
   the environment's `reset(options={"state": ...})` wraps it); its observation into
   `obs`."""
   ship = state.ship
-  for j in range(4):
-    ship[j] = start[j]
-  ship[2] = core.wrap_deg(start[2])
+  core.place(ship, start)
   observe_into(params, ship, obs)
 
 
@@ -549,7 +547,7 @@ def env_step(params, state, r_deg, samples, obs, steps):
   control steps in (this one counted): the positions sampled into `samples`, the
   observation into `obs`; returns (event, reward, terminated, truncated) as
   `ShipHarbourEnv.step` (`ship_outcome`)."""
-  r = min(max(r_deg, -core.MAX_TURN_RATE), core.MAX_TURN_RATE)
+  r = core.clipped(r_deg)
   core.euler_control(state.ship, r, samples, core.SPEED, core.TIME_CONSTANT,
                      core.SAMPLING_INTERVAL)
   event, reward, terminated, truncated = ship_outcome(

@@ -354,9 +354,7 @@ def env_reset(params, state, start, obs):
   heading_deg], each made as the environment's `reset(options={"state": ...,
   "course": ...})` makes it: headings wrapped); its observation into `obs`."""
   ship = state.ship
-  for j in range(4):
-    ship[j] = start[j]
-  ship[2] = core.wrap_deg(start[2])
+  core.place(ship, start)
   course = state.course
   for k in range(course.shape[0]):
     course[k, 0] = start[4 + 3 * k]
@@ -373,7 +371,7 @@ def env_step(params, state, r_deg, samples, obs, steps):
   control steps in (this one counted): the positions sampled into `samples`, the
   observation into `obs`; returns (event, reward, terminated, truncated) as
   `ShipRegattaEnv.step` (`ship_outcome`)."""
-  r = min(max(r_deg, -core.MAX_TURN_RATE), core.MAX_TURN_RATE)
+  r = core.clipped(r_deg)
   core.euler_control(state.ship, r, samples, core.SPEED, core.TIME_CONSTANT,
                      core.SAMPLING_INTERVAL)
   rewards = params.rewards

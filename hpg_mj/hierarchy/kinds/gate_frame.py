@@ -162,21 +162,14 @@ class GateTilesKind(base.ViewKind):
     return Frame(*_frame(name, block), np.zeros(4), np.zeros(2))
 
 
-class GateLocalTilesKind(base.ViewKind):
-  """Runs a `GateLocalTiles` view: 4 features."""
+class GateLocalTilesKind(GateTilesKind):
+  """Runs a `GateLocalTiles` view: 4 features, in the local frame of the call's
+  `direction`."""
   block = blocks.GateLocalTiles
-  gives = "features"
-  writes = True
   view = staticmethod(local_view)
-
-  def size(self, block):
-    return 4
 
   def check(self, name, block, arguments):
     local_frame._direction(name, arguments)
-
-  def settings(self, name, block):
-    return Frame(*_frame(name, block), np.zeros(4), np.zeros(2))
 
 
 class GateLocalGoalKind(base.TerminationKind):
