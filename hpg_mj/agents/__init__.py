@@ -50,6 +50,9 @@ def __getattr__(name):
               "ShipLadderHierarchy", "LadderHierarchyConfig"):
     from hpg_mj.agents import hierarchy
     return getattr(hierarchy, name)
+  if name == "LadderEnvironment":
+    from hpg_mj.agents import _ladder
+    return _ladder.LadderEnvironment
   if name in ("TaxiAgent", "TaxiEnvironment"):
     from hpg_mj.agents import _taxi
     return getattr(_taxi, name)

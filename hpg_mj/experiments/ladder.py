@@ -212,6 +212,9 @@ def write(out, quick=False, experiments=None):
     lines += ["**QUICK protocol** (`--quick`): fewer runs and episodes, not for "
               "publication.", ""]
   picture = draw(root, found)
+  if picture is None:
+    lines += [f"No run has finished under {out} yet: `hpg-mj reproduce ladder --out {out}` "
+              "makes them (or `hpg-mj run ladder_<task> --out ...`, one experiment).", ""]
   if picture is not None:
     lines += ["![the ladder](ladder.png)", "", "`ladder.png`: per task, each learner's "
               f"greedy {', '.join(sorted({scores(t)[0] for t in found}))} normalized at "
