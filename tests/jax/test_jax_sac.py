@@ -16,7 +16,7 @@ from hpg_mj.jax import sac  # noqa: E402
 SMALL = {"n_envs = 4": "n_envs = 2", "n_steps = 250": "n_steps = 100",
          "buffer_size = 1000000": "buffer_size = 1500", "learning_starts = 10000":
          "learning_starts = 200", "batch_size = 256": "batch_size = 32",
-         "gradient_steps = 4": "gradient_steps = 2", "net_arch = [256, 256]": "net_arch = [16, 16]"}
+         "gradient_steps = 4": "gradient_steps = 2", "net_arch = [64, 64] ": "net_arch = [16, 16] "}
 
 
 def task_file(tmp_path, changes=SMALL):
@@ -79,7 +79,7 @@ def test_seeds_vmap_into_one_run():
   runners, rows = jax.eval_shape(jax.vmap(trainer.make_train(3)),
                                  jax.random.split(jax.random.PRNGKey(0), 10))
   assert rows.shape == (10, 3, 250, len(trainer.row.fields))
-  assert runners.nets.critics[1]["kernel"].shape == (10, 2, 256, 256)
+  assert runners.nets.critics[1]["kernel"].shape == (10, 2, 64, 64)
   assert runners.buffer["x"].shape == (10, 1_000_000, 4)
 
 
