@@ -19,14 +19,14 @@ or `import_module`); or an installed package lists it in the entry-point group
 saved agent records its class's import path, so another process finds it too.
 
 Shipped: ship_hybrid, ship_beyond (past the paper's route, SPEC section 8),
-ship_flat_pg, ship_actor_critic, ship_patrol (continuing, SPEC section 8), the hybrid
-and flat PGRL on the task ladder (ship_ladder_hybrid, ship_ladder_flat_pg: SPEC section
-11, the task and level named by the task file), taxi_hpg,
-taxi_maxq, taxi_flat_q, the learned hierarchies ship_option_critic and taxi_option_critic
-(each one module here); PPO and DQN in JAX (jax_ppo, jax_dqn, with `hpg_mj[jax]`; PPO on
-the task ladder too, jax_ppo_ladder); and Stable-Baselines3's PPO and SAC on
-the ship, PPO and DQN on the taxi (`hpg_mj.agents.sb3`, with the extra
-`pip install 'hpg_mj[sb3]'`).
+ship_flat_pg, ship_actor_critic, ship_patrol (continuing, SPEC section 8), the hybrid,
+flat PGRL and the option-critic on the task ladder (ship_ladder_hybrid,
+ship_ladder_flat_pg, ship_ladder_option_critic: SPEC section 11, the task and level
+named by the task file), taxi_hpg, taxi_maxq, taxi_flat_q, the learned hierarchies
+ship_option_critic and taxi_option_critic (each one module here); PPO and DQN in JAX
+(jax_ppo, jax_dqn, with `hpg_mj[jax]`; PPO on the task ladder too, jax_ppo_ladder); and
+Stable-Baselines3's PPO and SAC on the ship, PPO and DQN on the taxi
+(`hpg_mj.agents.sb3`, with the extra `pip install 'hpg_mj[sb3]'`).
 """
 import importlib
 import importlib.util
@@ -71,6 +71,8 @@ _SHIPPED = {
     # the task ladder's (SPEC section 11): each task and level named by its task file
     "ship_ladder_hybrid": "hpg_mj.agents.ship_ladder_hybrid:ShipLadderHybrid",
     "ship_ladder_flat_pg": "hpg_mj.agents.ship_ladder_flat_pg:ShipLadderFlatPG",
+    "ship_ladder_option_critic":
+        "hpg_mj.agents.ship_ladder_option_critic:ShipLadderOptionCritic",
     "taxi_hpg": "hpg_mj.agents.taxi_hpg:TaxiHPG",
     "taxi_maxq": "hpg_mj.agents.taxi_maxq:TaxiMAXQ",
     "taxi_flat_q": "hpg_mj.agents.taxi_flat_q:TaxiFlatQ",

@@ -28,6 +28,15 @@ GATE_FRAMES = {"ship_current": None, "ship_harbour": None,
                "ship_regatta": blocks.GateFrame(at=4, relative=True)}  # the next gate, seen
 
 
+def tiles_view(world, coder):
+  """The view of a reference learner's CMAC over the ship's whole state (flat PGRL's,
+  the option-critic's) on the task `world`: the ship's own state (`blocks.StateTiles`)
+  on the current and the harbour, in the frame of the episode's (next) gate
+  (`blocks.GateTiles`, `GATE_FRAMES`) on the goal and the regatta."""
+  frame = GATE_FRAMES[world]
+  return blocks.StateTiles(coder) if frame is None else blocks.GateTiles(frame, coder)
+
+
 @dataclasses.dataclass(frozen=True)
 class LadderEnvironment(taskfile.Section):
   """[environment] of a ladder task file (SPEC section 11): the task, its level, and the

@@ -52,9 +52,7 @@ class ShipLadderFlatPG(hierarchy.ShipLadderHierarchy):
     """One node over the whole task: Eq. 3 with the episode's rewards (z <- 0 at its
     start), choosing the turning rate every 0.6 s from the tiles of the ship's state
     (in the gate's frame on the goal and the regatta)."""
-    frame = _ladder.GATE_FRAMES[self.config.environment.world]
-    view = blocks.StateTiles(self.coder) if frame is None else \
-        blocks.GateTiles(frame, self.coder)
+    view = _ladder.tiles_view(self.config.environment.world, self.coder)
     return TaskGraph("policy", [
         Subtask("policy", children=["turn"], learner=self.learner, view=view,
                 termination=blocks.Never()),

@@ -68,21 +68,29 @@ class ShipOptionCritic(hierarchy.ShipHierarchy):
   def graph(self):
     """root -> option0 ... option{k-1} -> the turning rate; every node sees the
     tiles of the whole state."""
-    options = [f"option{w}" for w in range(self.oc.n_options)]
-    return TaskGraph("root", [
-        Subtask("root", children=options, learner=oc_kinds.OverOptionsCMAC(self.oc),
-                view=blocks.StateTiles(self.coder), termination=blocks.Never()),
-        *(Subtask(name, children=["turn"], learner=oc_kinds.IntraOptionCMAC(self.oc, w),
-                  view=blocks.StateTiles(self.coder),
-                  termination=oc_kinds.LearnedTerminationCMAC(self.oc, w))
-          for w, name in enumerate(options)),
-        Primitive("turn"),
-    ])
+    return graph(self.oc, lambda: blocks.StateTiles(self.coder))
 
   def metrics(self, record):
     """The task's metrics, with the options called per episode over the last
     `metric_window` episodes."""
-    out = super().metrics(record)
-    w = record[-self.metric_window:]
-    out["calls_per_episode"] = float(w["calls"].mean()) if len(w) else None
-    return out
+    return {**super().metrics(record), **option_metrics(record[-self.metric_window:])}
+
+
+def graph(oc, view):
+  """The option-critic's graph over `oc`: root -> option0 ... option{k-1} -> the
+  turning rate, every node seeing `view()` (a view block of the features `oc.coder`
+  tiles, made afresh for each node; the options' terminations tile the same)."""
+  options = [f"option{w}" for w in range(oc.n_options)]
+  return TaskGraph("root", [
+      Subtask("root", children=options, learner=oc_kinds.OverOptionsCMAC(oc),
+              view=view(), termination=blocks.Never()),
+      *(Subtask(name, children=["turn"], learner=oc_kinds.IntraOptionCMAC(oc, w),
+                view=view(), termination=oc_kinds.LearnedTerminationCMAC(oc, w))
+        for w, name in enumerate(options)),
+      Primitive("turn"),
+  ])
+
+
+def option_metrics(w):
+  """The options called per episode over the record rows `w` (its field calls)."""
+  return {"calls_per_episode": float(w["calls"].mean()) if len(w) else None}

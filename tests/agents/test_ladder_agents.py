@@ -25,7 +25,8 @@ from hpg_mj.learners.tiles import TileCoder
 REPO = pathlib.Path(__file__).resolve().parents[2]
 LADDER_FILES = {f"{task}_{agent}": (task, kind) for task in bounds.LADDER
                 for agent, kind in (("hybrid", "ship_ladder_hybrid"),
-                                    ("flat_pg", "ship_ladder_flat_pg"))}
+                                    ("flat_pg", "ship_ladder_flat_pg"),
+                                    ("option_critic", "ship_ladder_option_critic"))}
 
 
 @pytest.mark.parametrize("name", sorted(LADDER_FILES))

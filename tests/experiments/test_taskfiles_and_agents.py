@@ -164,14 +164,15 @@ def test_every_task_file_trains_saves_and_resumes_exactly(tmp_path, path):
   for name, value in agent.state().items():
     np.testing.assert_array_equal(loaded.state()[name], value)
   # Evaluation through the MuJoCo world (dm_control / Gymnasium) works too (the
-  # continuing ship_patrol's rows are hours: one). The ladder's flat PGRL files are
-  # evaluated fused: tests/hierarchy/test_ladder_paths.py takes the step-by-step path
-  # through every ladder world (the hybrid's graph) and flat PGRL's graph (the current
-  # and the goal), and the hybrids' files here take the worlds' MuJoCo backends (each a
-  # graph's step-by-step compile: seconds on a cold cache).
+  # continuing ship_patrol's rows are hours: one). The ladder's flat PGRL and
+  # option-critic files are evaluated fused: tests/hierarchy/test_ladder_paths.py takes
+  # the step-by-step path through every ladder world (the hybrid's graph) and flat
+  # PGRL's and the option-critic's graphs (the current and the goal), and the hybrids'
+  # files here take the worlds' MuJoCo backends (each a graph's step-by-step compile:
+  # seconds on a cold cache).
   rows = 1 if task.kind == "ship_patrol" else 2
-  evaluation = loaded.evaluate(rows, "analytic" if task.kind == "ship_ladder_flat_pg"
-                               else "mujoco")
+  fused = task.kind in ("ship_ladder_flat_pg", "ship_ladder_option_critic")
+  evaluation = loaded.evaluate(rows, "analytic" if fused else "mujoco")
   assert len(evaluation) == rows
 
 

@@ -12,6 +12,7 @@ import pytest
 import hpg_mj  # noqa: F401
 from hpg_mj.agents import ship_ladder_flat_pg
 from hpg_mj.agents import ship_ladder_hybrid
+from hpg_mj.agents import ship_ladder_option_critic
 from hpg_mj.agents.base import GREEDY_SEED
 from hpg_mj.hierarchy import ladder
 from hpg_mj.learners import rng
@@ -33,7 +34,9 @@ CASES = [(ship_ladder_hybrid.ShipLadderHybrid, "ship_current", "hard", 30),
          (ship_ladder_hybrid.ShipLadderHybrid, "ship_regatta", "hard", 30),
          (ship_ladder_hybrid.ShipLadderHybrid, "ship_harbour", "hard", 30),
          (ship_ladder_flat_pg.ShipLadderFlatPG, "ship_current", "medium", 20),
-         (ship_ladder_flat_pg.ShipLadderFlatPG, "ship_goal", "hard", 20)]
+         (ship_ladder_flat_pg.ShipLadderFlatPG, "ship_goal", "hard", 20),
+         (ship_ladder_option_critic.ShipLadderOptionCritic, "ship_current", "medium", 10),
+         (ship_ladder_option_critic.ShipLadderOptionCritic, "ship_goal", "hard", 10)]
 
 
 @pytest.mark.parametrize("cls,task,level,episodes", CASES,
@@ -50,8 +53,10 @@ def test_fused_and_stepwise_paths_give_identical_rows(cls, task, level, episodes
   assert sorted(pa) == sorted(pb)
   for name in pa:
     np.testing.assert_array_equal(pa[name], pb[name], err_msg=name)
-    if name.endswith(".theta"):
+    if name.endswith((".theta", ".vartheta")):
       assert np.any(pa[name] != 0.0), name           # it learned something
+  if "calls" in a.dtype.names:                       # (the option-critic's options end inside)
+    assert a["calls"].sum() > 2 * episodes
   np.testing.assert_array_equal(fused.rng_state, stepwise.rng_state)
   # Greedy from the reports' fixed starts (the benchmark's), the same too.
   starts, rows = fused.fixed_starts(3), []

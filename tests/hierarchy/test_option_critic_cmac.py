@@ -5,6 +5,7 @@ where it stopped; and what it refuses is named in one line."""
 import pathlib
 
 import gymnasium
+import numba
 import numpy as np
 import pytest
 
@@ -15,6 +16,7 @@ from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy.graph import GraphError, Primitive, Subtask, TaskGraph
 from hpg_mj.hierarchy.kinds import option_critic_cmac as oc
 from hpg_mj.hierarchy.program import Program
+from hpg_mj.learners import rng
 from hpg_mj.taskfile import updated
 from hpg_mj.worlds import ship_core as core
 
@@ -102,6 +104,43 @@ def _graph(c, k=None, option=lambda w: w, view=None):
                 termination=oc.LearnedTerminationCMAC(c, option(w)))
         for w, n in enumerate(options)),
       Primitive("turn")])
+
+
+@numba.njit
+def _end(P, obs, rng):
+  return oc.learned_end(P, obs, 0.0, np.zeros((4, 2)), rng)
+
+
+def test_the_termination_tiles_its_nodes_view():
+  """beta_w(s') is drawn on the tiles the option learns on: its node's view's features,
+  the observation's first numbers (StateTiles) or the ship in the frame of the
+  observation's gate (GateTiles: here the goal's desired goal, obs[8:12])."""
+  coder = soc.ship_flat_pg.actor_coder()
+  c = oc.OptionCriticCMAC(coder, 2, core.MAX_TURN_RATE)
+  heading = np.radians(-131.0)
+  obs = np.array([480.0, 310.0, 37.0, -4.0, 0, 0, 0, 0,
+                  612.0, 233.0, np.sin(heading), np.cos(heading)])
+  dx, dy = obs[0] - obs[8], obs[1] - obs[9]
+  framed = [400.0 + dx * obs[11] - dy * obs[10], 400.0 + dx * obs[10] + dy * obs[11],
+            (37.0 + 131.0 + 180.0) % 360.0 - 180.0, -4.0]
+  kind = oc.LearnedTerminationCMACKind()
+  for view, features in ((blocks.StateTiles(coder), obs[:4]),
+                         (blocks.GateTiles(blocks.GateFrame(at=8), coder), framed)):
+    node = Subtask("option1", children=["turn"], learner=oc.IntraOptionCMAC(c, 1),
+                   view=view, termination=oc.LearnedTerminationCMAC(c, 1))
+    P = kind.settings("option1", node.termination, node)
+    tiles = coder.active(features)
+    c.arrays.vartheta[:] = -40.0                    # beta ~ 0 but on these tiles
+    c.arrays.vartheta[coder.size + tiles] = 40.0
+    assert _end(P, obs, rng.make_state(1))
+    np.testing.assert_array_equal(P.tiles, tiles)
+  assert not set(coder.active(obs[:4])) & set(coder.active(framed))
+  node = Subtask("option1", children=["turn"], learner=oc.IntraOptionCMAC(c, 1),
+                 view=blocks.GridCell(50.0, 20), termination=oc.LearnedTerminationCMAC(c, 1))
+  with pytest.raises(GraphError, match=r"^subtask 'option1': a LearnedTerminationCMAC tiles "
+                                       r"its node's view's features, which must be a "
+                                       r"StateTiles or a GateTiles; got GridCell$"):
+    kind.settings("option1", node.termination, node)
 
 
 def test_what_it_refuses_is_named():

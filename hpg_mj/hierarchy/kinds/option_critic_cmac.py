@@ -1,7 +1,9 @@
 """Option-critic (Bacon, Harb and Precup, 2017) over a CMAC, for a continuous action:
 the ship's. The graph is the tabular one's (`kinds.option_critic`), with every node
-seeing the tiles of the same features (`StateTiles(oc.coder)`, the first numbers of
-the observation):
+seeing the tiles of the same features: `StateTiles(oc.coder)`, the first numbers of
+the observation, or on a ladder task `GateTiles(frame, oc.coder)`, the ship in the
+frame of the observation's gate (`kinds.gate_frame`); an option's termination tiles
+the features its node's view gives, so that beta_w is drawn where it is learned:
 
     root          OverOptionsCMAC(oc)          epsilon-greedy over Q_Omega(s, w)
     option w      IntraOptionCMAC(oc, w)       pi_w(u | s) = Normal(m_w(s), sigma^2), the
@@ -39,8 +41,10 @@ import math
 import numba
 import numpy as np
 
+from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy.graph import GraphError
 from hpg_mj.hierarchy.kinds import base
+from hpg_mj.hierarchy.kinds import gate_frame
 from hpg_mj.hierarchy.kinds import option_critic
 from hpg_mj.learners import arrays
 from hpg_mj.learners import policies
@@ -101,7 +105,8 @@ class IntraOptionCMAC:
 @dataclasses.dataclass(frozen=True, eq=False)
 class LearnedTerminationCMAC:
   """Option `option`'s termination: drawn with probability beta_w(s'), over the tiles
-  of the observation's first numbers (the options' `StateTiles` features)."""
+  of the features its node's view gives (`StateTiles`: the observation's first numbers;
+  `GateTiles`: the ship in the frame of the observation's gate)."""
   oc: OptionCriticCMAC
   option: int
 
@@ -112,10 +117,11 @@ indexed [w * tiles + tile]."""
 Settings = collections.namedtuple("Settings", (
     "alpha_critic", "alpha_policy", "alpha_termination", "gamma", "epsilon", "xi", "sigma",
     "r_max", "k", "size", "option", "tiling", "q_omega", "theta", "vartheta", "features",
-    "tiles"))
+    "tiles", "at", "relative"))
 Settings.__doc__ = """A node's settings `P`: the step sizes, epsilon, xi, sigma, r_max;
 k options, the coder's tiles `size`, this node's option, the tiling; the shared
-arrays; a termination's scratch (features, tiles)."""
+arrays; a termination's scratch (features, tiles) and the gate its features are
+framed by (`blocks.GateFrame`'s at, relative; at -1: none, the observation as it is)."""
 Scratch = collections.namedtuple("Scratch", ("tiles", "last"))
 Scratch.__doc__ = """A node's scratch: the active tiles of s (row 0) and s' (row 1);
 [u, m] of its last draw."""
@@ -124,14 +130,16 @@ Nothing.__doc__ = """What an option's node learns of its own: no array (the arra
 are the root's `Learned`)."""
 
 
-def _settings(oc, option):
+def _settings(oc, option, frame=None):
   a = oc.arrays
   d, k = len(oc.coder.low), oc.coder.n_tilings
+  at, relative = (-1, False) if frame is None else (frame.at, frame.relative)
   return Settings(float(oc.alpha_critic), float(oc.alpha_policy), float(oc.alpha_termination),
                   float(oc.gamma), float(oc.epsilon), float(oc.xi), float(oc.sigma),
                   float(oc.r_max), np.int64(oc.n_options), np.int64(oc.coder.size),
                   np.int64(option), oc.coder.arrays(), a.q_omega, a.theta, a.vartheta,
-                  np.zeros(d), np.zeros(k, dtype=np.int64))
+                  np.zeros(d), np.zeros(k, dtype=np.int64), np.int64(at),
+                  np.int64(bool(relative)))
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
@@ -241,9 +249,14 @@ def option_observe(P, L, N, x, signal, done, terminal, n, rng, learn, sample):
              no_cfunc_wrapper=True)
 def learned_end(P, obs, call, samples, rng):
   """The option ends in s' with probability beta_w(s') (drawn whether or not learning:
-  a greedy run follows the learned terminations as drawn)."""
-  for i in range(P.features.shape[0]):
-    P.features[i] = obs[i]
+  a greedy run follows the learned terminations as drawn), s' the features its node's
+  view gives (the observation's first numbers, or the ship in its gate's frame)."""
+  if P.at < 0:
+    for i in range(P.features.shape[0]):
+      P.features[i] = obs[i]
+  else:
+    gx, gy, s, c = gate_frame.gate_pose(P.at, P.relative, obs)
+    gate_frame.framed_ship(obs, gx, gy, s, c, P.features)
   tiles_mod.active_tiles(P.features, P.tiling, P.tiles)
   return rng_mod.uniform(rng) < _beta(P, P.option, P.tiles)
 
@@ -316,8 +329,15 @@ class LearnedTerminationCMACKind(base.TerminationKind):
   def check(self, name, block, arguments):
     _check_option(name, block)
 
-  def settings(self, name, block):
-    return _settings(block.oc, block.option)
+  def settings(self, name, block, node):
+    # It tiles the features its node's view gives, which the option's learner tiles
+    # too: the observation's first numbers (StateTiles) or the framed ship (GateTiles).
+    view = node.view
+    if not isinstance(view, (blocks.StateTiles, blocks.GateTiles)):
+      raise GraphError(f"subtask {name!r}: a LearnedTerminationCMAC tiles its node's view's "
+                       f"features, which must be a StateTiles or a GateTiles; got "
+                       f"{type(view).__name__}")
+    return _settings(block.oc, block.option, getattr(view, "frame", None))
 
 
 KINDS = (OverOptionsCMACKind(), IntraOptionCMACKind(), LearnedTerminationCMACKind())
