@@ -66,7 +66,7 @@ def test_an_experiment_runs_each_task_at_each_level_and_the_ladder_report_reads_
   rows = (report.parent / "ladder.csv").read_text().splitlines()
   assert rows[0] == "task,level,learner,score,mean,low,high,runs" and len(rows) == 2  # easy
   mean = float(rows[1].split(",")[4])
-  assert np.isclose(mean, easy["J_normalized"], atol=1e-4)   # (written to 4 places)
+  assert np.isclose(mean, easy["gate_pass_rate_normalized"], atol=1e-4)   # (written to 4 places)
   lines = (report.parent / "runs.jsonl").read_text().splitlines()
   assert {json.loads(line)["task"] for line in lines} == {"ship_current_hybrid_easy"}
 
