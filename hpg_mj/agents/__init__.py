@@ -22,7 +22,8 @@ Shipped: ship_hybrid, ship_beyond (past the paper's route, SPEC section 8),
 ship_flat_pg, ship_actor_critic, ship_patrol (continuing, SPEC section 8), the hybrid,
 flat PGRL and the option-critic on the task ladder (ship_ladder_hybrid,
 ship_ladder_flat_pg, ship_ladder_option_critic: SPEC section 11, the task and level
-named by the task file), taxi_hpg, taxi_maxq, taxi_flat_q, the learned hierarchies
+named by the task file) and the regatta's waypoints (ship_ladder_waypoints, a
+parameterized subtask), taxi_hpg, taxi_maxq, taxi_flat_q, the learned hierarchies
 ship_option_critic and taxi_option_critic (each one module here); PPO and DQN in JAX
 (jax_ppo, jax_dqn, with `hpg_mj[jax]`; PPO on the task ladder too, jax_ppo_ladder); and
 Stable-Baselines3's PPO and SAC on the ship, PPO and DQN on the taxi
@@ -73,6 +74,7 @@ _SHIPPED = {
     "ship_ladder_flat_pg": "hpg_mj.agents.ship_ladder_flat_pg:ShipLadderFlatPG",
     "ship_ladder_option_critic":
         "hpg_mj.agents.ship_ladder_option_critic:ShipLadderOptionCritic",
+    "ship_ladder_waypoints": "hpg_mj.agents.ship_ladder_waypoints:ShipLadderWaypoints",
     "taxi_hpg": "hpg_mj.agents.taxi_hpg:TaxiHPG",
     "taxi_maxq": "hpg_mj.agents.taxi_maxq:TaxiMAXQ",
     "taxi_flat_q": "hpg_mj.agents.taxi_flat_q:TaxiFlatQ",

@@ -68,6 +68,10 @@ Views (what a node's learner sees of the world's state):
 The children a ship node may choose (its `available`): `NearGateLine(within_m)`,
 all within `within_m` of the gate line, else only the first (a TiledQTable's).
 
+A `Child`'s arguments fixed in a gate's frame when its parent calls: `GatePoint(frame,
+lateral_m, along_m)` binds (px, py), a point across or along the gate the observation
+holds (`GateFrame`), which one shared subtask of (px, py) steers to.
+
 The taxi hierarchy's rules (`hierarchy.taxi_subtasks`), for a program built with the
 taxi's world: `TaxiChildren(subtask)` (a node's `available`), `TaxiEnd(subtask)`
 (its termination), `TaxiTarget(subtask)` (a `Child`'s `bind`: Navigate's target).
@@ -276,6 +280,17 @@ class GateLocalGoal:
   """LocalGoal in the gate's frame of the observation where the call began."""
   frame: GateFrame
   max_steps: int = 300
+
+
+@dataclasses.dataclass(frozen=True)
+class GatePoint:
+  """A `Child`'s binding: a point of the field, (px, py), fixed in the frame of the gate
+  the observation holds when the parent calls (`GateFrame`), `lateral_m` across it (to
+  the gate's starboard, negative to port) and `along_m` along its heading (negative:
+  before it); `kinds.gate_point`. Each style of approach one point, one subtask."""
+  frame: GateFrame
+  lateral_m: float = 0.0
+  along_m: float = 0.0
 
 
 @dataclasses.dataclass(frozen=True)

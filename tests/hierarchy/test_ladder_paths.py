@@ -13,6 +13,7 @@ import hpg_mj  # noqa: F401
 from hpg_mj.agents import ship_ladder_flat_pg
 from hpg_mj.agents import ship_ladder_hybrid
 from hpg_mj.agents import ship_ladder_option_critic
+from hpg_mj.agents import ship_ladder_waypoints
 from hpg_mj.agents.base import GREEDY_SEED
 from hpg_mj.hierarchy import ladder
 from hpg_mj.learners import rng
@@ -36,7 +37,8 @@ CASES = [(ship_ladder_hybrid.ShipLadderHybrid, "ship_current", "hard", 30),
          (ship_ladder_flat_pg.ShipLadderFlatPG, "ship_current", "medium", 20),
          (ship_ladder_flat_pg.ShipLadderFlatPG, "ship_goal", "hard", 20),
          (ship_ladder_option_critic.ShipLadderOptionCritic, "ship_current", "medium", 10),
-         (ship_ladder_option_critic.ShipLadderOptionCritic, "ship_goal", "hard", 10)]
+         (ship_ladder_option_critic.ShipLadderOptionCritic, "ship_goal", "hard", 10),
+         (ship_ladder_waypoints.ShipLadderWaypoints, "ship_regatta", "hard", 30)]
 
 
 @pytest.mark.parametrize("cls,task,level,episodes", CASES,

@@ -48,14 +48,15 @@ def kind_of(block, role, node):
 
 
 def _register_shipped():
-  from hpg_mj.hierarchy.kinds import (actor_critic, epsilon, gate_frame, gate_route,
-                                      gaussian_cmac, gibbs_table, grid_cell, local_frame,
-                                      option_critic, option_critic_cmac, patrol, q_table,
-                                      rules, state_tiles, taxi, tiled_q)
+  from hpg_mj.hierarchy.kinds import (actor_critic, epsilon, gate_frame, gate_point,
+                                      gate_route, gaussian_cmac, gibbs_table, grid_cell,
+                                      local_frame, option_critic, option_critic_cmac, patrol,
+                                      q_table, rules, state_tiles, taxi, tiled_q)
   for kind in (q_table.QTableKind(), gaussian_cmac.GaussianCMACKind(),
                actor_critic.ActorCriticKind(), gibbs_table.GibbsTableKind(),
-               tiled_q.TiledQTableKind(), *gate_frame.KINDS, *gate_route.KINDS, *patrol.KINDS,
-               *option_critic.KINDS, *option_critic_cmac.KINDS, *rules.KINDS,
+               tiled_q.TiledQTableKind(), *gate_frame.KINDS, *gate_point.KINDS,
+               *gate_route.KINDS, *patrol.KINDS, *option_critic.KINDS,
+               *option_critic_cmac.KINDS, *rules.KINDS,
                grid_cell.GridCellKind(), local_frame.LocalTilesKind(), local_frame.LocalGoalKind(),
                local_frame.ShapingKind(), state_tiles.StateTilesKind(), *taxi.KINDS,
                epsilon.HeldEpsilonKind(), epsilon.LinearEpsilonKind()):

@@ -1,0 +1,197 @@
+"""Waypoints on the regatta (SPEC section 11): a designed hierarchy of one parameterized
+subtask, the open machine's arguments bound at call time (`hierarchy.kinds.base`: a
+`Child`'s binding), beside the paper's Figure 3 carried to the ladder
+(`ship_ladder_hybrid`). It comes from a newcomer's hierarchy built on the public API
+alone, which finished most courses at medium and hard where the hybrid passed almost no
+gate; it is not the paper's design.
+
+  root                 Q(lambda) on a table (`blocks.QTable`, the hybrid root's learner,
+                       its held epsilon watching the approach's runs) over 96 states of
+                       the next gate as the ship sees it (`root_state`: 8 sectors of its
+                       bearing x 3 bands of its distance x 4 quadrants of its heading
+                       relative to the ship's), choosing among four styles of approach,
+                       each a call of the one shared subtask
+  approach(px, py)     steers to the point (px, py) its call binds
+                       (`blocks.GatePoint`, in the next gate's frame when the root
+                       calls): the gate's centre, a point `lateral_m` to either side
+                       across it, a line-up point `lineup_m` before it. A Gaussian-with-
+                       sigmoid CMAC policy (Eq. 3) over (heading error to the point,
+                       turning rate) (`aim`); the call succeeds when a gate is passed or
+                       the ship is within 20 m of the point, fails after 150 control
+                       steps (`reached`); its pseudo-reward +20 / -20, and -200 for
+                       leaving the field (`pseudo`: that ends the episode, and so the
+                       call, before its 150 steps, which would otherwise pay)
+
+Its rules read the regatta's observation (`envs.ship_regatta`: the next gate at 4-6 as
+[ahead, starboard, heading less the ship's], the gates left at 10), so its [environment]
+names the regatta only: the goal's single gate would need the rules written again over
+its absolute desired goal for a task the hybrid already passes.
+"""
+import dataclasses
+import math
+
+import numba
+
+from hpg_mj import taskfile
+from hpg_mj.agents import _ladder
+from hpg_mj.agents import hierarchy
+from hpg_mj.agents import ship_hybrid
+from hpg_mj.hierarchy import blocks
+from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
+from hpg_mj.hierarchy.kinds.rules import Abstraction, Features, InternalReward, Termination
+from hpg_mj.learners import tiles
+from hpg_mj.taskfile import param
+from hpg_mj.worlds import ship_core as core
+
+N_ROOT_STATES = 8 * 3 * 4        # bearing sectors x distance bands x heading quadrants
+NEAR_M, FAR_M = 60.0, 200.0      # the root's distance bands' bounds
+RADIUS_M = 20.0                  # the approach succeeds within this of its point
+APPROACH_STEPS = 150             # control steps, then the approach has failed
+SUCCESS_G, LEFT_G = 20.0, -200.0  # the approach's pseudo-reward: +-20, and leaving the field
+_JIT = dict(cache=True, error_model="numpy")
+
+
+# ---- the rules -----------------------------------------------------------------------
+
+@numba.njit(**_JIT)
+def root_state(obs, call):
+  """The root's state: 8 sectors of the next gate's bearing from the bow x 3 bands of its
+  distance (60 m, 200 m) x 4 quadrants of its heading relative to the ship's."""
+  bearing = math.degrees(math.atan2(obs[5], obs[4]))           # -180..180, 0 dead ahead
+  sector = min(int((bearing + 180.0) // 45.0), 7)
+  d = math.hypot(obs[4], obs[5])
+  band = 0 if d < NEAR_M else (1 if d < FAR_M else 2)
+  quadrant = min(int(((obs[6] + 180.0) % 360.0) // 90.0), 3)
+  return (sector * 3 + band) * 4 + quadrant
+
+
+@numba.njit(**_JIT)
+def aim(obs, call):
+  """The approach's view: the heading error to (call.px, call.py) in degrees (wrapped),
+  and the turning rate."""
+  bearing = math.degrees(math.atan2(call.px - obs[0], call.py - obs[1]))
+  return ((obs[2] - bearing + 180.0) % 360.0 - 180.0, obs[3])
+
+
+@numba.njit(**_JIT)
+def reached(obs, call):
+  """The approach's end: 1 when a gate was passed during the call (fewer gates left than
+  where it began) or the ship is within 20 m of its point; -1 after 150 control steps."""
+  if obs[10] < call.origin[10]:
+    return 1
+  if math.hypot(call.px - obs[0], call.py - obs[1]) < RADIUS_M:
+    return 1
+  return -1 if call.steps >= APPROACH_STEPS else 0
+
+
+@numba.njit(**_JIT)
+def pseudo(obs, call, event):
+  """The approach's G: +20 on success, -20 on failure, -200 off the field (which ends the
+  episode, and so the call, before its 150 steps: without it, leaving pays)."""
+  if not (0.0 <= obs[0] <= core.FIELD_SIZE and 0.0 <= obs[1] <= core.FIELD_SIZE):
+    return LEFT_G
+  return SUCCESS_G * event
+
+
+# ---- the task file ---------------------------------------------------------------------
+
+@dataclasses.dataclass(frozen=True)
+class RegattaEnvironment(_ladder.LadderEnvironment):
+  """[environment]: the ladder's (`agents._ladder`), on the regatta, whose observation
+  the rules read."""
+  world: str = param("ship_regatta", "the ladder's task: the regatta, whose observation "
+                     "the rules read", choices=("ship_regatta",))
+
+
+@dataclasses.dataclass(frozen=True)
+class Root(ship_hybrid.Root):
+  """[root]: the hybrid's root (Watkins's Q(lambda) over the SMDP of calls, its held
+  epsilon), and where the styles of approach put their points."""
+  lateral_m: float = param(30.0, "the points to either side across the gate, m", low=0)
+  lineup_m: float = param(80.0, "the line-up point before the gate, m", low=0)
+
+
+@dataclasses.dataclass(frozen=True)
+class Approach(taskfile.Section):
+  """[approach]: the shared approach(px, py), learned by Eq. 3 over its CMAC."""
+  alpha: float = param(0.005, "Eq. 3 step size", low=0, high=1, low_open=True)
+  trace_gamma: float = param(0.99, "discount on the Eq. 3 trace", low=0, high=1,
+                             low_open=True)
+  baseline: float = param(0.3, "TD(0) step size of a baseline b(s) over the policy's tiles "
+                          "(0: none)", low=0, high=1)
+  tilings: int = param(9, "CMAC tilings", low=1)
+  tiles: tuple = param((12, 6), "tiles per tiling over the heading error, turning rate",
+                       length=2, low=1)
+
+
+@dataclasses.dataclass(frozen=True)
+class Config:
+  """The task file's schema: [environment] (the regatta and its level), [root] and
+  [approach]."""
+  environment: RegattaEnvironment = dataclasses.field(default_factory=RegattaEnvironment)
+  root: Root = dataclasses.field(default_factory=Root)
+  approach: Approach = dataclasses.field(default_factory=Approach)
+
+
+def coder(approach):
+  """The approach's CMAC over (heading error, turning rate), [approach]'s tiles."""
+  return tiles.TileCoder((-180.0, -core.MAX_TURN_RATE), (180.0, core.MAX_TURN_RATE),
+                         tuple(approach.tiles), (True, False), approach.tilings)
+
+
+# ---- the agent --------------------------------------------------------------------------
+
+class ShipLadderWaypoints(hierarchy.ShipLadderHierarchy):
+  """The root over styles of approach and the shared approach(px, py) (the module
+  docstring), run by the open machine fused with the regatta's world and step by step
+  through its environments; its state by node name (`root.q`, `approach.theta`, ...,
+  `schedule.state`)."""
+
+  name = "ship_ladder_waypoints"
+  Config = Config
+  record_fields = ("passed", "steps", "gates", "calls", "approach_runs",
+                   "approach_successes", "return")
+
+  def __init__(self, config=None, seed=0, task=None):
+    world = (config or self.Config()).environment.world
+    if world != "ship_regatta":     # (a task file's choices refuse it as it loads)
+      raise ValueError(f"{self.name}: [environment] world = {world!r}: its rules read the "
+                       "regatta's observation; allowed: ['ship_regatta']")
+    super().__init__(config, seed, task)
+    root, approach = self.config.root, self.config.approach
+    self.coder = coder(approach)
+    self.root = blocks.QTable(N_ROOT_STATES, alpha=root.alpha, trace_decay=root.trace_decay,
+                              epsilon=root.epsilon, epsilon_schedule=True)
+    self.approach = blocks.GaussianCMAC(self.coder, approach.alpha, approach.trace_gamma,
+                                        approach.baseline, core.MAX_TURN_RATE)
+
+  def styles(self):
+    """The root's children's points (`blocks.GatePoint` in the next gate's frame): the
+    gate's centre, `lateral_m` to port and to starboard across it, `lineup_m` before it."""
+    frame, r = _ladder.GATE_FRAMES["ship_regatta"], self.config.root
+    return [blocks.GatePoint(frame), blocks.GatePoint(frame, lateral_m=-r.lateral_m),
+            blocks.GatePoint(frame, lateral_m=r.lateral_m),
+            blocks.GatePoint(frame, along_m=-r.lineup_m)]
+
+  def graph(self):
+    """root -> approach(px, py) x 4 styles -> the turning rate (the module docstring)."""
+    r = self.config.root
+    return TaskGraph("root", [
+        Subtask("root", children=[Child("approach", bind=point) for point in self.styles()],
+                learner=self.root, view=Abstraction(root_state), termination=blocks.Never()),
+        Subtask("approach", children=["turn"], learner=self.approach, view=Features(aim),
+                termination=Termination(reached), internal_reward=InternalReward(pseudo),
+                reward=blocks.STEP),            # only the -1s
+        Primitive("turn"),                      # the turning rate r, drawn by the approach
+    ], schedule=blocks.HeldEpsilon(r.epsilon, ("approach",), r.epsilon_threshold,
+                                   r.epsilon_window, r.epsilon_every, r.epsilon_divisor))
+
+  def metrics(self, record):
+    """The regatta's benchmark metrics (`ShipLadderHierarchy`), with the approach's calls
+    per episode and its success rate over the last `metric_window` episodes."""
+    w = record[-self.metric_window:]
+    runs = w["approach_runs"].sum()
+    return {**super().metrics(record),
+            "calls_per_episode": float(w["calls"].mean()) if len(w) else None,
+            "approach_success_rate": float(w["approach_successes"].sum() / runs)
+                                     if runs else None}

@@ -1,0 +1,64 @@
+"""The GatePoint binding (SPEC section 11): a point of the field fixed in the frame of a
+gate the observation holds (`blocks.GateFrame`: the regatta's next gate, the goal's
+desired goal), bound as a call's float arguments (px, py) when the parent calls. One
+shared subtask of (px, py) then serves every point a parent may name: the gate's
+centre, a point across it, a line-up point before it
+(`Child("approach", bind=GatePoint(frame, lateral_m=30.0))`), each a style of
+approach the parent chooses among (`agents.ship_ladder_waypoints`).
+
+The gate's pose is the gate views' (`gate_frame.gate_pose`); a gate at (gx, gy) heading
+phi (sine s, cosine c) puts the point
+
+    px = gx + lateral_m c + along_m s        (lateral_m to the gate's starboard)
+    py = gy - lateral_m s + along_m c        (along_m along its heading)
+
+in the field's own coordinates, fixed for the call: the next gate moves on when the
+ship passes one, the point does not.
+"""
+import collections
+import math
+
+import numba
+
+from hpg_mj.hierarchy import blocks
+from hpg_mj.hierarchy.graph import GraphError
+from hpg_mj.hierarchy.kinds import base
+from hpg_mj.hierarchy.kinds import gate_frame
+
+Settings = collections.namedtuple("Settings", ("at", "relative", "lateral", "along"))
+Settings.__doc__ = """A GatePoint's settings: where the gate is in the observation and
+whether relative (its `GateFrame`), and the point's offsets across and along it (m)."""
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
+def bind(P, obs, call):
+  """GatePoint's binding: (px, py), the point `P.lateral` m across and `P.along` m along
+  the gate `obs` holds, in the field's coordinates."""
+  gx, gy, s, c = gate_frame.gate_pose(P.at, P.relative, obs)
+  return (gx + P.lateral * c + P.along * s, gy - P.lateral * s + P.along * c)
+
+
+def _metres(name, block, field):
+  value = getattr(block, field)
+  if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+    raise GraphError(f"subtask {name!r}: {type(block).__name__}.{field} = {value!r}: must be "
+                     "a finite number of metres")
+  return float(value)
+
+
+class GatePointKind(base.BindingKind):
+  """Runs a `GatePoint`: the called subtask's float arguments px and py."""
+  block = blocks.GatePoint
+  bind = staticmethod(bind)
+
+  def names(self, block):
+    return {"px": False, "py": False}
+
+  def settings(self, name, block):
+    at, relative = gate_frame._frame(name, block)
+    return Settings(at, relative, _metres(name, block, "lateral_m"),
+                    _metres(name, block, "along_m"))
+
+
+KINDS = (GatePointKind(),)

@@ -1,0 +1,66 @@
+"""The GatePoint binding (`hierarchy.kinds.gate_point`): a point bound in a gate's frame
+lies where the gate views' frame (`kinds.gate_frame`) puts it, on the regatta's relative
+gate and the goal's absolute one; a bad one is refused in one line naming the subtask,
+the field and what is allowed."""
+import math
+
+import numba
+import numpy as np
+import pytest
+
+from hpg_mj.hierarchy import blocks
+from hpg_mj.hierarchy import kinds
+from hpg_mj.hierarchy.graph import GraphError
+from hpg_mj.hierarchy.kinds import gate_frame
+from hpg_mj.hierarchy.kinds import gate_point
+
+REGATTA = blocks.GateFrame(at=4, relative=True)
+GOAL = blocks.GateFrame(at=8)
+
+
+@numba.njit
+def _bound(P, obs):
+  return gate_point.bind(P, obs, 0)
+
+
+def _settings(block, name="root"):
+  return kinds.kind_of(block, "binding", name).settings(name, block)
+
+
+@pytest.mark.parametrize("lateral,along", [(0.0, 0.0), (30.0, 0.0), (-30.0, 0.0),
+                                           (0.0, -80.0), (12.5, 40.0)])
+def test_a_gate_point_lies_where_its_gate_frame_puts_it(lateral, along):
+  """Mapped into its gate's frame (`gate_frame.to_frame`, the gate views'), the bound
+  point is `lateral` m to the gate's starboard and `along` m along its heading."""
+  gate = (612.0, 233.0, -131.0)                  # x, y, heading_deg
+  ship = np.array([480.0, 310.0, 37.0, -4.0])
+  # The regatta's observation: the gate as the ship sees it (ahead, starboard, heading).
+  th = math.radians(ship[2])
+  dx, dy = gate[0] - ship[0], gate[1] - ship[1]
+  regatta = np.concatenate([ship, [dx * math.sin(th) + dy * math.cos(th),
+                                   dx * math.cos(th) - dy * math.sin(th), gate[2] - ship[2]],
+                            np.zeros(4)])
+  # The goal's: the gate's [x, y, sin, cos] at 8.
+  phi = math.radians(gate[2])
+  goal = np.concatenate([ship, np.zeros(4), [gate[0], gate[1], math.sin(phi), math.cos(phi)]])
+  for frame, obs in ((REGATTA, regatta), (GOAL, goal)):
+    px, py = _bound(_settings(blocks.GatePoint(frame, lateral, along)), obs)
+    pose = gate_frame.gate_pose(frame.at, frame.relative, obs)
+    x, y = gate_frame.to_frame(px, py, *pose)
+    assert x == pytest.approx(gate_frame.CENTRE_X + lateral, abs=1e-9)
+    assert y == pytest.approx(gate_frame.CENTRE_Y + along, abs=1e-9)
+
+
+@pytest.mark.parametrize("block,message", [
+    (blocks.GatePoint((4, True)), r"subtask 'root': GatePoint.frame = \(4, True\): must be "
+                                  r"a GateFrame\(at, relative\)"),
+    (blocks.GatePoint(blocks.GateFrame(at=2)), r"GateFrame.at = 2: must be an integer >= 4"),
+    (blocks.GatePoint(REGATTA, lateral_m=float("nan")),
+     r"subtask 'root': GatePoint.lateral_m = nan: must be a finite number of metres"),
+    (blocks.GatePoint(REGATTA, along_m="80"),
+     r"subtask 'root': GatePoint.along_m = '80': must be a finite number of metres"),
+])
+def test_a_bad_gate_point_is_refused_in_one_line(block, message):
+  with pytest.raises(GraphError, match=message) as err:
+    _settings(block)
+  assert "\n" not in str(err.value)
