@@ -277,8 +277,13 @@ class Program:
   def _settle(self, s):
     if s.learner.continuous and s.view.reflects:          # the action's sign, at x[size]
       return f"M.action[{s.index}] = v{s.index} * M.x[{s.index}, {s.size}]"
-    return (f"M.action[{s.index}] = v{s.index}" if s.learner.continuous else
-            f"M.choice[{s.index}] = np.int64(v{s.index})")
+    if s.learner.continuous:
+      return f"M.action[{s.index}] = v{s.index}"
+    if not hasattr(s, "_choice_what"):
+      s._choice_what = self._what(s.name, f"learner {type(s.node.learner).__name__}",
+                                  f"a child's index in [0, {s.n_children})")
+    return (f"M.choice[{s.index}] = boundary.as_choice(v{s.index}, np.int64({s.n_children}), "
+            f"M.fault, np.int64({s._choice_what}))")
 
   def _offer_lines(self, s):
     """Lines that write the children `s` may choose now into its mask (its `available`)."""
@@ -365,7 +370,14 @@ class Program:
         kind, names = arguments.binding(s.name, ref)
         fn, settings = self._op(kind, ref.bind, f"B{s.index}_{k}_", s)
         args = ", ".join(([settings] if settings else []) + ["M.obs", self._call_text(s)])
-        lines.append(f"  bound = {fn}({args})")
+        like = "".join("0, " if is_int else "0.0, " for is_int in names.values())
+        whole = [a for a, is_int in names.items() if is_int]
+        what = self._what(s.name, f"child {k} ({ref.node!r}) bound by {type(ref.bind).__name__}",
+                          f"a tuple of {len(names)} finite number{'s' if len(names) != 1 else ''}"
+                          f", one for each of its names {list(names)}" +
+                          (f" ({', '.join(whole)} whole)" if whole else ""))
+        lines.append(f"  bound = boundary.as_bound({fn}({args}), ({like.rstrip(' ')}), M.fault, "
+                     f"np.int64({what}))")
         names = list(names)
       lines += [f"  M.args[{c}, {j}] = {float(ref.args[arg])!r}" if arg in ref.args else
                 f"  M.args[{c}, {j}] = bound[{names.index(arg)}]"
