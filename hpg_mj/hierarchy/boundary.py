@@ -11,8 +11,14 @@ the program's Python side (`hierarchy.program`) turns that into one line naming 
 node, the value and what was expected. The checks are chosen by the value's type
 when compiled (`numba.extending.overload`), so a float where a state is due is a
 refusal, not a truncation.
+
+A rule that reads an argument its calls do not bind fails numba's typing of the
+graph's module instead, at its first call: `typing_line` finds the subtask and the
+rule in numba's message, for the same one line.
 """
 import math
+import os
+import re
 
 import numba
 import numpy as np
@@ -265,3 +271,42 @@ def explain(fault, whats):
     said = "gave a value that is not numbers"
   return f"subtask {node!r}: its {what} {said}; expected {allowed}"
 
+
+_UNKNOWN = re.compile(r"Unknown attribute '(\w+)' of type (Call(?:_\w+)?)\(")
+
+
+def typing_line(message, module_path, roles, names, arguments):
+  """The one line for numba's typing error `message` from the graph's module at
+  `module_path` where a rule reads an argument its calls do not bind ("Unknown
+  attribute 'x' of type Call_2px_2py(...)"); None for any other. The subtask is the
+  one whose branch of the module's operation holds the line numba names (else those
+  whose calls are of that type); `roles` {a function's global name: its role, e.g.
+  "view Features(aim)"}, `names` the nodes by index, `arguments` {node: its
+  arguments}."""
+  from hpg_mj.hierarchy import calls
+  found = _UNKNOWN.search(message)
+  if found is None:
+    return None
+  attr, record = found.groups()
+  bound = list(calls._arguments(record)) if record != "Call" else []
+  node, role = None, None
+  at = re.search(re.escape(os.path.basename(module_path)) + r" \((\d+)\)", message)
+  if at is not None:
+    with open(module_path) as f:
+      lines = f.read().split("\n")
+    number = int(at.group(1)) - 1
+    used = re.findall(r"\b(_f\d+)\(", lines[number]) if number < len(lines) else []
+    role = next((roles[g] for g in used if g in roles), None)
+    for line in reversed(lines[:number]):
+      branch = re.match(r"^  (?:if|elif) node == (\d+):$", line)
+      if branch is not None:
+        node = names[int(branch.group(1))]
+        break
+      if line.startswith("def "):
+        break
+  if node is None:
+    nodes = [n for n, args in arguments.items() if list(args) == bound]
+    node = nodes[0] if len(nodes) == 1 else None
+  who = f"subtask {node!r}" if node is not None else f"a subtask whose calls bind {bound}"
+  return (f"{who}: its {role or 'rule'} reads call.{attr}; its calls bind {bound} (and "
+          "call.origin, call.steps)")

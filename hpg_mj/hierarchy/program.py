@@ -38,6 +38,8 @@ from hpg_mj.learners import banks
 from hpg_mj.worlds import ship_core as core
 
 _F64 = np.dtype(np.float64)
+_ROLES = {"view": "view", "termination": "termination", "reward": "internal reward",
+          "available": "available", "binding": "binding"}
 _VECTOR, _ROWS_OF_XY = (8,), (16, 8)          # the strides of a float64 vector, of rows of (x, y)
 
 
@@ -73,6 +75,7 @@ class Program:
     self.index = {name: i for i, name in enumerate(self.names)}
     self._functions = {}            # id -> (global name, function)
     self._whats = []                # fault record's `what` -> (node, what, allowed)
+    self._roles = {}                # a rule's global name -> its role ("view Features(aim)")
     self._learners = {}             # id(block) -> slot
     self._learner_blocks = []       # (block, kind, first node)
     self._records = []              # (field of G, value)
@@ -222,6 +225,7 @@ class Program:
   def _op(self, kind, block, field, s):
     """(the function's global name, its settings' text or None) of a view, end or reward."""
     fn = self._function(kind.operation(block))
+    self._roles.setdefault(fn, f"{_ROLES[kind.role]} {rules_mod.rule_name(block)}")
     if not kind.takes_settings:
       return fn, None
     return fn, self._record(f"{field}{s.index}", self._settings(kind, s.name, block))
@@ -497,6 +501,12 @@ class Program:
       return fn(self.G, *args)
     except ValueError as e:
       self._explain(e)
+    except numba.core.errors.TypingError as e:     # (the first call compiles the module)
+      line = boundary.typing_line(str(e), self.module_path, self._roles, self.names,
+                                  self._arguments)
+      if line is None:
+        raise
+      raise GraphError(line) from None
 
   def _explain(self, error):
     """Raises a boundary fault (`hierarchy.boundary`) as its one line; else `error`."""

@@ -508,6 +508,34 @@ def test_what_a_binding_gives_is_checked_where_it_is_bound(bind, said):
   assert _counter(fine, rows, "goto", 0).sum() > 0            # whole floats bind an integer
 
 
+@numba.njit
+def _reads_z(obs, call):
+  return (call.z - obs[0], obs[3])
+
+
+@numba.njit
+def _reads_array_field(obs, call):
+  return (obs.nothing, obs[3])
+
+
+def test_a_rule_reading_an_argument_nobody_binds_is_one_line_naming_the_subtask():
+  """numba's typing error (40 lines into the graph's module) read for the subtask, its
+  rule and the names its calls bind; any other typing error is numba's, as it was."""
+  line = ("subtask 'goto': its view Features(_reads_z) reads call.z; its calls bind ['limit', "
+          "'x', 'y'] (and call.origin, call.steps)")
+  program = Program(_bound_graph(Point(500.0), view=Features(_reads_z)))
+  with pytest.raises(GraphError) as e:
+    program.run(1, True, True, rng.make_state(0), WORLD)
+  assert str(e.value) == line
+  a = rng.make_state(0)
+  with pytest.raises(GraphError) as e:
+    program.run_stepwise(_gym(), 1, True, True, a, _start(a), lambda last: 0.0)
+  assert str(e.value) == line
+  program = Program(one_node_graph(view=Features(_reads_array_field)), root_args=GOTO)
+  with pytest.raises(numba.core.errors.TypingError, match="Unknown attribute 'nothing'"):
+    program.run(1, True, True, rng.make_state(0), WORLD)
+
+
 def _plain(obs, call):
   return 0
 
