@@ -216,7 +216,8 @@ def _cmd_train(args):
   episodes = task.protocol.episodes if args.episodes is None else args.episodes
   out = pathlib.Path(args.out) if args.out else pathlib.Path("runs") / f"{task.path.stem}-seed{seed}"
   storage.check_out(out, args.force)      # refused before training, not after
-  bar, update, compiling = _progress_bar(episodes, args.quiet or args.json, task.path.stem)
+  # Named as the task names itself, as given: its [task] label, else its file's name.
+  bar, update, compiling = _progress_bar(episodes, args.quiet or args.json, task.name)
   compile_seconds = []
   try:
     with compiling, _compile_timer(compile_seconds.append):
