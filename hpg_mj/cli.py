@@ -81,7 +81,12 @@ def _cmd_bench(args):
       from hpg_mj import agents
       tasks = args.task or list(agents.shipped_tasks().values())
       import json
-      print(json.dumps([bench.bench_task(t, seconds) for t in tasks], indent=2))
+      rows = [bench.bench_task(t, seconds) for t in tasks]
+      for row in rows[1:] if args.task else ():    # as the plain table's last lines
+        row["first_over_this"] = (rows[0]["steps_per_second"] / row["steps_per_second"]
+                                  if row["steps_per_second"] else None)
+        row["first"] = rows[0]["task"]
+      print(json.dumps(rows, indent=2))
     else:
       rows = bench.bench_train(min_seconds=seconds, tasks=args.task, rounds=args.rounds)
       print(bench.format_rows(rows))
@@ -211,7 +216,8 @@ def _cmd_train(args):
   episodes = task.protocol.episodes if args.episodes is None else args.episodes
   out = pathlib.Path(args.out) if args.out else pathlib.Path("runs") / f"{task.path.stem}-seed{seed}"
   storage.check_out(out, args.force)      # refused before training, not after
-  bar, update, compiling = _progress_bar(episodes, args.quiet or args.json, task.path.stem)
+  # Named as the task names itself, as given: its [task] label, else its file's name.
+  bar, update, compiling = _progress_bar(episodes, args.quiet or args.json, task.name)
   compile_seconds = []
   try:
     with compiling, _compile_timer(compile_seconds.append):
@@ -575,7 +581,8 @@ def build_parser():
                       "instead of every shipped one")
   p.add_argument("--json", action="store_true",
                  help="train: one JSON object per task file, compile seconds apart from "
-                      "training seconds")
+                      "training seconds (with --task, each after the first has "
+                      "first_over_this: the first's speed over its own)")
   p.add_argument("--rounds", type=_at_least(1), default=1,
                  help="train with --task: interleaved rounds over the task files (the "
                       "median of each, and the first's speed over each other's)")

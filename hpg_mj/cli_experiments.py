@@ -89,12 +89,14 @@ def _cmd_run(args):
     bar.close()
   # Two commands on one folder: one at a time draws the figures and the report.
   with locks.hold(root, wait=not args.no_wait, what="experiment folder"):
-    return _draw_and_report(args, experiment, results, root, wall, len(done))
+    return _draw_and_report(args, experiment, results, root, wall, done)
 
 
-def _draw_and_report(args, experiment, results, root, wall, new_runs):
+def _draw_and_report(args, experiment, results, root, wall, done):
+  """The experiment's figures and REPORT.md from its runs' results; `done` the runs
+  this command trained (from the start, or resumed from a checkpoint)."""
   from hpg_mj import agents
-  from hpg_mj.experiments import figures, runner
+  from hpg_mj.experiments import figures, runner, runs
   seeds = runner.seeds(experiment, args.quick)
   records = {task: runner.load_records(root, task, seeds) for task in results}
   protocol = {"seeds": seeds, "quick": args.quick,
@@ -122,8 +124,12 @@ def _draw_and_report(args, experiment, results, root, wall, new_runs):
             f"{'passed' if s['passed'] else 'missed'} the gate in {s['steps']} control "
             f"steps, {s['calls']} calls ({' '.join(s['decisions'])})")
   figures.write_report(root, experiment, results, drawn, protocol)
-  print(f"{experiment['name']}: {sum(len(r) for r in results.values())} runs "
-        f"({new_runs} new, {wall:.1f} s); {', '.join(drawn)} and REPORT.md in {root}")
+  resumed = sum(runs.resumed(job[3]) for job in done)
+  trained = ", ".join([f"{len(done) - resumed} new"] * (len(done) > resumed or not done) +
+                      [f"{resumed} resumed"] * (resumed > 0))
+  n = sum(len(r) for r in results.values())
+  print(f"{experiment['name']}: {n} run{'s' if n != 1 else ''} ({trained}, {wall:.1f} s); "
+        f"{', '.join(drawn)} and REPORT.md in {root}")
   return 0
 
 

@@ -1,4 +1,5 @@
 """The installed package carries its MJCF assets; the CLI answers."""
+import json
 import pathlib
 
 import pytest
@@ -30,6 +31,21 @@ def test_cli_verify_ship(capsys):
   assert cli.main(["verify", "ship", "--controls", "200", "--starts", "1"]) == 0
   out = capsys.readouterr().out
   assert "MuJoCo ship" in out and "analytic ship" in out and "met" in out
+
+
+def test_cli_bench_train_json_gives_the_ratios_the_table_prints(capsys, monkeypatch):
+  """`bench train --task A --task B` prints "A / B: 2.0x" after its table; with --json
+  each task after the first carries the same ratio (the measuring itself stubbed)."""
+  from hpg_mj import bench
+  rates = {"a": 3000.0, "b": 1500.0, "c": 0.0}
+  monkeypatch.setattr(bench, "bench_task", lambda path, seconds: {
+      "task": path, "unit": "control steps/s", "steps_per_second": rates[path]})
+  assert cli.main(["bench", "train", "--task", "a", "--task", "b", "--task", "c",
+                   "--json"]) == 0
+  rows = json.loads(capsys.readouterr().out)
+  assert "first_over_this" not in rows[0]
+  assert rows[1]["first_over_this"] == 2.0 and rows[1]["first"] == "a"
+  assert rows[2]["first_over_this"] is None
 
 
 def test_cli_render_rejects_an_unknown_task(capsys, tmp_path):

@@ -95,6 +95,16 @@ def _log(run_dir, message, stderr=False):
     print(f"{run_dir}: {message}", file=sys.stderr)
 
 
+def resumed(run_dir):
+  """Whether the run's latest start (its events.log) resumed from a checkpoint."""
+  path = pathlib.Path(run_dir) / "events.log"
+  if not path.exists():
+    return False
+  starts = [line for line in path.read_text().splitlines()
+            if " started seed " in line or " resumed from checkpoint " in line]
+  return bool(starts) and " resumed from checkpoint " in starts[-1]
+
+
 def _checkpoints(run_dir):
   """The checkpoint folders, newest first."""
   folder = pathlib.Path(run_dir) / "checkpoints"

@@ -1,7 +1,7 @@
-"""The machine's boundary with a user's code: every value a rule gives (a view's
-state or features, a termination's event, an internal reward) passes one of these
-checks before it reaches an array, on both paths (fused and step by step: the same
-compiled code).
+"""The machine's boundary with a user's code: every value a rule or kind gives (a
+view's state or features, a termination's event, an internal reward, a learner's
+choice of a child, a binding's arguments) passes one of these checks before it
+reaches an array, on both paths (fused and step by step: the same compiled code).
 
 A value out of bounds or of the wrong type does not raise inside compiled code with
 its value (numba's exceptions carry constants only in code compiled without
@@ -11,8 +11,14 @@ the program's Python side (`hierarchy.program`) turns that into one line naming 
 node, the value and what was expected. The checks are chosen by the value's type
 when compiled (`numba.extending.overload`), so a float where a state is due is a
 refusal, not a truncation.
+
+A rule that reads an argument its calls do not bind fails numba's typing of the
+graph's module instead, at its first call: `typing_line` finds the subtask and the
+rule in numba's message, for the same one line.
 """
 import math
+import os
+import re
 
 import numba
 import numpy as np
@@ -20,7 +26,8 @@ from numba import types
 from numba.extending import overload
 
 # What failed (the fault record's [2]).
-OUT_OF_RANGE, NOT_AN_INTEGER, WRONG_LENGTH, NOT_FINITE, NOT_NUMBERS, NOT_AN_EVENT = range(1, 7)
+(OUT_OF_RANGE, NOT_AN_INTEGER, WRONG_LENGTH, NOT_FINITE, NOT_NUMBERS, NOT_AN_EVENT,
+ NOT_A_CHOICE) = range(1, 8)
 FAULT_MESSAGE = "hpg_mj: a rule's value was refused at the machine's boundary (see the fault)"
 # The type numba saw where a rule gave something that is not numbers, by check
 # (filled when the check is compiled; empty when it came from the cache).
@@ -96,19 +103,7 @@ def _as_features(value, out, fault, what):
         out[i] = v
     return many
   if isinstance(value, types.Tuple) and all(_number(t) for t in value.types):
-    n = len(value.types)
-
-    def mixed(value, out, fault, what):
-      if out.shape[0] != n:
-        fail(fault, what, np.nan, np.int64(WRONG_LENGTH), float(n))
-      k = 0
-      for v in numba.literal_unroll(value):
-        f = float(v)
-        if not math.isfinite(f):
-          fail(fault, what, f, np.int64(NOT_FINITE), float(n))
-        out[k] = f
-        k += 1
-    return mixed
+    return _unrolled(len(value.types) * (False,), into_out=True)
 
   def not_numbers(value, out, fault, what):
     fail(fault, what, np.nan, np.int64(NOT_NUMBERS), 0.0)
@@ -163,12 +158,109 @@ def _as_reward(value, fault, what):
   return not_numbers
 
 
+def as_choice(value, n, fault, what):
+  """`value`, a learner's choice, as a child's index: an integer-valued number in
+  [0, n) (a kind's `choose` and `observe` return floats)."""
+
+
+@overload(as_choice, inline="always")
+def _as_choice(value, n, fault, what):
+  if isinstance(value, (types.Integer, types.Boolean)):
+    def index(value, n, fault, what):
+      c = np.int64(value)
+      if c < 0 or c >= n:
+        fail(fault, what, float(value), np.int64(NOT_A_CHOICE), 0.0)
+      return c
+    return index
+  if isinstance(value, types.Float):
+    def whole(value, n, fault, what):
+      # (NaN fails the first test: it is converted to an integer only when in range)
+      if not (value >= 0.0 and value < n) or np.int64(value) != value:
+        fail(fault, what, float(value), np.int64(NOT_A_CHOICE), 0.0)
+      return np.int64(value)
+    return whole
+
+  def not_numbers(value, n, fault, what):
+    fail(fault, what, np.nan, np.int64(NOT_NUMBERS), 0.0)
+    return np.int64(0)
+  return not_numbers
+
+
+def as_bound(value, like, fault, what):
+  """`value`, what a binding kind's `bind` gave, as its arguments: a tuple (or, for
+  one argument, a number) of as many finite numbers as `like`, a tuple of zeros of
+  the arguments' types (an integer argument's value a whole number)."""
+
+
+def _unrolled(ints, into_out):
+  """The check of a tuple of numbers of `ints`' length, unrolled (a tuple of mixed
+  types is indexed by constants only; numba's `literal_unroll` is refused inside an
+  overload): each finite, those where `ints` is True whole; written into `out` (a
+  view's features) or the tuple returned as it is (a binding's arguments)."""
+  n = float(len(ints))
+  text = [f"def unrolled(value, {'out' if into_out else 'like'}, fault, what):"]
+  if into_out:
+    text += [f"  if out.shape[0] != {len(ints)}:",
+             f"    fail(fault, what, np.nan, np.int64(WRONG_LENGTH), {n!r})"]
+  for i, whole in enumerate(ints):
+    text += [f"  f{i} = float(value[{i}])", f"  if not math.isfinite(f{i}):",
+             f"    fail(fault, what, f{i}, np.int64(NOT_FINITE), {n!r})"]
+    if whole:
+      text += [f"  if f{i} != math.floor(f{i}):",
+               f"    fail(fault, what, f{i}, np.int64(NOT_AN_INTEGER), {n!r})"]
+    if into_out:
+      text.append(f"  out[{i}] = f{i}")
+  text.append("  return None" if into_out else "  return value")
+  scope = {"math": math, "np": np, "fail": fail, "NOT_FINITE": NOT_FINITE,
+           "NOT_AN_INTEGER": NOT_AN_INTEGER, "WRONG_LENGTH": WRONG_LENGTH}
+  exec("\n".join(text), scope)
+  return scope["unrolled"]
+
+
+@overload(as_bound, inline="always")
+def _as_bound(value, like, fault, what):
+  ints = tuple(isinstance(t, types.Integer) for t in like.types)
+  n = len(ints)
+  if _number(value):
+    if n != 1:
+      def short(value, like, fault, what):
+        fail(fault, what, np.nan, np.int64(WRONG_LENGTH), 1.0)
+        return like
+      return short
+
+    def one(value, like, fault, what):
+      f = float(value)
+      if not math.isfinite(f):
+        fail(fault, what, f, np.int64(NOT_FINITE), 1.0)
+      if ints[0] and f != math.floor(f):
+        fail(fault, what, f, np.int64(NOT_AN_INTEGER), 1.0)
+      return (value,)
+    return one
+  if isinstance(value, types.BaseTuple) and all(_number(t) for t in value.types):
+    if len(value.types) != n:
+      given = float(len(value.types))
+
+      def wrong(value, like, fault, what):
+        fail(fault, what, np.nan, np.int64(WRONG_LENGTH), given)
+        return like
+      return wrong
+
+    return _unrolled(ints, into_out=False)
+
+  def not_numbers(value, like, fault, what):
+    fail(fault, what, np.nan, np.int64(NOT_NUMBERS), 0.0)
+    return like
+  return not_numbers
+
+
 def explain(fault, whats):
   """The one line for a fault record; `whats[i]` = (node, what it is, what is allowed)."""
   node, what, allowed = whats[int(fault[0])]
   code, value, length = int(fault[2]), float(fault[1]), int(fault[3])
   if code == OUT_OF_RANGE or code == NOT_AN_EVENT:
     said = f"gave {value:g}"
+  elif code == NOT_A_CHOICE:
+    said = f"chose {value:g}"
   elif code == NOT_AN_INTEGER:
     said = f"gave {value!r} (a float)"
   elif code == WRONG_LENGTH:
@@ -178,3 +270,43 @@ def explain(fault, whats):
   else:
     said = "gave a value that is not numbers"
   return f"subtask {node!r}: its {what} {said}; expected {allowed}"
+
+
+_UNKNOWN = re.compile(r"Unknown attribute '(\w+)' of type (Call(?:_\w+)?)\(")
+
+
+def typing_line(message, module_path, roles, names, arguments):
+  """The one line for numba's typing error `message` from the graph's module at
+  `module_path` where a rule reads an argument its calls do not bind ("Unknown
+  attribute 'x' of type Call_2px_2py(...)"); None for any other. The subtask is the
+  one whose branch of the module's operation holds the line numba names (else those
+  whose calls are of that type); `roles` {a function's global name: its role, e.g.
+  "view Features(aim)"}, `names` the nodes by index, `arguments` {node: its
+  arguments}."""
+  from hpg_mj.hierarchy import calls
+  found = _UNKNOWN.search(message)
+  if found is None:
+    return None
+  attr, record = found.groups()
+  bound = list(calls._arguments(record)) if record != "Call" else []
+  node, role = None, None
+  at = re.search(re.escape(os.path.basename(module_path)) + r" \((\d+)\)", message)
+  if at is not None:
+    with open(module_path) as f:
+      lines = f.read().split("\n")
+    number = int(at.group(1)) - 1
+    used = re.findall(r"\b(_f\d+)\(", lines[number]) if number < len(lines) else []
+    role = next((roles[g] for g in used if g in roles), None)
+    for line in reversed(lines[:number]):
+      branch = re.match(r"^  (?:if|elif) node == (\d+):$", line)
+      if branch is not None:
+        node = names[int(branch.group(1))]
+        break
+      if line.startswith("def "):
+        break
+  if node is None:
+    nodes = [n for n, args in arguments.items() if list(args) == bound]
+    node = nodes[0] if len(nodes) == 1 else None
+  who = f"subtask {node!r}" if node is not None else f"a subtask whose calls bind {bound}"
+  return (f"{who}: its {role or 'rule'} reads call.{attr}; its calls bind {bound} (and "
+          "call.origin, call.steps)")

@@ -27,6 +27,7 @@ import numba
 import numpy as np
 
 from hpg_mj.hierarchy import algorithm
+from hpg_mj.hierarchy import arguments
 from hpg_mj.hierarchy import boundary
 from hpg_mj.hierarchy import calls
 from hpg_mj.hierarchy import graph_module
@@ -37,22 +38,14 @@ from hpg_mj.learners import banks
 from hpg_mj.worlds import ship_core as core
 
 _F64 = np.dtype(np.float64)
+_ROLES = {"view": "view", "termination": "termination", "reward": "internal reward",
+          "available": "available", "binding": "binding"}
 _VECTOR, _ROWS_OF_XY = (8,), (16, 8)          # the strides of a float64 vector, of rows of (x, y)
 
 
 def _identifier(name):
   out = "".join(c if c.isalnum() else "_" for c in name)
   return out if out and not out[0].isdigit() else "n_" + out
-
-
-def _check_argument(where, arg, value):
-  """A call's argument: a finite int or float named by an identifier; else one line."""
-  if not str(arg).isidentifier():
-    raise GraphError(f"{where} {arg!r}: must be a Python identifier")
-  if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-    raise GraphError(f"{where} {arg} = {value!r}: must be a number (int or float)")
-  if not np.isfinite(value):
-    raise GraphError(f"{where} {arg} = {value!r}: must be finite")
 
 
 class _Node:
@@ -82,11 +75,13 @@ class Program:
     self.index = {name: i for i, name in enumerate(self.names)}
     self._functions = {}            # id -> (global name, function)
     self._whats = []                # fault record's `what` -> (node, what, allowed)
+    self._roles = {}                # a rule's global name -> its role ("view Features(aim)")
     self._learners = {}             # id(block) -> slot
     self._learner_blocks = []       # (block, kind, first node)
     self._records = []              # (field of G, value)
     self._lines = []
-    self._arguments = self._collect_arguments(root_args or {})
+    self._root_args = dict(root_args or {})
+    self._arguments = arguments.collect(graph, self._root_args)
     self._schedule()
     self._subtasks = [_Node(name, self.index[name], n) for name, n in graph.nodes.items()
                       if not isinstance(n, Primitive)]
@@ -102,66 +97,6 @@ class Program:
     self.G = banks.as_structs(self._module.Graph(*records))[0]
 
   # -- the graph, checked against its kinds --
-
-  def _collect_arguments(self, root_args):
-    """node -> {argument: (is integer)}; the bindings per (parent, choice)."""
-    bound = {}
-    for name, node in self.graph.nodes.items():
-      if isinstance(node, Primitive):
-        continue
-      for ref in self.graph.children(name):
-        for arg, value in ref.args.items():
-          _check_argument(f"subtask {name!r}: its child {ref.node!r}'s argument", arg, value)
-        args = dict(ref.args)
-        if ref.bind is not None:
-          for arg, is_int in self._binding(name, ref)[1].items():
-            if arg in args:
-              raise GraphError(f"subtask {name!r}: its child {ref.node!r} gives {arg!r} "
-                               "twice, as a number and by its binding; give it once")
-            args[arg] = 0 if is_int else 0.0
-        if isinstance(self.graph.nodes[ref.node], Primitive):
-          if args:
-            raise GraphError(f"subtask {name!r}: its child {ref.node!r} is a primitive, "
-                             f"which takes no arguments; got {sorted(args)}")
-          continue
-        bound.setdefault(ref.node, []).append((name, args))
-    for name, node in self.graph.nodes.items():
-      if not isinstance(node, Primitive) and name != self.graph.root and name not in bound:
-        raise GraphError(f"subtask {name!r} is called by no node of the graph; call it "
-                         f"(Child({name!r}, ...)) or leave it out")
-    for arg, value in dict(root_args).items():
-      _check_argument("root_args: the argument", arg, value)
-    bound.setdefault(self.graph.root, []).append(("the root call", dict(root_args)))
-    out = {}
-    for child, calls in bound.items():
-      names = [sorted(args) for _, args in calls]
-      if any(n != names[0] for n in names):
-        said = "; ".join(f"{parent}: {sorted(args)}" for parent, args in calls)
-        raise GraphError(f"subtask {child!r}: its calls bind different arguments ({said}); "
-                         "every call of a subtask binds the same names")
-      out[child] = {arg: all(isinstance(args[arg], (int, np.integer)) for _, args in calls)
-                    for arg in names[0]}
-      for arg in out[child]:
-        if arg in ("origin", "steps"):
-          raise GraphError(f"subtask {child!r}: an argument may not be named {arg!r} (the "
-                           "call's own field); rename it")
-    self._root_args = dict(root_args)
-    return out
-
-  def _binding(self, name, ref):
-    """(the kind, its arguments {name: whether an integer}) of a `Child`'s binding."""
-    if callable(ref.bind) and not isinstance(ref.bind, type):
-      try:
-        kind = kinds_mod.kind_of(ref.bind, "binding", name)
-      except GraphError:
-        raise GraphError(f"subtask {name!r}: its child {ref.node!r} binds its arguments by a "
-                         "Python function (Child(bind=...)), which the open machine cannot "
-                         "compile; give the arguments as numbers, Child("
-                         f"{ref.node!r}, x=..., y=...), or bind them by a block whose kind "
-                         "is registered (hpg_mj.hierarchy.kinds.base.BindingKind)") from None
-    else:
-      kind = kinds_mod.kind_of(ref.bind, "binding", name)
-    return kind, dict(kind.names(ref.bind))
 
   def _schedule(self):
     """The graph's exploration schedule (a held epsilon of 0.1 by default, as
@@ -222,13 +157,13 @@ class Program:
       raise GraphError(f"subtask {name!r}: its learner {type(node.learner).__name__} reads "
                        f"{s.learner.reads}, its view {rules_mod.rule_name(node.view)} gives "
                        f"{s.view.gives}")
-    arguments = self._arguments.get(name, {})
+    bound = self._arguments.get(name, {})
     if s.offer is not None:
-      s.offer.check(name, node.available, arguments)
-    s.view.check(name, node.view, arguments)
-    s.end.check(name, node.termination, arguments)
+      s.offer.check(name, node.available, bound)
+    s.view.check(name, node.view, bound)
+    s.end.check(name, node.termination, bound)
     if s.reward is not None:
-      s.reward.check(name, node.internal_reward, arguments)
+      s.reward.check(name, node.internal_reward, bound)
       if s.reward.from_termination and not s.end.gives_internal:
         raise GraphError(f"subtask {name!r}: its internal reward {type(node.internal_reward).__name__}"
                          f" is the G of its termination, and {type(node.termination).__name__} "
@@ -290,6 +225,7 @@ class Program:
   def _op(self, kind, block, field, s):
     """(the function's global name, its settings' text or None) of a view, end or reward."""
     fn = self._function(kind.operation(block))
+    self._roles.setdefault(fn, f"{_ROLES[kind.role]} {rules_mod.rule_name(block)}")
     if not kind.takes_settings:
       return fn, None
     return fn, self._record(f"{field}{s.index}", self._settings(kind, s.name, block))
@@ -345,8 +281,13 @@ class Program:
   def _settle(self, s):
     if s.learner.continuous and s.view.reflects:          # the action's sign, at x[size]
       return f"M.action[{s.index}] = v{s.index} * M.x[{s.index}, {s.size}]"
-    return (f"M.action[{s.index}] = v{s.index}" if s.learner.continuous else
-            f"M.choice[{s.index}] = np.int64(v{s.index})")
+    if s.learner.continuous:
+      return f"M.action[{s.index}] = v{s.index}"
+    if not hasattr(s, "_choice_what"):
+      s._choice_what = self._what(s.name, f"learner {type(s.node.learner).__name__}",
+                                  f"a child's index in [0, {s.n_children})")
+    return (f"M.choice[{s.index}] = boundary.as_choice(v{s.index}, np.int64({s.n_children}), "
+            f"M.fault, np.int64({s._choice_what}))")
 
   def _offer_lines(self, s):
     """Lines that write the children `s` may choose now into its mask (its `available`)."""
@@ -430,10 +371,17 @@ class Program:
       c = self.index[ref.node]
       names = []
       if ref.bind is not None:
-        kind, names = self._binding(s.name, ref)
+        kind, names = arguments.binding(s.name, ref)
         fn, settings = self._op(kind, ref.bind, f"B{s.index}_{k}_", s)
         args = ", ".join(([settings] if settings else []) + ["M.obs", self._call_text(s)])
-        lines.append(f"  bound = {fn}({args})")
+        like = "".join("0, " if is_int else "0.0, " for is_int in names.values())
+        whole = [a for a, is_int in names.items() if is_int]
+        what = self._what(s.name, f"child {k} ({ref.node!r}) bound by {type(ref.bind).__name__}",
+                          f"a tuple of {len(names)} finite number{'s' if len(names) != 1 else ''}"
+                          f", one for each of its names {list(names)}" +
+                          (f" ({', '.join(whole)} whole)" if whole else ""))
+        lines.append(f"  bound = boundary.as_bound({fn}({args}), ({like.rstrip(' ')}), M.fault, "
+                     f"np.int64({what}))")
         names = list(names)
       lines += [f"  M.args[{c}, {j}] = {float(ref.args[arg])!r}" if arg in ref.args else
                 f"  M.args[{c}, {j}] = bound[{names.index(arg)}]"
@@ -553,6 +501,12 @@ class Program:
       return fn(self.G, *args)
     except ValueError as e:
       self._explain(e)
+    except numba.core.errors.TypingError as e:     # (the first call compiles the module)
+      line = boundary.typing_line(str(e), self.module_path, self._roles, self.names,
+                                  self._arguments)
+      if line is None:
+        raise
+      raise GraphError(line) from None
 
   def _explain(self, error):
     """Raises a boundary fault (`hierarchy.boundary`) as its one line; else `error`."""

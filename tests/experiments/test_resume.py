@@ -53,8 +53,9 @@ def test_a_run_killed_with_sigkill_resumes_bit_identical(tmp_path):
   command = [sys.executable, "-m", "hpg_mj.cli", "run", str(path), "--workers", "1", "--quiet",
              "--checkpoint-every", "1000"]
   # The uninterrupted run.
-  subprocess.run(command + ["--out", str(tmp_path / "whole")], env=env, check=True,
-                 capture_output=True)
+  whole = subprocess.run(command + ["--out", str(tmp_path / "whole")], env=env, check=True,
+                         capture_output=True, text=True)
+  assert "resume: 1 run (1 new, " in whole.stdout, whole.stdout
   # The same command, killed at a random point after its first checkpoint...
   rnd = random.Random()
   target = rnd.randrange(1500, 5000)
@@ -73,8 +74,10 @@ def test_a_run_killed_with_sigkill_resumes_bit_identical(tmp_path):
   assert proc.returncode == -signal.SIGKILL, (target, pause)
   assert not runs.is_finished(run_dir), "the run finished before it was killed"
   killed_at = runs.read_progress(run_dir)[0]
-  # ...and run again: it resumes from its last checkpoint.
-  subprocess.run(command + ["--out", str(out)], env=env, check=True, capture_output=True)
+  # ...and run again: it resumes from its last checkpoint (and says so).
+  again = subprocess.run(command + ["--out", str(out)], env=env, check=True,
+                         capture_output=True, text=True)
+  assert "resume: 1 run (1 resumed, " in again.stdout, again.stdout
   log = (run_dir / "events.log").read_text()
   assert "resumed from checkpoint ep" in log, log
   assert_same_run(final_run(tmp_path / "whole" / "resume" / "ship_hybrid" / "seed0"), final_run(run_dir))

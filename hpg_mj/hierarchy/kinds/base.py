@@ -17,7 +17,10 @@ arrays shared by the nodes that share the block, `N` the node's own scratch):
   of its one continuous primitive:
     start(P, L, N)                                  the subtask is called (z <- 0)
     choose(P, L, N, x, n, rng, learn, sample)       -> the choice (float64: a child's
-                                                       index, or the action's value)
+                                                       index, or the action's value; an
+                                                       index outside [0, n), or not
+                                                       whole, stops the run naming the
+                                                       node: `hierarchy.boundary`)
     observe(P, L, N, x, signal, done, terminal, n, rng, learn, sample)
                                                     -> the next choice (any value when
                                                        `done`)
@@ -41,7 +44,8 @@ arrays shared by the nodes that share the block, `N` the node's own scratch):
   sample) (the taxi's GibbsTable).
 * a `Child`'s **binding**, arguments decided when the parent calls it
   (`Child("navigate", bind=TaxiTarget("get"))`): `bind(P, obs, call)` -> a tuple of
-  the values of `names(block)`, `call` the parent's.
+  the values of `names(block)`, `call` the parent's (checked where they are bound:
+  as many as its names, each finite, an integer argument's whole).
 * a graph's **schedule** of exploration (`hierarchy.kinds.epsilon`): its learners with
   `epsilon_schedule=True` read its `epsilon`.
 
@@ -187,7 +191,10 @@ class AvailableKind(NodeKind):
 class BindingKind(NodeKind):
   """A `Child`'s arguments decided when the parent calls it (`Child("navigate",
   bind=block)`): `bind(P, obs, call)` -> a tuple of the arguments' values, in the
-  order of `names(block)` ({argument: whether an integer}); `call` is the parent's."""
+  order of `names(block)` ({argument: whether an integer}); `call` is the parent's.
+  What it gives is checked where it is bound (`boundary.as_bound`): as many finite
+  numbers as its names, an integer argument's whole; else one line naming the
+  parent, the child and the binding."""
   role = "binding"
   bind = None
   takes_settings = True
