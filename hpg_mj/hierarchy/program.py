@@ -203,10 +203,12 @@ class Program:
     return f"{cls}({', '.join(values)})"
 
   def _given(self, method, name, block, *args):
-    """`method(*args)` of a kind; one whose parameters include `schedule`, `world` or
-    `learned_episodes` is given the graph's schedule record, the program's world, or
-    the live count of learning episodes ended (an int64[1]: a step size's warm-up)."""
+    """`method(*args)` of a kind; one whose parameters include `schedule`, `world`,
+    `learned_episodes` or `obs_size` is given the graph's schedule record, the program's
+    world, the live count of learning episodes ended (an int64[1]: a step size's
+    warm-up), or the observation's length (what a view may read of it)."""
     given = {"schedule": lambda: self.schedule, "world": lambda: self.world,
+             "obs_size": lambda: self.obs_size,
              "learned_episodes": lambda: self.frames.episode[algorithm.E_LEARNED:][:1],
              "node": lambda: self.graph.nodes[name],
              "child_steps": lambda: self.frames.child_steps[self.index[name]:][:1]}

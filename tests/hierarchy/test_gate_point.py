@@ -23,8 +23,8 @@ def _bound(P, obs):
   return gate_point.bind(P, obs, 0)
 
 
-def _settings(block, name="root"):
-  return kinds.kind_of(block, "binding", name).settings(name, block)
+def _settings(block, name="root", obs_size=12):
+  return kinds.kind_of(block, "binding", name).settings(name, block, obs_size)
 
 
 @pytest.mark.parametrize("lateral,along", [(0.0, 0.0), (30.0, 0.0), (-30.0, 0.0),
@@ -64,3 +64,35 @@ def test_a_bad_gate_point_is_refused_in_one_line(block, message):
   with pytest.raises(GraphError, match=message) as err:
     _settings(block)
   assert "\n" not in str(err.value)
+
+
+def test_a_gate_past_the_observations_end_is_refused_in_one_line():
+  """The regatta's observation holds 11 numbers: a relative gate at 8 would be read at
+  8-10 (fits), one at 9 past its end; the goal's absolute gate at 8 needs 12."""
+  _settings(blocks.GatePoint(blocks.GateFrame(at=8, relative=True)), obs_size=11)
+  for frame, size, reads in ((blocks.GateFrame(at=9, relative=True), 11, "9-11"),
+                             (GOAL, 11, "8-11")):
+    with pytest.raises(GraphError, match=rf"subtask 'root': GatePoint's GateFrame\(at="
+                       rf"{frame.at}, relative={frame.relative}\) reads observation numbers "
+                       rf"{reads}; the observation holds {size} \(0-10\)") as err:
+      _settings(blocks.GatePoint(frame), obs_size=size)
+    assert "\n" not in str(err.value)
+
+
+def test_a_program_refuses_a_gate_view_past_its_observation():
+  """Built for the regatta's 11-number observation, a graph whose view reads a gate at
+  9-11 is refused when its program is made, before anything compiles."""
+  from hpg_mj.hierarchy.graph import Primitive, Subtask, TaskGraph
+  from hpg_mj.hierarchy.program import Program
+  from hpg_mj.learners.tiles import TileCoder
+  coder = TileCoder(low=(0, 0, -180, -15), high=(1000, 1000, 180, 15), n_tiles=(4, 4, 4, 2),
+                    wrap=(False, False, True, False))
+  graph = TaskGraph("policy", [
+      Subtask("policy", children=["turn"], learner=blocks.GaussianCMAC(coder, 0.01, 0.99, 0.0, 15.0),
+              view=blocks.GateTiles(blocks.GateFrame(at=9, relative=True), coder),
+              termination=blocks.Never()),
+      Primitive("turn")])
+  with pytest.raises(GraphError, match=r"subtask 'policy': GateTiles's GateFrame\(at=9, "
+                                       r"relative=True\) reads observation numbers 9-11; the "
+                                       r"observation holds 11"):
+    Program(graph, obs_size=11)

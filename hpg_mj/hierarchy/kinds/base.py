@@ -87,7 +87,9 @@ class Kind:
     """The block's settings as the compiled operations take them (a namedtuple, or
     None for none). A kind that reads the world's own settings (the taxi's
     `taxi_rules.world_config`) takes a `world` parameter, `settings(self, name, block,
-    world)`, and is given the program's (`Program(graph, world=...)`); `size` too."""
+    world)`, and is given the program's (`Program(graph, world=...)`); `size` too. One
+    that reads the observation at places of its own takes `obs_size`, the observation's
+    length, and refuses a place past its end (`gate_frame.check_reach`)."""
     return None
 
   def operation(self, block):

@@ -125,12 +125,25 @@ def local_end(P, obs, call, samples):
                                 P.local_samples, P.local, P.max_steps)
 
 
-def _frame(name, block):
+def check_reach(name, what, frame, obs_size):
+  """Refuses a frame whose gate lies past the end of the observation (`obs_size`
+  numbers): the compiled view would read beyond it. A relative gate is 3 numbers
+  (ahead, starboard, heading), an absolute one 4 (x, y, sin, cos)."""
+  width = 3 if frame.relative else 4
+  if obs_size is not None and frame.at + width > obs_size:
+    raise GraphError(f"subtask {name!r}: {what}'s GateFrame(at={frame.at}, relative="
+                     f"{bool(frame.relative)}) reads observation numbers {frame.at}-"
+                     f"{frame.at + width - 1}; the observation holds {obs_size} (0-"
+                     f"{obs_size - 1})")
+
+
+def _frame(name, block, obs_size=None):
   frame = block.frame
   if not isinstance(frame, blocks.GateFrame):
     raise GraphError(f"subtask {name!r}: {type(block).__name__}.frame = {frame!r}: must be a "
                      "GateFrame(at, relative)")
   base.check_positive_int(frame, "at", frame.at, low=4)      # after the ship's state
+  check_reach(name, type(block).__name__, frame, obs_size)
   return np.int64(frame.at), np.int64(bool(frame.relative))
 
 
@@ -143,9 +156,9 @@ class GateCellKind(base.ViewKind):
   def size(self, block):
     return int(block.grid) ** 2
 
-  def settings(self, name, block):
+  def settings(self, name, block, obs_size):
     base.check_positive_int(block, "grid", block.grid)
-    return CellSettings(*_frame(name, block), float(block.cell_m), np.int64(block.grid))
+    return CellSettings(*_frame(name, block, obs_size), float(block.cell_m), np.int64(block.grid))
 
 
 class GateTilesKind(base.ViewKind):
@@ -158,8 +171,8 @@ class GateTilesKind(base.ViewKind):
   def size(self, block):
     return 4
 
-  def settings(self, name, block):
-    return Frame(*_frame(name, block), np.zeros(4), np.zeros(2))
+  def settings(self, name, block, obs_size):
+    return Frame(*_frame(name, block, obs_size), np.zeros(4), np.zeros(2))
 
 
 class GateLocalTilesKind(GateTilesKind):
@@ -181,13 +194,13 @@ class GateLocalGoalKind(base.TerminationKind):
   def check(self, name, block, arguments):
     local_frame._direction(name, arguments)
 
-  def settings(self, name, block, node):
+  def settings(self, name, block, node, obs_size):
     shaping = node.internal_reward
     if isinstance(shaping, blocks.Shaping) and shaping.weight != 1.0:
       raise GraphError(f"subtask {name!r}: a GateLocalGoal's Shaping has weight 1; got "
                        f"{shaping.weight!r}")
     samples = (core.SAMPLES_PER_CONTROL + 1, 2)
-    return EndSettings(*_frame(name, block), np.zeros(4), np.zeros(2), np.zeros(samples),
+    return EndSettings(*_frame(name, block, obs_size), np.zeros(4), np.zeros(2), np.zeros(samples),
                        np.int64(base.check_positive_int(block, "max_steps", block.max_steps)),
                        np.zeros(4), np.zeros(samples))
 

@@ -55,8 +55,8 @@ class GatePointKind(base.BindingKind):
   def names(self, block):
     return {"px": False, "py": False}
 
-  def settings(self, name, block):
-    at, relative = gate_frame._frame(name, block)
+  def settings(self, name, block, obs_size):
+    at, relative = gate_frame._frame(name, block, obs_size)
     return Settings(at, relative, _metres(name, block, "lateral_m"),
                     _metres(name, block, "along_m"))
 

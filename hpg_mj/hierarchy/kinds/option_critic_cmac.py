@@ -337,6 +337,7 @@ class LearnedTerminationCMACKind(base.TerminationKind):
       raise GraphError(f"subtask {name!r}: a LearnedTerminationCMAC tiles its node's view's "
                        f"features, which must be a StateTiles or a GateTiles; got "
                        f"{type(view).__name__}")
+    # (A GateTiles frame reaching past the observation is refused by the view's kind.)
     return _settings(block.oc, block.option, getattr(view, "frame", None))
 
 
