@@ -153,9 +153,13 @@ def _range(meta):
 
 
 def check_range(where, section, field, value):
-  """Refuses a value outside its field's bounds, naming the key and what is allowed
-  (`where`: the task file, or the section's class when it is made in Python)."""
+  """Refuses a value outside its field's bounds or choices, naming the key and what is
+  allowed (`where`: the task file, or the section's class when it is made in Python)."""
   meta = field.metadata
+  choices = meta.get("choices")
+  if choices and value not in choices:
+    raise TaskFileError(f"{where}: [{section}] {field.name} = {value!r} is not allowed; "
+                        f"allowed: {list(choices)}")
   low, high = meta.get("low"), meta.get("high")
   values = value if isinstance(value, (tuple, list)) else (value,)
   for v in values:

@@ -153,10 +153,8 @@ class ShipLadderWaypoints(hierarchy.ShipLadderHierarchy):
                    "approach_successes", "return")
 
   def __init__(self, config=None, seed=0, task=None):
-    world = (config or self.Config()).environment.world
-    if world != "ship_regatta":     # (a task file's choices refuse it as it loads)
-      raise ValueError(f"{self.name}: [environment] world = {world!r}: its rules read the "
-                       "regatta's observation; allowed: ['ship_regatta']")
+    # (Another world is refused as its [environment] is made: `RegattaEnvironment`'s
+    # choices, from a task file or in Python.)
     super().__init__(config, seed, task)
     root, approach = self.config.root, self.config.approach
     self.coder = coder(approach)

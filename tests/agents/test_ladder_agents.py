@@ -15,6 +15,7 @@ import pytest
 from hpg_mj import agents
 from hpg_mj import benchmark
 from hpg_mj import cli
+from hpg_mj import taskfile
 from hpg_mj.agents import ShipLadderHierarchy
 from hpg_mj.experiments import bounds
 from hpg_mj.hierarchy import blocks
@@ -164,3 +165,17 @@ def test_the_regattas_score_is_its_return_under_its_own_rewards():
                                 own["return"])
   assert agent.metrics(other)["mean_return"] == pytest.approx(own["return"].mean())
   np.testing.assert_array_equal(agent.scored(other)["finished"], other["passed"])
+
+
+@pytest.mark.parametrize("changes,message", [
+    ({"world": "ship_ocean"}, r"world = 'ship_ocean' is not allowed; allowed: \['ship_current', "
+                              r"'ship_goal', 'ship_regatta', 'ship_harbour'\]"),
+    ({"level": "insane"}, r"level = 'insane' is not allowed; allowed: \['easy', 'medium', 'hard'\]"),
+])
+def test_a_section_made_in_python_refuses_what_its_choices_do_not_allow(changes, message):
+  """As a task file's loading refuses it: a user's LadderEnvironment(world=..., level=...)
+  in Python is one line naming the key and what is allowed, not a run of another task."""
+  from hpg_mj.agents import LadderEnvironment
+  with pytest.raises(taskfile.TaskFileError, match=message) as err:
+    LadderEnvironment(**changes)
+  assert "\n" not in str(err.value)

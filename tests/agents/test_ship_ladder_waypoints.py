@@ -12,11 +12,9 @@ from hpg_mj.agents import ship_ladder_waypoints as waypoints
 
 
 def test_the_waypoints_name_the_regatta_only(tmp_path):
-  config = taskfile.updated(waypoints.Config(), environment={"world": "ship_goal"})
-  with pytest.raises(ValueError, match=r"^ship_ladder_waypoints: \[environment\] world = "
-                     r"'ship_goal': its rules read the regatta's observation; allowed: "
-                     r"\['ship_regatta'\]$"):
-    waypoints.ShipLadderWaypoints(config)
+  with pytest.raises(taskfile.TaskFileError, match=r"^RegattaEnvironment: \[RegattaEnvironment\] "
+                     r"world = 'ship_goal' is not allowed; allowed: \['ship_regatta'\]$"):
+    taskfile.updated(waypoints.Config(), environment={"world": "ship_goal"})
   path = tmp_path / "goal.toml"
   path.write_text(agents.shipped_tasks()["ship_regatta_waypoints"].read_text().replace(
       'world = "ship_regatta"', 'world = "ship_goal"'))
