@@ -108,4 +108,8 @@ def collect(graph, root_args):
       if arg in FIXED:
         raise GraphError(f"subtask {child!r}: an argument may not be named {arg!r} (the "
                          "call's own field); rename it")
+  for calls in bound.values():          # a binding's own refusals, knowing its parent's
+    for parent, _, ref, _ in calls:     # call (what `bind` reads besides the observation)
+      if ref is not None and ref.bind is not None:
+        binding(parent, ref)[0].check(parent, ref.bind, out.get(parent, {}))
   return out

@@ -13,6 +13,7 @@ from hpg_mj.hierarchy import kinds
 from hpg_mj.hierarchy.graph import GraphError
 from hpg_mj.hierarchy.kinds import gate_frame
 from hpg_mj.hierarchy.kinds import gate_point
+from hpg_mj.learners.tiles import TileCoder
 
 REGATTA = blocks.GateFrame(at=4, relative=True)
 GOAL = blocks.GateFrame(at=8)
@@ -95,4 +96,48 @@ def test_a_program_refuses_a_gate_view_past_its_observation():
   with pytest.raises(GraphError, match=r"subtask 'policy': GateTiles's GateFrame\(at=9, "
                                        r"relative=True\) reads observation numbers 9-11; the "
                                        r"observation holds 11"):
+    Program(graph, obs_size=11)
+
+
+def test_a_binding_kinds_own_check_runs_when_the_program_is_made():
+  """A user's binding kind refuses a block in its `check` (as views and ends do), given
+  the parent's call's arguments; the machine calls it as it builds the graph."""
+  import dataclasses
+  from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
+  from hpg_mj.hierarchy.kinds import base
+  from hpg_mj.hierarchy.kinds.rules import Abstraction, Features
+  from hpg_mj.hierarchy.program import Program
+
+  @dataclasses.dataclass(frozen=True)
+  class FarPoint:
+    metres: float
+
+  class FarPointKind(gate_point.GatePointKind):
+    block = FarPoint
+
+    def check(self, name, block, arguments):
+      if block.metres > 500:
+        raise GraphError(f"subtask {name!r}: FarPoint.metres = {block.metres!r}: at most "
+                         f"500 (the parent's call binds {sorted(arguments)})")
+
+    def settings(self, name, block, obs_size):
+      return gate_point.Settings(np.int64(4), np.int64(1), float(block.metres), 0.0)
+
+  kinds.register(FarPointKind())
+  assert isinstance(kinds.kind_of(FarPoint(1.0), "binding", "root"), base.BindingKind)
+  coder = TileCoder(low=(-180, -15), high=(180, 15), n_tiles=(4, 2), wrap=(True, False))
+
+  @numba.njit
+  def aim(obs, call):
+    return (obs[2] - call.px, obs[3] + call.py)
+
+  graph = TaskGraph("root", [
+      Subtask("root", children=[Child("go", bind=FarPoint(900.0))],
+              learner=blocks.QTable(1), view=Abstraction(numba.njit(lambda obs, call: 0)),
+              termination=blocks.Never()),
+      Subtask("go", children=["turn"], learner=blocks.GaussianCMAC(coder, 0.01, 0.99, 0.0, 15.0),
+              view=Features(aim), termination=blocks.Never()),
+      Primitive("turn")])
+  with pytest.raises(GraphError, match=r"subtask 'root': FarPoint.metres = 900.0: at most 500 "
+                                       r"\(the parent's call binds \[\]\)"):
     Program(graph, obs_size=11)

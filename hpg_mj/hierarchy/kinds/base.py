@@ -196,7 +196,8 @@ class BindingKind(NodeKind):
   order of `names(block)` ({argument: whether an integer}); `call` is the parent's.
   What it gives is checked where it is bound (`boundary.as_bound`): as many finite
   numbers as its names, an integer argument's whole; else one line naming the
-  parent, the child and the binding."""
+  parent, the child and the binding. Its `check(name, block, arguments)` refuses a block
+  as the graph is built, `name` the parent and `arguments` what the parent's call binds."""
   role = "binding"
   bind = None
   takes_settings = True
