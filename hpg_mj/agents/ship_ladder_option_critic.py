@@ -17,10 +17,7 @@ import dataclasses
 
 from hpg_mj.agents import _ladder
 from hpg_mj.agents import hierarchy
-from hpg_mj.agents import ship_flat_pg
 from hpg_mj.agents import ship_option_critic
-from hpg_mj.hierarchy.kinds import option_critic_cmac as oc_kinds
-from hpg_mj.worlds import ship_core as core
 
 
 @dataclasses.dataclass(frozen=True)
@@ -46,11 +43,7 @@ class ShipLadderOptionCritic(hierarchy.ShipLadderHierarchy):
 
   def __init__(self, config=None, seed=0, task=None):
     super().__init__(config, seed, task)
-    o = self.config.options
-    self.coder = ship_flat_pg.actor_coder(o.tilings, o.tiles)
-    self.oc = oc_kinds.OptionCriticCMAC(
-        self.coder, int(o.n_options), core.MAX_TURN_RATE, o.alpha_critic, o.alpha_policy,
-        o.alpha_termination, o.gamma, o.epsilon, o.xi, o.sigma, float(o.initial))
+    self.coder, self.oc = ship_option_critic.learner(self.config.options)
 
   def graph(self):
     """`ship_option_critic`'s graph, root -> option0 ... option{k-1} -> the turning

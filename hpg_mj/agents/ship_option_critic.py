@@ -49,6 +49,15 @@ class Config:
   options: Options = dataclasses.field(default_factory=Options)
 
 
+def learner(o):
+  """(the CMAC, the `OptionCriticCMAC` holding every option's arrays) of an [options]
+  section `o`: flat PGRL's coder over the ship's whole state."""
+  coder = ship_flat_pg.actor_coder(o.tilings, o.tiles)
+  return coder, oc_kinds.OptionCriticCMAC(
+      coder, int(o.n_options), core.MAX_TURN_RATE, o.alpha_critic, o.alpha_policy,
+      o.alpha_termination, o.gamma, o.epsilon, o.xi, o.sigma, float(o.initial))
+
+
 class ShipOptionCritic(hierarchy.ShipHierarchy):
   """Option-critic: a root over learned options; its state by the root's name
   (`root.q_omega`, `root.theta`, `root.vartheta`)."""
@@ -59,11 +68,7 @@ class ShipOptionCritic(hierarchy.ShipHierarchy):
 
   def __init__(self, config=None, seed=0, task=None):
     super().__init__(config, seed, task)
-    o = self.config.options
-    self.coder = ship_flat_pg.actor_coder(o.tilings, o.tiles)
-    self.oc = oc_kinds.OptionCriticCMAC(
-        self.coder, int(o.n_options), core.MAX_TURN_RATE, o.alpha_critic, o.alpha_policy,
-        o.alpha_termination, o.gamma, o.epsilon, o.xi, o.sigma, float(o.initial))
+    self.coder, self.oc = learner(self.config.options)
 
   def graph(self):
     """root -> option0 ... option{k-1} -> the turning rate; every node sees the
