@@ -102,13 +102,17 @@ paper = "none: tuning"
 def summary(folder):
   folder = pathlib.Path(folder)
   for task_dir in sorted(p for p in folder.iterdir() if p.is_dir()):
-    scores, score_name = [], None
+    scores, score_name, none = [], None, 0
     for metrics in sorted(task_dir.glob("seed*/metrics.json")):
       data = json.loads(metrics.read_text())
       score_name = score_name or _score_name(data)
-      scores.append(data[score_name])
+      if data[score_name] is None:       # no episode ended in the run's metric window
+        none += 1
+      else:
+        scores.append(data[score_name])
     mean = f"{np.mean(scores):.4g}" if scores else "-"
-    print(f"{task_dir.name}: {score_name or 'score'} mean {mean} over {len(scores)} seeds")
+    print(f"{task_dir.name}: {score_name or 'score'} mean {mean} over {len(scores)} seeds"
+          + (f" ({none} more with none: no episode ended in its window)" if none else ""))
 
 
 def _score_name(metrics):
