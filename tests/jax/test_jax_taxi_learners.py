@@ -74,11 +74,13 @@ def test_a_saved_dqn_run_resumes_bit_for_bit_and_its_epsilon_decays(tmp_path):
   np.testing.assert_array_equal(loaded.train(2), ahead)
   for name, value in agent.state().items():
     np.testing.assert_array_equal(loaded.state()[name], value, err_msg=name)
-  # The buffer holds every transition stored (3,000 at most), epsilon follows
-  # exploration_steps (200,000): 1 - 4,096 / 200,000 x 0.95.
+  # The buffer holds every transition stored (3,000 at most), epsilon follows the
+  # file's exploration_steps (600,000, tuned): 1 - 4,096 / 600,000 x 0.95.
   runner = agent.runner
   assert int(runner.stored) == 4096
-  assert float(agent.trainer.epsilon(runner.stored)) == pytest.approx(1 - 4096 / 200000 * 0.95)
+  steps = agent.section.exploration_steps
+  assert steps == 600_000
+  assert float(agent.trainer.epsilon(runner.stored)) == pytest.approx(1 - 4096 / steps * 0.95)
   assert np.asarray(runner.buffer["x"]).sum(axis=1).min() == 5      # five one-hot components
   greedy = loaded.evaluate_fixed(3)
   assert greedy["episodes"].tolist() == [1.0] * 3
