@@ -405,8 +405,14 @@ def test_hpg_mj_bounds_writes_what_compute_bounds_gives(tmp_path, capsys):
   assert "ship (max_steps 5000; normalized: J, gate_pass_rate;" in printed
   assert f"wrote {out}" in printed
   written = json.loads(out.read_text())
-  assert written == json.loads(json.dumps(benchmark.compute_bounds(4, progress=False)))
   assert list(written["tasks"]) == list(benchmark.KEYS)
+  # What it wrote is compute_bounds', checked on one task of each kind (all of them
+  # again would double the test's time: the planners, not the writing, take it).
+  sample = ["ship", "taxi_fuel", "ship_current/easy", "ship_regatta/hard", "ship_harbour/medium"]
+  again = json.loads(json.dumps(benchmark.compute_bounds(4, progress=False, tasks=sample)))
+  assert {k: written["tasks"][k] for k in sample} == again["tasks"]
+  assert {k: v for k, v in written.items() if k != "tasks"} == \
+      {k: v for k, v in again.items() if k != "tasks"}
   assert written["tasks"]["taxi_fuel"]["best"]["fraction_of_optimum"] == 1.0
   # --task: only that task's bounds, replacing its entry in the file
   entry = written["tasks"]["ship_goal/hard"]
