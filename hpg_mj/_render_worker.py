@@ -193,9 +193,10 @@ class RenderWorker:
 
 # What `render_physics` sends: the state a picture shows, and the model fields
 # hpg_mj's worlds change at run time (the taxi's gauge and fuel pad, the ship's
-# orthographic extents, the goal task's gate).
+# orthographic extents, the goal task's gate and its width).
 PHYSICS_DATA_FIELDS = ("qpos", "qvel", "act", "mocap_pos", "mocap_quat")
-PHYSICS_MODEL_FIELDS = ("geom_rgba", "geom_pos", "geom_quat", "geom_sameframe", "cam_fovy")
+PHYSICS_MODEL_FIELDS = ("geom_rgba", "geom_pos", "geom_quat", "geom_sameframe", "geom_size",
+                        "geom_rbound", "cam_fovy")
 
 
 def render_physics(physics, model_name, height=240, width=320, camera_id=-1, overlays=(),

@@ -14,6 +14,7 @@ from hpg_mj.experiments import bounds as bounds_mod
 from hpg_mj.experiments.bounds import LADDER, LEVELS, TASKS
 from hpg_mj.worlds import ship_core
 from hpg_mj.worlds import ship_ladder
+from hpg_mj.worlds import ship_regatta_core as regatta_core
 from hpg_mj.worlds import taxi_core
 from hpg_mj.worlds import taxi_rules
 
@@ -33,6 +34,12 @@ class Task:
   out_of_bounds_reward: float = ship_core.OUT_OF_BOUNDS_REWARD  # ships only
   capacity: int = taxi_core.FUEL_CAPACITY                       # taxi_fuel only
   level: str = None                           # the ladder's tasks only: a name of LEVELS
+
+  def __post_init__(self):
+    # The regatta's course closes at its level's time limit, whatever the limit asked.
+    if self.name == "ship_regatta" and self.level is not None:
+      object.__setattr__(self, "max_steps",
+                         regatta_core.course_steps(self.level, self.max_steps))
 
   @property
   def world(self):
@@ -54,7 +61,10 @@ class Task:
 
   @property
   def default_max_steps(self):
-    """Its world's own episode length in steps (the taxi's, or the ship's steer)."""
+    """Its world's own episode length in steps (the taxi's, the ship's steer, or the
+    regatta's at its level)."""
+    if self.world == "regatta":
+      return regatta_core.course_steps(self.level)
     return taxi_core.MAX_STEPS if self.world == "taxi" else ship_core.STEER_MAX_STEPS
 
   def env_kwargs(self, backend="analytic"):

@@ -256,7 +256,7 @@ def goal_rate(state, desired, reach, slope):
 
 @numba.njit(cache=True, error_model="numpy")
 def _sail_goal(state, desired, reach, slope, sign, first, back, cap, max_steps, gate_reward,
-               out_of_bounds_reward, samples, achieved, actions):
+               out_of_bounds_reward, tolerance, samples, achieved, actions):
   """One goal episode from `state` (in place): the first turns, then `goal_rate`; judged
   as the batch environment judges (`ship_goal_core.outcome_of` at the end of each
   step). Returns (event, steps, return)."""
@@ -272,7 +272,8 @@ def _sail_goal(state, desired, reach, slope, sign, first, back, cap, max_steps, 
     theta = math.radians(state[2])
     achieved[0], achieved[1] = state[0], state[1]
     achieved[2], achieved[3] = math.sin(theta), math.cos(theta)
-    event, reward = goal_core.outcome_of(achieved, desired, gate_reward, out_of_bounds_reward)
+    event, reward = goal_core.outcome_of(achieved, desired, gate_reward, out_of_bounds_reward,
+                                         tolerance)
     total += reward
     if event != core.NO_EVENT or steps >= max_steps or steps >= cap:
       return event, steps, total
@@ -280,7 +281,7 @@ def _sail_goal(state, desired, reach, slope, sign, first, back, cap, max_steps, 
 
 @numba.njit(cache=True)
 def _plan_goal(starts, gates, reaches, slopes, firsts, backs, keep, max_steps, gate_reward,
-               out_of_bounds_reward, best, choice, actions):
+               out_of_bounds_reward, tolerance, best, choice, actions):
   """`plan_goal`'s search: best[i] = (passed, steps, return), choice[i] = (reach, slope,
   sign, first, back). The scripted helmsman first, then every (reach, slope) without a
   first turn, then every first turn before the `keep` best of those (a later episode
@@ -296,7 +297,7 @@ def _plan_goal(starts, gates, reaches, slopes, firsts, backs, keep, max_steps, g
     state[:] = starts[i]
     event, steps, total = _sail_goal(state, desired, HELMSMAN_REACH, HELMSMAN_SLOPE, 1.0, 0, 0,
                                      max_steps, max_steps, gate_reward, out_of_bounds_reward,
-                                     samples, achieved, none)
+                                     tolerance, samples, achieved, none)
     passed = event == core.SUCCESS
     best[i, 0], best[i, 1], best[i, 2] = passed, steps, total
     choice[i, 0], choice[i, 1] = HELMSMAN_REACH, HELMSMAN_SLOPE
@@ -316,7 +317,8 @@ def _plan_goal(starts, gates, reaches, slopes, firsts, backs, keep, max_steps, g
               state[:] = starts[i]
               event, steps, total = _sail_goal(state, desired, reach, slope, sign, first,
                                                back, cap, max_steps, gate_reward,
-                                               out_of_bounds_reward, samples, achieved, none)
+                                               out_of_bounds_reward, tolerance, samples,
+                                               achieved, none)
               if stage == 0:
                 plain[pair] = steps if event == core.SUCCESS else np.inf
               if event == core.SUCCESS and (steps < cap or not best[i, 0]):
@@ -327,7 +329,7 @@ def _plan_goal(starts, gates, reaches, slopes, firsts, backs, keep, max_steps, g
       state[:] = starts[i]
       _sail_goal(state, desired, choice[i, 0], choice[i, 1], choice[i, 2], int(choice[i, 3]),
                  int(choice[i, 4]), max_steps, max_steps, gate_reward, out_of_bounds_reward,
-                 samples, achieved, actions[i])
+                 tolerance, samples, achieved, actions[i])
 
 
 # ---- regatta ---------------------------------------------------------------------------
@@ -631,13 +633,14 @@ def plan(name, level, starts, max_steps=core.STEER_MAX_STEPS, gate_reward=core.G
                        dtype=np.float64).reshape(-1, 4)
     outcome, choice = np.zeros((n, 3)), np.zeros((n, 5))
     _plan_goal(states, desired, GOAL_REACHES, GOAL_SLOPES, FIRST_TURNS, BACK_TURNS, GOAL_KEEP,
-               max_steps, float(gate_reward), float(out_of_bounds_reward), outcome, choice,
-               rates)
+               max_steps, float(gate_reward), float(out_of_bounds_reward),
+               goal_core.level_tolerance(level), outcome, choice, rates)
   elif name == "ship_regatta":
     gates, spacing, _, _ = regatta_core.level_layout(level)
     courses = np.ascontiguousarray(starts["course"], dtype=np.float64).reshape(-1, gates, 3)
     outcome, choice = np.zeros((n, 4)), np.zeros((n, gates + 1))
-    rules = RegattaRules(int(max_steps), float(gate_reward), regatta_core.FINISH_REWARD,
+    rules = RegattaRules(int(regatta_core.course_steps(level, max_steps)), float(gate_reward),
+                         regatta_core.FINISH_REWARD,
                          float(out_of_bounds_reward), 0.5 * spacing)
     _plan_regatta(states, courses, N_REGATTA_CANDIDATES, FIRST_TURNS, rules, outcome, choice,
                   rates)
@@ -670,7 +673,8 @@ def reference_steps(name, level, starts):
   if name == "ship_goal":
     out = []
     for state, gate in zip(states, starts["gate"]):
-      a, b = goal_core.gate_posts(goal_core.check_gate(gate, "ship_goal"))
+      a, b = goal_core.gate_posts(goal_core.check_gate(gate, "ship_goal"),
+                                  goal_core.TOLERANCES[level][0])
       t = np.clip((state[:2] - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0)
       out.append(np.linalg.norm(state[:2] - a - t * (b - a)) / step_m)
     return np.array(out)

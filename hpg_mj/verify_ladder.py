@@ -197,7 +197,7 @@ def verify_goal(episodes=20, seed=0, levels=None):
       drawn = np.array([mujoco.backend.physics.named.model.geom_pos[name][:2]
                         for name in ("gate_post_west", "gate_post_east")])
       posts_off = max(posts_off, float(np.abs(drawn - goal_core.gate_posts(
-          analytic._desired)).max()))
+          analytic._desired, analytic.tolerance[0])).max()))
     results.append(GoalVerification(level, episodes, passes, same, largest, posts_off))
   return results
 

@@ -51,7 +51,16 @@ class LadderEnvironment(taskfile.Section):
                                "last gate (unused by the other tasks)")
   out_of_bounds_reward: float = param(core.OUT_OF_BOUNDS_REWARD, "reward for leaving the "
                                       "field (the harbour: or touching an obstacle)")
-  max_steps: int = param(core.STEER_MAX_STEPS, "control steps, then truncated", low=1)
+  max_steps: int = param(core.STEER_MAX_STEPS, "control steps, then truncated (the regatta "
+                         "at hard: at most its 1,100)", low=1)
+
+  @property
+  def episode_steps(self):
+    """The control steps an episode runs at most: `max_steps`, or the regatta's time limit
+    at its level where shorter (`ship_regatta_core.course_steps`)."""
+    if self.world == "ship_regatta":
+      return regatta_core.course_steps(self.level, self.max_steps)
+    return self.max_steps
 
 
 def make_env(env, api, backend, kwargs, dictionary=False):
@@ -90,12 +99,12 @@ def regatta_returns(record, env):
   +100 each gate but the last, +500 the last, -100 off the field: those its bounds are
   on), whatever rewards the agent trained with (`env`, its [environment]): from its
   steps, gates and finish (record fields passed, gates, steps, return). An episode that
-  neither finished nor ran to `max_steps` left the field; one that stopped at
-  `max_steps` left it only if its return holds the out-of-bounds reward."""
+  neither finished nor ran to its step limit left the field; one that stopped at
+  the limit left it only if its return holds the out-of-bounds reward."""
   steps, gates = record["steps"], record["gates"]
   finished = record["passed"] > 0
   trained = -steps + env.gate_reward * gates
-  left = ~finished & ((steps < env.max_steps) | (
+  left = ~finished & ((steps < env.episode_steps) | (
       (env.out_of_bounds_reward != 0.0) &
       np.isclose(record["return"], trained + env.out_of_bounds_reward)))
   return (-steps + regatta_core.GATE_REWARD * (gates - finished)

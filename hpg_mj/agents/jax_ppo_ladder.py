@@ -115,7 +115,7 @@ class LadderPPOJax(jax_ppo._JaxAgent, _ship.ShipAgent):
     from hpg_mj.jax import ppo_ladder
     env = self.config.environment
     world, params = hpg_jax.make(ENV_IDS[env.world], level=env.level,
-                                 max_steps_in_episode=env.max_steps,
+                                 max_steps_in_episode=env.episode_steps,
                                  gate_reward=env.gate_reward,
                                  out_of_bounds_reward=env.out_of_bounds_reward,
                                  **({"finish_reward": env.finish_reward} if self.regatta

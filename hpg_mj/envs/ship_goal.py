@@ -30,16 +30,17 @@ class ShipGoalEnv(ship_env.ShipSteeringEnv):
   ## Description
   The ship of `hpg_mj/ShipSteering-v0` (3 m/s, its turning rate following the command
   with a 5 s lag, on the 1 km field) must pass a 100 m gate whose centre and heading
-  are drawn at each reset, heading within 45 degrees of the gate's heading. The
+  are drawn at each reset, heading within 45 degrees of the gate's heading (at `hard`
+  a 50 m gate, within 30 degrees). The
   observation is Gymnasium's goal-conditioned dictionary, and `compute_reward` gives
   the reward of any achieved and desired goals, so that Hindsight Experience Replay
   [3] (Stable-Baselines3's `HerReplayBuffer`) trains on it as it is.
 
-  | level | gate centre, each way | gate heading |
-  |---|---|---|
-  | easy | uniform on [300, 500] m (around `ShipSteering`'s gate) | within 30 deg of north |
-  | medium | uniform on [200, 800] m | within 90 deg of north |
-  | hard | uniform on [100, 900] m | any |
+  | level | gate centre, each way | gate heading | gate width, heading tolerance |
+  |---|---|---|---|
+  | easy | uniform on [300, 500] m (around `ShipSteering`'s gate) | within 30 deg of north | 100 m, 45 deg |
+  | medium | uniform on [200, 800] m | within 90 deg of north | 100 m, 45 deg |
+  | hard | uniform on [100, 900] m | any | 50 m, 30 deg |
 
   ## Action space
   `Box(-15, 15, (1,), float64)`: the desired turning rate r in deg/s, held for one
@@ -49,7 +50,7 @@ class ShipGoalEnv(ship_env.ShipSteeringEnv):
   `Dict` of three `Box(float64, (4,))`: `observation`, the ship's state as in
   `hpg_mj/ShipSteering-v0`; `achieved_goal`, the ship's position and heading as a
   goal; `desired_goal`, the same of the gate: its centre and heading (its posts
-  stand 50 m either side of the centre, across the heading).
+  stand 50 m either side of the centre, across the heading; 25 m at `hard`).
 
   | Num | Observation | Unit |
   |---|---|---|
@@ -70,8 +71,9 @@ class ShipGoalEnv(ship_env.ShipSteeringEnv):
   `compute_reward(achieved_goal, desired_goal, info)` (any batch shape): -1 per
   control step, +100 more when the goal is reached, -100 more when the achieved
   position is off the field. Reached: in the gate's frame the ship is between the posts
-  (|lateral| <= 50 m), at most one control step of sailing past the gate line
-  (0 <= forward < 1.8 m) and heading within 45 degrees of the gate's heading. A ship
+  (|lateral| <= 50 m; 25 m at `hard`), at most one control step of sailing past the
+  gate line (0 <= forward < 1.8 m) and heading within 45 degrees of the gate's heading
+  (30 at `hard`). A ship
   sails 1.8 m in a control step, so every pass between the posts with the gate's
   heading is seen at the end of the step that crosses the line.
 
@@ -133,7 +135,8 @@ class ShipGoalEnv(ship_env.ShipSteeringEnv):
     self._name = f"ShipGoal({level}, backend={backend})"
     self.observation_space, self.action_space = spaces_of(self.rules)
     self._desired = np.zeros(4)
-    self._judge = goal_core.OneShip(self.rules)
+    self.tolerance = goal_core.level_tolerance(level)
+    self._judge = goal_core.OneShip(self.rules, self.tolerance)
 
   def _observation(self, state):
     return {"observation": state, "achieved_goal": goal_core.goal_of(state),
@@ -148,7 +151,7 @@ class ShipGoalEnv(ship_env.ShipSteeringEnv):
       self._desired = goal_core.sample_gate(self.np_random, self.level_range)
     self.backend.set_state(state)
     if hasattr(self.backend, "physics"):     # the MuJoCo ship's gate geoms, where the rule's is
-      self.backend.physics.place_gate(goal_core.gate_posts(self._desired))
+      self.backend.physics.place_gate(goal_core.gate_posts(self._desired, self.tolerance[0]))
     self._steps = 0
     state = self.backend.state()
     self._trail = [state[:2].copy()]
@@ -163,10 +166,10 @@ class ShipGoalEnv(ship_env.ShipSteeringEnv):
   def compute_reward(self, achieved_goal, desired_goal, info):
     """The reward of achieved and desired goals of any batch shape (`info` unused)."""
     return goal_core.compute_reward(achieved_goal, desired_goal, self.rules.success_reward,
-                                    self.rules.failure_reward)
+                                    self.rules.failure_reward, self.tolerance)
 
   def _drawn(self):
-    return {"gate": goal_core.gate_posts(self._desired)}
+    return {"gate": goal_core.gate_posts(self._desired, self.tolerance[0])}
 
 
 class ShipGoalVectorEnv(vector.ShipSteeringVectorEnv):
@@ -191,6 +194,7 @@ class ShipGoalVectorEnv(vector.ShipSteeringVectorEnv):
     self.observation_space = batch_space(self.single_observation_space, self.num_envs)
     self._desired = np.zeros((self.num_envs, 4))
     self._achieved = np.zeros((self.num_envs, 4))
+    self.tolerance = goal_core.level_tolerance(level)
 
   def _start(self, indices, options):
     super()._start(indices, options)
@@ -207,7 +211,7 @@ class ShipGoalVectorEnv(vector.ShipSteeringVectorEnv):
     super()._advance(r, active)     # sails the ships (and judges them by ship/steer's gate)
     goal_core.judge_batch(self._states, active, self._steps, self._desired,
                           self.rules.max_steps, self.rules.success_reward,
-                          self.rules.failure_reward, self._achieved,
+                          self.rules.failure_reward, self.tolerance, self._achieved,
                           (self._event, self._reward, self._terminated, self._truncated))
     return self._reward.copy(), self._terminated.copy(), self._truncated.copy()
 
@@ -233,4 +237,4 @@ class ShipGoalVectorEnv(vector.ShipSteeringVectorEnv):
   def compute_reward(self, achieved_goal, desired_goal, info):
     """`ShipGoalEnv.compute_reward`."""
     return goal_core.compute_reward(achieved_goal, desired_goal, self.rules.success_reward,
-                                    self.rules.failure_reward)
+                                    self.rules.failure_reward, self.tolerance)

@@ -59,7 +59,7 @@ class ShipRegattaEnv(ship_env.ShipSteeringEnv):
   |---|---|---|---|
   | easy | 3 | 250 m | 0 to 30 deg |
   | medium | 5 | 200 m | 30 to 75 deg |
-  | hard | 8 | 150 m | 60 to 135 deg |
+  | hard | 8 | 150 m | 60 to 135 deg, and the course closes after 1,100 control steps |
 
   ## Action space
   `Box(-15, 15, (1,), float64)`: the desired turning rate r in deg/s, held for one
@@ -107,7 +107,8 @@ class ShipRegattaEnv(ship_env.ShipSteeringEnv):
   ## Episode end
   Terminated when the last gate is passed (`info["event"] == "finish"`) or the ship
   leaves the field (`"out_of_bounds"`). Truncated after 5,000 control steps (3,000 s;
-  `max_steps`), the episode limit of `hpg_mj/ShipSteering-v0`.
+  `max_steps`), the episode limit of `hpg_mj/ShipSteering-v0`; at `hard` the course closes
+  after 1,100 control steps (660 s), whatever a larger `max_steps` asks.
 
   ## Information
   `reset` and `step` return a dictionary:
@@ -128,7 +129,8 @@ class ShipRegattaEnv(ship_env.ShipSteeringEnv):
     (the next gate yellow, the later ones white, the passed ones grey); `width=640`,
     `height=480`, `camera=None` ("top"; or "overview", "chase", "local").
   - `strict=False`: refuse out-of-range turning rates instead of clipping them.
-  - `max_steps=None`: the episode limit in control steps (5,000).
+  - `max_steps=None`: the episode limit in control steps (5,000; at most 1,100 at
+    `hard`).
   - `gate_reward=100.0`, `finish_reward=500.0`, `out_of_bounds_reward=-100.0`: the
     rewards above.
 
@@ -154,7 +156,8 @@ class ShipRegattaEnv(ship_env.ShipSteeringEnv):
                out_of_bounds_reward=regatta_core.OUT_OF_BOUNDS_REWARD):
     self.level = level
     self.layout = regatta_core.level_layout(level, "ShipRegattaEnv")
-    super().__init__("steer", backend, render_mode, strict, max_steps, width, height, camera,
+    super().__init__("steer", backend, render_mode, strict,
+                     regatta_core.course_steps(level, max_steps), width, height, camera,
                      finish_reward, out_of_bounds_reward)
     self._name = f"ShipRegatta({level}, backend={backend})"
     self.observation_space, self.action_space = spaces_of(self.rules, self.layout[0])
@@ -227,7 +230,8 @@ class ShipRegattaVectorEnv(vector.ShipSteeringVectorEnv):
                autoreset_mode=AutoresetMode.NEXT_STEP, render_mode=None):
     self.level = level
     self.layout = regatta_core.level_layout(level, "ShipRegattaVectorEnv")
-    super().__init__(num_envs, "steer", backend, strict, max_steps, finish_reward,
+    super().__init__(num_envs, "steer", backend, strict,
+                     regatta_core.course_steps(level, max_steps), finish_reward,
                      out_of_bounds_reward, autoreset_mode, render_mode)
     self.who = f"ShipRegattaVectorEnv({level}, backend={backend})"
     gates = self.layout[0]

@@ -30,7 +30,6 @@ of them changed. `split_obs` gives the dictionary back (any batch shape), and
 jittable, for Hindsight Experience Replay written in JAX.
 """
 import functools
-import math
 
 import jax
 import jax.numpy as jnp
@@ -44,7 +43,6 @@ from hpg_mj.worlds import ship_goal_core as goal_core
 OBSERVATION = slice(0, 4)      # the ship's state [x, y, theta_deg, theta_dot_deg]
 ACHIEVED_GOAL = slice(4, 8)    # the ship's [x, y, sin(theta), cos(theta)]
 DESIRED_GOAL = slice(8, 12)    # the gate's [x, y, sin(heading), cos(heading)]
-_MIN_COS = math.cos(math.radians(goal_core.HEADING_TOLERANCE_DEG))
 
 
 @environment.record
@@ -57,10 +55,14 @@ class GoalState(ship.EnvState):
 class GoalParams(ship.EnvParams):
   """The steering task's `EnvParams` and the level's gate ranges (SPEC section 11,
   `ship_goal_core.LEVELS`): the centre uniform on [gate_low, gate_high] m each way,
-  the heading uniform on [-gate_heading_deg, gate_heading_deg)."""
+  the heading uniform on [-gate_heading_deg, gate_heading_deg); and how exactly it is
+  reached (`ship_goal_core.TOLERANCES`): within `half_width` m of the centre across the
+  gate, the heading's cosine to the gate's at least `min_cos`."""
   gate_low: float = goal_core.LEVELS[goal_core.DEFAULT_LEVEL][0]
   gate_high: float = goal_core.LEVELS[goal_core.DEFAULT_LEVEL][1]
   gate_heading_deg: float = goal_core.LEVELS[goal_core.DEFAULT_LEVEL][2]
+  half_width: float = float(goal_core.STEER_TOLERANCE[0])
+  min_cos: float = float(goal_core.STEER_TOLERANCE[1])
 
 
 def split_obs(obs):
@@ -76,16 +78,18 @@ def goal_of(x, y, theta_deg):
   return jnp.stack([x, y, jnp.sin(rad), jnp.cos(rad)])
 
 
-def reached(achieved, desired):
+def reached(achieved, desired, params):
   """`ship_goal_core.reached` over the last axis of goals: the ship between the posts,
-  within one control step's sailing past the gate's line, heading within 45 degrees."""
+  within one control step's sailing past the gate's line, heading within the level's
+  tolerance (`params`: 45 degrees, 30 at hard)."""
   ax, ay, asin, acos = (achieved[..., i] for i in range(4))
   dx, dy, dsin, dcos = (desired[..., i] for i in range(4))
   rx, ry = ax - dx, ay - dy
   forward = rx * dsin + ry * dcos
   lateral = rx * dcos - ry * dsin
   return ((0.0 <= forward) & (forward < goal_core.WINDOW)
-          & (jnp.abs(lateral) <= goal_core.HALF_WIDTH) & (asin * dsin + acos * dcos >= _MIN_COS))
+          & (jnp.abs(lateral) <= params.half_width)
+          & (asin * dsin + acos * dcos >= params.min_cos))
 
 
 def outcome_of(achieved, desired, params):
@@ -93,7 +97,7 @@ def outcome_of(achieved, desired, params):
   and -1 + `gate_reward` at the gate, FAILURE and -1 + `out_of_bounds_reward` off the
   field, else NO_EVENT and -1."""
   ax, ay = achieved[..., 0], achieved[..., 1]
-  at_gate = reached(achieved, desired)
+  at_gate = reached(achieved, desired, params)
   off = (ax < 0.0) | (ax > core.FIELD_SIZE) | (ay < 0.0) | (ay > core.FIELD_SIZE)
   event = jnp.where(at_gate, core.SUCCESS, jnp.where(off, core.FAILURE, core.NO_EVENT))
   step = jnp.asarray(core.STEP_REWARD, achieved.dtype)
@@ -128,8 +132,9 @@ class ShipGoal(ship.ShipSteering):
   @property
   def default_params(self):
     low, high, largest = self.level_range
+    half_width, min_cos = (float(v) for v in goal_core.level_tolerance(self.level))
     return GoalParams(max_steps_in_episode=core.STEER_MAX_STEPS, gate_low=low, gate_high=high,
-                      gate_heading_deg=largest)
+                      gate_heading_deg=largest, half_width=half_width, min_cos=min_cos)
 
   def observation_space(self, params=None):
     # `hpg_mj.envs.ship_goal.spaces_of`, flat: the ship's state, then two goals on the

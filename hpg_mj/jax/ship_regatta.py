@@ -221,7 +221,8 @@ class ShipRegatta(ship.ShipSteering):
   @property
   def default_params(self):
     gates, spacing, smallest, largest = self.layout
-    return RegattaParams(max_steps_in_episode=core.STEER_MAX_STEPS, gates=gates,
+    return RegattaParams(max_steps_in_episode=regatta_core.course_steps(self.level),
+                         gates=gates,
                          spacing=spacing, smallest_turn_deg=smallest,
                          largest_turn_deg=largest)
 
@@ -252,7 +253,14 @@ class ShipRegatta(ship.ShipSteering):
   def is_terminal(self, state, params):
     # A gate passed (GATE) is no ending: only the finish, the field and the clock.
     ended = (state.event == core.SUCCESS) | (state.event == core.FAILURE)
-    return ended | (state.time >= params.max_steps_in_episode)
+    return ended | (state.time >= self._closes(params))
+
+  def _closes(self, params):
+    # The step limit, or the level's time limit where shorter (`course_steps`): a larger
+    # `max_steps_in_episode` does not reopen a course that has closed.
+    limit = regatta_core.TIME_LIMITS[self.level]
+    steps = params.max_steps_in_episode
+    return steps if limit is None else jnp.minimum(steps, limit)
 
   # ---- starts -------------------------------------------------------------------
 
@@ -320,7 +328,7 @@ class ShipRegatta(ship.ShipSteering):
     end = state.replace(x=x, y=y, theta_deg=theta, theta_dot_deg=rate, time=time, event=event,
                         next_gate=next_gate)
     terminated = (event == core.SUCCESS) | (event == core.FAILURE)
-    truncated = ~terminated & (time >= params.max_steps_in_episode)
+    truncated = ~terminated & (time >= self._closes(params))
     info = {"terminated": terminated, "truncated": truncated, "event": event,
             "gates_passed": next_gate,
             "discount": jnp.where(terminated, 0.0, 1.0).astype(x.dtype)}

@@ -7,11 +7,12 @@ Tasks:
   medium: the centre anywhere in the middle 600 m ([200, 800] m each way), the
           heading within 90 degrees of north.
   hard:   the centre anywhere in [100, 900] m each way (both posts on the field),
-          any heading.
+          any heading; the gate 50 m wide, passed heading within 30 degrees of it.
 
 The ship, the field, the uniform starts and the rewards are `ship/steer`'s (-1 per
 control step, +100 at the gate, -100 off the field, 5,000 control steps then
-truncated); the gate must be passed heading within 45 degrees of its heading, and the
+truncated); the gate must be passed heading within 45 degrees of its heading (30 at
+hard, where the gate is also half as wide), and the
 pass and the departure are judged where the ship is at the end of each control step,
 so that the same rule is a function of goals alone (`ship_goal_core`, for Hindsight
 Experience Replay). The observation adds the gate (`gate_position`,
@@ -47,7 +48,8 @@ class GoalTask(ship.ShipTask):
     # make its spec): ship/steer's.
     self.desired = goal_core.check_gate([400.0, 400.0, 0.0], self.name)
     self._gate_heading_deg = np.zeros(1)
-    self._judge = goal_core.OneShip(self.rules)
+    self.tolerance = goal_core.level_tolerance(level)
+    self._judge = goal_core.OneShip(self.rules, self.tolerance)
 
   @property
   def gate(self):
@@ -62,7 +64,7 @@ class GoalTask(ship.ShipTask):
     super().initialize_episode(physics)     # the ship's start, then the gate
     self.desired = (self._gate if self._gate is not None
                     else goal_core.sample_gate(self.random, self.level_range))
-    physics.place_gate(goal_core.gate_posts(self.desired))
+    physics.place_gate(goal_core.gate_posts(self.desired, self.tolerance[0]))
     self._gate_heading_deg = np.array([goal_core.gate_heading_deg(self.desired)])
 
   def after_step(self, physics):
@@ -89,11 +91,13 @@ def _constructor(level):
                  max_steps=max_steps, gate_reward=gate_reward,
                  out_of_bounds_reward=out_of_bounds_reward), environment_kwargs)
   low, high, largest = goal_core.LEVELS[level]
+  half_width, degrees = goal_core.TOLERANCES[level]
   task.__name__ = task.__qualname__ = level
   task.__doc__ = (f"Pass a gate drawn each episode (level {level!r}: centre uniform on "
                   f"[{low:g}, {high:g}] m each way, heading within {largest:g} degrees of "
-                  "north); `gate=[x, y, heading_deg]` fixes it. The gate's and the bounds' "
-                  "rewards are SPEC section 2's unless given.")
+                  f"north; {2 * half_width:g} m wide, passed heading within {degrees:g} "
+                  "degrees of it); `gate=[x, y, heading_deg]` fixes it. The gate's and the "
+                  "bounds' rewards are SPEC section 2's unless given.")
   return task
 
 

@@ -177,12 +177,15 @@ def _course_geoms(model):
 
 def _move_gate(model, ids, posts):
   """Puts a gate's geoms `ids` (two posts, then the line between them) at `posts`, rows
-  (x, y), their heights as the model has them (posts standing, the line on the sea)."""
+  (x, y), their heights as the model has them (posts standing, the line on the sea), the
+  line as long as the posts are apart (the goal's hard gate is half the others')."""
   (x0, y0), (x1, y1) = posts
   model.geom_pos[ids[0]] = (x0, y0, 5.0)
   model.geom_pos[ids[1]] = (x1, y1, 5.0)
   half_angle = 0.5 * math.atan2(y1 - y0, x1 - x0)
   model.geom_pos[ids[2]] = (0.5 * (x0 + x1), 0.5 * (y0 + y1), 0.3)
+  model.geom_size[ids[2]][0] = 0.5 * math.hypot(x1 - x0, y1 - y0)
+  model.geom_rbound[ids[2]] = float(np.linalg.norm(model.geom_size[ids[2]]))
   model.geom_quat[ids[2]] = (math.cos(half_angle), 0.0, 0.0, math.sin(half_angle))
   # The compiler marked the line's frame as its body's turned by nothing, and MuJoCo
   # then never reads its geom_quat: it must read it now.

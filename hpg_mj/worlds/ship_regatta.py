@@ -4,13 +4,14 @@ laid out from the episode's seed (`ship_regatta_core`'s layout, rule and levels)
 Tasks:
   easy:   3 gates 250 m apart, the course bending by at most 30 degrees at each.
   medium: 5 gates 200 m apart, turning by 30 to 75 degrees at each, to either side.
-  hard:   8 gates 150 m apart, turning by 60 to 135 degrees at each: hairpins.
+  hard:   8 gates 150 m apart, turning by 60 to 135 degrees at each: hairpins; the course
+          closes after 1,100 control steps (11 minutes).
 
 The ship, the field, the uniform starts and the bounds are `ship/steer`'s, and so is the
 way a gate is passed (a sampled segment crossing it between the posts, either way); only
 the next gate counts. -1 per control step, +100 for each gate but the last, +500 for
-the last, which ends the episode; -100 for leaving the field; 5,000 control steps, then
-truncated. The observation adds the next gate and the one after it as the ship sees them
+the last, which ends the episode; -100 for leaving the field; 5,000 control steps (1,100
+at hard), then truncated. The observation adds the next gate and the one after it as the ship sees them
 (`next_gate`, `gate_after`: ahead and to starboard in m, heading less the ship's in
 degrees) and the gates left to pass (`gates_left`). On MuJoCo the steering ship sails on
 assets/ship_regatta.xml, whose course geoms are moved to the episode's gates.
@@ -55,7 +56,8 @@ class RegattaTask(ship.ShipTask):
     self.level = level
     self.layout = regatta_core.level_layout(level, "ship_regatta")
     super().__init__("steer", random=random, initial_state=initial_state, strict=strict,
-                     max_steps=max_steps, gate_reward=finish_reward,
+                     max_steps=regatta_core.course_steps(level, max_steps),
+                     gate_reward=finish_reward,
                      out_of_bounds_reward=out_of_bounds_reward)
     self.name = f"ship_regatta-{level}"
     self.course = course
@@ -128,6 +130,9 @@ def _constructor(level):
                   f"are SPEC section 11's unless given (+{regatta_core.GATE_REWARD:g} a gate, "
                   f"+{regatta_core.FINISH_REWARD:g} the last, "
                   f"{core.OUT_OF_BOUNDS_REWARD:g} off the field).")
+  if regatta_core.TIME_LIMITS[level] is not None:
+    task.__doc__ += (f" The course closes after {regatta_core.TIME_LIMITS[level]:,} control "
+                     "steps, whatever a larger `max_steps` asks.")
   return task
 
 

@@ -88,6 +88,30 @@ def test_the_native_batch_follows_the_single_environments(mode, backend, steps, 
   assert ends >= 8
 
 
+def test_the_hard_gate_takes_no_pass_30_m_off_its_centre_on_any_path():
+  # A ship sailing north 30 m east of the gate's centre passes the medium gate (50 m
+  # either side) and not the hard one (25 m): Gymnasium's single and batched
+  # environments, dm_control's task and the fused loop's world judge alike.
+  from hpg_mj.hierarchy import ladder
+  from hpg_mj.worlds import ship_goal_core as goal_core
+  state, gate = [430.0, 390.0, 0.0, 0.0], [400.0, 400.0, 0.0]
+  for level, passes in (("medium", True), ("hard", False)):
+    env = gymnasium.make(ID, level=level, backend="analytic")
+    env.reset(options={"state": state, "gate": gate})
+    events = [env.step(np.zeros(1))[4]["event"] for _ in range(8)]
+    assert ("gate" in events) == passes, level
+    vec = gymnasium.make_vec(ID, 2, level=level, backend="analytic")
+    vec.reset(options={"state": state, "gate": gate})
+    success = [vec.step(np.zeros((2, 1)))[4]["is_success"].all() for _ in range(8)]
+    assert any(success) == passes, level
+    dm = suite.load("ship_goal", level, {"initial_state": state, "gate": gate})
+    dm.reset()
+    rewards = [dm.step(np.zeros(1)).reward for _ in range(8)]
+    assert (99.0 in rewards) == passes, level
+    world = ladder.world("ship_goal", level)
+    np.testing.assert_array_equal(world.params.tolerance, goal_core.level_tolerance(level))
+
+
 def test_her_trains_on_it_unmodified():
   # Stable-Baselines3's SAC with its HerReplayBuffer, a few hundred steps: the buffer
   # relabels with `compute_reward`, and hindsight finds the successes random sailing

@@ -142,8 +142,8 @@ class GoalWorld(World):
                          np.zeros(2), core.FIELD_SIZE, self.limit, self.rules.success_reward,
                          self.rules.failure_reward, self.outcome)
     goal_core.judge_batch(self.ships, live, self.steps, self.desired, self.limit,
-                          self.rules.success_reward, self.rules.failure_reward, self.achieved,
-                          self.outcome)
+                          self.rules.success_reward, self.rules.failure_reward,
+                          goal_core.level_tolerance(self.level), self.achieved, self.outcome)
     return self.outcome
 
   def observations(self):
@@ -465,13 +465,19 @@ def test_the_goals_compute_reward_is_the_numba_rule(x64):
   achieved[:, 2:] = np.stack([desired[:, 2] * np.cos(turn) + desired[:, 3] * np.sin(turn),
                               desired[:, 3] * np.cos(turn) - desired[:, 2] * np.sin(turn)], 1)
   achieved[::7, :2] = rng.uniform(-50.0, 1050.0, (len(range(0, 4000, 7)), 2))  # off the field too
-  env, params = hpg_jax.make("ShipGoal-v0", level="hard", gate_reward=50.0)
-  expected = goal_core.compute_reward(achieved, desired, 50.0, -100.0)
-  got = np.asarray(jax.jit(env.compute_reward)(achieved, desired, params))
-  assert np.array_equal(got, expected)
-  assert {-1.0, 49.0, -101.0} <= set(expected.tolist())
-  assert float(env.compute_reward(achieved[0], desired[0])) == goal_core.compute_reward(
-      achieved[0], desired[0], 100.0, -100.0)
+  for level in ("medium", "hard"):                  # the hard gate's tolerances are its own
+    tolerance = goal_core.level_tolerance(level)
+    env, params = hpg_jax.make("ShipGoal-v0", level=level, gate_reward=50.0)
+    expected = goal_core.compute_reward(achieved, desired, 50.0, -100.0, tolerance)
+    got = np.asarray(jax.jit(env.compute_reward)(achieved, desired, params))
+    assert np.array_equal(got, expected)
+    assert {-1.0, 49.0, -101.0} <= set(expected.tolist())
+    assert float(env.compute_reward(achieved[0], desired[0])) == goal_core.compute_reward(
+        achieved[0], desired[0], 100.0, -100.0, tolerance)
+  medium, hard = (goal_core.compute_reward(achieved, desired, 50.0, -100.0,
+                                           goal_core.level_tolerance(level)) == 49.0
+                  for level in ("medium", "hard"))
+  assert hard.sum() < medium.sum() and not (hard & ~medium).any()   # hard's a subset
 
 
 @pytest.fixture

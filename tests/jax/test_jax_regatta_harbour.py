@@ -127,6 +127,28 @@ def test_the_auto_reset_lays_courses_by_the_rule_only_where_an_episode_ended():
     assert 0.45 < (turns > 0).mean() < 0.55, level
 
 
+def test_the_hard_course_closes_at_its_time_limit_whatever_the_params_ask():
+  """At hard the default step limit is the level's time limit (1,100), and a larger
+  `max_steps_in_episode` does not reopen the course: a circling ship is truncated at
+  1,100 control steps, as the numba world's (tests/envs/test_ship_regatta_env.py)."""
+  limit = regatta_core.TIME_LIMITS["hard"]
+  env, params = hpg_jax.make("ShipRegatta-v0", level="hard")
+  assert params.max_steps_in_episode == limit
+  assert hpg_jax.make("ShipRegatta-v0", level="medium")[1].max_steps_in_episode == 5000
+  params = params.replace(max_steps_in_episode=5000)
+  _, state = env.reset_env(jax.random.PRNGKey(0), params)
+  state = state.replace(x=jnp.asarray(500.0, state.x.dtype), y=jnp.asarray(500.0, state.x.dtype),
+                        theta_dot_deg=jnp.asarray(15.0, state.x.dtype))
+
+  def body(state, key):
+    _, state, _, _, info = env.step_env(key, state, jnp.array([15.0]), params)
+    return state, (info["terminated"], info["truncated"])
+  _, (terminated, truncated) = jax.lax.scan(body, state, jax.random.split(
+      jax.random.PRNGKey(1), limit))
+  assert not np.asarray(terminated).any()
+  assert np.flatnonzero(np.asarray(truncated)).tolist() == [limit - 1]
+
+
 def test_the_harbours_starts_are_off_the_obstacles_and_its_ranges_the_numbas(x64):
   """Per level, 512 copies stepped by `step` vmapped and scanned over 40 steps, hard
   over in episodes of 10 (float64): where one ended, the new state and observation

@@ -33,6 +33,24 @@ def test_the_window_is_between_the_posts_one_step_deep_and_45_degrees_wide():
   assert reward(-0.1, 500.0, 0.0) == -101.0       # off the field
 
 
+def test_the_hard_gate_is_half_as_wide_and_asks_for_the_heading_within_30_degrees():
+  gate = _gate(400.0, 400.0, 0.0)
+  hard = goal_core.level_tolerance("hard")
+  reward = lambda *a: goal_core.compute_reward(_achieved(*a), gate, 100.0, -100.0,  # noqa: E731
+                                               hard)
+  assert reward(400.0, 400.5, 0.0) == 99.0
+  assert reward(375.0, 400.5, 0.0) == 99.0        # at a post, 25 m from the centre
+  assert reward(374.9, 400.5, 0.0) == -1.0        # medium's gate would take it
+  assert reward(400.0, 400.5, 29.9) == 99.0
+  assert reward(400.0, 400.5, -30.1) == -1.0      # medium's 45 degrees would take it
+  np.testing.assert_allclose(goal_core.gate_posts(gate, hard[0]), [[375.0, 400.0],
+                                                                   [425.0, 400.0]], atol=1e-12)
+  for level in ("easy", "medium"):
+    np.testing.assert_array_equal(goal_core.level_tolerance(level), goal_core.STEER_TOLERANCE)
+  with pytest.raises(ValueError, match=r"^ship goal: unknown level 'windy'; allowed levels: "):
+    goal_core.level_tolerance("windy")
+
+
 def test_a_turned_gate_is_the_same_rule_turned():
   # The gate heading east (90 deg) at (600, 300): its posts at y = 250 and 350.
   gate = _gate(600.0, 300.0, 90.0)
