@@ -38,11 +38,25 @@ def _command(path, out, *extra):
 
 @pytest.fixture(scope="module")
 def alone(tmp_path_factory):
-  """The experiment run alone, in this process."""
+  """The experiment run alone, in this process: each seed's final run, and under
+  "metrics" what `run_experiment` returned for each."""
   tmp = tmp_path_factory.mktemp("alone")
   experiment = runner.load_experiment(_experiment(tmp))
-  _, root, _ = runner.run_experiment(experiment, tmp / "out", workers=1, checkpoint_every=1000)
-  return {seed: final_run(root / "taxi_fuel_hpg" / f"seed{seed}") for seed in range(2)}
+  results, root, _ = runner.run_experiment(experiment, tmp / "out", workers=1,
+                                           checkpoint_every=1000)
+  runs_alone = {seed: final_run(root / "taxi_fuel_hpg" / f"seed{seed}") for seed in range(2)}
+  return {**runs_alone, "metrics": results["taxi_fuel_hpg"]}
+
+
+def _same_metrics(a, b):
+  """Two runs' metrics (as `run_experiment` returns them) alike but for their seconds and
+  provenance; each run's seconds add up (compile + train = wall)."""
+  a, b = dict(a), dict(b)
+  for m in (a, b):
+    assert m.pop("wall_seconds") == pytest.approx(
+        m.pop("compile_seconds") + m.pop("train_seconds"), abs=0.0015)
+    m.pop("provenance")
+  assert a == b
 
 
 def _holder_process(run_dir):
@@ -163,11 +177,14 @@ def test_ray_waits_for_a_held_run_and_refuses_with_no_wait(tmp_path, alone):
     with pytest.raises(locks.RunLocked, match=rf"run {run_dir} is held by pid {holder.pid}"):
       runner.run_experiment(experiment, out, workers=2, executor="ray", wait=False)
     assert not (out / "locked" / "taxi_fuel_hpg" / "seed1").exists()   # nothing started
-    runner.run_experiment(experiment, out, workers=2, executor="ray", checkpoint_every=1000,
-                          on_wait=on_wait)
+    results, _, _ = runner.run_experiment(experiment, out, workers=2, executor="ray",
+                                          checkpoint_every=1000, on_wait=on_wait)
   finally:
     holder.kill()
     holder.wait()
   assert len(told) == 1 and "waiting for it" in told[0]
+  # Ray gives the numbers the process pool gives (`alone`), runs and metrics.
   for seed in range(2):
     assert_same_run(final_run(out / "locked" / "taxi_fuel_hpg" / f"seed{seed}"), alone[seed])
+  for a, b in zip(alone["metrics"], results["taxi_fuel_hpg"], strict=True):
+    _same_metrics(a, b)
