@@ -22,12 +22,12 @@ Shipped: ship_hybrid, ship_beyond (past the paper's route, SPEC section 8),
 ship_flat_pg, ship_actor_critic, ship_patrol (continuing, SPEC section 8), the hybrid,
 flat PGRL and the option-critic on the task ladder (ship_ladder_hybrid,
 ship_ladder_flat_pg, ship_ladder_option_critic: SPEC section 11, the task and level
-named by the task file) and the regatta's waypoints (ship_ladder_waypoints, a
-parameterized subtask), taxi_hpg, taxi_maxq, taxi_flat_q, the learned hierarchies
-ship_option_critic and taxi_option_critic (each one module here); PPO and DQN in JAX
-(jax_ppo, jax_dqn, with `hpg_mj[jax]`; PPO on the task ladder too, jax_ppo_ladder); and
-Stable-Baselines3's PPO and SAC on the ship, PPO and DQN on the taxi
-(`hpg_mj.agents.sb3`, with the extra `pip install 'hpg_mj[sb3]'`).
+named by the task file) and the waypoints (ship_ladder_waypoints, a parameterized
+subtask, on the regatta, the goal and the current), taxi_hpg, taxi_maxq, taxi_flat_q,
+the learned hierarchies ship_option_critic and taxi_option_critic (each one module
+here); PPO and DQN in JAX (jax_ppo, jax_dqn, with `hpg_mj[jax]`; PPO on the task ladder
+too, jax_ppo_ladder); and Stable-Baselines3's PPO and SAC on the ship, PPO and DQN on
+the taxi (`hpg_mj.agents.sb3`, with the extra `pip install 'hpg_mj[sb3]'`).
 """
 import importlib
 import importlib.util

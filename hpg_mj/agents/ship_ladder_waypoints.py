@@ -22,11 +22,15 @@ gate; it is not the paper's design.
                        leaving the field (`pseudo`: that ends the episode, and so the
                        call, before its 150 steps, which would otherwise pay)
 
-Its rules read the regatta's observation (`envs.ship_regatta`: the next gate at 4-6 as
-[ahead, starboard, heading less the ship's], the gates left at 10), so its [environment]
-names the regatta only: the goal's single gate would need the rules written again over
-its absolute desired goal for a task the hybrid already passes.
+Its rules read the next gate as the regatta's observation gives it (`envs.ship_regatta`:
+at 4-6 as [ahead, starboard, heading less the ship's], the gates left at 10); on the
+goal and the current the one gate is seen so from the observation (`SEEN_GATES`: the
+goal's desired goal at 8-11, the current's fixed gate of SPEC section 2), and the pass,
+which ends the episode, ends the call with it. The approach's points are in that gate's
+frame (`_ladder.GATE_FRAMES`; the current's gate stands still, so its points are
+numbers). The harbour is refused: its obstacles wreck a ship that only aims.
 """
+import collections
 import dataclasses
 import math
 
@@ -38,6 +42,7 @@ from hpg_mj.agents import hierarchy
 from hpg_mj.agents import ship_hybrid
 from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
+from hpg_mj.hierarchy.kinds import gate_frame
 from hpg_mj.hierarchy.kinds.rules import Abstraction, Features, InternalReward, Termination
 from hpg_mj.learners import tiles
 from hpg_mj.taskfile import param
@@ -51,18 +56,97 @@ SUCCESS_G, LEFT_G = 20.0, -200.0  # the approach's pseudo-reward: +-20, and leav
 _JIT = dict(cache=True, error_model="numpy")
 
 
+# ---- the next gate, as each task's observation shows it ---------------------------------
+
+@numba.njit(**_JIT)
+def seen_from(obs, gx, gy, s, c):
+  """[ahead, starboard, heading less the ship's] of the gate at (gx, gy) heading (sine s,
+  cosine c), as the regatta's observation gives its next gate (`ship_regatta_core`)."""
+  rad = math.radians(obs[2])
+  sin, cos = math.sin(rad), math.cos(rad)
+  dx, dy = gx - obs[0], gy - obs[1]
+  return (dx * sin + dy * cos, dx * cos - dy * sin,
+          core.wrap_deg(math.degrees(math.atan2(s, c)) - obs[2]))
+
+
+@numba.njit(**_JIT)
+def regatta_gate(obs):
+  """The regatta's next gate, as its observation gives it, and the gates left."""
+  return obs[4], obs[5], obs[6], obs[10]
+
+
+@numba.njit(**_JIT)
+def goal_gate(obs):
+  """The goal's gate, its desired goal [x, y, sin, cos] at 8-11; one gate left (its pass
+  ends the episode)."""
+  ahead, starboard, heading = seen_from(obs, obs[8], obs[9], obs[10], obs[11])
+  return ahead, starboard, heading, 1.0
+
+
+@numba.njit(**_JIT)
+def current_gate(obs):
+  """The current's gate, the steering task's fixed one (SPEC section 2): its centre
+  (400, 400), heading north; one gate left (its pass ends the episode)."""
+  ahead, starboard, heading = seen_from(obs, gate_frame.CENTRE_X, gate_frame.CENTRE_Y,
+                                        0.0, 1.0)
+  return ahead, starboard, heading, 1.0
+
+
+# The tasks the waypoints sail, and how each one's observation shows the next gate: a
+# function of the observation -> (ahead_m, starboard_m, heading less the ship's in deg,
+# the gates left), which the rules of `_rules` read.
+SEEN_GATES = {"ship_current": current_gate, "ship_goal": goal_gate,
+              "ship_regatta": regatta_gate}
+
+
 # ---- the rules -----------------------------------------------------------------------
 
 @numba.njit(**_JIT)
-def root_state(obs, call):
-  """The root's state: 8 sectors of the next gate's bearing from the bow x 3 bands of its
-  distance (60 m, 200 m) x 4 quadrants of its heading relative to the ship's."""
-  bearing = math.degrees(math.atan2(obs[5], obs[4]))           # -180..180, 0 dead ahead
+def gate_state(ahead, starboard, heading):
+  """The root's state of the next gate seen so: 8 sectors of its bearing from the bow x
+  3 bands of its distance (60 m, 200 m) x 4 quadrants of its heading relative to the
+  ship's."""
+  bearing = math.degrees(math.atan2(starboard, ahead))        # -180..180, 0 dead ahead
   sector = min(int((bearing + 180.0) // 45.0), 7)
-  d = math.hypot(obs[4], obs[5])
+  d = math.hypot(ahead, starboard)
   band = 0 if d < NEAR_M else (1 if d < FAR_M else 2)
-  quadrant = min(int(((obs[6] + 180.0) % 360.0) // 90.0), 3)
+  quadrant = min(int(((heading + 180.0) % 360.0) // 90.0), 3)
   return (sector * 3 + band) * 4 + quadrant
+
+
+Rules = collections.namedtuple("Rules", ("root_state", "reached"))
+Rules.__doc__ = """The rules that read the next gate, compiled for one task."""
+
+
+def _rules(world, seen):
+  """The root's state and the approach's end on the task `world`, whose observation
+  `seen` reads (`SEEN_GATES`); each named for its task, so that a graph's compiled
+  module (`hierarchy.graph_module`, named by its rules' names) is the task's own."""
+
+  def root_state(obs, call):
+    """The root's state (`gate_state`) of the next gate the observation shows."""
+    ahead, starboard, heading, _ = seen(obs)
+    return gate_state(ahead, starboard, heading)
+
+  def reached(obs, call):
+    """The approach's end: 1 when a gate was passed during the call (fewer gates left
+    than where it began) or the ship is within 20 m of its point; -1 after 150 control
+    steps."""
+    if seen(obs)[3] < seen(call.origin)[3]:
+      return 1
+    if math.hypot(call.px - obs[0], call.py - obs[1]) < RADIUS_M:
+      return 1
+    return -1 if call.steps >= APPROACH_STEPS else 0
+
+  # Not cached on their own: a closure's key in numba's cache holds the function it
+  # captured, which differs in every process; the graph's module, which calls them,
+  # caches their machine code with its own.
+  for rule in (root_state, reached):
+    rule.__qualname__ = f"{rule.__name__}_{world}"
+  return Rules(*(numba.njit(error_model="numpy")(rule) for rule in (root_state, reached)))
+
+
+RULES = {world: _rules(world, seen) for world, seen in SEEN_GATES.items()}
 
 
 @numba.njit(**_JIT)
@@ -71,17 +155,6 @@ def aim(obs, call):
   and the turning rate."""
   bearing = math.degrees(math.atan2(call.px - obs[0], call.py - obs[1]))
   return ((obs[2] - bearing + 180.0) % 360.0 - 180.0, obs[3])
-
-
-@numba.njit(**_JIT)
-def reached(obs, call):
-  """The approach's end: 1 when a gate was passed during the call (fewer gates left than
-  where it began) or the ship is within 20 m of its point; -1 after 150 control steps."""
-  if obs[10] < call.origin[10]:
-    return 1
-  if math.hypot(call.px - obs[0], call.py - obs[1]) < RADIUS_M:
-    return 1
-  return -1 if call.steps >= APPROACH_STEPS else 0
 
 
 @numba.njit(**_JIT)
@@ -96,11 +169,11 @@ def pseudo(obs, call, event):
 # ---- the task file ---------------------------------------------------------------------
 
 @dataclasses.dataclass(frozen=True)
-class RegattaEnvironment(_ladder.LadderEnvironment):
-  """[environment]: the ladder's (`agents._ladder`), on the regatta, whose observation
-  the rules read."""
-  world: str = param("ship_regatta", "the ladder's task: the regatta, whose observation "
-                     "the rules read", choices=("ship_regatta",))
+class WaypointsEnvironment(_ladder.LadderEnvironment):
+  """[environment]: the ladder's (`agents._ladder`), on a task whose next gate the rules
+  see (`SEEN_GATES`): the current, the goal or the regatta."""
+  world: str = param("ship_regatta", "the ladder's task, whose next gate the rules see",
+                     choices=tuple(SEEN_GATES))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -126,9 +199,10 @@ class Approach(taskfile.Section):
 
 @dataclasses.dataclass(frozen=True)
 class Config:
-  """The task file's schema: [environment] (the regatta and its level), [root] and
+  """The task file's schema: [environment] (the task and its level), [root] and
   [approach]."""
-  environment: RegattaEnvironment = dataclasses.field(default_factory=RegattaEnvironment)
+  environment: WaypointsEnvironment = dataclasses.field(
+      default_factory=WaypointsEnvironment)
   root: Root = dataclasses.field(default_factory=Root)
   approach: Approach = dataclasses.field(default_factory=Approach)
 
@@ -143,7 +217,7 @@ def coder(approach):
 
 class ShipLadderWaypoints(hierarchy.ShipLadderHierarchy):
   """The root over styles of approach and the shared approach(px, py) (the module
-  docstring), run by the open machine fused with the regatta's world and step by step
+  docstring), run by the open machine fused with its task's world and step by step
   through its environments; its state by node name (`root.q`, `approach.theta`, ...,
   `schedule.state`)."""
 
@@ -153,7 +227,7 @@ class ShipLadderWaypoints(hierarchy.ShipLadderHierarchy):
                    "approach_successes", "return")
 
   def __init__(self, config=None, seed=0, task=None):
-    # (Another world is refused as its [environment] is made: `RegattaEnvironment`'s
+    # (Another world is refused as its [environment] is made: `WaypointsEnvironment`'s
     # choices, from a task file or in Python.)
     super().__init__(config, seed, task)
     root, approach = self.config.root, self.config.approach
@@ -164,28 +238,35 @@ class ShipLadderWaypoints(hierarchy.ShipLadderHierarchy):
                                         approach.baseline, core.MAX_TURN_RATE)
 
   def styles(self):
-    """The root's children's points (`blocks.GatePoint` in the next gate's frame): the
-    gate's centre, `lateral_m` to port and to starboard across it, `lineup_m` before it."""
-    frame, r = _ladder.GATE_FRAMES["ship_regatta"], self.config.root
-    return [blocks.GatePoint(frame), blocks.GatePoint(frame, lateral_m=-r.lateral_m),
-            blocks.GatePoint(frame, lateral_m=r.lateral_m),
-            blocks.GatePoint(frame, along_m=-r.lineup_m)]
+    """The root's children, each a call of the approach to a point in the next gate's
+    frame (`blocks.GatePoint`, `_ladder.GATE_FRAMES`): the gate's centre, `lateral_m` to
+    port and to starboard across it, `lineup_m` before it. The current's gate stands
+    still, so its points are the same numbers at every call."""
+    world, r = self.config.environment.world, self.config.root
+    frame = _ladder.GATE_FRAMES[world]
+    offsets = [{}, {"lateral_m": -r.lateral_m}, {"lateral_m": r.lateral_m},
+               {"along_m": -r.lineup_m}]
+    if frame is not None:
+      return [Child("approach", bind=blocks.GatePoint(frame, **o)) for o in offsets]
+    # `kinds.gate_point`'s point of the gate at (400, 400) heading north (sine 0, cosine 1).
+    return [Child("approach", px=gate_frame.CENTRE_X + o.get("lateral_m", 0.0),
+                  py=gate_frame.CENTRE_Y + o.get("along_m", 0.0)) for o in offsets]
 
   def graph(self):
     """root -> approach(px, py) x 4 styles -> the turning rate (the module docstring)."""
-    r = self.config.root
+    r, rules = self.config.root, RULES[self.config.environment.world]
     return TaskGraph("root", [
-        Subtask("root", children=[Child("approach", bind=point) for point in self.styles()],
-                learner=self.root, view=Abstraction(root_state), termination=blocks.Never()),
+        Subtask("root", children=self.styles(), learner=self.root,
+                view=Abstraction(rules.root_state), termination=blocks.Never()),
         Subtask("approach", children=["turn"], learner=self.approach, view=Features(aim),
-                termination=Termination(reached), internal_reward=InternalReward(pseudo),
+                termination=Termination(rules.reached), internal_reward=InternalReward(pseudo),
                 reward=blocks.STEP),            # only the -1s
         Primitive("turn"),                      # the turning rate r, drawn by the approach
     ], schedule=blocks.HeldEpsilon(r.epsilon, ("approach",), r.epsilon_threshold,
                                    r.epsilon_window, r.epsilon_every, r.epsilon_divisor))
 
   def metrics(self, record):
-    """The regatta's benchmark metrics (`ShipLadderHierarchy`), with the approach's calls
+    """The task's benchmark metrics (`ShipLadderHierarchy`), with the approach's calls
     per episode and its success rate over the last `metric_window` episodes."""
     w = record[-self.metric_window:]
     runs = w["approach_runs"].sum()

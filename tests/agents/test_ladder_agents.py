@@ -28,7 +28,8 @@ LADDER_FILES = {f"{task}_{agent}": (task, kind) for task in bounds.LADDER
                 for agent, kind in (("hybrid", "ship_ladder_hybrid"),
                                     ("flat_pg", "ship_ladder_flat_pg"),
                                     ("option_critic", "ship_ladder_option_critic"))}
-LADDER_FILES["ship_regatta_waypoints"] = ("ship_regatta", "ship_ladder_waypoints")  # its own
+LADDER_FILES.update({f"{task}_waypoints": (task, "ship_ladder_waypoints")  # designed ones
+                     for task in ("ship_current", "ship_goal", "ship_regatta")})
 
 
 @pytest.mark.parametrize("name", sorted(LADDER_FILES))

@@ -1,7 +1,9 @@
-"""The regatta's waypoints (`agents.ship_ladder_waypoints`): the agent names the regatta
-only, refused in one line from a task file or in Python; its root's states and its
-metrics are what its docstring says."""
+"""The waypoints (`agents.ship_ladder_waypoints`): the agent names the current, the goal
+or the regatta, the harbour refused in one line from a task file or in Python; each
+task's next gate is seen as the regatta's observation gives it; its root's states and
+its metrics are what its docstring says."""
 import math
+import re
 
 import numpy as np
 import pytest
@@ -9,23 +11,57 @@ import pytest
 from hpg_mj import agents
 from hpg_mj import taskfile
 from hpg_mj.agents import ship_ladder_waypoints as waypoints
+from hpg_mj.worlds import ship_regatta_core as regatta_core
 
 
-def test_the_waypoints_name_the_regatta_only(tmp_path):
-  with pytest.raises(taskfile.TaskFileError, match=r"^RegattaEnvironment: \[RegattaEnvironment\] "
-                     r"world = 'ship_goal' is not allowed; allowed: \['ship_regatta'\]$"):
-    taskfile.updated(waypoints.Config(), environment={"world": "ship_goal"})
-  path = tmp_path / "goal.toml"
-  path.write_text(agents.shipped_tasks()["ship_regatta_waypoints"].read_text().replace(
-      'world = "ship_regatta"', 'world = "ship_goal"'))
-  with pytest.raises(taskfile.TaskFileError, match=r"goal.toml.*world.*\['ship_regatta'\]") \
-      as err:
-    agents.load_task(path)
-  assert "\n" not in str(err.value)
+def test_the_waypoints_refuse_the_harbour(tmp_path):
+  with pytest.raises(taskfile.TaskFileError, match=r"^WaypointsEnvironment: "
+                     r"\[WaypointsEnvironment\] world = 'ship_harbour' is not allowed; "
+                     r"allowed: \['ship_current', 'ship_goal', 'ship_regatta'\]$"):
+    taskfile.updated(waypoints.Config(), environment={"world": "ship_harbour"})
+  for name in ("ship_regatta_waypoints", "ship_goal_waypoints", "ship_current_waypoints"):
+    path = tmp_path / "harbour.toml"
+    text = agents.shipped_tasks()[name].read_text()
+    path.write_text(re.sub(r'world = "ship_\w+"', 'world = "ship_harbour"', text))
+    with pytest.raises(taskfile.TaskFileError, match=r"harbour.toml.*world.*'ship_regatta'\]") \
+        as err:
+      agents.load_task(path)
+    assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("world", ["ship_goal", "ship_current"])
+def test_the_gate_is_seen_as_the_regattas_next(world):
+  """The goal's desired goal and the current's fixed gate, seen from the ship, are what
+  the regatta's observation would say of a gate there (`ship_regatta_core`'s view)."""
+  rng = np.random.default_rng(1)
+  for _ in range(50):
+    ship = np.array([*rng.uniform(0.0, 1000.0, 2), rng.uniform(-180.0, 180.0), 1.0])
+    gate = ([*rng.uniform(100.0, 900.0, 2), rng.uniform(-180.0, 180.0)]
+            if world == "ship_goal" else [400.0, 400.0, 0.0])
+    heading = math.radians(gate[2])
+    obs = np.concatenate([ship, np.zeros(4), [gate[0], gate[1], math.sin(heading),
+                                              math.cos(heading)]])[:12 if world == "ship_goal" else 6]
+    want = np.zeros(11)
+    regatta_core._seen(ship, math.sin(math.radians(ship[2])), math.cos(math.radians(ship[2])),
+                       np.array(gate), want, 4)
+    got = waypoints.SEEN_GATES[world](obs)
+    np.testing.assert_allclose(got[:3], want[4:7], rtol=0, atol=1e-9)
+    assert got[3] == 1.0                       # the pass ends the episode: one gate left
+  regatta = np.arange(11.0)
+  assert waypoints.SEEN_GATES["ship_regatta"](regatta) == (4.0, 5.0, 6.0, 10.0)
+
+
+def test_the_currents_points_are_its_gates():
+  """On the current the styles are numbers: the gate's centre (400, 400), 30 m to either
+  side across it, 80 m before it (it heads north)."""
+  agent = agents.build(agents.load_task("ship_current_waypoints"), seed=0)
+  assert [(c.args["px"], c.args["py"]) for c in agent.styles()] == [
+      (400.0, 400.0), (370.0, 400.0), (430.0, 400.0), (400.0, 320.0)]
 
 
 def test_the_roots_states_are_its_96():
-  """Every (bearing sector, distance band, heading quadrant) is one state of [0, 96)."""
+  """Every (bearing sector, distance band, heading quadrant) is one state of [0, 96), the
+  regatta's read from its observation."""
   seen = set()
   for bearing in np.arange(-179.0, 180.0, 15.0):
     for d in (30.0, 100.0, 400.0):
@@ -33,7 +69,9 @@ def test_the_roots_states_are_its_96():
         b = math.radians(bearing)
         obs = np.zeros(11)
         obs[4], obs[5], obs[6] = d * math.cos(b), d * math.sin(b), rel
-        seen.add(waypoints.root_state(obs, None))
+        state = waypoints.RULES["ship_regatta"].root_state(obs, None)
+        assert state == waypoints.gate_state(obs[4], obs[5], obs[6])
+        seen.add(state)
   assert seen == set(range(waypoints.N_ROOT_STATES))
 
 
