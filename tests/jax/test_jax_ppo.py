@@ -4,6 +4,7 @@ hold the episodes SB3's would, a saved run and a stopped `hpg-mj run` resume bit
 bit, and bad task files are refused in one line. (The taxi's learners, PPO's and
 DQN's, are test_jax_taxi_learners.py's: a file of their own, so that the JAX tests'
 two workers share the compiling.)"""
+import dataclasses
 import subprocess
 import sys
 
@@ -20,13 +21,16 @@ from jax_task_file import SMALL, task_file  # noqa: E402
 
 def test_ppo_learns_the_diagonal_subtask_two_seeds_vmapped_in_one_compile():
   """The Gaussian policy on SPEC section 3's diagonal subtask (its shaped reward, 300
-  steps at most), the ship's shipped [ppo] section, two seeds vmapped into one
+  steps at most), the ship's shipped [ppo] section at learning rate 3e-4 (its value
+  before the full task's tuning chose 1e-4, which learns this subtask more slowly
+  than the test's budget), two seeds vmapped into one
   compile (`make_train`): each goes from ~12% of the episodes reaching the goal in
   its first 0.25 M control steps to over 80% in the next 0.25 M (measured on seed 0:
   0.12, then 0.88; 0.99 after 0.75 M)."""
   from hpg_mj import jax as hpg_jax
   from hpg_mj.agents import _ship
-  section = agents.load_task("ship_ppo_jax").config.ppo
+  section = dataclasses.replace(agents.load_task("ship_ppo_jax").config.ppo,
+                                learning_rate=3e-4)
   env, params = hpg_jax.make("ShipSteeringDiagonal-v0")
   row = ppo.ShipRow(_ship.J_GAMMA, _ship.J_STEP_REWARD, _ship.J_GATE_REWARD,
                     _ship.J_OUT_OF_BOUNDS_REWARD)
