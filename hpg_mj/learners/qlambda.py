@@ -20,8 +20,6 @@ move part of the way. One tiling of non-overlapping tiles is the table.
 """
 import numba
 import numpy as np
-from numba import types
-from numba.extending import overload
 
 from hpg_mj.learners import rng
 
@@ -97,62 +95,46 @@ def update(q, n_actions, tr_index, tr_value, tr_count, s, a, reward, s_next, a_n
   return delta
 
 
-def _choice(q, s, n_actions, n, epsilon, rng_state):
-  """epsilon-greedy in s among its first n actions: a table's state (an integer;
-  n = n_actions) or a state's active tiles (an array)."""
+# The SMDP step over a table and over tiles: two functions, not one typed by its state
+# through an `overload`: numba compiles an overload's implementation on its own, with
+# all it calls linked in and optimized again, even where it is inlined (~0.3 s of the
+# hybrid's first train, whose root has a table). Inlined: called, each was one more
+# library that relinked the learner's code below it (`hierarchy.kinds.base`).
 
-
-@overload(_choice, inline="always")
-def _choice_typed(q, s, n_actions, n, epsilon, rng_state):
-  if isinstance(s, types.Array):
-    return lambda q, s, n_actions, n, epsilon, rng_state: tiled_epsilon_greedy(
-        q, s, n_actions, n, epsilon, rng_state)
-  return lambda q, s, n_actions, n, epsilon, rng_state: epsilon_greedy(q, s, n_actions, epsilon,
-                                                                        rng_state)
-
-
-def _backup(table, n_actions, s, a, signal, s_next, n_next, a_next, terminal, alpha, gamma_tau,
-            lam):
-  """`update` of a table's state, `tiled_update` of tiles."""
-
-
-@overload(_backup, inline="always")
-def _backup_typed(table, n_actions, s, a, signal, s_next, n_next, a_next, terminal, alpha,
-                  gamma_tau, lam):
-  if isinstance(s, types.Array):
-    def tiled(table, n_actions, s, a, signal, s_next, n_next, a_next, terminal, alpha,
-              gamma_tau, lam):
-      q, tr_index, tr_value, tr_count = table
-      tiled_update(q, n_actions, tr_index, tr_value, tr_count, s, a, signal, s_next, n_next,
-                   a_next, terminal, alpha, gamma_tau, lam)
-    return tiled
-
-  def tabular(table, n_actions, s, a, signal, s_next, n_next, a_next, terminal, alpha,
-              gamma_tau, lam):
-    q, tr_index, tr_value, tr_count = table
-    update(q, n_actions, tr_index, tr_value, tr_count, s, a, signal, s_next, a_next, terminal,
-           alpha, gamma_tau, lam)
-  return tabular
-
-
-@numba.njit(cache=True)
-def smdp_step(table, n_actions, s, a, signal, s_next, n_next, done, terminal, epsilon, alpha,
+@numba.njit(cache=True, inline="always")
+def smdp_step(table, n_actions, s, a, signal, s_next, done, terminal, epsilon, alpha,
               gamma_tau, lam, learn, rng_state):
   """The root's SMDP step (SPEC section 3) when its child returns R = `signal` in s',
-  on a table (s, s' integers) or over tiles (s, s' their active tiles, s' offering
-  its first `n_next` actions; a table's s' offers them all): unless the call is
-  `done`, the next choice a' (epsilon-greedy in s'); then, learning, the backup of
-  (s, a, R, s', a') (`update`, `tiled_update`), and the trace cleared when done.
-  `table` = (q, trace index, trace value, trace count). Returns a' (0, and no draw,
-  when done)."""
+  on a table (s, s' integers): unless the call is `done`, the next choice a'
+  (epsilon-greedy in s'); then, learning, the backup of (s, a, R, s', a') (`update`),
+  and the trace cleared when done. `table` = (q, trace index, trace value, trace
+  count). Returns a' (0, and no draw, when done)."""
+  q, tr_index, tr_value, tr_count = table
   a_next = 0
   if not done:
-    a_next = _choice(table[0], s_next, n_actions, n_next, epsilon, rng_state)
+    a_next = epsilon_greedy(q, s_next, n_actions, epsilon, rng_state)
   if learn:
-    _backup(table, n_actions, s, a, signal, s_next, n_next, a_next, terminal, alpha, gamma_tau,
-            lam)
+    update(q, n_actions, tr_index, tr_value, tr_count, s, a, signal, s_next, a_next, terminal,
+           alpha, gamma_tau, lam)
     if done:
-      clear(table[3])
+      clear(tr_count)
+  return a_next
+
+
+@numba.njit(cache=True, inline="always")
+def tiled_smdp_step(table, stride, tiles, a, signal, tiles_next, n_next, done, terminal,
+                    epsilon, alpha, gamma_tau, lam, learn, rng_state):
+  """`smdp_step` over tiles (s, s' their active tiles, s' offering its first `n_next`
+  of the `stride` actions; `tiled_epsilon_greedy`, `tiled_update`)."""
+  q, tr_index, tr_value, tr_count = table
+  a_next = 0
+  if not done:
+    a_next = tiled_epsilon_greedy(q, tiles_next, stride, n_next, epsilon, rng_state)
+  if learn:
+    tiled_update(q, stride, tr_index, tr_value, tr_count, tiles, a, signal, tiles_next, n_next,
+                 a_next, terminal, alpha, gamma_tau, lam)
+    if done:
+      clear(tr_count)
   return a_next
 
 

@@ -30,23 +30,20 @@ subtasks' last runs (saved); `settings`: [threshold, every, divisor, per decisio
 [start, end, episodes, 0]."""
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
-             no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def held_run_ended(S, watched, success):
   """HeldEpsilon's `run_ended`: the run of watched subtask `watched` (its index in
   `watch`) is recorded as a success or a failure."""
   schedules.record_run(S.outcomes, S.counts, watched, success)
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
-             no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def _held_step(S):
   schedules.end_episode(S.state, S.outcomes, S.counts, S.settings[0], np.int64(S.settings[1]),
                         S.settings[2])
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
-             no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def held_episode_ended(S, learned):
   """HeldEpsilon's `episode_ended`: the schedule advances one episode (unless it
   counts decisions)."""
@@ -54,8 +51,7 @@ def held_episode_ended(S, learned):
     _held_step(S)
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
-             no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def held_decided(S):
   """HeldEpsilon's `decided`: the schedule advances one root decision (if it counts
   decisions, `per_decision`)."""
@@ -63,23 +59,20 @@ def held_decided(S):
     _held_step(S)
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
-             no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def linear_run_ended(S, watched, success):
   """LinearEpsilon's `run_ended`: nothing (it watches no subtask)."""
   pass
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
-             no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def linear_episode_ended(S, learned):
   """LinearEpsilon's `episode_ended`: epsilon set to its linear decay's value after
   `learned` learning episodes."""
   S.epsilon[0] = schedules.linear(learned, S.settings[0], S.settings[1], S.settings[2])
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
-             no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def linear_decided(S):
   """LinearEpsilon's `decided`: nothing (it moves per episode)."""
   pass

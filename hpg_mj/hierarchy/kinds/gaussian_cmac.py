@@ -77,16 +77,14 @@ def _choose(P, L, N, tiles, learn, sample, rng):
                                   P.width_alpha, P.log_sigma_low, P.log_sigma_high)
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
-             no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def start(P, L, N):
   """A call begins: Eq. 3's z <- 0, and the learned width's."""
   el.reset(el.trace_of(L))                        # Eq. 3: z <- 0
   reset_width(L)
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
-             no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def choose(P, L, N, x, n, rng, learn, sample):
   """u ~ Normal(m(s), 1), its score added to z (`policies.gaussian_choose`)."""
   tiles_mod.active_tiles(x, P.tiling, N.tiles[0])

@@ -26,16 +26,14 @@ EndSettings.__doc__ = """A LocalGoal's settings: the call's control steps at mos
 scratch for the frame's numbers (the local state, the local samples)."""
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
-             no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def view(P, obs, call, samples, out):
   """The ship's state in the call's local frame, into out[:4]
   (`ship_core.global_to_local`)."""
   core.global_to_local(obs, call.origin, call.direction, out)
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
-             no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def end(P, obs, call, samples):
   """(event, G: the shaping and the local +100 / -100)."""
   return core.low_level_outcome(samples, obs, call.origin, call.direction, call.steps,

@@ -23,15 +23,13 @@ Scratch.__doc__ = """A node's scratch: [s, a], the state its last choice was mad
 and that choice."""
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
-             no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def start(P, L, N):
   """A call begins: the trace is cleared."""
   qlambda.clear(L.trace_count)
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
-             no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def choose(P, L, N, x, n, rng, learn, sample):
   """A child chosen in state x, epsilon-greedy over Q(x, .) (greedy when not
   `sample`)."""
@@ -43,13 +41,12 @@ def choose(P, L, N, x, n, rng, learn, sample):
   return float(a)
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
-             no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def observe(P, L, N, x, signal, done, terminal, n, rng, learn, sample):
   """The child returned R + G = signal in s' (x): the next choice a' unless done,
   then the backup of (s, a, R, s', a') (`qlambda.smdp_step`)."""
-  a = qlambda.smdp_step((L.q, L.trace_index, L.trace_value, L.trace_count), n, N.last[0],
-                        N.last[1], signal, x, n, done, terminal,
+  a = qlambda.smdp_step((L.q, L.trace_index, L.trace_value, L.trace_count), np.int64(n),
+                        N.last[0], N.last[1], signal, x, done, terminal,
                         P.epsilon[0] if sample else 0.0, P.alpha, P.gamma, P.trace_decay, learn,
                         rng)
   N.last[0] = x

@@ -99,8 +99,7 @@ class InternalRewardKind(_Rule, base.RewardKind):
   block = InternalReward
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
-             no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def never(P, obs, call, samples):
   """No event: the call goes on until the episode ends."""
   return 0

@@ -42,8 +42,7 @@ def _board(P, obs):
   return s
 
 
-@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
-             no_cfunc_wrapper=True)
+@numba.njit(cache=True, error_model="numpy", _nrt=False, inline="always")
 def state_view(P, obs, call, samples):
   """TaxiState's view: the index of the full state (`taxi_rules.encoded`)."""
   return taxi_rules.encoded(obs, P.world)

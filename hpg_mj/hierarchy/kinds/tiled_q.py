@@ -54,13 +54,13 @@ def choose(P, L, N, x, n, mask, rng, learn, sample):
              no_cfunc_wrapper=True)
 def observe(P, L, N, x, signal, done, terminal, n, mask, rng, learn, sample):
   """The child returned R + G = signal in s' (x): the next choice a' among the
-  children offered in s' unless done, then the backup (`qlambda.smdp_step`)."""
+  children offered in s' unless done, then the backup (`qlambda.tiled_smdp_step`)."""
   if not terminal:
     tiles_mod.active_tiles(x, P.tiling, N.tiles[1])
-  a = qlambda.smdp_step((L.q, L.trace_index, L.trace_value, L.trace_count), n, N.tiles[0],
-                        N.last[0], signal, N.tiles[1], offered(mask), done, terminal,
-                        P.epsilon[0] if sample else 0.0, P.alpha, P.gamma, P.trace_decay, learn,
-                        rng)
+  a = qlambda.tiled_smdp_step((L.q, L.trace_index, L.trace_value, L.trace_count), n,
+                              N.tiles[0], N.last[0], signal, N.tiles[1], offered(mask), done,
+                              terminal, P.epsilon[0] if sample else 0.0, P.alpha, P.gamma,
+                              P.trace_decay, learn, rng)
   arrays.copy_into(N.tiles[0], N.tiles[1])
   N.last[0] = a
   return float(a)
