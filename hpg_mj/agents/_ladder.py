@@ -52,7 +52,7 @@ class LadderEnvironment(taskfile.Section):
   out_of_bounds_reward: float = param(core.OUT_OF_BOUNDS_REWARD, "reward for leaving the "
                                       "field (the harbour: or touching an obstacle)")
   max_steps: int = param(core.STEER_MAX_STEPS, "control steps, then truncated (the regatta "
-                         "at hard: at most its 1,100)", low=1)
+                         "at hard: at most its 1,000)", low=1)
 
   @property
   def episode_steps(self):

@@ -59,7 +59,7 @@ class ShipRegattaEnv(ship_env.ShipSteeringEnv):
   |---|---|---|---|
   | easy | 3 | 250 m | 0 to 30 deg |
   | medium | 5 | 200 m | 30 to 75 deg |
-  | hard | 8 | 150 m | 60 to 135 deg, and the course closes after 1,100 control steps |
+  | hard | 8 | 150 m | 60 to 135 deg, and the course closes after 1,000 control steps |
 
   ## Action space
   `Box(-15, 15, (1,), float64)`: the desired turning rate r in deg/s, held for one
@@ -108,7 +108,7 @@ class ShipRegattaEnv(ship_env.ShipSteeringEnv):
   Terminated when the last gate is passed (`info["event"] == "finish"`) or the ship
   leaves the field (`"out_of_bounds"`). Truncated after 5,000 control steps (3,000 s;
   `max_steps`), the episode limit of `hpg_mj/ShipSteering-v0`; at `hard` the course closes
-  after 1,100 control steps (660 s), whatever a larger `max_steps` asks.
+  after 1,000 control steps (600 s), whatever a larger `max_steps` asks.
 
   ## Information
   `reset` and `step` return a dictionary:
@@ -129,7 +129,7 @@ class ShipRegattaEnv(ship_env.ShipSteeringEnv):
     (the next gate yellow, the later ones white, the passed ones grey); `width=640`,
     `height=480`, `camera=None` ("top"; or "overview", "chase", "local").
   - `strict=False`: refuse out-of-range turning rates instead of clipping them.
-  - `max_steps=None`: the episode limit in control steps (5,000; at most 1,100 at
+  - `max_steps=None`: the episode limit in control steps (5,000; at most 1,000 at
     `hard`).
   - `gate_reward=100.0`, `finish_reward=500.0`, `out_of_bounds_reward=-100.0`: the
     rewards above.

@@ -5,12 +5,12 @@ Tasks:
   easy:   3 gates 250 m apart, the course bending by at most 30 degrees at each.
   medium: 5 gates 200 m apart, turning by 30 to 75 degrees at each, to either side.
   hard:   8 gates 150 m apart, turning by 60 to 135 degrees at each: hairpins; the course
-          closes after 1,100 control steps (11 minutes).
+          closes after 1,000 control steps (10 minutes).
 
 The ship, the field, the uniform starts and the bounds are `ship/steer`'s, and so is the
 way a gate is passed (a sampled segment crossing it between the posts, either way); only
 the next gate counts. -1 per control step, +100 for each gate but the last, +500 for
-the last, which ends the episode; -100 for leaving the field; 5,000 control steps (1,100
+the last, which ends the episode; -100 for leaving the field; 5,000 control steps (1,000
 at hard), then truncated. The observation adds the next gate and the one after it as the ship sees them
 (`next_gate`, `gate_after`: ahead and to starboard in m, heading less the ship's in
 degrees) and the gates left to pass (`gates_left`). On MuJoCo the steering ship sails on

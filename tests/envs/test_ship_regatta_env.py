@@ -114,13 +114,13 @@ def test_the_batch_counts_gates_and_takes_courses():
 
 
 def test_the_hard_course_closes_after_its_time_limit_on_every_path():
-  # At hard the course closes after 1,100 control steps whatever a larger max_steps asks
+  # At hard the course closes after 1,000 control steps whatever a larger max_steps asks
   # (a smaller one still holds): Gymnasium's single and batched environments, dm_control's
   # task, the fused loop's world, the benchmark's task. The ship circles in the field.
   from hpg_mj.benchmark_tasks import task_of
   from hpg_mj.hierarchy import ladder
   limit = regatta_core.TIME_LIMITS["hard"]
-  assert limit == 1100 and regatta_core.TIME_LIMITS["medium"] is None
+  assert limit == 1000 and regatta_core.TIME_LIMITS["medium"] is None
   assert regatta_core.course_steps("hard", 5000) == limit
   assert regatta_core.course_steps("hard", 300) == 300
   assert regatta_core.course_steps("medium", 5000) == 5000

@@ -128,9 +128,9 @@ def test_the_auto_reset_lays_courses_by_the_rule_only_where_an_episode_ended():
 
 
 def test_the_hard_course_closes_at_its_time_limit_whatever_the_params_ask():
-  """At hard the default step limit is the level's time limit (1,100), and a larger
+  """At hard the default step limit is the level's time limit (1,000), and a larger
   `max_steps_in_episode` does not reopen the course: a circling ship is truncated at
-  1,100 control steps, as the numba world's (tests/envs/test_ship_regatta_env.py)."""
+  1,000 control steps, as the numba world's (tests/envs/test_ship_regatta_env.py)."""
   limit = regatta_core.TIME_LIMITS["hard"]
   env, params = hpg_jax.make("ShipRegatta-v0", level="hard")
   assert params.max_steps_in_episode == limit

@@ -155,10 +155,12 @@ def test_the_mujoco_model_is_the_steering_ship_with_a_course_drawn():
 def test_cli_verify_regatta(capsys):
   # Both ships round each level's courses against the continuous ship (the command's
   # default is 3 courses a level; `hpg-mj verify regatta --starts 20` found the MuJoCo
-  # ship alike on all 60, the Euler ship on 58).
+  # ship alike on all 60, the Euler ship on 58). The scripted helmsman finishes the easy
+  # and medium courses; the hard course closes after 1,000 control steps, before it
+  # finishes, and the ships are compared over those ten minutes.
   assert cli.main(["verify", "regatta", "--starts", "1"]) == 0
   out = capsys.readouterr().out.splitlines()
   assert [line.split()[0] for line in out[1:4]] == ["easy", "medium", "hard"]
-  assert all("helmsman finished 1;" in line and "same gates and end 1;" in line
-             for line in out[1:4])
+  assert all("same gates and end 1;" in line for line in out[1:4])
+  assert all("helmsman finished 1;" in line for line in out[1:3])
   assert out[-1].endswith("met") and "NOT" not in out[-1]
