@@ -14,7 +14,6 @@ from hpg_mj.experiments import bounds as bounds_mod
 from hpg_mj.experiments.bounds import LADDER, LEVELS, TASKS
 from hpg_mj.worlds import ship_core
 from hpg_mj.worlds import ship_ladder
-from hpg_mj.worlds import ship_regatta_core as regatta_core
 from hpg_mj.worlds import taxi_core
 from hpg_mj.worlds import taxi_rules
 
@@ -36,10 +35,10 @@ class Task:
   level: str = None                           # the ladder's tasks only: a name of LEVELS
 
   def __post_init__(self):
-    # The regatta's course closes at its level's time limit, whatever the limit asked.
-    if self.name == "ship_regatta" and self.level is not None:
+    # A ladder level's time limit closes the episode, whatever the limit asked.
+    if self.name in LADDER and self.level is not None:
       object.__setattr__(self, "max_steps",
-                         regatta_core.course_steps(self.level, self.max_steps))
+                         ship_ladder.episode_steps(self.name, self.level, self.max_steps))
 
   @property
   def world(self):
@@ -61,10 +60,10 @@ class Task:
 
   @property
   def default_max_steps(self):
-    """Its world's own episode length in steps (the taxi's, the ship's steer, or the
-    regatta's at its level)."""
-    if self.world == "regatta":
-      return regatta_core.course_steps(self.level)
+    """Its world's own episode length in steps (the taxi's, the ship's steer, or a ladder
+    task's at its level)."""
+    if self.name in LADDER and self.level is not None:
+      return ship_ladder.episode_steps(self.name, self.level)
     return taxi_core.MAX_STEPS if self.world == "taxi" else ship_core.STEER_MAX_STEPS
 
   def env_kwargs(self, backend="analytic"):
@@ -177,7 +176,6 @@ def fixed_starts(task="ship", episodes=base.GREEDY_STARTS, seed=base.GREEDY_SEED
 def _ladder_starts(task, episodes, seed):
   """`fixed_starts` of a ladder task: each environment's reset, drawn alike
   (`worlds.ship_ladder.fixed_starts`, which the ladder's agents read too)."""
-  from hpg_mj.worlds import ship_ladder
   _count("episodes", episodes)
   _count("seed", seed)
   return ship_ladder.fixed_starts(task.name, task.level, episodes, seed)

@@ -49,6 +49,7 @@ from hpg_mj.worlds import ship_core as core
 from hpg_mj.worlds import ship_current_core as current_core
 from hpg_mj.worlds import ship_goal_core as goal_core
 from hpg_mj.worlds import ship_regatta_core as regatta_core
+from hpg_mj.worlds import ship_ladder
 
 # ---- current -------------------------------------------------------------------------
 
@@ -622,6 +623,8 @@ def plan(name, level, starts, max_steps=core.STEER_MAX_STEPS, gate_reward=core.G
   chosen episode, (n, max_steps), NaN after its end."""
   states = np.ascontiguousarray(starts["state"], dtype=np.float64).reshape(-1, 4)
   n = len(states)
+  if name in ship_ladder.TASKS:       # the level's time limit, where shorter
+    max_steps = int(ship_ladder.episode_steps(name, level, max_steps))
   rates = np.full((n, max_steps) if actions else (0, 0), np.nan)
   if name == "ship_current":
     outcome, choice = np.zeros((n, 3)), np.zeros((n, 3))
@@ -639,7 +642,7 @@ def plan(name, level, starts, max_steps=core.STEER_MAX_STEPS, gate_reward=core.G
     gates, spacing, _, _ = regatta_core.level_layout(level)
     courses = np.ascontiguousarray(starts["course"], dtype=np.float64).reshape(-1, gates, 3)
     outcome, choice = np.zeros((n, 4)), np.zeros((n, gates + 1))
-    rules = RegattaRules(int(regatta_core.course_steps(level, max_steps)), float(gate_reward),
+    rules = RegattaRules(max_steps, float(gate_reward),
                          regatta_core.FINISH_REWARD,
                          float(out_of_bounds_reward), 0.5 * spacing)
     _plan_regatta(states, courses, N_REGATTA_CANDIDATES, FIRST_TURNS, rules, outcome, choice,

@@ -51,16 +51,14 @@ class LadderEnvironment(taskfile.Section):
                                "last gate (unused by the other tasks)")
   out_of_bounds_reward: float = param(core.OUT_OF_BOUNDS_REWARD, "reward for leaving the "
                                       "field (the harbour: or touching an obstacle)")
-  max_steps: int = param(core.STEER_MAX_STEPS, "control steps, then truncated (the regatta "
-                         "at hard: at most its 1,000)", low=1)
+  max_steps: int = param(core.STEER_MAX_STEPS, "control steps, then truncated (at hard, at "
+                         "most the level's time limit: ship_ladder.episode_steps)", low=1)
 
   @property
   def episode_steps(self):
-    """The control steps an episode runs at most: `max_steps`, or the regatta's time limit
-    at its level where shorter (`ship_regatta_core.course_steps`)."""
-    if self.world == "ship_regatta":
-      return regatta_core.course_steps(self.level, self.max_steps)
-    return self.max_steps
+    """The control steps an episode runs at most: `max_steps`, or the level's time limit
+    where shorter (`ship_ladder.episode_steps`)."""
+    return ship_ladder.episode_steps(self.world, self.level, self.max_steps)
 
 
 def make_env(env, api, backend, kwargs, dictionary=False):

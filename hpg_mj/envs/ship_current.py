@@ -100,7 +100,8 @@ class ShipCurrentEnv(ship_env.ShipSteeringEnv):
   ## Episode end
   Terminated at the gate or off the field (`info["event"]`: "gate",
   "out_of_bounds"); truncated after 5,000 control steps (`max_steps`; the
-  environment truncates itself, without Gymnasium's `TimeLimit`).
+  environment truncates itself, without Gymnasium's `TimeLimit`); at `hard` the
+  episode closes after 1,000 control steps (600 s), whatever a larger `max_steps` asks.
 
   ## Information
   As in `hpg_mj/ShipSteering-v0`: `reset()` returns `{"event": None}`; `step()`
@@ -118,7 +119,8 @@ class ShipCurrentEnv(ship_env.ShipSteeringEnv):
     shows the drift).
   - `strict=False`: True refuses out-of-range turning rates instead of clipping
     them.
-  - `max_steps=None`: the episode's length in control steps; None is 5,000.
+  - `max_steps=None`: the episode's length in control steps; None is 5,000 (at most
+    1,000 at `hard`).
   - `width=640`, `height=480`: the frame's size in pixels, at most 1280 x 960.
   - `camera=None`: "top", "local", "overview" or "chase"; None is "top".
   - `gate_reward=100.0`, `out_of_bounds_reward=-100.0`: the +100 and -100 of
@@ -141,7 +143,8 @@ class ShipCurrentEnv(ship_env.ShipSteeringEnv):
                gate_reward=core.GATE_REWARD, out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD):
     self.level = level
     self.field = current_core.level_field(level, "ShipCurrentEnv")
-    super().__init__("steer", backend, render_mode, strict, max_steps, width, height, camera,
+    super().__init__("steer", backend, render_mode, strict,
+                     current_core.episode_steps(level, max_steps), width, height, camera,
                      gate_reward, out_of_bounds_reward)
     self._name = f"ShipCurrent({level}, backend={backend})"
     self.observation_space, self.action_space = spaces_of(self.rules, self.field)
@@ -190,7 +193,8 @@ class ShipCurrentVectorEnv(vector.ShipSteeringVectorEnv):
                autoreset_mode=AutoresetMode.NEXT_STEP, render_mode=None):
     self.level = level
     self.field = current_core.level_field(level, "ShipCurrentVectorEnv")
-    super().__init__(num_envs, "steer", backend, strict, max_steps, gate_reward,
+    super().__init__(num_envs, "steer", backend, strict,
+                     current_core.episode_steps(level, max_steps), gate_reward,
                      out_of_bounds_reward, autoreset_mode, render_mode)
     self.who = f"ShipCurrentVectorEnv({level}, backend={backend})"
     self.single_observation_space, _ = spaces_of(self.rules, self.field)

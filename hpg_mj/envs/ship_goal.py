@@ -130,7 +130,8 @@ class ShipGoalEnv(ship_env.ShipSteeringEnv):
                gate_reward=core.GATE_REWARD, out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD):
     self.level = level
     self.level_range = goal_core.level_range(level, "ShipGoalEnv")
-    super().__init__("steer", backend, render_mode, strict, max_steps, width, height, camera,
+    super().__init__("steer", backend, render_mode, strict,
+                     goal_core.episode_steps(level, max_steps), width, height, camera,
                      gate_reward, out_of_bounds_reward)
     self._name = f"ShipGoal({level}, backend={backend})"
     self.observation_space, self.action_space = spaces_of(self.rules)
@@ -187,7 +188,8 @@ class ShipGoalVectorEnv(vector.ShipSteeringVectorEnv):
                autoreset_mode=AutoresetMode.NEXT_STEP, render_mode=None):
     self.level = level
     self.level_range = goal_core.level_range(level, "ShipGoalVectorEnv")
-    super().__init__(num_envs, "steer", backend, strict, max_steps, gate_reward,
+    super().__init__(num_envs, "steer", backend, strict,
+                     goal_core.episode_steps(level, max_steps), gate_reward,
                      out_of_bounds_reward, autoreset_mode, render_mode)
     self.who = f"ShipGoalVectorEnv({level}, backend={backend})"
     self.single_observation_space, _ = spaces_of(self.rules)

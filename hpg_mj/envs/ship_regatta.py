@@ -157,7 +157,7 @@ class ShipRegattaEnv(ship_env.ShipSteeringEnv):
     self.level = level
     self.layout = regatta_core.level_layout(level, "ShipRegattaEnv")
     super().__init__("steer", backend, render_mode, strict,
-                     regatta_core.course_steps(level, max_steps), width, height, camera,
+                     regatta_core.episode_steps(level, max_steps), width, height, camera,
                      finish_reward, out_of_bounds_reward)
     self._name = f"ShipRegatta({level}, backend={backend})"
     self.observation_space, self.action_space = spaces_of(self.rules, self.layout[0])
@@ -231,7 +231,7 @@ class ShipRegattaVectorEnv(vector.ShipSteeringVectorEnv):
     self.level = level
     self.layout = regatta_core.level_layout(level, "ShipRegattaVectorEnv")
     super().__init__(num_envs, "steer", backend, strict,
-                     regatta_core.course_steps(level, max_steps), finish_reward,
+                     regatta_core.episode_steps(level, max_steps), finish_reward,
                      out_of_bounds_reward, autoreset_mode, render_mode)
     self.who = f"ShipRegattaVectorEnv({level}, backend={backend})"
     gates = self.layout[0]

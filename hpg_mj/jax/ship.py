@@ -154,6 +154,10 @@ class ShipSteering(environment.Environment):
   `discount` (0 only where terminated) and, for the patrol, `state_before_restart`.
   """
 
+  # A level's time limit in control steps (the ladder's hard levels set theirs: each
+  # core's `episode_steps`), or None: `max_steps_in_episode` alone.
+  time_limit = None
+
   def __init__(self, task="steer", env_id=None):
     if task not in TASKS:
       raise ValueError(f"unknown ship task {task!r}; valid tasks: {list(TASKS)}")
@@ -197,8 +201,14 @@ class ShipSteering(environment.Environment):
   def get_obs(self, state, params=None, key=None):
     return jnp.stack([state.x, state.y, state.theta_deg, state.theta_dot_deg])
 
+  def closes(self, params):
+    """The control steps an episode runs at most: `max_steps_in_episode`, or the level's
+    time limit where shorter (a larger one does not reopen an episode that has closed)."""
+    steps = params.max_steps_in_episode
+    return steps if self.time_limit is None else jnp.minimum(steps, self.time_limit)
+
   def is_terminal(self, state, params):
-    out_of_time = state.time >= params.max_steps_in_episode
+    out_of_time = state.time >= self.closes(params)
     if self.continuing:            # SPEC section 8: only the clock ends the process
       return out_of_time
     return (state.event != core.NO_EVENT) | out_of_time
@@ -290,7 +300,7 @@ class ShipSteering(environment.Environment):
       terminated = jnp.asarray(False)
     else:
       terminated = event != core.NO_EVENT
-    truncated = ~terminated & (time >= params.max_steps_in_episode)
+    truncated = ~terminated & (time >= self.closes(params))
     info.update(terminated=terminated, truncated=truncated, event=event,
                 discount=jnp.where(terminated, 0.0, 1.0).astype(x.dtype))
     return self.get_obs(end, params), end, reward, terminated | truncated, info

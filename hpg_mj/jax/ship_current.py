@@ -82,13 +82,14 @@ class ShipCurrent(ship.ShipSteering):
   def __init__(self, level=current_core.DEFAULT_LEVEL, env_id=None):
     self.level = level
     self.field = tuple(current_core.level_field(level, env_id or "ShipCurrent").tolist())
+    self.time_limit = current_core.TIME_LIMITS[level]
     super().__init__("steer", env_id or f"ShipCurrent({level})")
 
   @property
   def default_params(self):
     ux, uy, river, cross = self.field
-    return CurrentParams(max_steps_in_episode=core.STEER_MAX_STEPS, uniform_x=ux,
-                         uniform_y=uy, river=river, cross=cross)
+    return CurrentParams(max_steps_in_episode=current_core.episode_steps(self.level),
+                         uniform_x=ux, uniform_y=uy, river=river, cross=cross)
 
   def observation_space(self, params=None):
     # `hpg_mj.envs.ship_current.spaces_of`: the ship's, then the level's fastest water.

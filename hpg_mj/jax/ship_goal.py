@@ -127,13 +127,15 @@ class ShipGoal(ship.ShipSteering):
   def __init__(self, level=goal_core.DEFAULT_LEVEL, env_id=None):
     self.level = level
     self.level_range = goal_core.level_range(level, env_id or "ShipGoal")
+    self.time_limit = goal_core.TIME_LIMITS[level]
     super().__init__("steer", env_id or f"ShipGoal({level})")
 
   @property
   def default_params(self):
     low, high, largest = self.level_range
     half_width, min_cos = (float(v) for v in goal_core.level_tolerance(self.level))
-    return GoalParams(max_steps_in_episode=core.STEER_MAX_STEPS, gate_low=low, gate_high=high,
+    return GoalParams(max_steps_in_episode=goal_core.episode_steps(self.level),
+                      gate_low=low, gate_high=high,
                       gate_heading_deg=largest, half_width=half_width, min_cos=min_cos)
 
   def observation_space(self, params=None):
@@ -207,7 +209,7 @@ class ShipGoal(ship.ShipSteering):
     event, reward = outcome_of(goal_of(x, y, theta), state.desired, params)
     end = state.replace(x=x, y=y, theta_deg=theta, theta_dot_deg=rate, time=time, event=event)
     terminated = event != core.NO_EVENT
-    truncated = ~terminated & (time >= params.max_steps_in_episode)
+    truncated = ~terminated & (time >= self.closes(params))
     info = {"terminated": terminated, "truncated": truncated, "event": event,
             "is_success": event == core.SUCCESS,
             "discount": jnp.where(terminated, 0.0, 1.0).astype(x.dtype)}

@@ -298,7 +298,7 @@ class ShipHarbour(ship.ShipSteering):
                                 params.out_of_bounds_reward, 0.0).astype(x.dtype)
     end = ship.EnvState(x, y, theta, rate, time, event)
     terminated = event != core.NO_EVENT
-    truncated = ~terminated & (time >= params.max_steps_in_episode)
+    truncated = ~terminated & (time >= self.closes(params))
     info = {"terminated": terminated, "truncated": truncated, "event": event,
             "discount": jnp.where(terminated, 0.0, 1.0).astype(x.dtype)}
     return self.get_obs(end, params), end, reward, terminated | truncated, info

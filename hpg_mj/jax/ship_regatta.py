@@ -215,13 +215,14 @@ class ShipRegatta(ship.ShipSteering):
   def __init__(self, level=regatta_core.DEFAULT_LEVEL, env_id=None):
     self.level = level
     self.layout = regatta_core.level_layout(level, env_id or "ShipRegatta")
+    self.time_limit = regatta_core.TIME_LIMITS[level]
     super().__init__("steer", env_id or f"ShipRegatta({level})")
     self._reset_where = environment.where_needed(self.reset_env)
 
   @property
   def default_params(self):
     gates, spacing, smallest, largest = self.layout
-    return RegattaParams(max_steps_in_episode=regatta_core.course_steps(self.level),
+    return RegattaParams(max_steps_in_episode=regatta_core.episode_steps(self.level),
                          gates=gates,
                          spacing=spacing, smallest_turn_deg=smallest,
                          largest_turn_deg=largest)
@@ -253,14 +254,7 @@ class ShipRegatta(ship.ShipSteering):
   def is_terminal(self, state, params):
     # A gate passed (GATE) is no ending: only the finish, the field and the clock.
     ended = (state.event == core.SUCCESS) | (state.event == core.FAILURE)
-    return ended | (state.time >= self._closes(params))
-
-  def _closes(self, params):
-    # The step limit, or the level's time limit where shorter (`course_steps`): a larger
-    # `max_steps_in_episode` does not reopen a course that has closed.
-    limit = regatta_core.TIME_LIMITS[self.level]
-    steps = params.max_steps_in_episode
-    return steps if limit is None else jnp.minimum(steps, limit)
+    return ended | (state.time >= self.closes(params))
 
   # ---- starts -------------------------------------------------------------------
 
@@ -328,7 +322,7 @@ class ShipRegatta(ship.ShipSteering):
     end = state.replace(x=x, y=y, theta_deg=theta, theta_dot_deg=rate, time=time, event=event,
                         next_gate=next_gate)
     terminated = (event == core.SUCCESS) | (event == core.FAILURE)
-    truncated = ~terminated & (time >= self._closes(params))
+    truncated = ~terminated & (time >= self.closes(params))
     info = {"terminated": terminated, "truncated": truncated, "event": event,
             "gates_passed": next_gate,
             "discount": jnp.where(terminated, 0.0, 1.0).astype(x.dtype)}

@@ -16,6 +16,7 @@ without that raising branch numba drops most of the reference counting (atomic
 operations) on the arrays they take. Nothing else changes: the same numbers, faster.
 """
 import math
+import numbers
 
 import numba
 import numpy as np
@@ -56,6 +57,17 @@ DIRECTIONS = ("N", "NE", "E", "SE", "S", "SW", "W", "NW")
 NO_EVENT = 0
 SUCCESS = 1      # gate passed / local goal reached
 FAILURE = -1     # bounds left
+
+
+def limited_steps(limit, max_steps=None):
+  """The control steps an episode runs at most: `max_steps` (None: `STEER_MAX_STEPS`), or
+  `limit`, a level's time limit (None: none), where that is shorter. A larger `max_steps`
+  does not reopen an episode its level has closed; a smaller one still holds."""
+  steps = STEER_MAX_STEPS if max_steps is None else max_steps
+  # Anything but a number goes on as it came, to the check that refuses it by name.
+  if limit is None or isinstance(steps, bool) or not isinstance(steps, numbers.Real):
+    return steps
+  return min(steps, limit)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")

@@ -132,7 +132,7 @@ class CurrentTask(ship.ShipTask):
     self.level = level
     self.field = current_core.level_field(level, "ship_current")
     super().__init__("steer", random=random, initial_state=initial_state, strict=strict,
-                     max_steps=max_steps, **rewards)
+                     max_steps=current_core.episode_steps(level, max_steps), **rewards)
     self.name = f"ship_current-{level}"
 
   def initialize_episode(self, physics):
@@ -159,6 +159,9 @@ def _constructor(level):
   task.__doc__ = (f"`ship/steer` in the current of level {level!r} (water up to "
                   f"{current_core.max_speed(current_core.LEVELS[level]):.2f} m/s); the gate's "
                   "and the bounds' rewards are SPEC section 2's unless given.")
+  if current_core.TIME_LIMITS[level] is not None:
+    task.__doc__ += (f" The episode closes after {current_core.TIME_LIMITS[level]:,} control "
+                     "steps, whatever a larger `max_steps` asks.")
   return task
 
 

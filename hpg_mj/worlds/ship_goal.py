@@ -41,7 +41,7 @@ class GoalTask(ship.ShipTask):
     self.level = level
     self.level_range = goal_core.level_range(level, "ship_goal")
     super().__init__("steer", random=random, initial_state=initial_state, strict=strict,
-                     max_steps=max_steps, **rewards)
+                     max_steps=goal_core.episode_steps(level, max_steps), **rewards)
     self.name = f"ship_goal-{level}"
     self.gate = gate
     # The gate observed before the first episode (dm_control reads an observation to
@@ -98,6 +98,9 @@ def _constructor(level):
                   f"north; {2 * half_width:g} m wide, passed heading within {degrees:g} "
                   "degrees of it); `gate=[x, y, heading_deg]` fixes it. The gate's and the "
                   "bounds' rewards are SPEC section 2's unless given.")
+  if goal_core.TIME_LIMITS[level] is not None:
+    task.__doc__ += (f" The episode closes after {goal_core.TIME_LIMITS[level]:,} control "
+                     "steps, whatever a larger `max_steps` asks.")
   return task
 
 

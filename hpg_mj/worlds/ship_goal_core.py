@@ -50,6 +50,9 @@ LEVELS = {
     "hard": (100.0, 900.0, 180.0),    # anywhere its posts stay on the field, any heading
 }
 DEFAULT_LEVEL = "easy"
+# level -> the control steps after which the episode is truncated, or None: the
+# environment's `max_steps` alone (`episode_steps`).
+TIME_LIMITS = {"easy": None, "medium": None, "hard": None}
 
 
 def level_range(level, who="ship goal"):
@@ -65,6 +68,14 @@ def level_tolerance(level, who="ship goal"):
   level_range(level, who)
   half_width, degrees = TOLERANCES[level]
   return np.array([half_width, math.cos(math.radians(degrees))])
+
+
+def episode_steps(level, max_steps=None):
+  """The control steps a goal episode at `level` runs at most: `max_steps` (None:
+  `ship_core.STEER_MAX_STEPS`), or the level's time limit (`TIME_LIMITS`) where that is
+  shorter (`ship_core.limited_steps`)."""
+  level_range(level)                  # a one-line error for an unknown level
+  return core.limited_steps(TIME_LIMITS[level], max_steps)
 
 
 STEER_TOLERANCE = level_tolerance(DEFAULT_LEVEL)  # ship/steer's gate: 50 m, 45 degrees
@@ -268,10 +279,11 @@ OBSERVATION_KEYS = ("observation", "achieved_goal", "desired_goal")
 
 def env_params(level, gate_reward=core.GATE_REWARD, out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD,
                max_steps=core.STEER_MAX_STEPS):
-  """The `EnvParams` of `level` with the environment's rewards and step limit."""
+  """The `EnvParams` of `level` with the environment's rewards and step limit (the level's
+  time limit where shorter: `episode_steps`)."""
   return EnvParams(np.array(level_range(level), dtype=np.float64),
                    np.array([gate_reward, out_of_bounds_reward], dtype=np.float64),
-                   np.int64(max_steps), level_tolerance(level))
+                   np.int64(episode_steps(level, max_steps)), level_tolerance(level))
 
 
 def env_state(params):

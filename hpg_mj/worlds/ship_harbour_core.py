@@ -69,6 +69,10 @@ LEVELS = {
               (220.0, 406.0, 220.0, 560.0, 6.0), (580.0, 394.0, 580.0, 240.0, 6.0))),
 }
 DEFAULT_LEVEL = "easy"
+# level -> the control steps after which the episode is truncated, or None: the
+# environment's `max_steps` alone (`episode_steps`). The obstacles make the harbour's
+# hard level hard without one.
+TIME_LIMITS = {"easy": None, "medium": None, "hard": None}
 
 OUT_OF_BOUNDS_REWARD = core.OUT_OF_BOUNDS_REWARD   # also for touching an obstacle
 GATE_REWARD = core.GATE_REWARD
@@ -88,6 +92,13 @@ def level_obstacles(level, who="ship harbour"):
   return (np.array(islands, dtype=np.float64).reshape(-1, 3),
           np.array(piers, dtype=np.float64).reshape(-1, 5))
 
+
+
+def episode_steps(level, max_steps=None):
+  """The control steps a harbour episode at `level` runs at most (`max_steps`, None:
+  `ship_core.STEER_MAX_STEPS`; `TIME_LIMITS` sets none)."""
+  level_obstacles(level)              # a one-line error for an unknown level
+  return core.limited_steps(TIME_LIMITS[level], max_steps)
 
 def pier_frames(piers):
   """Rows [cx, cy, ux, uy, half_length, half_width] of piers given end to end."""

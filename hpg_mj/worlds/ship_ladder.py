@@ -6,6 +6,7 @@ the regatta's course, from one generator. One rule, read by the scorer
 the same starts."""
 import numpy as np
 
+from hpg_mj.worlds import ship_current_core
 from hpg_mj.worlds import ship_goal_core
 from hpg_mj.worlds import ship_harbour_core
 from hpg_mj.worlds import ship_regatta_core
@@ -17,6 +18,19 @@ LEVELS = ("easy", "medium", "hard")
 # environments, where a task has one, are registered under the same id).
 ENV_IDS = {task: f"hpg_mj/{name}-v0" for task, name in zip(
     TASKS, ("ShipCurrent", "ShipGoal", "ShipRegatta", "ShipHarbour"))}
+
+_CORES = dict(zip(TASKS, (ship_current_core, ship_goal_core, ship_regatta_core,
+                          ship_harbour_core)))
+
+
+def episode_steps(task, level, max_steps=None):
+  """The control steps an episode of ladder task `task` at `level` runs at most:
+  `max_steps` (None: `ship_core.STEER_MAX_STEPS`), or the level's time limit where that
+  is shorter (each task's `TIME_LIMITS`: the goal's, the current's and the regatta's
+  hard levels close; a larger `max_steps` does not reopen them)."""
+  if task not in _CORES:
+    raise ValueError(f"unknown ladder task {task!r}; allowed: {list(TASKS)}")
+  return _CORES[task].episode_steps(level, max_steps)
 
 
 def fixed_starts(task, level, episodes, seed):

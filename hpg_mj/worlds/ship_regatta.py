@@ -56,7 +56,7 @@ class RegattaTask(ship.ShipTask):
     self.level = level
     self.layout = regatta_core.level_layout(level, "ship_regatta")
     super().__init__("steer", random=random, initial_state=initial_state, strict=strict,
-                     max_steps=regatta_core.course_steps(level, max_steps),
+                     max_steps=regatta_core.episode_steps(level, max_steps),
                      gate_reward=finish_reward,
                      out_of_bounds_reward=out_of_bounds_reward)
     self.name = f"ship_regatta-{level}"

@@ -21,7 +21,7 @@ can then never touch) is turned to the other side, else its turn drawn again; a 
 that cannot go on is laid again from its first gate. Sharper turns between closer gates
 make the harder levels: a leg is sailed in a few hundred metres, a turn of up to 135
 degrees with the ship's 5 s lag takes a good part of it, and where the ship ends one leg
-is where the next one starts. At `hard` the course also closes (`TIME_LIMITS`, `course_steps`):
+is where the next one starts. At `hard` the course also closes (`TIME_LIMITS`, `episode_steps`):
 an episode is truncated after 1,000 control steps (10 minutes) whatever a larger `max_steps`
 asks. The best known sails 95.7% of the level's benchmark starts within it; turns and gates
 alone did not make the level hard (a designed hierarchy finished 95% of its courses, in
@@ -37,7 +37,6 @@ gate (and after the finish) the second is the last again.
 import collections
 import functools
 import math
-import numbers
 
 import numba
 import numpy as np
@@ -80,17 +79,12 @@ def level_layout(level, who="ship regatta"):
   return LEVELS[level]
 
 
-def course_steps(level, max_steps=None):
+def episode_steps(level, max_steps=None):
   """The control steps a regatta episode at `level` runs at most: `max_steps` (None:
   `ship_core.STEER_MAX_STEPS`), or the level's time limit (`TIME_LIMITS`) where that is
-  shorter."""
+  shorter (`ship_core.limited_steps`)."""
   level_layout(level)                 # a one-line error for an unknown level
-  steps = core.STEER_MAX_STEPS if max_steps is None else max_steps
-  limit = TIME_LIMITS[level]
-  # Anything but a number goes on as it came, to the check that refuses it by name.
-  if limit is None or isinstance(steps, bool) or not isinstance(steps, numbers.Real):
-    return steps
-  return min(steps, limit)
+  return core.limited_steps(TIME_LIMITS[level], max_steps)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
@@ -358,10 +352,10 @@ def start_size(level):
 def env_params(level, gate_reward=GATE_REWARD, finish_reward=FINISH_REWARD,
                out_of_bounds_reward=OUT_OF_BOUNDS_REWARD, max_steps=core.STEER_MAX_STEPS):
   """The `EnvParams` of `level` with the environment's rewards and step limit (the level's
-  time limit where shorter: `course_steps`)."""
+  time limit where shorter: `episode_steps`)."""
   return EnvParams(np.array(level_layout(level), dtype=np.float64),
                    np.array([gate_reward, finish_reward, out_of_bounds_reward], dtype=np.float64),
-                   np.int64(course_steps(level, max_steps)))
+                   np.int64(episode_steps(level, max_steps)))
 
 
 def env_state(params):

@@ -28,6 +28,7 @@ from hpg_mj.worlds import ship_core as core  # noqa: E402
 from hpg_mj.worlds import ship_current_core as current_core  # noqa: E402
 from hpg_mj.worlds import ship_goal_core as goal_core  # noqa: E402
 from hpg_mj.worlds import ship_harbour_core as harbour_core  # noqa: E402
+from hpg_mj.worlds import ship_ladder  # noqa: E402
 from hpg_mj.worlds import ship_regatta_core as regatta_core  # noqa: E402
 from hpg_mj.worlds import ship_task  # noqa: E402
 
@@ -430,6 +431,20 @@ def test_a_level_is_the_worlds_default_parameters():
                                        r"the ids with levels: \['ShipCurrent-v0', 'ShipGoal-v0'"):
     hpg_jax.make("ShipSteering-v0", level="hard")
 
+
+
+@pytest.mark.parametrize("task", ship_ladder.TASKS)
+def test_each_levels_time_limit_closes_the_jax_episode_whatever_the_params_ask(task):
+  # The default step limit is the level's (`ship_ladder.episode_steps`); a larger
+  # `max_steps_in_episode` does not reopen an episode that a time limit closed, a smaller
+  # one holds (the regatta's truncation itself: test_jax_regatta_harbour.py).
+  for level in LEVELS:
+    env, params = hpg_jax.make(ship_ladder.ENV_IDS[task], level=level)
+    limit = ship_ladder.episode_steps(task, level)
+    assert params.max_steps_in_episode == limit, level
+    assert int(env.closes(params.replace(max_steps_in_episode=10_000))) == \
+        ship_ladder.episode_steps(task, level, 10_000), level
+    assert int(env.closes(params.replace(max_steps_in_episode=300))) == 300, level
 
 def test_the_goals_gates_are_drawn_from_the_levels_ranges():
   env, _ = hpg_jax.make("ShipGoal-v0")
