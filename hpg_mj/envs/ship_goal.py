@@ -60,11 +60,11 @@ class ShipGoalEnv(ship_env.ShipSteeringEnv):
   | `observation[3]` | `theta_dot_deg`: turning rate | deg/s |
   | `achieved_goal[0]` | the ship's `x` | m |
   | `achieved_goal[1]` | the ship's `y` | m |
-  | `achieved_goal[2]` | `sin(theta)` of the ship's heading | |
-  | `achieved_goal[3]` | `cos(theta)` of the ship's heading | |
+  | `achieved_goal[2]` | `sin(theta)` of the ship's heading (clockwise from north: east is `sin` 1) | |
+  | `achieved_goal[3]` | `cos(theta)` of the ship's heading (north is `cos` 1) | |
   | `desired_goal[0]` | the gate centre's `x` | m |
   | `desired_goal[1]` | the gate centre's `y` | m |
-  | `desired_goal[2]` | `sin` of the gate's heading | |
+  | `desired_goal[2]` | `sin` of the gate's heading (the heading to pass it with, clockwise from north as `theta`) | |
   | `desired_goal[3]` | `cos` of the gate's heading | |
 
   ## Rewards

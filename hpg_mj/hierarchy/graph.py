@@ -32,7 +32,10 @@ class Primitive:
 
 
 class Child:
-  """A reference to a child node with its parameters: `Child("navigate", target=2)`.
+  """A reference to a child node with its parameters: `Child("navigate", target=2)`,
+  `Child("goto", x=300.0, y=700.0)`: integers or floats (on the compiled machine an
+  argument is an integer where every binding of it is one, else a float; every `Child`
+  of one subtask binds the same names).
 
   `bind(call, obs) -> dict` adds parameters decided when the child is called
   (MAXQ's parameter binding, e.g. Get calls Navigate(t) with t = the passenger's
