@@ -220,25 +220,36 @@ def bench_task(path, min_seconds=2.0):
           "train_seconds": seconds, "steps": steps, "steps_per_second": _rate(steps, seconds)}
 
 
+def bench_rounds(tasks, min_seconds=2.0, rounds=1):
+  """`bench_task` of each task file in `rounds` interleaved rounds (the order reversed
+  every other round, so that all see the same machine load): a row per task file, the
+  first round's, with `steps_per_second` the median over the rounds and
+  `rounds_steps_per_second` each round's."""
+  import statistics
+  rows = {path: [] for path in tasks}
+  for r in range(rounds):
+    for path in (tasks if r % 2 == 0 else tasks[::-1]):
+      rows[path].append(bench_task(path, min_seconds))
+  out = []
+  for each in rows.values():
+    rates = [row["steps_per_second"] for row in each]
+    out.append({**each[0], "steps_per_second": statistics.median(rates),
+                "rounds_steps_per_second": rates})
+  return out
+
+
 def bench_train(min_seconds=2.0, tasks=None, rounds=1):
   """Rows of (name, unit, steps per second): every shipped task file's agent (or the
   task files `tasks`) on its compiled path, learning, and, for the shipped set, the
   stand-alone subtasks and the hybrid step by step through dm_control. The task
   files `tasks` are measured in `rounds` interleaved rounds (the order reversed
   every other round, so that all see the same machine load), each row the median."""
-  import statistics
-
   from hpg_mj import agents
 
   if tasks:
-    rates = {path: [] for path in tasks}
-    for r in range(rounds):
-      for path in (tasks if r % 2 == 0 else tasks[::-1]):
-        rates[path].append(bench_task(path, min_seconds))
-    return [(f"{rows[0]['task']}, learning" + (f", median of {rounds} rounds" if rounds > 1
-                                                else ""),
-             rows[0]["unit"], statistics.median(r["steps_per_second"] for r in rows))
-            for rows in rates.values()]
+    return [(f"{row['task']}, learning" + (f", median of {rounds} rounds" if rounds > 1
+                                            else ""), row["unit"], row["steps_per_second"])
+            for row in bench_rounds(tasks, min_seconds, rounds)]
   rows = []
   for path in agents.shipped_tasks().values():
     if "stable-baselines3" in agents.lookup(agents.load_task(path).kind).tags:

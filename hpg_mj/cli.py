@@ -81,7 +81,7 @@ def _cmd_bench(args):
       from hpg_mj import agents
       tasks = args.task or list(agents.shipped_tasks().values())
       import json
-      rows = [bench.bench_task(t, seconds) for t in tasks]
+      rows = bench.bench_rounds(tasks, seconds, args.rounds)
       for row in rows[1:] if args.task else ():    # as the plain table's last lines
         row["first_over_this"] = (rows[0]["steps_per_second"] / row["steps_per_second"]
                                   if row["steps_per_second"] else None)
@@ -581,8 +581,9 @@ def build_parser():
                       "instead of every shipped one")
   p.add_argument("--json", action="store_true",
                  help="train: one JSON object per task file, compile seconds apart from "
-                      "training seconds (with --task, each after the first has "
-                      "first_over_this: the first's speed over its own)")
+                      "training seconds, the median over --rounds and each round's (with "
+                      "--task, each after the first has first_over_this: the first's "
+                      "speed over its own)")
   p.add_argument("--rounds", type=_at_least(1), default=1,
                  help="train with --task: interleaved rounds over the task files (the "
                       "median of each, and the first's speed over each other's)")

@@ -48,6 +48,27 @@ def test_cli_bench_train_json_gives_the_ratios_the_table_prints(capsys, monkeypa
   assert rows[2]["first_over_this"] is None
 
 
+
+def test_cli_bench_train_json_takes_the_median_of_interleaved_rounds(capsys, monkeypatch):
+  """With --rounds the JSON rows are the median over rounds, each round's rate kept, the
+  order reversed every other round (the measuring itself stubbed: a rate per call)."""
+  from hpg_mj import bench
+  calls = []
+  rates = iter([1.0, 10.0, 20.0, 2.0, 3.0, 30.0])      # a b | b a | a b
+
+  def measure(path, seconds):
+    calls.append(path)
+    return {"task": path, "unit": "control steps/s", "steps_per_second": next(rates)}
+  monkeypatch.setattr(bench, "bench_task", measure)
+  assert cli.main(["bench", "train", "--task", "a", "--task", "b", "--rounds", "3",
+                   "--json"]) == 0
+  rows = json.loads(capsys.readouterr().out)
+  assert calls == ["a", "b", "b", "a", "a", "b"]
+  assert rows[0]["rounds_steps_per_second"] == [1.0, 2.0, 3.0]
+  assert rows[0]["steps_per_second"] == 2.0 and rows[1]["steps_per_second"] == 20.0
+  assert rows[1]["first_over_this"] == 0.1
+
+
 def test_cli_render_rejects_an_unknown_task(capsys, tmp_path):
   assert cli.main(["render", "--domain", "ship", "--task", "race",
                    "--out", str(tmp_path / "x.mp4")]) == 2

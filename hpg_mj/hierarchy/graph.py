@@ -37,9 +37,11 @@ class Child:
   argument is an integer where every binding of it is one, else a float; every `Child`
   of one subtask binds the same names).
 
-  `bind(call, obs) -> dict` adds parameters decided when the child is called
-  (MAXQ's parameter binding, e.g. Get calls Navigate(t) with t = the passenger's
-  station)."""
+  `bind` adds parameters decided when the child is called (MAXQ's parameter binding,
+  e.g. Get calls Navigate(t) with t = the passenger's station): on the open machine a
+  block of a `BindingKind` (`hierarchy.kinds.base`: its compiled `bind(P, obs, call)`
+  gives a tuple of the values of its names), in the Python executor a callable
+  `bind(call, obs) -> dict`."""
 
   def __init__(self, node: str, bind=None, **args):
     self.node = node
@@ -78,6 +80,12 @@ class Step:
 @dataclasses.dataclass
 class Subtask:
   """A non-primitive node (see the module docstring).
+
+  Its `view`, `termination`, `learner` (and `available`, `internal_reward`, `reward`)
+  are blocks on the open machine (`hierarchy.blocks`, a user's rules wrapped as
+  `hierarchy.kinds.rules`' `Abstraction`, `Features`, `Termination`, `InternalReward`:
+  compiled `rule(obs, call)` functions); the signatures below are the Python
+  executor's, for a graph of Python callables.
 
   Functions receive the current `Call`; after each child returns the executor
   calls, in this order: `internal_reward(call, step)` (G), `reward(call, step,
