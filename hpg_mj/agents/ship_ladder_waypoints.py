@@ -28,7 +28,18 @@ goal and the current the one gate is seen so from the observation (`SEEN_GATES`:
 goal's desired goal at 8-11, the current's fixed gate of SPEC section 2), and the pass,
 which ends the episode, ends the call with it. The approach's points are in that gate's
 frame (`_ladder.GATE_FRAMES`; the current's gate stands still, so its points are
-numbers). The harbour is refused: its obstacles wreck a ship that only aims.
+numbers).
+
+On the harbour, whose obstacles wreck a ship that only aims, three things change (the
+map is fixed, the gate is the steering task's): the root reads where the ship is, its
+50 m cell and heading quadrant (`harbour_state`, 1,600 states: the map is learned as
+the hybrid's root learns it); its styles are the gate's centre, a line-up point
+`lineup_m` before and one after it, and three detours fixed where the ship is when the
+root calls (`blocks.ShipPoint`: `DETOURS`, 100 m ahead and 100 m to either side, 150 m
+dead ahead); and the approach also reads the clearance ahead, the nearest of the three
+forward rangefinders (`aim_clear`, over a third tile dimension), so that it learns to
+swerve, its pseudo-reward -200 where the ship ran aground as where it left the field
+(`HARBOUR_PSEUDO`).
 """
 import collections
 import dataclasses
@@ -43,10 +54,12 @@ from hpg_mj.agents import ship_hybrid
 from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy.graph import Child, Primitive, Subtask, TaskGraph
 from hpg_mj.hierarchy.kinds import gate_frame
+from hpg_mj.hierarchy.kinds import grid_cell
 from hpg_mj.hierarchy.kinds.rules import Abstraction, Features, InternalReward, Termination
 from hpg_mj.learners import tiles
 from hpg_mj.taskfile import param
 from hpg_mj.worlds import ship_core as core
+from hpg_mj.worlds import ship_harbour_core as harbour_core
 
 N_ROOT_STATES = 8 * 3 * 4        # bearing sectors x distance bands x heading quadrants
 NEAR_M, FAR_M = 60.0, 200.0      # the root's distance bands' bounds
@@ -96,7 +109,7 @@ def current_gate(obs):
 # function of the observation -> (ahead_m, starboard_m, heading less the ship's in deg,
 # the gates left), which the rules of `_rules` read.
 SEEN_GATES = {"ship_current": current_gate, "ship_goal": goal_gate,
-              "ship_regatta": regatta_gate}
+              "ship_regatta": regatta_gate, "ship_harbour": current_gate}
 
 
 # ---- the rules -----------------------------------------------------------------------
@@ -166,12 +179,52 @@ def pseudo(obs, call, event):
   return SUCCESS_G * event
 
 
+# ---- the harbour: the map fixed, obstacles to clear --------------------------------------
+
+N_HARBOUR_STATES = 20 * 20 * 4   # the ship's 50 m cell x its heading quadrant
+DETOURS = ((100.0, -100.0), (100.0, 100.0), (150.0, 0.0))  # (ahead, starboard) of the ship, m
+FORWARD_RAYS = (2, 3, 4)         # harbour_core.BEARINGS_DEG's -30, 0 and +30 degrees
+assert tuple(harbour_core.BEARINGS_DEG[k] for k in FORWARD_RAYS) == (-30.0, 0.0, 30.0)
+
+
+@numba.njit(**_JIT)
+def harbour_state(obs, call):
+  """The root's state on the harbour: the ship's 50 m cell (`grid_cell`) x its heading's
+  quadrant."""
+  quadrant = min(int(((obs[2] + 180.0) % 360.0) // 90.0), 3)
+  return grid_cell.grid_cell(obs[0], obs[1], 50.0, 20) * 4 + quadrant
+
+
+@numba.njit(**_JIT)
+def aim_clear(obs, call):
+  """The approach's view on the harbour: `aim`'s, and the clearance ahead in m (the
+  nearest of the rangefinders at -30, 0 and +30 degrees, at 4 + FORWARD_RAYS)."""
+  error, rate = aim(obs, call)
+  return (error, rate, min(obs[6], min(obs[7], obs[8])))
+
+
+def _harbour_pseudo(level):
+  """The approach's G on the harbour at `level`: `pseudo`'s, and -200 where the ship lies
+  on an obstacle (ran aground, which ends the episode); named for its level."""
+  islands, piers = harbour_core.level_shapes(level)
+
+  def harbour_pseudo(obs, call, event):
+    if harbour_core.inside(obs[0], obs[1], islands, piers):
+      return LEFT_G
+    return pseudo(obs, call, event)
+  harbour_pseudo.__qualname__ = f"harbour_pseudo_{level}"
+  return numba.njit(error_model="numpy")(harbour_pseudo)
+
+
+HARBOUR_PSEUDO = {level: _harbour_pseudo(level) for level in harbour_core.LEVELS}
+
+
 # ---- the task file ---------------------------------------------------------------------
 
 @dataclasses.dataclass(frozen=True)
 class WaypointsEnvironment(_ladder.LadderEnvironment):
   """[environment]: the ladder's (`agents._ladder`), on a task whose next gate the rules
-  see (`SEEN_GATES`): the current, the goal or the regatta."""
+  see (`SEEN_GATES`): the current, the goal, the regatta or the harbour."""
   world: str = param("ship_regatta", "the ladder's task, whose next gate the rules see",
                      choices=tuple(SEEN_GATES))
 
@@ -180,8 +233,10 @@ class WaypointsEnvironment(_ladder.LadderEnvironment):
 class Root(ship_hybrid.Root):
   """[root]: the hybrid's root (Watkins's Q(lambda) over the SMDP of calls, its held
   epsilon), and where the styles of approach put their points."""
-  lateral_m: float = param(30.0, "the points to either side across the gate, m", low=0)
-  lineup_m: float = param(80.0, "the line-up point before the gate, m", low=0)
+  lateral_m: float = param(30.0, "the points to either side across the gate, m (not on "
+                           "the harbour)", low=0)
+  lineup_m: float = param(80.0, "the line-up point before the gate (the harbour: and one "
+                          "after it), m", low=0)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -195,6 +250,8 @@ class Approach(taskfile.Section):
   tilings: int = param(9, "CMAC tilings", low=1)
   tiles: tuple = param((12, 6), "tiles per tiling over the heading error, turning rate",
                        length=2, low=1)
+  clearance_tiles: int = param(4, "the harbour's: tiles over the clearance ahead, 0 to "
+                               "150 m", low=1)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -207,8 +264,14 @@ class Config:
   approach: Approach = dataclasses.field(default_factory=Approach)
 
 
-def coder(approach):
-  """The approach's CMAC over (heading error, turning rate), [approach]'s tiles."""
+def coder(approach, world=None):
+  """The approach's CMAC over (heading error, turning rate), [approach]'s tiles; on the
+  harbour also over the clearance ahead."""
+  if world == "ship_harbour":
+    return tiles.TileCoder((-180.0, -core.MAX_TURN_RATE, 0.0),
+                           (180.0, core.MAX_TURN_RATE, harbour_core.MAX_RANGE_M),
+                           (*approach.tiles, approach.clearance_tiles), (True, False, False),
+                           approach.tilings)
   return tiles.TileCoder((-180.0, -core.MAX_TURN_RATE), (180.0, core.MAX_TURN_RATE),
                          tuple(approach.tiles), (True, False), approach.tilings)
 
@@ -231,8 +294,10 @@ class ShipLadderWaypoints(hierarchy.ShipLadderHierarchy):
     # choices, from a task file or in Python.)
     super().__init__(config, seed, task)
     root, approach = self.config.root, self.config.approach
-    self.coder = coder(approach)
-    self.root = blocks.QTable(N_ROOT_STATES, alpha=root.alpha, trace_decay=root.trace_decay,
+    self.harbour = self.config.environment.world == "ship_harbour"
+    self.coder = coder(approach, self.config.environment.world)
+    self.root = blocks.QTable(N_HARBOUR_STATES if self.harbour else N_ROOT_STATES,
+                              alpha=root.alpha, trace_decay=root.trace_decay,
                               epsilon=root.epsilon, epsilon_schedule=True)
     self.approach = blocks.GaussianCMAC(self.coder, approach.alpha, approach.trace_gamma,
                                         approach.baseline, core.MAX_TURN_RATE)
@@ -241,9 +306,15 @@ class ShipLadderWaypoints(hierarchy.ShipLadderHierarchy):
     """The root's children, each a call of the approach to a point in the next gate's
     frame (`blocks.GatePoint`, `_ladder.GATE_FRAMES`): the gate's centre, `lateral_m` to
     port and to starboard across it, `lineup_m` before it. The current's gate stands
-    still, so its points are the same numbers at every call."""
+    still, so its points are the same numbers at every call. On the harbour: the
+    centre, `lineup_m` before and after it, and the `DETOURS` (`blocks.ShipPoint`)."""
     world, r = self.config.environment.world, self.config.root
     frame = _ladder.GATE_FRAMES[world]
+    if self.harbour:                # the centre, a line-up point either side, the detours
+      return [Child("approach", px=gate_frame.CENTRE_X, py=gate_frame.CENTRE_Y + along)
+              for along in (0.0, -r.lineup_m, r.lineup_m)] + [
+          Child("approach", bind=blocks.ShipPoint(ahead, starboard))
+          for ahead, starboard in DETOURS]
     offsets = [{}, {"lateral_m": -r.lateral_m}, {"lateral_m": r.lateral_m},
                {"along_m": -r.lineup_m}]
     if frame is not None:
@@ -253,13 +324,17 @@ class ShipLadderWaypoints(hierarchy.ShipLadderHierarchy):
                   py=gate_frame.CENTRE_Y + o.get("along_m", 0.0)) for o in offsets]
 
   def graph(self):
-    """root -> approach(px, py) x 4 styles -> the turning rate (the module docstring)."""
-    r, rules = self.config.root, RULES[self.config.environment.world]
+    """root -> approach(px, py) x its styles -> the turning rate (the module docstring)."""
+    r, env = self.config.root, self.config.environment
+    rules = RULES[env.world]
+    root_view, view, g = rules.root_state, aim, pseudo
+    if self.harbour:
+      root_view, view, g = harbour_state, aim_clear, HARBOUR_PSEUDO[env.level]
     return TaskGraph("root", [
         Subtask("root", children=self.styles(), learner=self.root,
-                view=Abstraction(rules.root_state), termination=blocks.Never()),
-        Subtask("approach", children=["turn"], learner=self.approach, view=Features(aim),
-                termination=Termination(rules.reached), internal_reward=InternalReward(pseudo),
+                view=Abstraction(root_view), termination=blocks.Never()),
+        Subtask("approach", children=["turn"], learner=self.approach, view=Features(view),
+                termination=Termination(rules.reached), internal_reward=InternalReward(g),
                 reward=blocks.STEP),            # only the -1s
         Primitive("turn"),                      # the turning rate r, drawn by the approach
     ], schedule=blocks.HeldEpsilon(r.epsilon, ("approach",), r.epsilon_threshold,

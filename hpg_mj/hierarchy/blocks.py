@@ -70,7 +70,8 @@ all within `within_m` of the gate line, else only the first (a TiledQTable's).
 
 A `Child`'s arguments fixed in a gate's frame when its parent calls: `GatePoint(frame,
 lateral_m, along_m)` binds (px, py), a point across or along the gate the observation
-holds (`GateFrame`), which one shared subtask of (px, py) steers to.
+holds (`GateFrame`), which one shared subtask of (px, py) steers to; `ShipPoint(ahead_m,
+starboard_m)` a point fixed where the ship is when its parent calls.
 
 The taxi hierarchy's rules (`hierarchy.taxi_subtasks`), for a program built with the
 taxi's world: `TaxiChildren(subtask)` (a node's `available`), `TaxiEnd(subtask)`
@@ -291,6 +292,15 @@ class GatePoint:
   frame: GateFrame
   lateral_m: float = 0.0
   along_m: float = 0.0
+
+
+@dataclasses.dataclass(frozen=True)
+class ShipPoint:
+  """A `Child`'s binding: a point of the field, (px, py), fixed where the ship is when the
+  parent calls, `ahead_m` along its heading and `starboard_m` across it (negative: to
+  port); `kinds.gate_point`. A detour the parent may choose."""
+  ahead_m: float = 0.0
+  starboard_m: float = 0.0
 
 
 @dataclasses.dataclass(frozen=True)

@@ -29,7 +29,7 @@ LADDER_FILES = {f"{task}_{agent}": (task, kind) for task in bounds.LADDER
                                     ("flat_pg", "ship_ladder_flat_pg"),
                                     ("option_critic", "ship_ladder_option_critic"))}
 LADDER_FILES.update({f"{task}_waypoints": (task, "ship_ladder_waypoints")  # designed ones
-                     for task in ("ship_current", "ship_goal", "ship_regatta")})
+                     for task in bounds.LADDER})
 
 
 @pytest.mark.parametrize("name", sorted(LADDER_FILES))

@@ -1,32 +1,50 @@
-"""The waypoints (`agents.ship_ladder_waypoints`): the agent names the current, the goal
-or the regatta, the harbour refused in one line from a task file or in Python; each
-task's next gate is seen as the regatta's observation gives it; its root's states and
-its metrics are what its docstring says."""
+"""The waypoints (`agents.ship_ladder_waypoints`): each task's next gate is seen as the
+regatta's observation gives it; on the harbour the root reads the map and the approach
+the water ahead; its root's states and its metrics are what its docstring says."""
 import math
-import re
+import collections
 
+import numba
 import numpy as np
 import pytest
 
 from hpg_mj import agents
 from hpg_mj import taskfile
 from hpg_mj.agents import ship_ladder_waypoints as waypoints
+from hpg_mj.hierarchy.kinds import gate_point
 from hpg_mj.worlds import ship_regatta_core as regatta_core
 
 
-def test_the_waypoints_refuse_the_harbour(tmp_path):
-  with pytest.raises(taskfile.TaskFileError, match=r"^WaypointsEnvironment: "
-                     r"\[WaypointsEnvironment\] world = 'ship_harbour' is not allowed; "
-                     r"allowed: \['ship_current', 'ship_goal', 'ship_regatta'\]$"):
-    taskfile.updated(waypoints.Config(), environment={"world": "ship_harbour"})
-  for name in ("ship_regatta_waypoints", "ship_goal_waypoints", "ship_current_waypoints"):
-    path = tmp_path / "harbour.toml"
-    text = agents.shipped_tasks()[name].read_text()
-    path.write_text(re.sub(r'world = "ship_\w+"', 'world = "ship_harbour"', text))
-    with pytest.raises(taskfile.TaskFileError, match=r"harbour.toml.*world.*'ship_regatta'\]") \
-        as err:
-      agents.load_task(path)
-    assert "\n" not in str(err.value)
+@numba.njit
+def _ship_point(P, obs):
+  return gate_point.bind_ship(P, obs, 0)
+
+
+def test_the_harbours_root_reads_the_map_and_its_approach_the_water_ahead():
+  """On the harbour the root's state is the ship's 50 m cell x heading quadrant, its
+  styles add the detours (`blocks.ShipPoint`, bound where the ship is), the approach also
+  reads the nearest forward range, and its G is -200 aground as off the field."""
+  config = taskfile.updated(waypoints.Config(), environment={"world": "ship_harbour",
+                                                             "level": "easy"})
+  agent = waypoints.ShipLadderWaypoints(config, seed=0)
+  graph = agent.graph()
+  styles = graph.nodes["root"].children
+  assert [(c.args.get("px"), c.args.get("py")) for c in styles[:3]] == [
+      (400.0, 400.0), (400.0, 320.0), (400.0, 480.0)]
+  assert [(c.bind.ahead_m, c.bind.starboard_m) for c in styles[3:]] == list(waypoints.DETOURS)
+  assert agent.root.n_states == waypoints.N_HARBOUR_STATES == 1600
+  obs = np.array([120.0, 980.0, 90.0, 3.0, 150.0, 150.0, 80.0, 45.0, 60.0, 150.0, 150.0])
+  assert waypoints.harbour_state(obs, None) == (2 * 20 + 19) * 4 + 3   # heading east
+  call = collections.namedtuple("Call", ("px", "py"))(120.0, 1080.0)  # due north
+  assert waypoints.aim_clear(obs, call) == (90.0, 3.0, 45.0)
+  # ShipPoint: 100 m ahead (east) and 100 m to port (north) of a ship heading east.
+  np.testing.assert_allclose(_ship_point(gate_point.ShipPointSettings(100.0, -100.0), obs),
+                             (220.0, 1080.0))
+  g = waypoints.HARBOUR_PSEUDO["easy"]
+  assert g(np.array([400.0, 620.0, 0.0, 0.0]), None, 0) == waypoints.LEFT_G      # an island
+  assert g(np.array([400.0, -1.0, 0.0, 0.0]), None, 0) == waypoints.LEFT_G       # off the field
+  assert g(np.array([100.0, 100.0, 0.0, 0.0]), None, 1) == waypoints.SUCCESS_G
+  assert g(np.array([100.0, 100.0, 0.0, 0.0]), None, 0) == 0.0
 
 
 @pytest.mark.parametrize("world", ["ship_goal", "ship_current"])

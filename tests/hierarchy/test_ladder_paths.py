@@ -40,7 +40,8 @@ CASES = [(ship_ladder_hybrid.ShipLadderHybrid, "ship_current", "hard", 30),
          (ship_ladder_option_critic.ShipLadderOptionCritic, "ship_goal", "hard", 10),
          (ship_ladder_waypoints.ShipLadderWaypoints, "ship_regatta", "hard", 30),
          (ship_ladder_waypoints.ShipLadderWaypoints, "ship_goal", "hard", 20),
-         (ship_ladder_waypoints.ShipLadderWaypoints, "ship_current", "hard", 20)]
+         (ship_ladder_waypoints.ShipLadderWaypoints, "ship_current", "hard", 20),
+         (ship_ladder_waypoints.ShipLadderWaypoints, "ship_harbour", "easy", 20)]
 
 
 @pytest.mark.parametrize("cls,task,level,episodes", CASES,

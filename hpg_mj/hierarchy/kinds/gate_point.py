@@ -1,4 +1,4 @@
-"""The GatePoint binding (SPEC section 11): a point of the field fixed in the frame of a
+"""The point bindings (SPEC section 11). GatePoint: a point of the field fixed in the frame of a
 gate the observation holds (`blocks.GateFrame`: the regatta's next gate, the goal's
 desired goal), bound as a call's float arguments (px, py) when the parent calls. One
 shared subtask of (px, py) then serves every point a parent may name: the gate's
@@ -14,6 +14,12 @@ phi (sine s, cosine c) puts the point
 
 in the field's own coordinates, fixed for the call: the next gate moves on when the
 ship passes one, the point does not.
+
+ShipPoint: a point fixed where the ship is when the parent calls, `ahead_m` along its
+heading theta and `starboard_m` across it (a detour round what lies ahead):
+
+    px = x + ahead_m sin(theta) + starboard_m cos(theta)
+    py = y + ahead_m cos(theta) - starboard_m sin(theta)
 """
 import collections
 import math
@@ -61,4 +67,31 @@ class GatePointKind(base.BindingKind):
                     _metres(name, block, "along_m"))
 
 
-KINDS = (GatePointKind(),)
+ShipPointSettings = collections.namedtuple("ShipPointSettings", ("ahead", "starboard"))
+ShipPointSettings.__doc__ = """A ShipPoint's offsets along and across the ship's heading
+(m)."""
+
+
+@numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
+             no_cfunc_wrapper=True)
+def bind_ship(P, obs, call):
+  """ShipPoint's binding: (px, py), the point `P.ahead` m along and `P.starboard` m across
+  the ship's heading from where it is, in the field's coordinates."""
+  rad = math.radians(obs[2])
+  s, c = math.sin(rad), math.cos(rad)
+  return (obs[0] + P.ahead * s + P.starboard * c, obs[1] + P.ahead * c - P.starboard * s)
+
+
+class ShipPointKind(base.BindingKind):
+  """Runs a `ShipPoint`: the called subtask's float arguments px and py."""
+  block = blocks.ShipPoint
+  bind = staticmethod(bind_ship)
+
+  def names(self, block):
+    return {"px": False, "py": False}
+
+  def settings(self, name, block):
+    return ShipPointSettings(_metres(name, block, "ahead_m"), _metres(name, block, "starboard_m"))
+
+
+KINDS = (GatePointKind(), ShipPointKind())
