@@ -34,7 +34,8 @@ from hpg_mj.experiments import stats
 # axis label) and the table's greedy scores, each also normalized.
 WORLDS = {
     "ship": {"experiments": ("reference_ship_hierarchy", "reference_ship_option_critic",
-                             "reference_ship_ppo", "reference_ship_sac"),
+                             "reference_ship_ppo", "reference_ship_sac",
+                             "reference_ship_ppo_jax"),
              "title": "Ship steering: greedy scores against control steps trained",
              "panels": (("gate_pass_rate", "gate pass rate, greedy"),
                         ("J", "J (MushroomRL rewards), greedy")),
