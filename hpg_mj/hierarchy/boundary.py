@@ -294,7 +294,7 @@ def typing_line(message, module_path, roles, names, arguments):
     return None
   attr, record = found.groups()
   bound = list(calls._arguments(record)) if record != "Call" else []
-  node, role = None, None
+  node, role = None, None          # (node: the names of the nodes)
   at = re.search(re.escape(os.path.basename(module_path)) + r" \((\d+)\)", message)
   if at is not None:
     with open(module_path) as f:
@@ -303,15 +303,16 @@ def typing_line(message, module_path, roles, names, arguments):
     used = re.findall(r"\b(_f\d+)\(", lines[number]) if number < len(lines) else []
     role = next((roles[g] for g in used if g in roles), None)
     for line in reversed(lines[:number]):
-      branch = re.match(r"^  (?:if|elif) node == (\d+):$", line)
-      if branch is not None:
-        node = names[int(branch.group(1))]
+      branch = re.match(r"^  (?:if|elif) (node == \d+(?: or node == \d+)*):$", line)
+      if branch is not None:        # (nodes of one shape share a branch: each reads it)
+        node = [names[int(i)] for i in re.findall(r"\d+", branch.group(1))]
         break
       if line.startswith("def "):
         break
   if node is None:
     nodes = [n for n, args in arguments.items() if list(args) == bound]
-    node = nodes[0] if len(nodes) == 1 else None
-  who = f"subtask {node!r}" if node is not None else f"a subtask whose calls bind {bound}"
+    node = nodes[:1] if len(nodes) == 1 else None
+  who = (f"a subtask whose calls bind {bound}" if node is None else
+         f"subtask{'s' if len(node) > 1 else ''} {', '.join(map(repr, node))}")
   return (f"{who}: its {role or 'rule'} reads call.{attr}; its calls bind {bound} (and "
           "call.origin, call.steps)")
