@@ -36,18 +36,18 @@ _WHOLE = """
 import sys, tempfile, time
 from hpg_mj import cli
 with tempfile.TemporaryDirectory() as out:
-  cli.main(["train", sys.argv[1], "--episodes", "2", "--out", out + "/first", "--force",
-            "--quiet"])
+  cli.main(["train", sys.argv[1], "--episodes", sys.argv[2], "--out", out + "/first",
+            "--force", "--quiet"])
 print(time.process_time())
 """
 
 
-def _start(checkout, task, core, program, cache):
-  env = dict(os.environ, PYTHONPATH=str(checkout), NUMBA_CACHE_DIR=cache)
+def _start(checkout, task, core, program, cache, episodes="2"):
+  env = dict(os.environ, PYTHONPATH=str(checkout), NUMBA_CACHE_DIR=cache, HPG_MJ_CACHE=cache)
   # cwd: `python -c` puts the working directory first on sys.path, ahead of PYTHONPATH;
   # from any other directory holding an hpg_mj (this checkout's root), both sides
   # would import that one.
-  return subprocess.Popen([sys.executable, "-c", program, task], env=env, text=True,
+  return subprocess.Popen([sys.executable, "-c", program, task, episodes], env=env, text=True,
                           cwd=str(checkout),
                           stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                           preexec_fn=lambda: os.sched_setaffinity(0, {core}))
@@ -60,12 +60,12 @@ def _seconds(process, checkout):
   return float(out.strip().splitlines()[-1])
 
 
-def pair(task, reference, cores, program=_TIMED):
+def pair(task, reference, cores, program=_TIMED, episodes=2):
   """(reference's seconds, this checkout's seconds), compiled at the same time on
   `cores` (reference's first)."""
   with tempfile.TemporaryDirectory() as a, tempfile.TemporaryDirectory() as b:
-    ref = _start(reference, task, cores[0], program, a)
-    this = _start(HERE, task, cores[1], program, b)
+    ref = _start(reference, task, cores[0], program, a, str(episodes))
+    this = _start(HERE, task, cores[1], program, b, str(episodes))
     return _seconds(ref, reference), _seconds(this, HERE)
 
 
@@ -78,6 +78,8 @@ def main(argv=None):
   parser.add_argument("--rounds", type=int, default=6)
   parser.add_argument("--whole", action="store_true",
                       help="time the whole `hpg-mj train TASK --episodes 2` process")
+  parser.add_argument("--episodes", type=int, default=2,
+                      help="with --whole, the train's episodes (2,000: the shipped train's)")
   args = parser.parse_args(argv)
   if not (args.reference / "hpg_mj").is_dir():
     parser.error(f"--reference {args.reference}: no hpg_mj package there; give a checkout")
@@ -90,7 +92,8 @@ def main(argv=None):
     ratios = []
     for r in range(args.rounds):
       pinned = (cores[0], cores[1]) if r % 2 == 0 else (cores[1], cores[0])
-      ref, this = pair(task, args.reference, pinned, _WHOLE if args.whole else _TIMED)
+      ref, this = pair(task, args.reference, pinned, _WHOLE if args.whole else _TIMED,
+                       args.episodes)
       ratios.append(this / ref)
       print(f"{task} round {r + 1}: reference {ref:.1f} s, this {this:.1f} s "
             f"(x{this / ref:.2f})", flush=True)

@@ -32,6 +32,11 @@ FAULT_MESSAGE = "hpg_mj: a rule's value was refused at the machine's boundary (s
 # The type numba saw where a rule gave something that is not numbers, by check
 # (filled when the check is compiled; empty when it came from the cache).
 SEEN_TYPES = {}
+# A check is compiled once for each type it is given and called, not inlined into the
+# graph's operations: inlined, numba typed its body again at every call site (LLVM
+# still inlines the call).
+_CALLED = {"error_model": "numpy", "_nrt": False, "no_cpython_wrapper": True,
+           "no_cfunc_wrapper": True}
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
@@ -53,7 +58,7 @@ def as_state(value, n_states, fault, what):
   """`value` as a table's state: an integer in [0, n_states)."""
 
 
-@overload(as_state, inline="always")
+@overload(as_state, jit_options=_CALLED)
 def _as_state(value, n_states, fault, what):
   if isinstance(value, (types.Integer,)) and not isinstance(value, types.Boolean):
     def state(value, n_states, fault, what):
@@ -79,7 +84,7 @@ def as_features(value, out, fault, what):
   """`value` (a number, or a tuple of numbers of `out`'s length) written into `out`."""
 
 
-@overload(as_features, inline="always")
+@overload(as_features, jit_options=_CALLED)
 def _as_features(value, out, fault, what):
   if _number(value):
     def one(value, out, fault, what):
@@ -114,7 +119,7 @@ def as_event(value, fault, what):
   """`value` as a call's event: 0 go on, 1 success, -1 failure (a bool: True is 1)."""
 
 
-@overload(as_event, inline="always")
+@overload(as_event, jit_options=_CALLED)
 def _as_event(value, fault, what):
   if isinstance(value, types.Boolean):
     # True is 1 (no branch: a conditional here made numba's inlining warn of its phi)
@@ -142,7 +147,7 @@ def as_reward(value, fault, what):
   """`value` as an internal reward: a finite number."""
 
 
-@overload(as_reward, inline="always")
+@overload(as_reward, jit_options=_CALLED)
 def _as_reward(value, fault, what):
   if _number(value):
     def reward(value, fault, what):
@@ -163,7 +168,7 @@ def as_choice(value, n, fault, what):
   [0, n) (a kind's `choose` and `observe` return floats)."""
 
 
-@overload(as_choice, inline="always")
+@overload(as_choice, jit_options=_CALLED)
 def _as_choice(value, n, fault, what):
   if isinstance(value, (types.Integer, types.Boolean)):
     def index(value, n, fault, what):
@@ -217,7 +222,7 @@ def _unrolled(ints, into_out):
   return scope["unrolled"]
 
 
-@overload(as_bound, inline="always")
+@overload(as_bound, jit_options=_CALLED)
 def _as_bound(value, like, fault, what):
   ints = tuple(isinstance(t, types.Integer) for t in like.types)
   n = len(ints)
@@ -289,7 +294,7 @@ def typing_line(message, module_path, roles, names, arguments):
     return None
   attr, record = found.groups()
   bound = list(calls._arguments(record)) if record != "Call" else []
-  node, role = None, None
+  node, role = None, None          # (node: the names of the nodes)
   at = re.search(re.escape(os.path.basename(module_path)) + r" \((\d+)\)", message)
   if at is not None:
     with open(module_path) as f:
@@ -298,15 +303,16 @@ def typing_line(message, module_path, roles, names, arguments):
     used = re.findall(r"\b(_f\d+)\(", lines[number]) if number < len(lines) else []
     role = next((roles[g] for g in used if g in roles), None)
     for line in reversed(lines[:number]):
-      branch = re.match(r"^  (?:if|elif) node == (\d+):$", line)
-      if branch is not None:
-        node = names[int(branch.group(1))]
+      branch = re.match(r"^  (?:if|elif) (node == \d+(?: or node == \d+)*):$", line)
+      if branch is not None:        # (nodes of one shape share a branch: each reads it)
+        node = [names[int(i)] for i in re.findall(r"\d+", branch.group(1))]
         break
       if line.startswith("def "):
         break
   if node is None:
     nodes = [n for n, args in arguments.items() if list(args) == bound]
-    node = nodes[0] if len(nodes) == 1 else None
-  who = f"subtask {node!r}" if node is not None else f"a subtask whose calls bind {bound}"
+    node = nodes[:1] if len(nodes) == 1 else None
+  who = (f"a subtask whose calls bind {bound}" if node is None else
+         f"subtask{'s' if len(node) > 1 else ''} {', '.join(map(repr, node))}")
   return (f"{who}: its {role or 'rule'} reads call.{attr}; its calls bind {bound} (and "
           "call.origin, call.steps)")

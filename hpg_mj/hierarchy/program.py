@@ -22,6 +22,7 @@ The learned arrays are saved and restored by name (`state()`, `parameters()`):
 """
 import collections
 import inspect
+import re
 
 import numba
 import numpy as np
@@ -40,7 +41,15 @@ from hpg_mj.worlds import ship_core as core
 _F64 = np.dtype(np.float64)
 _ROLES = {"view": "view", "termination": "termination", "reward": "internal reward",
           "available": "available", "binding": "binding"}
+_ROWS = ("x", "args", "origin", "steps", "choice", "action", "mask")   # a node's rows of M
 _VECTOR, _ROWS_OF_XY = (8,), (16, 8)          # the strides of a float64 vector, of rows of (x, y)
+
+
+def _index(items, item):
+  """The index of `item` in `items`, added at the end if it is not there."""
+  if item not in items:
+    items.append(item)
+  return items.index(item)
 
 
 def _identifier(name):
@@ -247,12 +256,12 @@ class Program:
     args = ", ".join([settings, "M.obs", call, "M.samples"] if settings else ["M.obs", call])
     if s.view.gives == "state":
       return [f"x{i} = boundary.as_state({fn}({args}), np.int64({s.size}), M.fault, "
-              f"np.int64({s._view_what}))",
+              f"_w{s._view_what})",
               f"M.x[{i}, 0] = x{i}"]
     if s.view.writes:
       return [f"{fn}({args}, M.x[{i}, :{s.size + s.view.reflects}])"]
     return [f"boundary.as_features({fn}({args}), M.x[{i}, :{s.size}], M.fault, "
-            f"np.int64({s._view_what}))"]
+            f"_w{s._view_what})"]
 
   def _x(self, s):
     """The node's view as its learner reads it (after `_view_lines`)."""
@@ -289,7 +298,7 @@ class Program:
       s._choice_what = self._what(s.name, f"learner {type(s.node.learner).__name__}",
                                   f"a child's index in [0, {s.n_children})")
     return (f"M.choice[{s.index}] = boundary.as_choice(v{s.index}, np.int64({s.n_children}), "
-            f"M.fault, np.int64({s._choice_what}))")
+            f"M.fault, _w{s._choice_what})")
 
   def _offer_lines(self, s):
     """Lines that write the children `s` may choose now into its mask (its `available`)."""
@@ -348,7 +357,7 @@ class Program:
              f"call{i} = {self._call_text(s)}",
              f"said{i}, shaped{i} = {end}({args})" if s.end.gives_internal else
              f"said{i} = {end}({args})",
-             f"event{i} = boundary.as_event(said{i}, M.fault, np.int64({what}))"]
+             f"event{i} = boundary.as_event(said{i}, M.fault, _w{what})"]
     if s.reward is None:
       return lines + [f"return event{i}, 0.0"]
     if s.reward.from_termination:
@@ -358,7 +367,7 @@ class Program:
                      ["M.obs", f"call{i}", f"event{i}"])
     what = self._what(s.name, f"internal reward {rules_mod.rule_name(node.internal_reward)}",
                       "a finite number")
-    return lines + [f"return event{i}, boundary.as_reward({fn}({args}), M.fault, np.int64({what}))"]
+    return lines + [f"return event{i}, boundary.as_reward({fn}({args}), M.fault, _w{what})"]
 
   def _chosen_lines(self, s):
     if s.learner.continuous:
@@ -383,7 +392,7 @@ class Program:
                           f", one for each of its names {list(names)}" +
                           (f" ({', '.join(whole)} whole)" if whole else ""))
         lines.append(f"  bound = boundary.as_bound({fn}({args}), ({like.rstrip(' ')}), M.fault, "
-                     f"np.int64({what}))")
+                     f"_w{what})")
         names = list(names)
       lines += [f"  M.args[{c}, {j}] = {float(ref.args[arg])!r}" if arg in ref.args else
                 f"  M.args[{c}, {j}] = bound[{names.index(arg)}]"
@@ -392,11 +401,42 @@ class Program:
     return lines + ["return -1"]
 
   def _operation(self, L, op, params, doc, lines_of, otherwise):
+    """The function `op` of the graph. Nodes whose code differs only in their row, their
+    records and their fault codes share one branch, their records chosen by node: numba
+    types it and LLVM compiles it once, not once a node (`_shared`)."""
     L += ["@numba.njit(**_JIT)", f"def {op}(G, node{params}):", f'  """{doc}"""', "  M = G.M"]
-    for k, s in enumerate(self._subtasks):
-      L.append(f"  {'if' if k == 0 else 'elif'} node == {s.index}:")
-      L += ["    " + line for line in lines_of(s)]
+    branches = {}
+    for s in self._subtasks:
+      own = lines_of(s)
+      text, records, whats = self._shared(s, own)
+      types = tuple(numba.typeof(dict(self._records)[r[2:]]) for r in records)
+      branches.setdefault((text, types), []).append((s, own, records, whats))
+    for k, ((text, _), nodes) in enumerate(branches.items()):
+      L.append(f"  {'if' if k == 0 else 'elif'} " +
+               " or ".join(f"node == {s.index}" for s, *_ in nodes) + ":")
+      if len(nodes) == 1:                     # its row, records and codes as constants
+        L += ["    " + re.sub(r"\b_w(\d+)\b", r"np.int64(\1)", line) for line in nodes[0][1]]
+        continue
+      L.append(f"    # {', '.join(s.name for s, *_ in nodes)}{text[0][text[0].index(':'):]}")
+      for j, (s, _, records, whats) in enumerate(nodes if nodes[0][2] or nodes[0][3] else []):
+        L.append("    else:" if j == len(nodes) - 1 else
+                 f"    {'if' if j == 0 else 'elif'} node == {s.index}:")
+        L += [f"      r{n}_{k} = {r}" for n, r in enumerate(records)]
+        L += [f"      w{n}_{k} = np.int64({w})" for n, w in enumerate(whats)]
+      L += ["    " + line.replace("_@", f"_{k}") for line in text[1:]]
     L += [f"  return {otherwise}", "", ""]
+
+  def _shared(self, s, lines):
+    """(the text of `s`'s lines as nodes of its shape share it, its records, its fault
+    codes): its row `node`, its variables `x_@`, ..., its records `r0_@`, ... and its
+    codes `w0_@`, ... (its first line, a comment, names it)."""
+    text, records, whats = "\n".join(lines), [], []
+    text = re.sub(rf"(M\.(?:{'|'.join(_ROWS)}))\[{s.index}([,\]])", r"\1[node\2", text)
+    text = re.sub(rf"\b(x|v|call|said|shaped|event){s.index}\b", r"\1_@", text)
+    text = re.sub(r"\bG\.\w+", lambda m: f"r{_index(records, m.group(0))}_@", text)
+    text = re.sub(r"\b_w(\d+)\b", lambda m: f"w{_index(whats, int(m.group(1)))}_@", text)
+    lines = text.split("\n")
+    return (lines[0].replace(s.name, "", 1), *lines[1:]), records, whats
 
   def _schedule_text(self, L):
     """The schedule's hooks: a watched subtask's run ended, the episode, a decision."""

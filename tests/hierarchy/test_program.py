@@ -536,6 +536,34 @@ def test_a_rule_reading_an_argument_nobody_binds_is_one_line_naming_the_subtask(
     program.run(1, True, True, rng.make_state(0), WORLD)
 
 
+def _twins(view):
+  """A root choosing between two subtasks of one shape (their kinds, their records'
+  types): the graph's operations give both one branch."""
+  twins = [Subtask(name, children=["turn"], termination=Termination(arrived), view=view,
+                   learner=blocks.GaussianCMAC(CODER, alpha=0.02), reward=blocks.STEP)
+           for name in ("left", "right")]
+  root = Subtask("root", children=[Child("left", x=300.0, y=700.0, limit=50),
+                                   Child("right", x=700.0, y=300.0, limit=50)],
+                 termination=blocks.Never(),
+                 view=Abstraction(cell), learner=blocks.QTable(400, alpha=0.1, epsilon=0.2))
+  return TaskGraph("root", [Primitive("turn"), *twins, root])
+
+
+def test_subtasks_of_one_shape_share_a_branch_and_a_rule_error_names_both():
+  program = Program(_twins(Features(aim)))
+  with open(program.module_path) as f:
+    text = f.read()
+  left, right = program.index["left"], program.index["right"]
+  assert text.count(f"node == {left} or node == {right}:") == 4    # enter, resume, judge, chosen
+  rows = program.run(20, True, True, rng.make_state(0), WORLD)
+  assert rows[:, algorithm.ROW_STEPS].sum() > 0
+  line = ("subtasks 'left', 'right': its view Features(_reads_z) reads call.z; its calls "
+          "bind ['limit', 'x', 'y'] (and call.origin, call.steps)")
+  with pytest.raises(GraphError) as e:
+    Program(_twins(Features(_reads_z))).run(1, True, True, rng.make_state(0), WORLD)
+  assert str(e.value) == line
+
+
 def _plain(obs, call):
   return 0
 
