@@ -183,8 +183,9 @@ def pseudo(obs, call, event):
 
 N_HARBOUR_STATES = 20 * 20 * 4   # the ship's 50 m cell x its heading quadrant
 DETOURS = ((100.0, -100.0), (100.0, 100.0), (150.0, 0.0))  # (ahead, starboard) of the ship, m
-FORWARD_RAYS = (2, 3, 4)         # harbour_core.BEARINGS_DEG's -30, 0 and +30 degrees
-assert tuple(harbour_core.BEARINGS_DEG[k] for k in FORWARD_RAYS) == (-30.0, 0.0, 30.0)
+# The observation's places of the rangefinders at -30, 0 and +30 degrees (after the ship's 4).
+PORT_RAY, AHEAD_RAY, STARBOARD_RAY = (4 + harbour_core.BEARINGS_DEG.index(b)
+                                      for b in (-30.0, 0.0, 30.0))
 
 
 @numba.njit(**_JIT)
@@ -198,9 +199,9 @@ def harbour_state(obs, call):
 @numba.njit(**_JIT)
 def aim_clear(obs, call):
   """The approach's view on the harbour: `aim`'s, and the clearance ahead in m (the
-  nearest of the rangefinders at -30, 0 and +30 degrees, at 4 + FORWARD_RAYS)."""
+  nearest of the rangefinders at -30, 0 and +30 degrees)."""
   error, rate = aim(obs, call)
-  return (error, rate, min(obs[6], min(obs[7], obs[8])))
+  return (error, rate, min(obs[PORT_RAY], min(obs[AHEAD_RAY], obs[STARBOARD_RAY])))
 
 
 def _harbour_pseudo(level):
