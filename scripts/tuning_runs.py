@@ -9,7 +9,10 @@ trains them with checkpoints (a killed command resumes when run again), and
 
     python scripts/tuning_runs.py --summary OUT/runs/tuning_<task>
 
-prints each configuration's mean `[tuning] score` over the seeds finished so far.
+prints each configuration's mean `[tuning] score` over the seeds finished so far;
+with `--task NAME --json FILE` it also writes the tuning's record (each
+configuration's changes, its runs' scores and greedy gate rates, their mean), the
+form of figures/tuning/*.json.
 For long learners such as the SB3 reference agents (`hpg-mj tune` keeps its runs
 in memory, so a 10 M-step tuning could not survive a restart). `--seeds N` runs
 the first N of the task's tuning seeds only (the same N for every learner compared,
@@ -115,6 +118,34 @@ def summary(folder):
           + (f" ({none} more with none: no episode ended in its window)" if none else ""))
 
 
+def record(name, folder, source):
+  """The tuning's record of task `name` from its runs in `folder` (a `--summary` folder):
+  {task, budget, episodes, seeds, score, better, source, results: [{changes, scores,
+  mean, greedy_gate_pass_rate}]}, scores to 4 decimals (a run with none: null, left out
+  of the mean), in the order of `tuning.candidates`."""
+  task = agents.load_task(name)
+  folder = pathlib.Path(folder)
+  results, seeds = [], set()
+  for k, changes in enumerate(tuning.candidates(task, task.tuning["budget"])):
+    runs = sorted((folder / f"{task.path.stem}_tune{k}").glob("seed*/metrics.json"),
+                  key=lambda p: int(p.parent.name[4:]))
+    if not runs:
+      raise ValueError(f"{folder}: no finished run of configuration {k} ({task.path.stem}_tune{k})")
+    data = [json.loads(p.read_text()) for p in runs]
+    seeds.update(int(p.parent.name[4:]) for p in runs)
+    score = task.tuning["score"]
+    scores = [None if d[score] is None else round(d[score], 4) for d in data]
+    kept = [v for v in scores if v is not None]
+    results.append({"changes": changes, "scores": scores,
+                    "mean": round(float(np.mean(kept)), 5) if kept else None,
+                    "greedy_gate_pass_rate": [d.get("greedy", {}).get("gate_pass_rate")
+                                              for d in data]})
+  return {"task": task.path.stem, "budget": task.tuning["budget"],
+          "episodes": task.tuning["episodes"], "seeds": sorted(seeds),
+          "score": task.tuning["score"], "better": task.tuning["better"], "source": source,
+          "results": results}
+
+
 def _score_name(metrics):
   """The SB3 task files' [tuning] score: the ship's J, the taxi's mean return."""
   return "J" if "J" in metrics else "mean_return"
@@ -125,11 +156,21 @@ def main(argv=None):
   parser.add_argument("tasks", nargs="*", help="task files or shipped names")
   parser.add_argument("--out", default="runs/tuning")
   parser.add_argument("--summary", help="a tuning experiment's output folder")
+  parser.add_argument("--task", help="with --summary and --json: the tuned task file")
+  parser.add_argument("--json", help="with --summary and --task: write the tuning's record here")
+  parser.add_argument("--source", default="scripts/tuning_runs.py, then hpg-mj run",
+                      help="with --json: how the runs were made, as the record says it")
   parser.add_argument("--seeds", type=int, default=None,
                       help="run the first N tuning seeds only (default: all)")
   args = parser.parse_args(argv)
   if args.summary:
     summary(args.summary)
+    if args.json:
+      if not args.task:
+        parser.error("--json needs --task (the tuned task file)")
+      out = pathlib.Path(args.json)
+      out.write_text(json.dumps(record(args.task, args.summary, args.source), indent=1) + "\n")
+      print(f"wrote {out}")
     return 0
   for name in args.tasks:
     print(write(name, args.out, args.seeds))

@@ -216,6 +216,34 @@ def test_tuning_runs_give_each_learner_its_grid_on_the_same_first_tuning_seeds(t
     script["write"]("taxi_fuel_ppo", tmp_path, 11)
 
 
+def test_tuning_runs_write_the_tunings_record_from_its_runs(tmp_path, capsys):
+  """scripts/tuning_runs.py --summary --task --json: figures/tuning/*.json's form, each
+  configuration in `tuning.candidates`' order, a run without a score left out of the mean."""
+  script = runpy.run_path(str(pathlib.Path(__file__).resolve().parents[2] / "scripts" /
+                              "tuning_runs.py"))
+  from hpg_mj import agents
+  from hpg_mj.experiments import tuning
+  task = agents.load_task("taxi_fuel_dqn")
+  changes = tuning.candidates(task, task.tuning["budget"])
+  folder = tmp_path / "runs"
+  for k in range(len(changes)):
+    for seed, score in ((1, -30.0 + k), (0, None if k == 3 else -20.123456 + k)):
+      run = folder / f"taxi_fuel_dqn_tune{k}" / f"seed{seed}"
+      run.mkdir(parents=True)
+      (run / "metrics.json").write_text(json.dumps({"mean_return": score}))
+  out = tmp_path / "record.json"
+  assert script["main"](["--summary", str(folder), "--task", "taxi_fuel_dqn", "--json",
+                         str(out)]) == 0
+  record = json.loads(out.read_text())
+  assert (record["task"], record["seeds"], record["score"]) == ("taxi_fuel_dqn", [0, 1],
+                                                                  task.tuning["score"])
+  assert [r["changes"] for r in record["results"]] == json.loads(json.dumps(changes))
+  assert record["results"][0]["scores"] == [-20.1235, -30.0]       # seed 0, then seed 1
+  assert record["results"][0]["mean"] == -25.06175       # of the rounded scores
+  assert record["results"][3]["scores"] == [None, -27.0] and record["results"][3]["mean"] == -27.0
+  assert "wrote" in capsys.readouterr().out
+
+
 def test_the_combined_report_links_each_sections_pictures_in_its_folder(tmp_path):
   from hpg_mj.experiments import figures
   (tmp_path / "reference").mkdir()
