@@ -118,10 +118,15 @@ def summary(folder):
           + (f" ({none} more with none: no episode ended in its window)" if none else ""))
 
 
+# The greedy success rate a record keeps beside the scores: the gate's, the regatta's
+# course (the taxi's greedy metrics have neither: none is kept).
+SUCCESS = ("gate_pass_rate", "finish_rate")
+
+
 def record(name, folder, source):
   """The tuning's record of task `name` from its runs in `folder` (a `--summary` folder):
   {task, budget, episodes, seeds, score, better, source, results: [{changes, scores,
-  mean, greedy_gate_pass_rate}]}, scores to 4 decimals (a run with none: null, left out
+  mean, greedy_gate_pass_rate or greedy_finish_rate}]}, scores to 4 decimals (a run with none: null, left out
   of the mean), in the order of `tuning.candidates`."""
   task = agents.load_task(name)
   folder = pathlib.Path(folder)
@@ -136,10 +141,12 @@ def record(name, folder, source):
     score = task.tuning["score"]
     scores = [None if d[score] is None else round(d[score], 4) for d in data]
     kept = [v for v in scores if v is not None]
+    greedy = [d.get("greedy", {}) for d in data]
+    success = next((k for k in SUCCESS if any(k in g for g in greedy)), None)
     results.append({"changes": changes, "scores": scores,
                     "mean": round(float(np.mean(kept)), 5) if kept else None,
-                    "greedy_gate_pass_rate": [d.get("greedy", {}).get("gate_pass_rate")
-                                              for d in data]})
+                    **({f"greedy_{success}": [g.get(success) for g in greedy]}
+                       if success else {})})
   return {"task": task.path.stem, "budget": task.tuning["budget"],
           "episodes": task.tuning["episodes"], "seeds": sorted(seeds),
           "score": task.tuning["score"], "better": task.tuning["better"], "source": source,

@@ -241,6 +241,7 @@ def test_tuning_runs_write_the_tunings_record_from_its_runs(tmp_path, capsys):
   assert record["results"][0]["scores"] == [-20.1235, -30.0]       # seed 0, then seed 1
   assert record["results"][0]["mean"] == -25.06175       # of the rounded scores
   assert record["results"][3]["scores"] == [None, -27.0] and record["results"][3]["mean"] == -27.0
+  assert not any(k.startswith("greedy_") for k in record["results"][0])   # none recorded
   assert "wrote" in capsys.readouterr().out
 
 
