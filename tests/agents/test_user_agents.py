@@ -261,3 +261,18 @@ def test_load_returns_what_its_docstring_says(tmp_path):
   assert meta["metrics"] == {"x": 1.0} and meta["agent_class"] == agents.class_path(type(agent))
   for name, value in agent.state().items():
     np.testing.assert_array_equal(loaded.state()[name], value, err_msg=name)
+
+
+def test_the_hierarchy_tutorials_task_file_trains_the_readmes_waypoints(tmp_path):
+  """docs/tutorial_hierarchy.md's least task file, with the README's Waypoints class in
+  my_module.py beside it as the page says, trains and is evaluated by the command line."""
+  code = _block("Write your own hierarchy").split("agent = Waypoints(seed=0)")[0]
+  (tmp_path / "my_module.py").write_text(code)
+  text = (REPO / "docs" / "tutorial_hierarchy.md").read_text().split("## Its task file\n")[1]
+  (tmp_path / "mine.toml").write_text(re.search(r"```toml\n(.*?)```", text, re.S).group(1))
+  trained = json.loads(_run(tmp_path, "train", "mine.toml", "--episodes", 50, "--out", "runs/mine",
+                            "--json").stdout)
+  assert trained["episodes_measured"] == 50 and "gate_pass_rate_normalized" in trained
+  done = _run(tmp_path, "evaluate", "runs/mine", "--episodes", 5, "--json")
+  assert done.returncode == 0, done.stderr
+  assert json.loads(done.stdout)["policy"] == "greedy"
