@@ -619,7 +619,8 @@ BEST_IS = {
                      "water (planners.plan)"),
     "ship_goal": ("per start, the fewest control steps to the episode's gate over first "
                   "turns before helmsmen lining up with it from a grid of approaches "
-                  "(planners.plan)"),
+                  "(among obstacles, also down distance fields round them to the line-up "
+                  "points; planners.plan, planners_goal)"),
     "ship_regatta": ("per start, a rollout of the scripted helmsman gate by gate over the "
                      "whole course, each gate's way of taking it chosen by sailing every "
                      "candidate to the finish (planners.plan)"),

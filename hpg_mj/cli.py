@@ -16,7 +16,8 @@ LADDER_CHECKS = {
                 "heading errors)", "< 0.25 m, < 0.25 deg, <= half the Euler error"),
     "goal": ("verify_goal", "goal-conditioned ship: {starts} episodes per level of the "
              "scripted helmsman on the analytic ship, its turning rates replayed on the MuJoCo "
-             "ship", "< 1.5 m apart, the gate's geoms at the rule's, >= 95% same ends"),
+             "ship", "< 1.5 m apart, the gate's geoms at the rule's, >= 95% same ends, "
+             "rangefinders within 1e-6 m of the rays"),
     "regatta": ("verify_regatta", "regatta: {starts} courses per level sailed by the scripted "
                 "helmsman on the analytic ship, its turning rates replayed on the MuJoCo and "
                 "the continuous ship", "MuJoCo < 0.25 m, < 0.25 deg, <= half the Euler error, "

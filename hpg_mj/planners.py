@@ -15,8 +15,10 @@ alone (`Helmsman`).
 - goal: the episode's gate known, a helmsman that makes for the point `reach` m before
   the gate on its line of approach and, once behind the gate inside a cone of lateral
   slope `slope` and heading towards it, for 60 m past its centre (`goal_rate`); the
-  planner tries a grid of reaches and slopes, then first turns before the best three,
-  and keeps the fewest control steps to the gate (`_plan_goal`).
+  planner tries a grid of reaches and slopes (at `hard`, among the obstacles, also
+  helmsmen down distance fields to the line-up points), then first turns before the
+  best three, and keeps the fewest control steps to the gate
+  (`hpg_mj.planners_goal`, its own module).
 - regatta: the course known, Bertsekas's rollout of the scripted helmsman gate by gate
   (`_plan_regatta`): at each gate every way of taking it (`regatta_rate`'s candidates:
   the helmsman's, the nearest point, points across the gate, lined up with it, the
@@ -41,10 +43,12 @@ import math
 import numba
 import numpy as np
 
+from hpg_mj import planners_goal
 from hpg_mj import planners_harbour
 from hpg_mj import planners_shared as shared
 from hpg_mj.planners_shared import BACK_TURNS, FIRST_TURNS, INSET_M, STENCIL  # noqa: F401
 from hpg_mj.planners_shared import first_turn_rate as _turn
+from hpg_mj.planners_goal import HELMSMAN_SLOPE, goal_rate
 from hpg_mj.worlds import ship_core as core
 from hpg_mj.worlds import ship_current_core as current_core
 from hpg_mj.worlds import ship_goal_core as goal_core
@@ -226,111 +230,6 @@ def _plan_current(starts, field, t_field, spacing, margin, firsts, backs, max_st
       _sail_current(state, field, t_field, spacing, margin, choice[i, 0], int(choice[i, 1]),
                     int(choice[i, 2]), max_steps, max_steps, gate_reward,
                     out_of_bounds_reward, samples, actions[i])
-
-
-# ---- goal ------------------------------------------------------------------------------
-
-GOAL_REACHES = np.array([0.0, 10.0, 20.0, 35.0, 60.0, 100.0, 150.0])   # m before the gate
-GOAL_SLOPES = np.array([0.0, 0.2, 0.4, 0.7, 1.0])   # the cone behind the gate: |lateral| <=
-GOAL_CONE_M = 40.0                            # GOAL_CONE_M + slope * distance behind
-GOAL_PAST_M = 60.0                            # the aim point past the gate's centre
-HELMSMAN_REACH, HELMSMAN_SLOPE = 0.0, 0.7     # the scripted helmsman's
-GOAL_KEEP = 3                                 # pairs tried after first turns
-
-
-@numba.njit(cache=True, error_model="numpy")
-def goal_rate(state, desired, reach, slope):
-  """The goal's helmsman, of the observation alone: behind the gate (`desired` [x, y,
-  sin, cos]), inside the cone |lateral| <= GOAL_CONE_M + slope * distance and heading
-  towards the gate line, it sails for GOAL_PAST_M past the gate's centre; anywhere else
-  for the point `reach` m before the gate on its line of approach."""
-  gx, gy, s, c = desired[0], desired[1], desired[2], desired[3]
-  rx, ry = state[0] - gx, state[1] - gy
-  forward = rx * s + ry * c
-  lateral = rx * c - ry * s
-  theta = math.radians(state[2])
-  toward = math.sin(theta) * s + math.cos(theta) * c
-  if forward < 0.0 and abs(lateral) <= GOAL_CONE_M - slope * forward and toward > 0.0:
-    return core.pilot_turn_rate(state, gx + GOAL_PAST_M * s, gy + GOAL_PAST_M * c)
-  return core.pilot_turn_rate(state, gx - reach * s, gy - reach * c)
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _sail_goal(state, desired, reach, slope, sign, first, back, cap, max_steps, gate_reward,
-               out_of_bounds_reward, tolerance, samples, achieved, actions):
-  """One goal episode from `state` (in place): the first turns, then `goal_rate`; judged
-  as the batch environment judges (`ship_goal_core.outcome_of` at the end of each
-  step). Returns (event, steps, return)."""
-  steps, total = 0, 0.0
-  while True:
-    r = _turn(steps, sign, first, back)
-    if math.isnan(r):
-      r = goal_rate(state, desired, reach, slope)
-    if steps < actions.shape[0]:
-      actions[steps] = r
-    core.euler_control(state, r, samples)
-    steps += 1
-    theta = math.radians(state[2])
-    achieved[0], achieved[1] = state[0], state[1]
-    achieved[2], achieved[3] = math.sin(theta), math.cos(theta)
-    event, reward = goal_core.outcome_of(achieved, desired, gate_reward, out_of_bounds_reward,
-                                         tolerance)
-    total += reward
-    if event != core.NO_EVENT or steps >= max_steps or steps >= cap:
-      return event, steps, total
-
-
-@numba.njit(cache=True)
-def _plan_goal(starts, gates, reaches, slopes, firsts, backs, keep, max_steps, gate_reward,
-               out_of_bounds_reward, tolerance, best, choice, actions):
-  """`plan_goal`'s search: best[i] = (passed, steps, return), choice[i] = (reach, slope,
-  sign, first, back). The scripted helmsman first, then every (reach, slope) without a
-  first turn, then every first turn before the `keep` best of those (a later episode
-  kept only if it passes in fewer steps)."""
-  samples = np.empty((core.SAMPLES_PER_CONTROL + 1, 2))
-  state = np.empty(4)
-  achieved = np.empty(4)
-  none = np.empty(0)
-  n_pairs = reaches.shape[0] * slopes.shape[0]
-  plain = np.empty(n_pairs)
-  for i in range(starts.shape[0]):
-    desired = gates[i]
-    state[:] = starts[i]
-    event, steps, total = _sail_goal(state, desired, HELMSMAN_REACH, HELMSMAN_SLOPE, 1.0, 0, 0,
-                                     max_steps, max_steps, gate_reward, out_of_bounds_reward,
-                                     tolerance, samples, achieved, none)
-    passed = event == core.SUCCESS
-    best[i, 0], best[i, 1], best[i, 2] = passed, steps, total
-    choice[i, 0], choice[i, 1] = HELMSMAN_REACH, HELMSMAN_SLOPE
-    choice[i, 2], choice[i, 3], choice[i, 4] = 1.0, 0, 0
-    for stage in range(2):
-      order = np.argsort(plain, kind="mergesort") if stage == 1 else np.arange(n_pairs)
-      for q in range(n_pairs if stage == 0 else min(keep, n_pairs)):
-        pair = order[q]
-        reach, slope = reaches[pair // slopes.shape[0]], slopes[pair % slopes.shape[0]]
-        for sign in (1.0, -1.0):
-          for f in range(firsts.shape[0] + 1):
-            first = 0 if f == 0 else firsts[f - 1]
-            for back in backs:
-              if (stage == 0) != (first == 0) or (first == 0 and (back > 0 or sign < 0)):
-                continue          # stage 0: no first turn (once); stage 1: first turns
-              cap = best[i, 1] if best[i, 0] else max_steps
-              state[:] = starts[i]
-              event, steps, total = _sail_goal(state, desired, reach, slope, sign, first,
-                                               back, cap, max_steps, gate_reward,
-                                               out_of_bounds_reward, tolerance, samples,
-                                               achieved, none)
-              if stage == 0:
-                plain[pair] = steps if event == core.SUCCESS else np.inf
-              if event == core.SUCCESS and (steps < cap or not best[i, 0]):
-                best[i, 0], best[i, 1], best[i, 2] = 1.0, steps, total
-                choice[i, 0], choice[i, 1] = reach, slope
-                choice[i, 2], choice[i, 3], choice[i, 4] = sign, first, back
-    if actions.shape[0] > 0:
-      state[:] = starts[i]
-      _sail_goal(state, desired, choice[i, 0], choice[i, 1], choice[i, 2], int(choice[i, 3]),
-                 int(choice[i, 4]), max_steps, max_steps, gate_reward, out_of_bounds_reward,
-                 tolerance, samples, achieved, actions[i])
 
 
 # ---- regatta ---------------------------------------------------------------------------
@@ -534,12 +433,6 @@ def _current_batch(obs, field, t_field, out):
     out[i] = current_rate(obs[i, :4], field, t_field, GRID_M, MARGIN_M)
 
 
-@numba.njit(cache=True, error_model="numpy")
-def _goal_batch(states, desired, out):
-  for i in range(states.shape[0]):
-    out[i] = goal_rate(states[i], desired[i], HELMSMAN_REACH, HELMSMAN_SLOPE)
-
-
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def _seen_at(x, y, sin, cos, ahead, starboard):
   """The point `ahead` m ahead of and `starboard` m to the starboard of a ship at (x, y)
@@ -569,11 +462,11 @@ class Helmsman:
   """The scripted helmsman of a ladder task at a level (the planner's first candidate),
   a batched policy of the environment's observation alone (`hpg_mj.benchmark.evaluate`
   scores it): the current's heads down the level's time field (`current_rate`), the
-  goal's lines up with the episode's gate (`goal_rate`, reach HELMSMAN_REACH, slope
-  HELMSMAN_SLOPE), the regatta's sails for the next gate's point on the shortest two
-  legs towards the gate after it, turning for that one early (`scripted_target`), the
-  harbour's heads down its level's distance field round the obstacles
-  (`planners_harbour.harbour_rate`)."""
+  goal's lines up with the episode's gate (`planners_goal.goal_rate`, reach
+  HELMSMAN_REACH, slope HELMSMAN_SLOPE; blind to the hard level's obstacles), the
+  regatta's sails for the next gate's point on the shortest two legs towards the gate
+  after it, turning for that one early (`scripted_target`), the harbour's heads down its
+  level's distance field round the obstacles (`planners_harbour.harbour_rate`)."""
 
   batched = True
 
@@ -599,7 +492,7 @@ class Helmsman:
       states = np.ascontiguousarray(obs["observation"], dtype=np.float64).reshape(-1, 4)
       desired = np.ascontiguousarray(obs["desired_goal"], dtype=np.float64).reshape(-1, 4)
       out = np.empty(len(states))
-      _goal_batch(states, desired, out)
+      planners_goal.helmsman_batch(states, desired, out)
       return out
     width = 6 if self.name == "ship_current" else regatta_core.OBSERVATION_SIZE
     obs = np.ascontiguousarray(obs, dtype=np.float64).reshape(-1, width)
@@ -616,8 +509,8 @@ class Helmsman:
 def plan(name, level, starts, max_steps=core.STEER_MAX_STEPS, gate_reward=core.GATE_REWARD,
          out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD, actions=False):
   """The best known episode from each start of a ladder task (`hpg_mj.benchmark`'s
-  `fixed_starts` dictionary: "state", and "gate" or "course"; the harbour's at `level`
-  from `planners_harbour`). Returns (outcome,
+  `fixed_starts` dictionary: "state", and "gate" or "course"; the goal's from
+  `planners_goal`, the harbour's from `planners_harbour`). Returns (outcome,
   choice, turning rates or None): outcome rows (passed, steps, return), on the regatta
   (finished, gates passed, steps, return); with `actions` the turning rates of each
   chosen episode, (n, max_steps), NaN after its end."""
@@ -632,12 +525,8 @@ def plan(name, level, starts, max_steps=core.STEER_MAX_STEPS, gate_reward=core.G
                   MARGIN_M, FIRST_TURNS, BACK_TURNS, max_steps, float(gate_reward),
                   float(out_of_bounds_reward), outcome, choice, rates)
   elif name == "ship_goal":
-    desired = np.array([goal_core.check_gate(g, "ship_goal") for g in starts["gate"]],
-                       dtype=np.float64).reshape(-1, 4)
-    outcome, choice = np.zeros((n, 3)), np.zeros((n, 5))
-    _plan_goal(states, desired, GOAL_REACHES, GOAL_SLOPES, FIRST_TURNS, BACK_TURNS, GOAL_KEEP,
-               max_steps, float(gate_reward), float(out_of_bounds_reward),
-               goal_core.level_tolerance(level), outcome, choice, rates)
+    outcome, choice, rates = planners_goal.plan(level, states, starts["gate"], max_steps,
+                                                gate_reward, out_of_bounds_reward, actions)
   elif name == "ship_regatta":
     gates, spacing, _, _ = regatta_core.level_layout(level)
     courses = np.ascontiguousarray(starts["course"], dtype=np.float64).reshape(-1, gates, 3)
@@ -676,7 +565,7 @@ def reference_steps(name, level, starts):
   if name == "ship_goal":
     out = []
     for state, gate in zip(states, starts["gate"]):
-      a, b = goal_core.gate_posts(goal_core.check_gate(gate, "ship_goal"),
+      a, b = goal_core.gate_posts(goal_core.check_gate(gate, "ship_goal", level),
                                   goal_core.TOLERANCES[level][0])
       t = np.clip((state[:2] - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0)
       out.append(np.linalg.norm(state[:2] - a - t * (b - a)) / step_m)

@@ -65,20 +65,18 @@ def _clearance(x, y, islands, piers):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _distance_field_into(islands, piers, spacing, safety, edge_margin, penalty, stencil, out):
-  """`distance_field` into `out` (n, n), out[i, j] at (i, j) * spacing (inf where no
-  unblocked path reaches the gate)."""
+def _distance_field_into(islands, piers, seeds, spacing, safety, edge_margin, penalty, stencil,
+                         out):
+  """`distance_field` into `out` (n, n), out[i, j] at (i, j) * spacing, from the nodes
+  `seeds` (flat indices i * n + j, at distance 0); inf where no unblocked path reaches
+  them."""
   n = out.shape[0]
   out[:, :] = np.inf
   heap = [(0.0, 0)]
   heap.pop()
-  j0 = int(round(core.GATE[0, 1] / spacing))
-  for i in range(n):
-    x = i * spacing
-    if (core.GATE[0, 0] + shared.INSET_M <= x <= core.GATE[1, 0] - shared.INSET_M
-        and not harbour_core.inside(x, j0 * spacing, islands, piers)):
-      out[i, j0] = 0.0
-      heapq.heappush(heap, (0.0, i * n + j0))
+  for k in seeds:
+    out[k // n, k % n] = 0.0
+    heapq.heappush(heap, (0.0, k))
   low, high = edge_margin, core.FIELD_SIZE - edge_margin
   clear = np.empty((n, n))          # each node's distance to the nearest obstacle: an edge
   for i in range(n):                # from a node clearer than its length and the margin
@@ -110,6 +108,29 @@ def _distance_field_into(islands, piers, spacing, safety, edge_margin, penalty, 
         heapq.heappush(heap, (tt, pi * n + pj))
 
 
+def gate_seeds(islands, piers, n, spacing=GRID_M):
+  """The nodes (flat indices) on the steering task's gate line between its posts moved in
+  by `shared.INSET_M`, off the obstacles: where the harbour's fields are 0."""
+  j0 = int(round(core.GATE[0, 1] / spacing))
+  return np.array([i * n + j0 for i in range(n)
+                   if core.GATE[0, 0] + shared.INSET_M <= i * spacing <= core.GATE[1, 0]
+                   - shared.INSET_M and not harbour_core.inside(i * spacing, j0 * spacing,
+                                                                 islands, piers)],
+                  dtype=np.int64)
+
+
+def distance_field_into(islands, piers, seeds, safety, out, edge_margin=EDGE_MARGIN_M,
+                        penalty=PENALTY):
+  """D (m) into `out` (n, n) over the GRID_M grid: the length of the shortest path to the
+  nodes `seeds` (flat indices) among the obstacles `islands` and pier frames `piers`,
+  over 32 headings; edges that meet an obstacle are blocked, those that meet it grown by
+  `safety` m or end within `edge_margin` of the field's edge cost `penalty` times their
+  length."""
+  _distance_field_into(islands, piers, np.asarray(seeds, dtype=np.int64), float(GRID_M),
+                       float(safety), float(edge_margin), float(penalty), shared.STENCIL, out)
+  return out
+
+
 def distance_field(level, safety, spacing=GRID_M, edge_margin=EDGE_MARGIN_M, penalty=PENALTY):
   """D (m): the length of the shortest path to the gate from each node of a `spacing`
   grid over the field among `level`'s obstacles, over 32 headings; edges that meet an
@@ -118,8 +139,8 @@ def distance_field(level, safety, spacing=GRID_M, edge_margin=EDGE_MARGIN_M, pen
   islands, piers = harbour_core.level_shapes(level)
   n = int(round(core.FIELD_SIZE / spacing)) + 1
   out = np.empty((n, n))
-  _distance_field_into(islands, piers, float(spacing), float(safety), float(edge_margin),
-                       float(penalty), shared.STENCIL, out)
+  _distance_field_into(islands, piers, gate_seeds(islands, piers, n, spacing), float(spacing),
+                       float(safety), float(edge_margin), float(penalty), shared.STENCIL, out)
   return out
 
 
@@ -133,7 +154,7 @@ def level_fields(level):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _distance_at(field, spacing, x, y):
+def distance_at(field, spacing, x, y):
   """D at (x, y): bilinear over the nodes of its cell that a path leaves (those inside
   an obstacle, inf, left out and the weights of the rest renormalized); inf where none
   of the four does."""
@@ -165,8 +186,8 @@ def harbour_rate(state, field, spacing):
   if math.hypot(gx - x, gy - y) < NEAR_GATE_M:
     return core.pilot_turn_rate(state, gx, gy)
   h = 0.5 * spacing
-  hx = _distance_at(field, spacing, x - h, y) - _distance_at(field, spacing, x + h, y)
-  hy = _distance_at(field, spacing, x, y - h) - _distance_at(field, spacing, x, y + h)
+  hx = distance_at(field, spacing, x - h, y) - distance_at(field, spacing, x + h, y)
+  hy = distance_at(field, spacing, x, y - h) - distance_at(field, spacing, x, y + h)
   return shared.down_gradient_rate(state, hx, hy, gx, gy)
 
 
@@ -263,7 +284,7 @@ def reference_steps(level, states):
   within ~1.3% of it."""
   field = _reference_field(level)
   states = np.asarray(states, dtype=np.float64).reshape(-1, 4)
-  return np.array([_distance_at(field, GRID_M, s[0], s[1]) for s in states]) \
+  return np.array([distance_at(field, GRID_M, s[0], s[1]) for s in states]) \
       / (core.SPEED * core.CONTROL_INTERVAL)
 
 

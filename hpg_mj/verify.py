@@ -176,10 +176,10 @@ def golden_dir():
 # gate heading almost west, sails straight (r = 0) through the gate and on out of
 # the field, and after the restart turns as the other tasks' do.
 SHIP_GOLDEN_STARTS = {"patrol": (440.0, 390.15, -80.0, 0.0)}
-# The goal tasks' first episode sails from 9.85 m south of a gate at (400, 400) heading
-# north straight through it (its pass is the episode's end at the sixth step); the
-# episodes after it draw their starts and gates.
-GOAL_GOLDEN_FIRST = {"state": (400.0, 390.15, 0.0, 0.0), "gate": (400.0, 400.0, 0.0)}
+# The goal tasks' first episode sails from 9.85 m south of a gate at (560, 600) heading
+# north straight through it (its pass is the episode's end at the sixth step; a gate
+# clear of the hard level's obstacles); the episodes after it draw their starts and gates.
+GOAL_GOLDEN_FIRST = {"state": (560.0, 590.15, 0.0, 0.0), "gate": (560.0, 600.0, 0.0)}
 PATROL_GOLDEN_STRAIGHT = 260     # control steps at r = 0 before the random turns
 
 

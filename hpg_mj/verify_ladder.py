@@ -125,14 +125,17 @@ class GoalVerification:
   same_outcome: int             # episodes both ships ended alike, within one control step
   largest_position_m: float     # MuJoCo against analytic, over every step sailed
   gate_geoms_m: float           # the MuJoCo gate's posts against the rule's, largest
+  aground: int = 0              # episodes the helmsman (blind to obstacles) ran aground
+  ranges_m: float = 0.0         # MuJoCo's rangefinders against the analytic rays cast
+                                # from the MuJoCo ship's own states, largest
 
   def line(self):
     """Its report line, as printed."""
     return (f"  {self.level:<7} {self.episodes} episodes: helmsman passed "
-            f"{self.analytic_passes}; same end within a step on both ships "
-            f"{self.same_outcome}; MuJoCo vs analytic position at most "
+            f"{self.analytic_passes}, ran aground {self.aground}; same end within a step "
+            f"on both ships {self.same_outcome}; MuJoCo vs analytic position at most "
             f"{self.largest_position_m:.3f} m; MuJoCo gate posts off the rule's by "
-            f"{self.gate_geoms_m:.1e} m")
+            f"{self.gate_geoms_m:.1e} m; rangefinders against the rays {self.ranges_m:.1e} m")
 
   @property
   def passed(self):
@@ -142,16 +145,17 @@ class GoalVerification:
     differently. A pass is seen one control step earlier or later when the ships are a
     metre apart along the track (the window is 1.8 m deep): that counts as the same end."""
     return (self.largest_position_m < 1.5 and self.gate_geoms_m < 1e-9
-            and self.same_outcome >= 0.95 * self.episodes)
+            and self.same_outcome >= 0.95 * self.episodes and self.ranges_m < 1e-6)
 
 
 def _goal_episode(env, seed, actions=None, start=None, steps=2000):
-  """(states, events, actions) of one episode of `env` (a ShipGoalEnv): the scripted
-  helmsman's choices, or `actions` replayed from `start` (and the last one held for
-  one more control step, should the episode not have ended)."""
+  """(states, events, actions, ranges) of one episode of `env` (a ShipGoalEnv): the
+  scripted helmsman's choices, or `actions` replayed from `start` (and the last one held
+  for one more control step, should the episode not have ended)."""
   from hpg_mj.worlds import ship_goal_core as goal_core
   obs, _ = env.reset(seed=seed, options=start)
   states, events, chosen, phase = [obs["observation"]], [None], [], 0
+  ranges = [obs["ranges"]]
   for t in range(steps if actions is None else len(actions) + 1):
     if actions is None:
       tx, ty, phase = goal_core.pilot_target(obs["observation"], phase, obs["desired_goal"])
@@ -161,10 +165,11 @@ def _goal_episode(env, seed, actions=None, start=None, steps=2000):
     obs, _, terminated, truncated, info = env.step(np.array([r]))
     states.append(obs["observation"])
     events.append(info["event"])
+    ranges.append(obs["ranges"])
     chosen.append(r)
     if terminated or truncated:
       break
-  return np.array(states), events, chosen
+  return np.array(states), events, chosen, np.array(ranges)
 
 
 def verify_goal(episodes=20, seed=0, levels=None):
@@ -182,23 +187,28 @@ def verify_goal(episodes=20, seed=0, levels=None):
     goal_core.level_range(level, "hpg-mj verify goal")
     analytic = gymnasium.make("hpg_mj/ShipGoal-v0", level=level, backend="analytic").unwrapped
     mujoco = gymnasium.make("hpg_mj/ShipGoal-v0", level=level, backend="mujoco").unwrapped
-    passes = same = 0
-    largest = posts_off = 0.0
+    rays = goal_core.OneShip(analytic.rules, level)
+    passes = same = aground = 0
+    largest = posts_off = ranges_off = 0.0
     for episode in range(episodes):
-      states, events, actions = _goal_episode(analytic, seed * 100_003 + episode)
+      states, events, actions, _ = _goal_episode(analytic, seed * 100_003 + episode)
       desired = analytic._desired
       start = {"state": states[0], "gate": [desired[0], desired[1],
                                             goal_core.gate_heading_deg(desired)]}
-      replay, replay_events, _ = _goal_episode(mujoco, None, actions, start)
+      replay, replay_events, _, seen = _goal_episode(mujoco, None, actions, start)
       n = min(len(states), len(replay))
       largest = max(largest, float(np.hypot(*(states[:n, :2] - replay[:n, :2]).T).max()))
       passes += events[-1] == "gate"
+      aground += events[-1] == "obstacle"
       same += abs(len(replay) - len(states)) <= 1 and replay_events[-1] == events[-1]
       drawn = np.array([mujoco.backend.physics.named.model.geom_pos[name][:2]
                         for name in ("gate_post_west", "gate_post_east")])
       posts_off = max(posts_off, float(np.abs(drawn - goal_core.gate_posts(
           analytic._desired, analytic.tolerance[0])).max()))
-    results.append(GoalVerification(level, episodes, passes, same, largest, posts_off))
+      cast = np.array([rays.ranges(np.ascontiguousarray(state)) for state in replay])
+      ranges_off = max(ranges_off, float(np.abs(cast - seen).max()))
+    results.append(GoalVerification(level, episodes, passes, same, largest, posts_off, aground,
+                                    ranges_off))
   return results
 
 

@@ -167,7 +167,7 @@ class LadderMachineAgent(base.MachineAgent, _ship.ShipAgent):
 
   @property
   def obs_size(self):
-    """The task's observation's length (the goal's dictionary flattened: 12)."""
+    """The task's observation's length (the goal's dictionary flattened: 19)."""
     return self.world.obs_size
 
   def make_env(self, api="gymnasium", backend="analytic", **kwargs):

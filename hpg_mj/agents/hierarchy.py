@@ -65,7 +65,7 @@ class ShipLadderHierarchy(_ladder.LadderMachineAgent):
   Gymnasium environment (`make_env`; a trained agent is evaluated and rendered there),
   the same rows for a fixed seed. Its rules read the observation the environment gives
   (`obs_size` numbers): the current's state and water (6), the goal's dictionary
-  flattened as observation, achieved_goal, desired_goal (12), the regatta's state, two
+  flattened as observation, achieved_goal, desired_goal, ranges (19), the regatta's state, two
   gates and the gates left (11), the harbour's state and seven ranges (11); the ship's
   [x, y, theta_deg, theta_dot_deg] first on every task, so the steering task's views
   (`blocks.GridCell`, `blocks.LocalTiles`) read it as they are. Its metrics are the

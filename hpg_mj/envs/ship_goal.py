@@ -1,6 +1,8 @@
 """The goal-conditioned ship as a Gymnasium environment with a dictionary observation
-(`observation`, `achieved_goal`, `desired_goal`) and `compute_reward`, as
-Stable-Baselines3's `HerReplayBuffer` expects, and its native batch."""
+(`observation`, `achieved_goal`, `desired_goal`, and the rangefinders' `ranges`) and
+`compute_reward`, as Stable-Baselines3's `HerReplayBuffer` expects, and its native batch."""
+import functools
+
 import gymnasium
 import numpy as np
 from gymnasium import spaces
@@ -8,20 +10,50 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from hpg_mj.envs import ship as ship_env
+from hpg_mj.envs import ship_harbour as harbour_env
 from hpg_mj.envs import vector
 from hpg_mj.worlds import ship_core as core
 from hpg_mj.worlds import ship_goal_core as goal_core
+from hpg_mj.worlds import ship_harbour_core as harbour_core
 
 
 def spaces_of(rules):
   """(observation space, action space): the steering ship's state under `observation`,
-  and goals [x, y, sin(heading), cos(heading)] on the field (with one control step's
-  margin) under `achieved_goal` and `desired_goal`."""
+  goals [x, y, sin(heading), cos(heading)] on the field (with one control step's margin)
+  under `achieved_goal` and `desired_goal`, and the rangefinders' ranges, 0 to
+  MAX_RANGE_M, under `ranges`."""
   state, action = ship_env.spaces_of(rules)
   goal = spaces.Box(low=np.append(state.low[:2], [-1.0, -1.0]),
                     high=np.append(state.high[:2], [1.0, 1.0]), dtype=np.float64)
-  return spaces.Dict({"observation": state, "achieved_goal": goal,
-                      "desired_goal": goal}), action
+  ranges = spaces.Box(low=0.0, high=harbour_core.MAX_RANGE_M, shape=(goal_core.RAYS,),
+                      dtype=np.float64)
+  return spaces.Dict({"observation": state, "achieved_goal": goal, "desired_goal": goal,
+                      "ranges": ranges}), action
+
+
+def mujoco_backend(level):
+  """The MuJoCo ship of a goal `level`: among obstacles, the harbour's
+  (assets/ship_harbour.xml, its rangefinders, the obstacles of `OBSTACLES[level]`); in
+  open water the steering ship of assets/ship.xml, whose rays would meet nothing."""
+  if goal_core.OBSTACLES[level] is None:
+    return ship_env.MujocoBackend()
+  return harbour_env.MujocoHarbourBackend(goal_core.OBSTACLES[level])
+
+
+def aground_in(info, shape):
+  """Where a step's `info` says its track touched an obstacle (`event` "obstacle"),
+  as booleans of the goals' batch `shape`: `info` an environment's (a dictionary, of
+  names or of arrays of names) or a sequence of them (what Stable-Baselines3's
+  `HerReplayBuffer` passes); None or no `event`: nowhere."""
+  if info is None:
+    return np.zeros(shape, dtype=np.bool_)
+  if isinstance(info, dict):
+    names = np.asarray(info.get("event", None), dtype=object)
+  else:
+    names = np.array([i.get("event", None) if isinstance(i, dict) else None
+                      for i in np.asarray(info, dtype=object).reshape(-1)],
+                     dtype=object).reshape(np.shape(info))
+  return np.broadcast_to(names == "obstacle", shape)
 
 
 class ShipGoalEnv(ship_env.ShipSteeringEnv):
@@ -40,17 +72,26 @@ class ShipGoalEnv(ship_env.ShipSteeringEnv):
   |---|---|---|---|
   | easy | uniform on [300, 500] m (around `ShipSteering`'s gate) | within 30 deg of north | 100 m, 45 deg |
   | medium | uniform on [200, 800] m | within 90 deg of north | 100 m, 45 deg |
-  | hard | uniform on [100, 900] m | any | 50 m, 30 deg |
+  | hard | uniform on [100, 900] m, clear of the obstacles | any | 50 m, 30 deg |
+
+  At `hard` the water holds the obstacles of `hpg_mj/ShipHarbour-v0`'s `medium` level
+  (four islands and two breakwaters along y = 400 m, a 120 m gap between them at
+  x = 340-460 m); touching one ends the episode as leaving the field does. Each gate is
+  drawn again until its posts' line and the 150 m before its centre keep 10 m from every
+  obstacle.
 
   ## Action space
   `Box(-15, 15, (1,), float64)`: the desired turning rate r in deg/s, held for one
   0.6 s control interval (clipped, or refused with `strict=True`).
 
   ## Observation space
-  `Dict` of three `Box(float64, (4,))`: `observation`, the ship's state as in
-  `hpg_mj/ShipSteering-v0`; `achieved_goal`, the ship's position and heading as a
-  goal; `desired_goal`, the same of the gate: its centre and heading (its posts
-  stand 50 m either side of the centre, across the heading; 25 m at `hard`).
+  `Dict` of three `Box(float64, (4,))` and one `Box(float64, (7,))`: `observation`, the
+  ship's state as in `hpg_mj/ShipSteering-v0`; `achieved_goal`, the ship's position and
+  heading as a goal; `desired_goal`, the same of the gate: its centre and heading (its
+  posts stand 50 m either side of the centre, across the heading; 25 m at `hard`);
+  `ranges`, the seven rangefinders of `hpg_mj/ShipHarbour-v0` (the distance to the
+  first obstacle along rays at -90, -60, ..., 90 deg from the heading, 150 m where none
+  is nearer: always 150 m in the open water of `easy` and `medium`).
 
   | Num | Observation | Unit |
   |---|---|---|
@@ -66,11 +107,20 @@ class ShipGoalEnv(ship_env.ShipSteeringEnv):
   | `desired_goal[1]` | the gate centre's `y` | m |
   | `desired_goal[2]` | `sin` of the gate's heading (the heading to pass it with, clockwise from north as `theta`) | |
   | `desired_goal[3]` | `cos` of the gate's heading | |
+  | `ranges[0]` | the range along the ray 90 deg to port (left) of the heading | m |
+  | `ranges[1]` | the range along the ray 60 deg to port | m |
+  | `ranges[2]` | the range along the ray 30 deg to port | m |
+  | `ranges[3]` | the range along the heading | m |
+  | `ranges[4]` | the range along the ray 30 deg to starboard (right) | m |
+  | `ranges[5]` | the range along the ray 60 deg to starboard | m |
+  | `ranges[6]` | the range along the ray 90 deg to starboard | m |
 
   ## Rewards
   `compute_reward(achieved_goal, desired_goal, info)` (any batch shape): -1 per
   control step, +100 more when the goal is reached, -100 more when the achieved
-  position is off the field. Reached: in the gate's frame the ship is between the posts
+  position is off the field or when `info` says the step's track touched an obstacle
+  (its `event` "obstacle", whatever the goals: a dictionary, or a sequence of them as
+  `HerReplayBuffer` gives). Reached: in the gate's frame the ship is between the posts
   (|lateral| <= 50 m; 25 m at `hard`), at most one control step of sailing past the
   gate line (0 <= forward < 1.8 m) and heading within 45 degrees of the gate's heading
   (30 at `hard`). A ship
@@ -79,27 +129,32 @@ class ShipGoalEnv(ship_env.ShipSteeringEnv):
 
   ## Starting state
   The ship as in `hpg_mj/ShipSteering-v0` (uniform on the field, any heading and
-  turning rate), then the gate drawn from the level's ranges.
+  turning rate; at `hard` drawn again while it lies on an obstacle), then the gate
+  drawn from the level's ranges (at `hard` until it stands clear of the obstacles).
   `reset(options={"state": [x, y, theta_deg, theta_dot_deg], "gate": [x, y,
-  heading_deg]})` fixes either (a gate whose posts leave the field is refused).
+  heading_deg]})` fixes either (a gate whose posts leave the field or that is not clear
+  of the obstacles, or a start on one, is refused).
 
   ## Episode end
   Terminated when the gate is reached or the ship is off the field at the end of a
-  control step; truncated after 5,000 control steps (`max_steps`; the environment
-  truncates itself, without Gymnasium's `TimeLimit`).
+  control step, or when a segment of its track sampled every 0.2 s touches an obstacle
+  (the ship a point, the obstacle's boundary included); truncated after 5,000 control
+  steps (`max_steps`; the environment truncates itself, without Gymnasium's
+  `TimeLimit`).
 
   ## Information
   `reset()` returns `{"event": None, "is_success": False}`. `step()` returns:
   - `is_success`: whether the step reached the gate (what `HerReplayBuffer` and
     Gymnasium-Robotics' goal environments read).
-  - `event`: "gate", "out_of_bounds" or None.
+  - `event`: "gate", "out_of_bounds", "obstacle" or None.
   - `positions`: a `(4, 2)` array, the positions sampled every 0.2 s during the
     step (row 0 where it began).
 
   ## Arguments
   - `level="easy"`: "easy", "medium" or "hard".
   - `backend="mujoco"`: assets/ship.xml, its gate's geoms moved to the episode's
-    gate; or "analytic" (Equation 1).
+    gate (at `hard` assets/ship_harbour.xml: the obstacles as geoms, the ranges its
+    rangefinder sensors); or "analytic" (Equation 1, the rays in closed form).
   - `render_mode=None`: or "rgb_array"; the frame shows the episode's gate.
   - `strict=False`: True refuses out-of-range turning rates instead of clipping
     them.
@@ -137,19 +192,38 @@ class ShipGoalEnv(ship_env.ShipSteeringEnv):
     self.observation_space, self.action_space = spaces_of(self.rules)
     self._desired = np.zeros(4)
     self.tolerance = goal_core.level_tolerance(level)
-    self._judge = goal_core.OneShip(self.rules, self.tolerance)
+    self._judge = goal_core.OneShip(self.rules, level)
+    if goal_core.OBSTACLES[level] is not None:
+      self.model_file = harbour_env.ShipHarbourEnv.model_file
+
+  def _make_backend(self, name):
+    if name == "mujoco":
+      return mujoco_backend(self.level)
+    return ship_env.make_backend(name)
 
   def _observation(self, state):
+    readings = self.backend.readings() if hasattr(self.backend, "readings") else None
     return {"observation": state, "achieved_goal": goal_core.goal_of(state),
-            "desired_goal": self._desired.copy()}
+            "desired_goal": self._desired.copy(), "ranges": self._judge.ranges(state, readings)}
+
+  def _start(self, options, *extra):
+    options = dict(options or {})
+    unknown = set(options) - {"state", "gate"}
+    if unknown:
+      raise ValueError(f"{self._name}: unknown reset options {sorted(unknown)}; allowed: "
+                       "['gate', 'state']")
+    if options.get("state") is not None:
+      return goal_core.check_start(self.rules, options["state"], self.level,
+                                   self._name), options
+    return goal_core.sample_start(self.rules, self.np_random, self.level), options
 
   def reset(self, *, seed=None, options=None):
     gymnasium.Env.reset(self, seed=seed)    # the steering task's reset knows no gate
-    state, options = self._start(options, "gate")
+    state, options = self._start(options)
     if options.get("gate") is not None:
-      self._desired = goal_core.check_gate(options["gate"], self._name)
+      self._desired = goal_core.check_gate(options["gate"], self._name, self.level)
     else:
-      self._desired = goal_core.sample_gate(self.np_random, self.level_range)
+      self._desired = goal_core.sample_gate(self.np_random, self.level)
     self.backend.set_state(state)
     if hasattr(self.backend, "physics"):     # the MuJoCo ship's gate geoms, where the rule's is
       self.backend.physics.place_gate(goal_core.gate_posts(self._desired, self.tolerance[0]))
@@ -160,25 +234,32 @@ class ShipGoalEnv(ship_env.ShipSteeringEnv):
 
   def step(self, action):
     samples, state = self._sail(action)
-    event, reward, terminated, truncated, name = self._judge(state, self._steps, self._desired)
+    event, reward, terminated, truncated, name = self._judge(samples, state, self._steps,
+                                                             self._desired)
     info = {"event": name, "positions": samples, "is_success": event == core.SUCCESS}
     return self._observation(state), reward, terminated, truncated, info
 
   def compute_reward(self, achieved_goal, desired_goal, info):
-    """The reward of achieved and desired goals of any batch shape (`info` unused)."""
+    """The reward of achieved and desired goals of any batch shape, aground where `info`
+    says so (`aground_in`)."""
+    shape = np.broadcast_shapes(np.shape(achieved_goal)[:-1], np.shape(desired_goal)[:-1])
     return goal_core.compute_reward(achieved_goal, desired_goal, self.rules.success_reward,
-                                    self.rules.failure_reward, self.tolerance)
+                                    self.rules.failure_reward, self.tolerance,
+                                    aground_in(info, shape))
 
   def _drawn(self):
-    return {"gate": goal_core.gate_posts(self._desired, self.tolerance[0])}
+    drawn = {"gate": goal_core.gate_posts(self._desired, self.tolerance[0])}
+    if goal_core.OBSTACLES[self.level] is not None:
+      drawn["obstacles"] = goal_core.OBSTACLES[self.level]
+    return drawn
 
 
 class ShipGoalVectorEnv(vector.ShipSteeringVectorEnv):
   """A batch of `num_envs` goal-conditioned ships (`ShipGoalEnv`'s manual; the batch as
   `ShipSteeringVectorEnv`'s): `gymnasium.make_vec("hpg_mj/ShipGoal-v0", num_envs=N,
-  level="hard", backend="analytic")`. Observations: a dictionary of `(N, 4)` arrays;
-  infos add `is_success`. Reset options add `gate` (one `[x, y, heading_deg]` for
-  every copy reset, or one per copy, `(N, 3)`)."""
+  level="hard", backend="analytic")`. Observations: a dictionary of `(N, 4)` arrays and
+  the `(N, 7)` ranges; infos add `is_success`. Reset options add `gate` (one `[x, y,
+  heading_deg]` for every copy reset, or one per copy, `(N, 3)`)."""
 
   RESET_OPTIONS = ("reset_mask", "state", "gate")
 
@@ -196,33 +277,60 @@ class ShipGoalVectorEnv(vector.ShipSteeringVectorEnv):
     self.observation_space = batch_space(self.single_observation_space, self.num_envs)
     self._desired = np.zeros((self.num_envs, 4))
     self._achieved = np.zeros((self.num_envs, 4))
+    self._ranges = np.full((self.num_envs, goal_core.RAYS), harbour_core.MAX_RANGE_M)
     self.tolerance = goal_core.level_tolerance(level)
 
+  def _make_ships(self, backend):
+    if backend == "mujoco":
+      return vector._MujocoShips(self.num_envs, functools.partial(mujoco_backend, self.level))
+    return super()._make_ships(backend)
+
   def _start(self, indices, options):
-    super()._start(indices, options)
-    given = self._option_rows(options, "gate", 3, "gate")
+    given = self._option_rows(options, "state", 4, "state")
     for i in indices.tolist():
       if given is None:
-        self._desired[i] = goal_core.sample_gate(self._rngs[i], self.level_range)
+        state = goal_core.sample_start(self.rules, self._rngs[i], self.level)
       else:
-        self._desired[i] = goal_core.check_gate(given if given.ndim == 1 else given[i],
-                                                f"{self.who} copy {i}")
+        state = goal_core.check_start(self.rules, given if given.ndim == 1 else given[i],
+                                      self.level, f"{self.who} copy {i}")
+      self._ships.set_state(self._states, i, state)
+    self._steps[indices] = 0
+    gates = self._option_rows(options, "gate", 3, "gate")
+    for i in indices.tolist():
+      if gates is None:
+        self._desired[i] = goal_core.sample_gate(self._rngs[i], self.level)
+      else:
+        self._desired[i] = goal_core.check_gate(gates if gates.ndim == 1 else gates[i],
+                                                f"{self.who} copy {i}", self.level)
       self._achieved[i] = goal_core.goal_of(self._states[i])
 
   def _advance(self, r, active):
     super()._advance(r, active)     # sails the ships (and judges them by ship/steer's gate)
-    goal_core.judge_batch(self._states, active, self._steps, self._desired,
+    islands, piers, cells = goal_core.level_shapes(self.level)
+    goal_core.judge_batch(self._states, self._samples, active, self._steps, self._desired,
                           self.rules.max_steps, self.rules.success_reward,
-                          self.rules.failure_reward, self.tolerance, self._achieved,
+                          self.rules.failure_reward, self.tolerance, islands, piers, cells,
+                          self._achieved,
                           (self._event, self._reward, self._terminated, self._truncated))
     return self._reward.copy(), self._terminated.copy(), self._truncated.copy()
 
   def _observations(self):
+    if goal_core.OBSTACLES[self.level] is not None:
+      if self._ships.integrate:
+        islands, piers, cells = goal_core.level_shapes(self.level)
+        harbour_core.ranges_batch(self._states, islands, piers, cells, self._ranges)
+      else:
+        for i, ship in enumerate(self._ships.ships):
+          harbour_core.seen_ranges(ship.readings(), self._ranges[i], 0)
     return {"observation": self._states.copy(), "achieved_goal": self._achieved.copy(),
-            "desired_goal": self._desired.copy()}
+            "desired_goal": self._desired.copy(), "ranges": self._ranges.copy()}
 
   def _observation_of(self, observations, i):
     return {key: value[i] for key, value in observations.items()}
+
+  def _event_table(self):
+    """The goal's events' names by number (an obstacle touched among them)."""
+    return goal_core.EVENT_NAMES
 
   def _step_info(self, active):
     info = super()._step_info(active)
@@ -238,5 +346,7 @@ class ShipGoalVectorEnv(vector.ShipSteeringVectorEnv):
 
   def compute_reward(self, achieved_goal, desired_goal, info):
     """`ShipGoalEnv.compute_reward`."""
+    shape = np.broadcast_shapes(np.shape(achieved_goal)[:-1], np.shape(desired_goal)[:-1])
     return goal_core.compute_reward(achieved_goal, desired_goal, self.rules.success_reward,
-                                    self.rules.failure_reward, self.tolerance)
+                                    self.rules.failure_reward, self.tolerance,
+                                    aground_in(info, shape))

@@ -17,6 +17,7 @@ paths draw it from the agent's generator.
                               its observation's length
 """
 import dataclasses
+import math
 
 import numba
 import numpy as np
@@ -43,14 +44,40 @@ def draw_current(params, state, rng_state, start):
 
 
 @numba.njit(cache=True, error_model="numpy")
+def draw_harbour(params, state, rng_state, start):
+  """The harbour's start: the harbour's rule (`ship_harbour_core.start_of`: the steering
+  task's uniform start) from four uniforms, drawn again while it lies on an obstacle."""
+  draws = state.draws
+  for _ in range(_START_TRIES):
+    for i in range(4):
+      draws[i] = rng.uniform(rng_state)
+    if harbour_core.start_of(draws, core.FIELD_SIZE, params.islands, params.piers, start):
+      return
+  start[0] = -1.0            # refused by env_reset's caller (`World.draw`)
+
+
+@numba.njit(cache=True, error_model="numpy")
 def draw_goal(params, state, rng_state, start):
-  """The goal's start: the steering task's, then the gate's centre x, y and heading
-  uniform on the level's ranges (`ship_goal_core.LEVELS`)."""
-  ship_rules.sample_start(rng_state, start)
+  """The goal's start: the steering task's (among obstacles, the harbour's rule:
+  `draw_harbour`), then the gate's centre x, y and heading uniform on the level's ranges
+  (`ship_goal_core.LEVELS`), drawn again until it stands clear of the obstacles
+  (`ship_goal_core.gate_clear`: the first, in open water)."""
+  if params.islands.shape[0] + params.piers.shape[0] == 0:
+    ship_rules.sample_start(rng_state, start)
+  else:
+    draw_harbour(params, state, rng_state, start)
+    if start[0] < 0.0:
+      return
   low, high, largest = params.level[0], params.level[1], params.level[2]
-  start[4] = rng.uniform_range(rng_state, low, high)
-  start[5] = rng.uniform_range(rng_state, low, high)
-  start[6] = rng.uniform_range(rng_state, -largest, largest)
+  for _ in range(_START_TRIES):
+    start[4] = rng.uniform_range(rng_state, low, high)
+    start[5] = rng.uniform_range(rng_state, low, high)
+    start[6] = rng.uniform_range(rng_state, -largest, largest)
+    heading = math.radians(start[6])
+    if goal_core.gate_clear(start[4], start[5], math.sin(heading), math.cos(heading),
+                            params.islands, params.piers):
+      return
+  start[0] = -1.0            # refused by env_reset's caller (`World.draw`)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -68,19 +95,6 @@ def draw_regatta(params, state, rng_state, start):
   for k in range(course.shape[0]):
     for j in range(3):
       start[4 + 3 * k + j] = course[k, j]
-
-
-@numba.njit(cache=True, error_model="numpy")
-def draw_harbour(params, state, rng_state, start):
-  """The harbour's start: the harbour's rule (`ship_harbour_core.start_of`: the steering
-  task's uniform start) from four uniforms, drawn again while it lies on an obstacle."""
-  draws = state.draws
-  for _ in range(_START_TRIES):
-    for i in range(4):
-      draws[i] = rng.uniform(rng_state)
-    if harbour_core.start_of(draws, core.FIELD_SIZE, params.islands, params.piers, start):
-      return
-  start[0] = -1.0            # refused by env_reset's caller (`World.draw`)
 
 
 # ---- the worlds ---------------------------------------------------------------------
@@ -116,8 +130,8 @@ class World:
     start = np.zeros(self.start_size)
     self.draw_fn(self.params, self.new_state() if state is None else state, rng_state, start)
     if start[0] < 0.0:
-      raise RuntimeError(f"{self.task}/{self.level}: no start off the obstacles in "
-                         f"{_START_TRIES:,} draws")
+      raise RuntimeError(f"{self.task}/{self.level}: no start (or gate) clear of the "
+                         f"obstacles in {_START_TRIES:,} draws")
     return start
 
   def options(self, start):

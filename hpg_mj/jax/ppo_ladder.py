@@ -3,8 +3,8 @@ beyond the steering ship's, for the agent `hpg_mj.agents.jax_ppo_ladder`.
 
 The loop is `ppo.Trainer` as it is, over the ladder's JAX worlds (`hpg_mj.jax.make`
 by the Gymnasium id and `level`): `ppo.ShipIO` maps every number of the world's
-observation Box onto [-1, 1] (the current's six, the goal's twelve; the harbour's
-and the regatta's when they land) and acts r = 15 u deg/s. This module adds
+observation Box onto [-1, 1] (the current's six, the goal's nineteen, the harbour's
+and the regatta's) and acts r = 15 u deg/s. This module adds
 
 - `LadderRow`: what an ended episode adds to a record row on any ladder task (the
   task's success: the gate, the goal's gate, the regatta's finish, `info["event"]`
@@ -26,11 +26,13 @@ import numpy as np
 
 from hpg_mj.jax import ppo
 from hpg_mj.worlds import ship_core
+from hpg_mj.worlds import ship_goal_core
 
 # The goal's dictionary flattened, its parts one after the other in this order: the
 # JAX world's observation (`hpg_mj.jax.ship_goal.OBSERVATION`, `ACHIEVED_GOAL`,
-# `DESIRED_GOAL`: 0-3, 4-7, 8-11), so that training and scoring see the same vector.
-GOAL_KEYS = ("observation", "achieved_goal", "desired_goal")
+# `DESIRED_GOAL`, `RANGES`: 0-3, 4-7, 8-11, 12-18), so that training and scoring see the
+# same vector.
+GOAL_KEYS = ship_goal_core.OBSERVATION_KEYS
 
 
 @dataclasses.dataclass(frozen=True)

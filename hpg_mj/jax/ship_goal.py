@@ -11,15 +11,24 @@ the step ends outside [0, 1000]^2; truncated after 5,000 control steps. In float
 the trajectories, rewards and endings equal the numba world's
 (tests/jax/test_jax_ladder.py: 1,000 seeded episodes per level).
 
-The observation is one flat vector of 12, not Gymnasium's dictionary: the
-dictionary's three parts one after the other, at the slices `OBSERVATION`,
-`ACHIEVED_GOAL` and `DESIRED_GOAL`:
+At `hard` the water holds the harbour's medium obstacles (`ship_goal_core.OBSTACLES`),
+parameters as the harbour's are (`GoalParams.islands`, `piers`; rows of zeros in the
+open water of `easy` and `medium`): a step whose sampled track touches one runs aground
+(AGROUND, -3: -100, terminated) before the goals are judged, the ship's start is drawn
+again while it lies on one and the gate until it stands clear of them
+(`ship_goal_core.gate_clear`), each from the next part of its key (the first try from
+the key itself, so that the open water's starts are as before).
+
+The observation is one flat vector of 19, not Gymnasium's dictionary: the
+dictionary's four parts one after the other, at the slices `OBSERVATION`,
+`ACHIEVED_GOAL`, `DESIRED_GOAL` and `RANGES`:
 
 | index | part | what |
 |---|---|---|
 | 0-3 | `observation` | `[x, y, theta_deg, theta_dot_deg]`, the ship's state |
 | 4-7 | `achieved_goal` | `[x, y, sin(theta), cos(theta)]` of the ship |
 | 8-11 | `desired_goal` | `[x, y, sin, cos]` of the gate's centre and heading |
+| 12-18 | `ranges` | the harbour's seven rangefinders (m; 150 where none is nearer) |
 
 One array because gymnax's interface is one: its `Box` space, PureJaxRL's and
 rejax's networks and gymnax's wrappers read `observation_space(params).shape`, the
@@ -30,6 +39,7 @@ of them changed. `split_obs` gives the dictionary back (any batch shape), and
 jittable, for Hindsight Experience Replay written in JAX.
 """
 import functools
+import math
 
 import jax
 import jax.numpy as jnp
@@ -37,12 +47,30 @@ import numpy as np
 
 from hpg_mj.jax import environment
 from hpg_mj.jax import ship
+from hpg_mj.jax import ship_harbour as harbour
 from hpg_mj.worlds import ship_core as core
 from hpg_mj.worlds import ship_goal_core as goal_core
+from hpg_mj.worlds import ship_harbour_core as harbour_core
+from hpg_mj.worlds import ship_task
 
 OBSERVATION = slice(0, 4)      # the ship's state [x, y, theta_deg, theta_dot_deg]
 ACHIEVED_GOAL = slice(4, 8)    # the ship's [x, y, sin(theta), cos(theta)]
 DESIRED_GOAL = slice(8, 12)    # the gate's [x, y, sin(heading), cos(heading)]
+RANGES = slice(12, 12 + goal_core.RAYS)    # the rangefinders (m)
+AGROUND = goal_core.AGROUND
+
+
+def level_obstacles(level, who="ShipGoal"):
+  """(islands, piers) of goal `level` as `GoalParams` holds them (`ship_harbour`'s
+  `level_obstacles` of `ship_goal_core.OBSTACLES[level]`; rows of zeros, no obstacle,
+  in open water), or a one-line error for an unknown level."""
+  goal_core.level_range(level, who)
+  if goal_core.OBSTACLES[level] is None:
+    return (((0.0, 0.0, 0.0),) * harbour.MAX_ISLANDS, ((0.0,) * 5,) * harbour.MAX_PIERS)
+  return harbour.level_obstacles(goal_core.OBSTACLES[level], who)
+
+
+_OPEN = level_obstacles(goal_core.DEFAULT_LEVEL)
 
 
 @environment.record
@@ -63,13 +91,29 @@ class GoalParams(ship.EnvParams):
   gate_heading_deg: float = goal_core.LEVELS[goal_core.DEFAULT_LEVEL][2]
   half_width: float = float(goal_core.STEER_TOLERANCE[0])
   min_cos: float = float(goal_core.STEER_TOLERANCE[1])
+  islands: tuple = _OPEN[0]
+  piers: tuple = _OPEN[1]
 
 
 def split_obs(obs):
   """Gymnasium's goal-conditioned dictionary of a flat observation (or of a batch of
-  them, the last axis 12): `observation`, `achieved_goal`, `desired_goal`."""
+  them, the last axis 19): `observation`, `achieved_goal`, `desired_goal`, `ranges`."""
   return {"observation": obs[..., OBSERVATION], "achieved_goal": obs[..., ACHIEVED_GOAL],
-          "desired_goal": obs[..., DESIRED_GOAL]}
+          "desired_goal": obs[..., DESIRED_GOAL], "ranges": obs[..., RANGES]}
+
+
+def gate_clear(gate_x, gate_y, heading_deg, obstacles):
+  """`ship_goal_core.gate_clear` of the gate [x, y, heading_deg] among `obstacles`
+  (`ship_harbour.obstacles_of`): its posts' line and the APPROACH_M before its centre
+  at least CLEARANCE_M from each obstacle."""
+  rad = jnp.radians(heading_deg)
+  s, c = jnp.sin(rad), jnp.cos(rad)
+  half, back, margin = goal_core.HALF_WIDTH, goal_core.APPROACH_M, goal_core.CLEARANCE_M
+  line = harbour.segment_touches(gate_x - half * c, gate_y + half * s, gate_x + half * c,
+                                 gate_y - half * s, obstacles, margin)
+  approach = harbour.segment_touches(gate_x, gate_y, gate_x - back * s, gate_y - back * c,
+                                     obstacles, margin)
+  return ~(line[0].any() | line[1].any() | approach[0].any() | approach[1].any())
 
 
 def goal_of(x, y, theta_deg):
@@ -106,51 +150,65 @@ def outcome_of(achieved, desired, params):
   return event.astype(jnp.int32), reward.astype(achieved.dtype)
 
 
-def compute_reward(achieved_goal, desired_goal, params):
+def compute_reward(achieved_goal, desired_goal, params, aground=False):
   """The reward of achieved and desired goals of any (broadcast) batch shape, the last
   axis 4 (`ShipGoalEnv.compute_reward`): what Hindsight Experience Replay asks of
-  relabelled goals. Jittable."""
+  relabelled goals; -1 and the out-of-bounds penalty where `aground` (the steps whose
+  track touched an obstacle: `info["event"] == AGROUND`). Jittable."""
   achieved, desired = jnp.broadcast_arrays(jnp.asarray(achieved_goal), jnp.asarray(desired_goal))
-  return outcome_of(achieved, desired, params)[1]
+  reward = outcome_of(achieved, desired, params)[1]
+  return jnp.where(aground, jnp.asarray(core.STEP_REWARD, reward.dtype)
+                   + params.out_of_bounds_reward, reward).astype(reward.dtype)
 
 
 class ShipGoal(ship.ShipSteering):
   """`hpg_mj/ShipGoal-v0` as a gymnax environment: the steering ship and a gate drawn
   at each reset from the ranges of `level` ("easy", "medium" or "hard"; they give
-  the default `GoalParams`). Observation a flat vector of 12 (the module's table:
-  `observation`, `achieved_goal`, `desired_goal`; `split_obs`); action the turning
+  the default `GoalParams`). Observation a flat vector of 19 (the module's table:
+  `observation`, `achieved_goal`, `desired_goal`, `ranges`; `split_obs`); action the turning
   rate r in deg/s, shape (1,) (or ()), clipped to [-15, 15]. `info`: `terminated`,
-  `truncated`, `event` (1 the gate reached, -1 off the field), `is_success` and
+  `truncated`, `event` (1 the gate reached, -1 off the field, -3 an obstacle touched),
+  `is_success` and
   `discount`. The manual is `hpg_mj.envs.ship_goal.ShipGoalEnv`'s.
   """
 
   def __init__(self, level=goal_core.DEFAULT_LEVEL, env_id=None):
     self.level = level
     self.level_range = goal_core.level_range(level, env_id or "ShipGoal")
+    self.obstacles = level_obstacles(level, env_id or "ShipGoal")
     self.time_limit = goal_core.TIME_LIMITS[level]
     super().__init__("steer", env_id or f"ShipGoal({level})")
+    self._reset_where = environment.where_needed(self.reset_env)
 
   @property
   def default_params(self):
     low, high, largest = self.level_range
     half_width, min_cos = (float(v) for v in goal_core.level_tolerance(self.level))
+    islands, piers = self.obstacles
     return GoalParams(max_steps_in_episode=goal_core.episode_steps(self.level),
                       gate_low=low, gate_high=high,
-                      gate_heading_deg=largest, half_width=half_width, min_cos=min_cos)
+                      gate_heading_deg=largest, half_width=half_width, min_cos=min_cos,
+                      islands=islands, piers=piers)
 
   def observation_space(self, params=None):
     # `hpg_mj.envs.ship_goal.spaces_of`, flat: the ship's state, then two goals on the
-    # field with one control step's margin.
+    # field with one control step's margin, then the ranges.
     state = super().observation_space(params)
     goal_low = jnp.append(state.low[:2], jnp.array([-1.0, -1.0]))
     goal_high = jnp.append(state.high[:2], jnp.array([1.0, 1.0]))
-    return environment.Box(jnp.concatenate([state.low, goal_low, goal_low]),
-                           jnp.concatenate([state.high, goal_high, goal_high]), (12,),
-                           environment.float_dtype())
+    rays = goal_core.RAYS
+    return environment.Box(
+        jnp.concatenate([state.low, goal_low, goal_low, jnp.zeros(rays)]),
+        jnp.concatenate([state.high, goal_high, goal_high,
+                         jnp.full(rays, harbour_core.MAX_RANGE_M)]),
+        (goal_core.OBSERVATION_SIZE,), environment.float_dtype())
 
   def get_obs(self, state, params=None, key=None):
+    params = self.default_params if params is None else params
+    seen = harbour.ranges(state.x, state.y, state.theta_deg,
+                          harbour.obstacles_of(params, state.x.dtype))
     return jnp.concatenate([jnp.stack([state.x, state.y, state.theta_deg, state.theta_dot_deg]),
-                            goal_of(state.x, state.y, state.theta_deg), state.desired])
+                            goal_of(state.x, state.y, state.theta_deg), state.desired, seen])
 
   # ---- starts -------------------------------------------------------------------
 
@@ -161,15 +219,46 @@ class ShipGoal(ship.ShipSteering):
                      desired=desired)
 
   def reset_env(self, key, params):
-    """The ship uniform on the field (the steering task's start), then the gate from
-    the level's ranges (`ship_goal_core.sample_gate`), each from its half of `key`."""
+    """The ship uniform on the field (the steering task's start), drawn again while it
+    lies on an obstacle, then the gate from the level's ranges, drawn again until it
+    stands clear of them (`ship_goal_core.sample_start`, `sample_gate`), each from its
+    half of `key` (the first try from that half, the next ones from its next parts)."""
     ship_key, gate_key = jax.random.split(key)
     dtype = environment.float_dtype()
+    obstacles = harbour.obstacles_of(params, dtype)
+
+    def on_obstacle(carry):
+      _, tries, state = carry
+      return harbour.inside(state.x, state.y, obstacles) & (tries < harbour_core.START_TRIES)
+
+    def draw_ship(carry):
+      key, tries, _ = carry
+      key, next_key = jax.random.split(key)
+      return key, tries + 1, self._draw_start(next_key)
+
+    _, _, start = jax.lax.while_loop(on_obstacle, draw_ship,
+                                     (ship_key, jnp.int32(1), self._draw_start(ship_key)))
     low = jnp.stack([params.gate_low, params.gate_low, -params.gate_heading_deg]).astype(dtype)
     high = jnp.stack([params.gate_high, params.gate_high, params.gate_heading_deg]).astype(dtype)
-    gate_x, gate_y, heading = jax.random.uniform(gate_key, (3,), dtype, low, high)
-    state = self._with_gate(self._draw_start(ship_key), gate_x, gate_y, heading)
+
+    def in_the_way(carry):
+      _, tries, gate = carry
+      return ~gate_clear(gate[0], gate[1], gate[2], obstacles) & (tries < goal_core.GATE_TRIES)
+
+    def draw_gate(carry):
+      key, tries, _ = carry
+      key, next_key = jax.random.split(key)
+      return key, tries + 1, jax.random.uniform(next_key, (3,), dtype, low, high)
+
+    _, _, gate = jax.lax.while_loop(in_the_way, draw_gate, (gate_key, jnp.int32(1),
+                                    jax.random.uniform(gate_key, (3,), dtype, low, high)))
+    state = self._with_gate(start, gate[0], gate[1], gate[2])
     return self.get_obs(state, params), state
+
+  def auto_reset(self, key, params, done):
+    """`reset_env`'s start, computed only where `done` (`environment.where_needed`):
+    its rays and its draws off the obstacles are most of a step's work."""
+    return self._reset_where(done, key, jax.tree.map(jnp.asarray, params))
 
   def reset_to(self, ship_state, gate, params=None):
     """`(obs, state)` starting exactly at `ship_state` = `[x, y, theta_deg,
@@ -184,10 +273,23 @@ class ShipGoal(ship.ShipSteering):
     if gate.shape != (3,):
       raise ValueError(f"{self.env_id}: reset_to takes a gate [x, y, heading_deg] of shape "
                        f"(3,), got shape {gate.shape}")
+    params = self.default_params if params is None else params
+    concrete = all(environment.is_concrete(v)
+                   for v in jax.tree.leaves((params.islands, params.piers)))
+    obstacles = None
+    if concrete:
+      islands = np.array([row for row in params.islands if row[2] > 0.0]).reshape(-1, 3)
+      piers = np.array([row for row in params.piers
+                        if math.hypot(row[2] - row[0], row[3] - row[1]) > 0.0]).reshape(-1, 5)
+      obstacles = (islands, harbour_core.pier_frames(piers))
     if environment.is_concrete(arr):
       core.check_state(np.asarray(arr, dtype=np.float64), self.env_id, 0.0, self.size)
-    if environment.is_concrete(gate):
-      goal_core.check_gate(np.asarray(gate, dtype=np.float64), self.env_id)
+      if obstacles is not None:
+        harbour_core.check_start(ship_task.ShipRules("steer"), np.asarray(arr, np.float64),
+                                 *obstacles, self.env_id)
+    if environment.is_concrete(gate):      # among obstacles not known here: none
+      goal_core.check_gate(np.asarray(gate, dtype=np.float64), self.env_id,
+                           obstacles=obstacles or (np.zeros((0, 3)), np.zeros((0, 6))))
     return self._start_with_gate(arr, gate, params)
 
   @functools.partial(jax.jit, static_argnames=("self",))
@@ -203,10 +305,16 @@ class ShipGoal(ship.ShipSteering):
 
   def step_env(self, key, state, action, params):
     r = self._turn_rate(action, state.x.dtype)
-    x, y, theta, rate, _ = self._sail(state, r, params)
+    x, y, theta, rate, positions = self._sail(state, r, params)
     time = state.time + 1
-    # `ship_goal_core.judge_batch`: the rule on the goals at the end of the step.
+    # `ship_goal_core.step_outcome`: the obstacles on the track, then the rule on the
+    # goals at the end of the step.
+    _, _, segments = harbour.segments_aground(positions, harbour.obstacles_of(params, x.dtype))
+    aground = segments.any()
     event, reward = outcome_of(goal_of(x, y, theta), state.desired, params)
+    event = jnp.where(aground, AGROUND, event).astype(jnp.int32)
+    reward = jnp.where(aground, jnp.asarray(core.STEP_REWARD, x.dtype)
+                       + params.out_of_bounds_reward, reward).astype(x.dtype)
     end = state.replace(x=x, y=y, theta_deg=theta, theta_dot_deg=rate, time=time, event=event)
     terminated = event != core.NO_EVENT
     truncated = ~terminated & (time >= self.closes(params))
@@ -215,8 +323,8 @@ class ShipGoal(ship.ShipSteering):
             "discount": jnp.where(terminated, 0.0, 1.0).astype(x.dtype)}
     return self.get_obs(end, params), end, reward, terminated | truncated, info
 
-  def compute_reward(self, achieved_goal, desired_goal, params=None):
+  def compute_reward(self, achieved_goal, desired_goal, params=None, aground=False):
     """The module's `compute_reward` with this environment's parameters (default:
     the level's)."""
     return compute_reward(achieved_goal, desired_goal,
-                          self.default_params if params is None else params)
+                          self.default_params if params is None else params, aground)

@@ -131,16 +131,19 @@ def _within(x, y, obstacles, reach):
   return near_islands, near_piers
 
 
-def segment_touches(p0x, p0y, p1x, p1y, obstacles):
-  """`ship_harbour_core.segment_touches` with no margin, for each obstacle: (islands,
-  piers) boolean arrays, the segment p0-p1 meeting its shape (its boundary included)."""
+def segment_touches(p0x, p0y, p1x, p1y, obstacles, margin=0.0):
+  """`ship_harbour_core.segment_touches` for each obstacle: (islands, piers) boolean
+  arrays, the segment p0-p1 meeting its shape (its boundary included) grown by
+  `margin` m."""
   islands, piers = obstacles.islands, obstacles.piers
   dx, dy = p1x - p0x, p1y - p0y
   length2 = dx * dx + dy * dy
   cx, cy = islands[:, 0], islands[:, 1]
   along = ((cx - p0x) * dx + (cy - p0y) * dy) / jnp.where(length2 > 0.0, length2, 1.0)
   s = jnp.where(length2 > 0.0, jnp.minimum(jnp.maximum(along, 0.0), 1.0), 0.0)
-  on_islands = jnp.hypot(p0x + s * dx - cx, p0y + s * dy - cy) <= islands[:, 2]
+  on_islands = jnp.hypot(p0x + s * dx - cx, p0y + s * dy - cy) <= islands[:, 2] + margin
+  if margin:
+    piers = piers.at[..., 4:6].add(margin)
   t0, t1 = _box_hits(p0x, p0y, dx, dy, piers, 0.0, 1.0)
   return on_islands & obstacles.island_live, (t0 <= t1) & obstacles.pier_live
 
@@ -152,23 +155,32 @@ def inside(x, y, obstacles):
   return on_islands.any() | on_piers.any()
 
 
-def harbour_event(positions, obstacles):
-  """`ship_harbour_core.harbour_event`'s event of one control step's sampled positions
-  (the start first): SUCCESS at the gate, FAILURE off the field, AGROUND on touching
-  an obstacle, the first in time; NO_EVENT when none. Only the obstacles within the
-  step's reach of its start are tested (`_near`, whose reach tests these are)."""
+def segments_aground(positions, obstacles):
+  """(xs, ys, aground) of one control step's sampled positions (the start first): their
+  coordinates, and for each segment between two of them whether it touches an obstacle
+  (`ship_harbour_core._segment_aground`). Only the obstacles within the step's reach
+  of its start are tested (`_near`, whose reach tests these are)."""
   xs = jnp.stack([x for x, _ in positions])
   ys = jnp.stack([y for _, y in positions])
   reach2 = jnp.max((xs[1:] - xs[0]) ** 2 + (ys[1:] - ys[0]) ** 2)
   near_islands, near_piers = _within(xs[0], ys[0], obstacles,
                                      jnp.sqrt(reach2) * (1.0 + 1e-9) + 1e-9)
-  # Every segment at once (the leading axis), then the first event in time.
+  # Every segment at once (the leading axis).
+  on_islands, on_piers = segment_touches(xs[:-1, None], ys[:-1, None], xs[1:, None],
+                                         ys[1:, None], obstacles)
+  aground = (on_islands & near_islands).any(axis=1) | (on_piers & near_piers).any(axis=1)
+  return xs, ys, aground
+
+
+def harbour_event(positions, obstacles):
+  """`ship_harbour_core.harbour_event`'s event of one control step's sampled positions
+  (the start first): SUCCESS at the gate, FAILURE off the field, AGROUND on touching
+  an obstacle, the first in time; NO_EVENT when none."""
+  xs, ys, aground = segments_aground(positions, obstacles)
   px, py, x, y = xs[:-1, None], ys[:-1, None], xs[1:, None], ys[1:, None]
   (g0x, g0y), (g1x, g1y) = core.GATE.tolist()
   crossed = ship.segment_crosses(px, py, x, y, g0x, g0y, g1x, g1y)[:, 0]
   left = ((x < 0.0) | (x > core.FIELD_SIZE) | (y < 0.0) | (y > core.FIELD_SIZE))[:, 0]
-  on_islands, on_piers = segment_touches(px, py, x, y, obstacles)
-  aground = (on_islands & near_islands).any(axis=1) | (on_piers & near_piers).any(axis=1)
   events = jnp.where(crossed, core.SUCCESS, jnp.where(left, core.FAILURE, jnp.where(
       aground, AGROUND, core.NO_EVENT)))
   return events[jnp.argmax(events != core.NO_EVENT)].astype(jnp.int32)

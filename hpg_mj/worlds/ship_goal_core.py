@@ -21,7 +21,17 @@ At `hard` the goal is also reached more exactly (`TOLERANCES`): a gate 50 m wide
 heading did not make the level hard: the steering hierarchy carried to the goal (its
 medium-tuned values, tuning seed 0) passed 77% of its gates at hard, 79 normalized; with
 these tolerances it passed 14% where the best known still reaches 98.7% of the bounds'
-starts (measured on 300 of them) in 273 control steps at the median against 262.
+starts (measured on 300 of them) in 273 control steps at the median against 262. Nor did
+the tolerances: the designed hierarchy that lines up with the gate (`ship_ladder_waypoints`)
+still reached 99 normalized. So at `hard` the water also holds obstacles (`OBSTACLES`: the
+harbour's `medium` islands and breakwaters, `ship_harbour_core`), which end the episode
+when the sampled track touches one (AGROUND, the out-of-bounds penalty), and every gate
+is drawn again until it stands clear of them (`gate_clear`). A helmsman that lines up
+with the gate but does not see the obstacles passed 58% of such gates (a prototype, 300
+gates). The ship sees them through the harbour's rangefinders, a fourth key of the
+observation (`ranges`, at every level: 150 m, nothing seen, in open water); the goals and
+`compute_reward`, which read goals alone, are the same at every level, and a step that
+ran aground says so in its info, which `compute_reward` reads.
 """
 import collections
 import functools
@@ -31,6 +41,7 @@ import numba
 import numpy as np
 
 from hpg_mj.worlds import ship_core as core
+from hpg_mj.worlds import ship_harbour_core as harbour_core
 
 HALF_WIDTH = 50.0                                   # m, posts either side of the centre
 WINDOW = core.SPEED * core.CONTROL_INTERVAL         # 1.8 m: one control step of sailing
@@ -53,6 +64,19 @@ DEFAULT_LEVEL = "easy"
 # level -> the control steps after which the episode is truncated, or None: the
 # environment's `max_steps` alone (`episode_steps`).
 TIME_LIMITS = {"easy": None, "medium": None, "hard": None}
+# level -> the harbour level whose obstacles stand in the water (`ship_harbour_core.LEVELS`),
+# or None: open water.
+OBSTACLES = {"easy": None, "medium": None, "hard": "medium"}
+# A gate stands clear of the obstacles when its posts' line (HALF_WIDTH either side of
+# the centre, at every level) and the APPROACH_M before its centre keep CLEARANCE_M from
+# every one: a ship lined up with it has room to pass.
+CLEARANCE_M = 10.0
+APPROACH_M = 150.0
+GATE_TRIES = harbour_core.START_TRIES
+# Event codes: `ship_core`'s, and an obstacle touched (the harbour's).
+AGROUND = harbour_core.AGROUND
+EVENT_NAMES = harbour_core.EVENT_NAMES
+RAYS = harbour_core.RAYS
 
 
 def level_range(level, who="ship goal"):
@@ -81,12 +105,72 @@ def episode_steps(level, max_steps=None):
 STEER_TOLERANCE = level_tolerance(DEFAULT_LEVEL)  # ship/steer's gate: 50 m, 45 degrees
 
 
-def sample_gate(random, level_range_):
-  """A desired goal [x, y, sin, cos] drawn from `random` (a Generator or RandomState)."""
-  low, high, largest = level_range_
-  x, y = random.uniform(low, high), random.uniform(low, high)
-  heading = math.radians(random.uniform(-largest, largest))
+@functools.cache
+def level_shapes(level):
+  """(islands, pier frames, cells) of the obstacles in the water at `level` (`OBSTACLES`:
+  `ship_harbour_core.level_shapes` and `level_cells` of a harbour level; none, and cells
+  that mask nothing, in open water), read-only, made once a process."""
+  level_range(level)                  # a one-line error for an unknown level
+  if OBSTACLES[level] is not None:
+    return (*harbour_core.level_shapes(OBSTACLES[level]),
+            harbour_core.level_cells(OBSTACLES[level]))
+  shapes = (np.zeros((0, 3)), np.zeros((0, 6)),
+            np.zeros((2, harbour_core.CELLS, harbour_core.CELLS), dtype=np.int64))
+  for array in shapes:
+    array.setflags(write=False)
+  return shapes
+
+
+@numba.njit(cache=True, error_model="numpy")
+def gate_clear(x, y, s, c, islands, piers):
+  """Whether the gate at (x, y) with heading sine and cosine (s, c) stands clear of the
+  obstacles: its posts' line and the APPROACH_M before its centre at least CLEARANCE_M
+  from each (always, in open water)."""
+  if islands.shape[0] + piers.shape[0] == 0:
+    return True
+  if harbour_core.segment_touches(x - HALF_WIDTH * c, y + HALF_WIDTH * s, x + HALF_WIDTH * c,
+                                  y - HALF_WIDTH * s, islands, piers, CLEARANCE_M):
+    return False
+  return not harbour_core.segment_touches(x, y, x - APPROACH_M * s, y - APPROACH_M * c,
+                                          islands, piers, CLEARANCE_M)
+
+
+def draw_gate(random, level):
+  """A gate [x, y, heading_deg] of `level` from `random` (a Generator or RandomState):
+  the centre uniform on the level's square, the heading on its range, drawn again
+  (three uniforms a try) until it stands clear of the level's obstacles (`gate_clear`;
+  the first try, in open water)."""
+  low, high, largest = level_range(level)
+  islands, piers, _ = level_shapes(level)
+  for _ in range(GATE_TRIES):
+    x, y = random.uniform(low, high), random.uniform(low, high)
+    heading_deg = random.uniform(-largest, largest)
+    heading = math.radians(heading_deg)
+    if gate_clear(x, y, math.sin(heading), math.cos(heading), islands, piers):
+      return np.array([x, y, heading_deg])
+  raise RuntimeError(f"ship goal: no gate clear of the obstacles of {level!r} in "
+                     f"{GATE_TRIES:,} draws")
+
+
+def sample_gate(random, level):
+  """A desired goal [x, y, sin, cos] of `level` drawn from `random` (`draw_gate`)."""
+  x, y, heading_deg = draw_gate(random, level)
+  heading = math.radians(heading_deg)
   return np.array([x, y, math.sin(heading), math.cos(heading)])
+
+
+def sample_start(rules, random, level):
+  """The ship's start at `level`: the steering task's uniform start, drawn again while it
+  lies on an obstacle (`ship_harbour_core.sample_start`: the same draws, to the bit, in
+  open water)."""
+  islands, piers, _ = level_shapes(level)
+  return harbour_core.sample_start(rules, random, islands, piers)
+
+
+def check_start(rules, state, level, who):
+  """A start given by a user (`rules.check_state`), refused in one line on an obstacle."""
+  islands, piers, _ = level_shapes(level)
+  return harbour_core.check_start(rules, state, islands, piers, who)
 
 
 def goal_of(state):
@@ -142,19 +226,36 @@ def outcome_of(a, d, gate_reward, out_of_bounds_reward, tolerance):
   return core.NO_EVENT, core.STEP_REWARD
 
 
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def step_outcome(samples, a, d, gate_reward, out_of_bounds_reward, tolerance, islands, piers,
+                 cells):
+  """(event, reward) of a control step that sampled the positions `samples` and ended at
+  the achieved goal `a`: AGROUND and -1 + `out_of_bounds_reward` where its track touched
+  an obstacle (`ship_harbour_core.track_aground`), else `outcome_of`'s."""
+  if harbour_core.track_aground(samples, islands, piers, cells):
+    return AGROUND, core.STEP_REWARD + out_of_bounds_reward
+  return outcome_of(a, d, gate_reward, out_of_bounds_reward, tolerance)
+
+
 @numba.njit(cache=True, error_model="numpy")
-def goal_rewards(achieved, desired, gate_reward, out_of_bounds_reward, tolerance, reward,
-                 event):
-  """`outcome_of` for rows of achieved and desired goals (n, 4), into `reward`, `event`."""
+def goal_rewards(achieved, desired, aground, gate_reward, out_of_bounds_reward, tolerance,
+                 reward, event):
+  """`outcome_of` for rows of achieved and desired goals (n, 4), into `reward`, `event`;
+  AGROUND where `aground`."""
   for i in range(achieved.shape[0]):
-    event[i], reward[i] = outcome_of(achieved[i], desired[i], gate_reward,
-                                     out_of_bounds_reward, tolerance)
+    if aground[i]:
+      event[i], reward[i] = AGROUND, core.STEP_REWARD + out_of_bounds_reward
+    else:
+      event[i], reward[i] = outcome_of(achieved[i], desired[i], gate_reward,
+                                       out_of_bounds_reward, tolerance)
 
 
 def compute_reward(achieved_goal, desired_goal, gate_reward, out_of_bounds_reward,
-                   tolerance=STEER_TOLERANCE):
+                   tolerance=STEER_TOLERANCE, aground=False):
   """Rewards of any shape of goals (..., 4): a float for one pair, else an array
-  (`tolerance`: a level's, `level_tolerance`; default easy's and medium's)."""
+  (`tolerance`: a level's, `level_tolerance`; default easy's and medium's). `aground`
+  (broadcast to the goals' batch shape): the steps whose track touched an obstacle, -1
+  and the out-of-bounds penalty whatever the goals."""
   achieved = np.asarray(achieved_goal, dtype=np.float64)
   desired = np.asarray(desired_goal, dtype=np.float64)
   if achieved.shape[-1:] != (4,) or desired.shape[-1:] != (4,):
@@ -164,8 +265,9 @@ def compute_reward(achieved_goal, desired_goal, gate_reward, out_of_bounds_rewar
   shape = achieved.shape[:-1]
   a = np.ascontiguousarray(achieved.reshape(-1, 4))
   d = np.ascontiguousarray(desired.reshape(-1, 4))
+  on = np.ascontiguousarray(np.broadcast_to(np.asarray(aground, dtype=np.bool_), shape).reshape(-1))
   reward = np.empty(len(a))
-  goal_rewards(a, d, float(gate_reward), float(out_of_bounds_reward),
+  goal_rewards(a, d, on, float(gate_reward), float(out_of_bounds_reward),
                np.asarray(tolerance, dtype=np.float64), reward, np.empty(len(a), dtype=np.int64))
   return float(reward[0]) if shape == () else reward.reshape(shape)
 
@@ -185,13 +287,14 @@ def pilot_target(state, phase, desired, reach=150.0):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def judge_batch(states, active, steps, desired, max_steps, gate_reward, out_of_bounds_reward,
-                tolerance, achieved, outcome):
-  """After a control step of every `active` ship (its `steps` already counted): the
-  achieved goals into `achieved`, and `outcome` = (event, reward, terminated,
-  truncated) by the module's rule (`tolerance` the level's): SUCCESS at the gate,
-  FAILURE off the field (the position at the end of the step), truncated after
-  `max_steps`."""
+def judge_batch(states, samples, active, steps, desired, max_steps, gate_reward,
+                out_of_bounds_reward, tolerance, islands, piers, cells, achieved, outcome):
+  """After a control step of every `active` ship (its `steps` already counted; its
+  sampled positions in `samples`): the achieved goals into `achieved`, and `outcome` =
+  (event, reward, terminated, truncated) by the module's rule (`tolerance` the level's,
+  the obstacles its `level_shapes`): AGROUND where the track touched an obstacle,
+  SUCCESS at the gate, FAILURE off the field (the position at the end of the step),
+  truncated after `max_steps`."""
   event, reward, terminated, truncated = outcome
   for i in range(states.shape[0]):
     if not active[i]:
@@ -202,51 +305,69 @@ def judge_batch(states, active, steps, desired, max_steps, gate_reward, out_of_b
     a[1] = states[i, 1]
     a[2] = math.sin(theta)
     a[3] = math.cos(theta)
-    event[i], reward[i] = outcome_of(a, desired[i], gate_reward, out_of_bounds_reward,
-                                     tolerance)
+    event[i], reward[i] = step_outcome(samples[i], a, desired[i], gate_reward,
+                                       out_of_bounds_reward, tolerance, islands, piers, cells)
     terminated[i] = event[i] != core.NO_EVENT
     truncated[i] = not terminated[i] and steps[i] >= max_steps
 
 
 @functools.cache
-def _judge_one():
-  """`judge_batch`'s entry point for one ship's arrays (a row each): numba's dispatcher
-  would type its ten arguments again at each step, most of the call."""
+def _one_ship():
+  """`judge_batch`'s and `ranges_into`'s entry points for one ship's arrays (a row
+  each): numba's dispatcher would type their arguments again at each step, most of
+  the call."""
   f64, i64, b1 = numba.float64, numba.int64, numba.boolean
-  return judge_batch.compile((f64[:, ::1], b1[::1], i64[::1], f64[:, ::1], i64, f64, f64,
-                              f64[::1], f64[:, ::1], numba.types.Tuple((i64[::1], f64[::1], b1[::1],
-                                                              b1[::1]))))
+  judge = judge_batch.compile((f64[:, ::1], f64[:, :, ::1], b1[::1], i64[::1], f64[:, ::1], i64,
+                               f64, f64, f64[::1], f64[:, ::1], f64[:, ::1], i64[:, :, ::1],
+                               f64[:, ::1], numba.types.Tuple((i64[::1], f64[::1], b1[::1],
+                                                               b1[::1]))))
+  seen = harbour_core.ranges_into.compile((f64[::1], f64[:, ::1], f64[:, ::1], i64[:, :, ::1],
+                                           f64[::1], i64))
+  return judge, seen
 
 
 class OneShip:
-  """`judge_batch` for the single environments (Gymnasium's and dm_control's): one ship
-  on `rules` (a `ShipRules` of "steer": the step limit and the two rewards) at a level's
-  `tolerance` (`level_tolerance`), its arrays made once."""
+  """`judge_batch` and the ranges for the single environments (Gymnasium's and
+  dm_control's): one ship on `rules` (a `ShipRules` of "steer": the step limit and the
+  two rewards) at `level` (its tolerance and its obstacles), its arrays made once."""
 
-  def __init__(self, rules, tolerance):
+  def __init__(self, rules, level):
     self.rules = rules
-    self.tolerance = np.array(tolerance, dtype=np.float64)
+    self.tolerance = level_tolerance(level)
+    self.islands, self.piers, self.cells = level_shapes(level)
     self._active, self._steps = np.ones(1, np.bool_), np.zeros(1, np.int64)
     self._achieved = np.zeros((1, 4))
     self._outcome = (np.zeros(1, np.int64), np.zeros(1), np.zeros(1, np.bool_),
                      np.zeros(1, np.bool_))
+    self._judge, self._ranges = _one_ship()
 
-  def __call__(self, state, steps, desired):
+  def __call__(self, samples, state, steps, desired):
     """(event, reward, terminated, truncated, event name) after a control step that
-    ended at `state` (float64, C order), `steps` control steps in."""
+    sampled `samples` (float64, C order) and ended at `state`, `steps` control steps in."""
     self._steps[0] = steps
     rules = self.rules
-    _judge_one()(state[None, :], self._active, self._steps, desired[None, :], rules.max_steps,
-                 rules.success_reward, rules.failure_reward, self.tolerance, self._achieved,
-                 self._outcome)
+    self._judge(state[None, :], samples[None], self._active, self._steps, desired[None, :],
+                rules.max_steps, rules.success_reward, rules.failure_reward, self.tolerance,
+                self.islands, self.piers, self.cells, self._achieved, self._outcome)
     event, reward, terminated, truncated = (a[0] for a in self._outcome)
     return (int(event), float(reward), bool(terminated), bool(truncated),
-            rules.event_names[int(event)])
+            EVENT_NAMES[int(event)])
+
+  def ranges(self, state, readings=None):
+    """The ranges (a new array of RAYS) of the ship at `state` (float64, C order): the
+    analytic rays or, given, MuJoCo's rangefinder `readings` (`seen_ranges`)."""
+    out = np.empty(RAYS)
+    if readings is None:
+      self._ranges(state, self.islands, self.piers, self.cells, out, 0)
+    else:
+      harbour_core.seen_ranges(readings, out, 0)
+    return out
 
 
-def check_gate(gate, who):
+def check_gate(gate, who, level=DEFAULT_LEVEL, obstacles=None):
   """A gate given by a user, [x, y, heading_deg], as a desired goal, or a one-line error:
-  finite, its posts on the field."""
+  finite, its posts on the field, clear of `level`'s obstacles (`gate_clear`; or of
+  `obstacles`, (islands, pier frames), where given)."""
   arr = np.asarray(gate, dtype=np.float64)
   if arr.shape != (3,) or not np.isfinite(arr).all():
     raise ValueError(f"{who}: a gate is [x, y, heading_deg] (3 finite numbers), got {gate!r}")
@@ -256,6 +377,11 @@ def check_gate(gate, who):
   if not ((posts >= 0.0) & (posts <= core.FIELD_SIZE)).all():
     raise ValueError(f"{who}: gate {arr.tolist()} puts its posts at {posts.round(2).tolist()}; "
                      f"allowed: both posts on the field [0, {core.FIELD_SIZE}] m")
+  islands, piers = level_shapes(level)[:2] if obstacles is None else obstacles
+  if not gate_clear(*desired, islands, piers):
+    raise ValueError(f"{who}: gate {arr.tolist()} comes within {CLEARANCE_M:g} m of an obstacle "
+                     f"of level {level!r} (its posts' line or the {APPROACH_M:g} m before it); "
+                     "allowed: a gate clear of them")
   return desired
 
 
@@ -263,18 +389,21 @@ def check_gate(gate, who):
 # (gymnax's shape; the open machine's fused loop, `hierarchy.algorithm.run_world`,
 # calls them, and they step as the Gymnasium environment's analytic backend does.)
 
-EnvParams = collections.namedtuple("EnvParams", ("level", "rewards", "max_steps", "tolerance"))
+EnvParams = collections.namedtuple("EnvParams", ("level", "rewards", "max_steps", "tolerance",
+                                                 "islands", "piers", "cells"))
 EnvParams.__doc__ = """The goal's task: the level's (lowest centre coordinate, highest,
 largest heading in deg), [gate reward, out-of-bounds reward], the control steps before
-truncation, and the level's tolerance (`level_tolerance`)."""
-EnvState = collections.namedtuple("EnvState", ("ship", "desired"))
+truncation, the level's tolerance (`level_tolerance`), and its obstacles: islands, pier
+frames and cells (`level_shapes`)."""
+EnvState = collections.namedtuple("EnvState", ("ship", "desired", "draws"))
 EnvState.__doc__ = """The world's state: the ship's [x, y, theta_deg, theta_dot_deg] and
-the desired goal [x, y, sin, cos] of the episode's gate."""
+the desired goal [x, y, sin, cos] of the episode's gate; `draws`, scratch for one try at
+a start (`ship_harbour_core.start_of`)."""
 START_SIZE = 7                # the ship's state, then the gate [x, y, heading_deg]
-OBSERVATION_SIZE = 12
+OBSERVATION_SIZE = 12 + RAYS
 # The Gymnasium dictionary flattened in this order (its own order, and the manual's):
 # the state first, where a view of the steering ship's pose reads it.
-OBSERVATION_KEYS = ("observation", "achieved_goal", "desired_goal")
+OBSERVATION_KEYS = ("observation", "achieved_goal", "desired_goal", "ranges")
 
 
 def env_params(level, gate_reward=core.GATE_REWARD, out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD,
@@ -283,24 +412,25 @@ def env_params(level, gate_reward=core.GATE_REWARD, out_of_bounds_reward=core.OU
   time limit where shorter: `episode_steps`)."""
   return EnvParams(np.array(level_range(level), dtype=np.float64),
                    np.array([gate_reward, out_of_bounds_reward], dtype=np.float64),
-                   np.int64(episode_steps(level, max_steps)), level_tolerance(level))
+                   np.int64(episode_steps(level, max_steps)), level_tolerance(level),
+                   *level_shapes(level))
 
 
 def env_state(params):
   """A fresh `EnvState` (the fused loop's scratch)."""
-  return EnvState(np.zeros(4), np.zeros(4))
+  return EnvState(np.zeros(4), np.zeros(4), np.zeros(4))
 
 
 def flatten(observation):
-  """The Gymnasium dictionary as one float64 vector (12), keys in `OBSERVATION_KEYS`'
-  order: what `env_reset` and `env_step` write."""
+  """The Gymnasium dictionary as one float64 vector (OBSERVATION_SIZE), keys in
+  `OBSERVATION_KEYS`' order: what `env_reset` and `env_step` write."""
   return np.concatenate([observation[key] for key in OBSERVATION_KEYS]).astype(np.float64)
 
 
 @numba.njit(cache=True, error_model="numpy")
-def observe_into(state, obs):
+def observe_into(params, state, obs):
   """The flattened observation (`flatten`) of `state` into `obs`: the ship's state, its
-  achieved goal (`goal_of`), the desired goal."""
+  achieved goal (`goal_of`), the desired goal, the ranges."""
   ship = state.ship
   theta = math.radians(ship[2])
   for j in range(4):
@@ -310,6 +440,7 @@ def observe_into(state, obs):
   obs[5] = ship[1]
   obs[6] = math.sin(theta)
   obs[7] = math.cos(theta)
+  harbour_core.ranges_into(ship, params.islands, params.piers, params.cells, obs, 12)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -324,7 +455,7 @@ def env_reset(params, state, start, obs):
   state.desired[1] = start[5]
   state.desired[2] = math.sin(heading)
   state.desired[3] = math.cos(heading)
-  observe_into(state, obs)
+  observe_into(params, state, obs)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -332,13 +463,15 @@ def env_step(params, state, r_deg, samples, obs, steps):
   """One control step at turning rate `r_deg` (clipped to [-15, 15] deg/s), `steps`
   control steps in (this one counted): the positions sampled into `samples`, the
   flattened observation into `obs`; returns (event, reward, terminated, truncated) as
-  `ShipGoalEnv.step` (the module's rule on the achieved goal)."""
+  `ShipGoalEnv.step` (`step_outcome`: the obstacles on the track, then the module's rule
+  on the achieved goal)."""
   r = core.clipped(r_deg)
   core.euler_control(state.ship, r, samples, core.SPEED, core.TIME_CONSTANT,
                      core.SAMPLING_INTERVAL)
-  observe_into(state, obs)
-  event, reward = outcome_of(obs[4:8], state.desired, params.rewards[0], params.rewards[1],
-                             params.tolerance)
+  observe_into(params, state, obs)
+  event, reward = step_outcome(samples, obs[4:8], state.desired, params.rewards[0],
+                               params.rewards[1], params.tolerance, params.islands,
+                               params.piers, params.cells)
   terminated = event != core.NO_EVENT
   return event, reward, terminated, (not terminated) and steps >= params.max_steps
 

@@ -285,6 +285,33 @@ def _near(samples, islands, piers, cells):
   return mask
 
 
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _segment_aground(x0, y0, x1, y1, near, islands, piers):
+  """Whether the segment (x0, y0)-(x1, y1) touches one of the obstacles of bit mask
+  `near` (`_near`; the islands first, then the piers)."""
+  n = islands.shape[0]
+  for j in range(n + piers.shape[0]):
+    if near & (1 << j) and segment_touches(x0, y0, x1, y1, islands[j:j + 1] if j < n
+                                           else islands[:0], piers[j - n:j - n + 1]
+                                           if j >= n else piers[:0], 0.0):
+      return True
+  return False
+
+
+@numba.njit(cache=True, error_model="numpy")
+def track_aground(samples, islands, piers, cells):
+  """Whether a segment between two consecutive sampled positions of one control step
+  touches an obstacle (the module's rule without the gate and the field: the goal's
+  obstacles, `ship_goal_core`)."""
+  near = _near(samples, islands, piers, cells)
+  if near:
+    for k in range(1, samples.shape[0]):
+      if _segment_aground(samples[k - 1, 0], samples[k - 1, 1], samples[k, 0], samples[k, 1],
+                          near, islands, piers):
+        return True
+  return False
+
+
 @numba.njit(cache=True, error_model="numpy")
 def harbour_event(samples, islands, piers, cells):
   """(event, k) of one control step's sampled positions (the module's rule): SUCCESS at
@@ -292,19 +319,14 @@ def harbour_event(samples, islands, piers, cells):
   k the sample at which it happened (NO_EVENT, 0 when none)."""
   gate = core.GATE
   near = _near(samples, islands, piers, cells)   # mostly none: no segment tests at all
-  n = islands.shape[0]
   for k in range(1, samples.shape[0]):
     x0, y0, x1, y1 = samples[k - 1, 0], samples[k - 1, 1], samples[k, 0], samples[k, 1]
     if core.segment_crosses(x0, y0, x1, y1, gate[0, 0], gate[0, 1], gate[1, 0], gate[1, 1]):
       return core.SUCCESS, k
     if x1 < 0.0 or x1 > core.FIELD_SIZE or y1 < 0.0 or y1 > core.FIELD_SIZE:
       return core.FAILURE, k
-    if near:
-      for j in range(n + piers.shape[0]):
-        if near & (1 << j) and segment_touches(x0, y0, x1, y1, islands[j:j + 1] if j < n
-                                               else islands[:0], piers[j - n:j - n + 1]
-                                               if j >= n else piers[:0], 0.0):
-          return AGROUND, k
+    if near and _segment_aground(x0, y0, x1, y1, near, islands, piers):
+      return AGROUND, k
   return core.NO_EVENT, 0
 
 
@@ -398,6 +420,13 @@ def observe_batch(states, islands, piers, cells, out):
     for j in range(4):
       out[i, j] = states[i, j]
     ranges_into(states[i], islands, piers, cells, out[i], 4)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def ranges_batch(states, islands, piers, cells, out):
+  """Each ship's ranges alone into the rows of `out` (RAYS columns)."""
+  for i in range(states.shape[0]):
+    ranges_into(states[i], islands, piers, cells, out[i], 0)
 
 
 @numba.njit(cache=True, error_model="numpy")

@@ -1,7 +1,8 @@
 """The task ladder's fixed starts (SPEC sections 7 and 11): start i of every report is
 the episode the Gymnasium environment lays out at `reset(seed=seed + i)`, the ship's
-state (the harbour's drawn again while it lies on an obstacle), then the goal's gate or
-the regatta's course, from one generator. One rule, read by the scorer
+state (the harbour's and the goal's drawn again while it lies on an obstacle), then the
+goal's gate (drawn again until it stands clear of them) or the regatta's course, from one
+generator. One rule, read by the scorer
 (`hpg_mj.benchmark`) and by the agents that act on the ladder, so that both sail from
 the same starts."""
 import numpy as np
@@ -45,12 +46,12 @@ def fixed_starts(task, level, episodes, seed):
     if task == "ship_harbour":                          # drawn again on an obstacle
       states[i] = ship_harbour_core.sample_start(
           rules, generator, *ship_harbour_core.level_shapes(level))
+    elif task == "ship_goal":                           # the same, among the goal's obstacles
+      states[i] = ship_goal_core.sample_start(rules, generator, level)
     else:
       states[i] = rules.sample_start(generator)
-    if task == "ship_goal":                             # ship_goal_core.sample_gate's draws
-      low, high, largest = ship_goal_core.level_range(level)
-      extra.append([generator.uniform(low, high), generator.uniform(low, high),
-                    generator.uniform(-largest, largest)])
+    if task == "ship_goal":                             # drawn again until clear of them
+      extra.append(ship_goal_core.draw_gate(generator, level))
     elif task == "ship_regatta":
       extra.append(ship_regatta_core.sample_course(
           generator, ship_regatta_core.level_layout(level)))

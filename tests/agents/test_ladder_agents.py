@@ -93,7 +93,7 @@ def _goal_config(max_steps=600):
 def test_a_users_ladder_hierarchy_saves_by_node_name_and_resumes_exactly(tmp_path):
   agent = GoalApproach(_goal_config(), seed=3)
   record = agent.train(150)
-  assert agent.obs_size == 12 and record["calls"].sum() > 150
+  assert agent.obs_size == 19 and record["calls"].sum() > 150
   state = agent.state()
   assert {"rng_state", "root.q", "goto.theta", "goto.values"} <= set(state)
   assert np.any(state["root.q"] != 0.0) and np.any(state["goto.theta"] != 0.0)

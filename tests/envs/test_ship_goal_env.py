@@ -23,7 +23,8 @@ LEVELS = list(goal_core.LEVELS)
 def test_check_env(level, backend):
   env = gymnasium.make(ID, level=level, backend=backend)
   check_env(env.unwrapped, skip_render_check=True)
-  assert set(env.observation_space.spaces) == {"observation", "achieved_goal", "desired_goal"}
+  assert set(env.observation_space.spaces) == {"observation", "achieved_goal", "desired_goal",
+                                               "ranges"}
 
 
 @pytest.mark.parametrize("backend", ["analytic", "mujoco"])
@@ -47,13 +48,47 @@ def test_the_steps_reward_is_compute_rewards_and_a_pass_ends_the_episode(backend
 
 def test_a_gate_and_a_start_can_be_given():
   env = gymnasium.make(ID, level="hard", backend="analytic")
-  obs, _ = env.reset(options={"state": [400.0, 390.15, 0.0, 0.0], "gate": [400.0, 400.0, 0.0]})
-  np.testing.assert_allclose(obs["desired_goal"], [400.0, 400.0, 0.0, 1.0])
+  obs, _ = env.reset(options={"state": [560.0, 590.15, 0.0, 0.0], "gate": [560.0, 600.0, 0.0]})
+  np.testing.assert_allclose(obs["desired_goal"], [560.0, 600.0, 0.0, 1.0])
   rewards = [env.step(np.array([0.0]))[1] for _ in range(6)]
   assert rewards == [-1.0] * 5 + [99.0]
   with pytest.raises(ValueError, match=r"^ShipGoal\(hard, backend=analytic\): unknown reset "
                                        r"options \['goal'\]; allowed: \['gate', 'state'\]$"):
     env.reset(options={"goal": [1, 2, 3]})
+
+
+@pytest.mark.parametrize("backend", ["analytic", "mujoco"])
+def test_the_hard_level_runs_aground_sees_its_obstacles_and_refuses_gates_on_them(backend):
+  # goal/hard's water holds the harbour's medium obstacles: a ship sailing north at the
+  # island of centre (400, 220), radius 60, sees it ahead and runs aground on it, and
+  # `compute_reward` gives the same reward from the step's info, whatever the goals.
+  env = gymnasium.make(ID, level="hard", backend=backend)
+  obs, _ = env.reset(options={"state": [400.0, 100.0, 0.0, 0.0], "gate": [560.0, 600.0, 0.0]})
+  assert obs["ranges"][3] == pytest.approx(60.0, abs=1e-6)      # ahead: 160 - 100 m
+  assert obs["ranges"][0] == 150.0 and obs["ranges"][6] == 150.0
+  for step in range(40):
+    obs, reward, terminated, _, info = env.step(np.zeros(1))
+    if terminated:
+      break
+  assert info["event"] == "obstacle" and reward == -101.0 and step == 33   # 60 m at 1.8 a step
+  unwrapped = env.unwrapped
+  assert unwrapped.compute_reward(obs["achieved_goal"], obs["desired_goal"], info) == reward
+  assert unwrapped.compute_reward(obs["achieved_goal"], obs["desired_goal"], None) == -1.0
+  batch = np.stack([obs["achieved_goal"]] * 3)
+  np.testing.assert_array_equal(unwrapped.compute_reward(
+      batch, batch, np.array([info, {"event": None}, {}])), [-101.0, 99.0, 99.0])
+  with pytest.raises(ValueError, match=r"^ShipGoal\(hard, backend=.*\): gate \[400.0, 400.0, 0.0\] "
+                                       r"comes within 10 m of an obstacle of level 'hard'"):
+    env.reset(options={"gate": [400.0, 400.0, 0.0]})
+  with pytest.raises(ValueError, match=r"lies on an obstacle"):
+    env.reset(options={"state": [400.0, 220.0, 0.0, 0.0]})
+  env.close()
+  # At easy and medium the water is open: every range reads 150 m, that gate is allowed.
+  open_water = gymnasium.make(ID, level="medium", backend=backend)
+  obs, _ = open_water.reset(options={"state": [400.0, 100.0, 0.0, 0.0],
+                                     "gate": [400.0, 400.0, 0.0]})
+  np.testing.assert_array_equal(obs["ranges"], np.full(7, 150.0))
+  open_water.close()
 
 
 @pytest.mark.parametrize("backend,steps,max_steps", [("analytic", 200, 30), ("mujoco", 25, 10)])
@@ -94,7 +129,7 @@ def test_the_hard_gate_takes_no_pass_30_m_off_its_centre_on_any_path():
   # environments, dm_control's task and the fused loop's world judge alike.
   from hpg_mj.hierarchy import ladder
   from hpg_mj.worlds import ship_goal_core as goal_core
-  state, gate = [430.0, 390.0, 0.0, 0.0], [400.0, 400.0, 0.0]
+  state, gate = [590.0, 590.0, 0.0, 0.0], [560.0, 600.0, 0.0]
   for level, passes in (("medium", True), ("hard", False)):
     env = gymnasium.make(ID, level=level, backend="analytic")
     env.reset(options={"state": state, "gate": gate})
@@ -180,7 +215,7 @@ def test_pixels_show_the_episodes_gate_alike_on_both_paths():
   dm = suite.load("ship_goal", "hard", {"initial_state": state, "gate": gate})
   dm.reset()
   np.testing.assert_array_equal(dm.physics.render(120, 160, camera_id="top"), frame)
-  env.reset(options={"state": state, "gate": [300.0, 600.0, -60.0]})
+  env.reset(options={"state": state, "gate": [560.0, 600.0, -60.0]})
   assert np.abs(env.render().astype(int) - frame).sum() > 0
   env.close()
   dm.close()

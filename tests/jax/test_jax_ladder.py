@@ -56,6 +56,11 @@ class World:
   endings = {core.FAILURE, core.SUCCESS, TRUNCATED}
   episodes = N
 
+  @classmethod
+  def endings_of(cls, level):
+    """The endings its episodes come to at `level`."""
+    return cls.endings
+
   def rates(self, rows, phase):
     ships = self.ships[rows]
     return helmsman(ships, *self.targets(ships, phase, rows))
@@ -105,35 +110,36 @@ class CurrentWorld(World):
 
 class GoalWorld(World):
   """The numba goal-conditioned ships, stepped as `ShipGoalVectorEnv`'s analytic batch:
-  `task_step_batch` sails them, then `judge_batch` judges the goals."""
+  `task_step_batch` sails them, then `judge_batch` judges the goals (and at hard the
+  obstacles on the track), the ranges cast by `ranges_batch`."""
 
   id = "ShipGoal-v0"
+  bound64 = 1e-6            # the hard level's rays: `HarbourWorld`'s bound
+  smooth = slice(0, 12)     # the state and the goals; not the rays, which jump
 
   def __init__(self, level, limit, n=N):
     self.level = level
     rules = ship_task.ShipRules("steer", limit)
-    starts, gates, desired = [], [], []
+    starts, gates = [], []
     for i in range(n):
       rng = _rng(i)          # as the Gymnasium environment's reset: the ship, then the gate
-      starts.append(rules.sample_start(rng))
-      # The gate JAX is given, [x, y, heading_deg], is the generator's own draws: read
-      # on a copy, and the rule's gate from them is `sample_gate`'s, to the bit.
-      low, high, largest = goal_core.LEVELS[level]
-      copy = np.random.Generator(type(rng.bit_generator)())
-      copy.bit_generator.state = rng.bit_generator.state
-      gates.append([copy.uniform(low, high), copy.uniform(low, high),
-                    copy.uniform(-largest, largest)])
-      desired.append(goal_core.sample_gate(rng, goal_core.LEVELS[level]))
-      assert np.array_equal(desired[-1], goal_core.check_gate(gates[-1], "test"))
+      starts.append(goal_core.sample_start(rules, rng, level))
+      gates.append(goal_core.draw_gate(rng, level))
     self.starts, self.gates = np.array(starts), np.array(gates)
-    self.desired = np.array(desired)
+    self.desired = np.array([goal_core.check_gate(g, "test", level) for g in gates])
     self.ships = self.starts.copy()
     self.limit, self.rules = limit, rules
+    self.shapes = goal_core.level_shapes(level)
     self.samples = np.zeros((n, core.SAMPLES_PER_CONTROL + 1, 2))
     self.steps = np.zeros(n, np.int64)
     self.achieved = np.array([goal_core.goal_of(s) for s in self.starts])
+    self.ranges = np.zeros((n, goal_core.RAYS))
     self.outcome = (np.zeros(n, np.int64), np.zeros(n), np.zeros(n, np.bool_),
                     np.zeros(n, np.bool_))
+
+  @classmethod
+  def endings_of(cls, level):
+    return cls.endings | ({goal_core.AGROUND} if goal_core.OBSTACLES[level] else set())
 
   def jax_starts(self, env, params):
     return jax.vmap(lambda s, g: env.reset_to(s, g, params))(self.starts, self.gates)
@@ -142,13 +148,15 @@ class GoalWorld(World):
     core.task_step_batch(self.ships, r, live, self.samples, self.steps, True, True,
                          np.zeros(2), core.FIELD_SIZE, self.limit, self.rules.success_reward,
                          self.rules.failure_reward, self.outcome)
-    goal_core.judge_batch(self.ships, live, self.steps, self.desired, self.limit,
+    goal_core.judge_batch(self.ships, self.samples, live, self.steps, self.desired, self.limit,
                           self.rules.success_reward, self.rules.failure_reward,
-                          goal_core.level_tolerance(self.level), self.achieved, self.outcome)
+                          goal_core.level_tolerance(self.level), *self.shapes, self.achieved,
+                          self.outcome)
     return self.outcome
 
   def observations(self):
-    return np.concatenate([self.ships, self.achieved, self.desired], axis=1)
+    harbour_core.ranges_batch(self.ships, *self.shapes, self.ranges)
+    return np.concatenate([self.ships, self.achieved, self.desired, self.ranges], axis=1)
 
   def targets(self, ships, phase, rows):
     """`ship_goal_core.pilot_target` over rows of ships: 150 m before the gate on its
@@ -398,7 +406,7 @@ def test_the_ladders_jax_worlds_sail_the_numba_worlds_trajectories_in_float64(ca
   assert result["state_error"] < 1e-9 and result["reward_error"] < 1e-9, result
   assert result["obs_error"] < world.bound64, result
   assert result["differ"].size == 0, result
-  assert set(result["endings"]) == world.endings, result
+  assert set(result["endings"]) == world.endings_of(case[1]), result
 
 
 @pytest.mark.parametrize("case", sorted(LIMITS), ids="-".join)
@@ -473,7 +481,7 @@ def test_the_goals_compute_reward_is_the_numba_rule(x64):
   """Relabelled goals (what Hindsight Experience Replay asks): the JAX rule gives
   `ship_goal_core.compute_reward`'s rewards exactly, gates passed or not."""
   rng = np.random.default_rng(7)
-  desired = np.array([goal_core.sample_gate(rng, goal_core.LEVELS["hard"]) for _ in range(4000)])
+  desired = np.array([goal_core.sample_gate(rng, "hard") for _ in range(4000)])
   achieved = desired.copy()
   achieved[:, :2] += rng.uniform(-60.0, 60.0, (4000, 2)) * rng.uniform(0.0, 1.0, (4000, 1)) ** 3
   turn = np.radians(rng.uniform(-90.0, 90.0, 4000))
