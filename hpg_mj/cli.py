@@ -526,9 +526,9 @@ def build_parser():
                  help="reference and ladder only: draw from the runs already finished "
                       "under --out, run nothing")
   p.add_argument("--earlier", metavar="RUNS_JSONL",
-                 help="reference only: for each seed whose run is not finished under --out, "
-                      "its metrics from an earlier report's runs.jsonl (for example "
-                      "figures/reference/runs.jsonl)")
+                 help="reference and ladder only: for each seed whose run is not finished "
+                      "under --out, its metrics from an earlier report's runs.jsonl (for "
+                      "example figures/reference/runs.jsonl)")
   p.set_defaults(func=_cmd_reproduce)
 
   p = sub.add_parser("evaluate", help="score a saved agent, or any policy (--policy), on "

@@ -142,10 +142,10 @@ def _cmd_reproduce(args):
   section 8's continuing task (hpg_mj.experiments.beyond)."""
   from hpg_mj import _paths
   _paths.check_folder_out(args.out)
-  if args.earlier and args.figure != "reference":
-    raise ValueError(f"--earlier completes `reproduce reference` with an earlier report's "
-                     f"runs; {args.figure!r} reruns its experiments (allowed: reproduce "
-                     f"reference --earlier {args.earlier})")
+  if args.earlier and args.figure not in ("reference", "ladder"):
+    raise ValueError(f"--earlier completes `reproduce reference` or `reproduce ladder` with an "
+                     f"earlier report's runs; {args.figure!r} reruns its experiments (allowed: "
+                     f"reproduce reference --earlier {args.earlier}, or ladder)")
   if args.figure == "beyond":
     return _reproduce_beyond(args)
   if args.figure == "reference":
@@ -218,7 +218,8 @@ def _reproduce_ladder(args):
   """The task ladder's reference table and figure (hpg_mj.experiments.ladder): runs the
   ladder's experiments (resuming unfinished runs; with --existing none; PPO's only where
   JAX is installed, `pip install 'hpg_mj[jax]'`), then writes them from the runs
-  finished."""
+  finished (and, with --earlier, an earlier report's runs for the seeds not finished
+  here: figures/ladder/runs.jsonl keeps those already landed)."""
   import importlib.util
 
   from hpg_mj.experiments import ladder
@@ -229,6 +230,8 @@ def _reproduce_ladder(args):
         print(f"reproduce ladder: {name} skipped (needs JAX: pip install 'hpg_mj[jax]')")
         continue
       rc |= _cmd_run(argparse.Namespace(**{**vars(args), "experiment_file": name}))
-  report = ladder.write(args.out, quick=args.quick)
+  from hpg_mj.experiments import reference
+  earlier = reference.read_earlier(args.earlier) if args.earlier else None
+  report = ladder.write(args.out, quick=args.quick, earlier=earlier)
   print(f"reproduce ladder: {report}")
   return rc

@@ -65,11 +65,14 @@ def shipped():
           for task, names in TASKS.items()}
 
 
-def collect(out, quick=False, experiments=None):
+def collect(out, quick=False, experiments=None, earlier=None):
   """{task: [{"experiment", "learner" (its task file's stem), "label", "kind", "runs":
   {level: [each finished run's metrics]}}]} over `experiments` ({task: [experiments,
   loaded]}, each with `levels`; default `shipped()`); a learner with no finished run
-  has empty lists."""
+  has empty lists. `earlier` (`reference.read_earlier`): an earlier report's runs, each
+  taken for a seed whose run is not finished under OUT (a run under OUT wins), so that
+  held-out runs finished and committed piece by piece make one table."""
+  earlier = earlier or {}
   found = {}
   for task, loaded in (shipped() if experiments is None else experiments).items():
     found[task] = []
@@ -87,6 +90,8 @@ def collect(out, quick=False, experiments=None):
           run = root / variant.path.stem / f"seed{seed}"
           if runs.is_finished(run):
             entry["runs"][level].append(runs.read_metrics(run))
+          elif (variant.path.stem, seed) in earlier:
+            entry["runs"][level].append(earlier[(variant.path.stem, seed)])
       found[task].extend(learners.values())
   return found
 
@@ -198,13 +203,13 @@ def _verdict(value, yes, no):
   return "not run yet" if value is None else (yes if value else no)
 
 
-def write(out, quick=False, experiments=None):
+def write(out, quick=False, experiments=None, earlier=None):
   """Draws the figure and writes REPORT.md and runs.jsonl under OUT/ladder (ladder_quick
-  with `quick`) from the finished runs (`collect`, of `experiments`); returns
-  REPORT.md's path."""
+  with `quick`) from the finished runs (`collect`, of `experiments`, completed by
+  `earlier`'s); returns REPORT.md's path."""
   root = folder(out, quick)
   root.mkdir(parents=True, exist_ok=True)
-  found = collect(out, quick, experiments)
+  found = collect(out, quick, experiments, earlier)
   lines = ["# ladder: the task ladder's reference table", "",
            "Each learner trained on held-out seeds (never a tuning seed) at each level, then "
            "measured greedily on the level's fixed 1,000 starts (SPEC sections 7 and 11). "

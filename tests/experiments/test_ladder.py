@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from hpg_mj.experiments import ladder, runner
+from hpg_mj.experiments import ladder, reference, runner
 from experiment_file import assert_refused
 
 EXPERIMENT = """
@@ -69,6 +69,21 @@ def test_an_experiment_runs_each_task_at_each_level_and_the_ladder_report_reads_
   assert np.isclose(mean, easy["gate_pass_rate_normalized"], atol=1e-4)   # (written to 4 places)
   lines = (report.parent / "runs.jsonl").read_text().splitlines()
   assert {json.loads(line)["task"] for line in lines} == {"ship_current_hybrid_easy"}
+  # Runs landed piece by piece: an earlier report's runs.jsonl completes the seeds not
+  # finished here (the hard level's, unfinished now), and a run finished here wins.
+  earlier = tmp_path / "earlier.jsonl"
+  landed = dict(json.loads(lines[0]), task="ship_current_hybrid_hard", seed=1000)
+  landed["greedy"] = dict(landed["greedy"], gate_pass_rate_normalized=12.5)
+  stale = dict(json.loads(lines[0]), seed=1000)
+  stale["greedy"] = dict(stale["greedy"], gate_pass_rate_normalized=-7.0)
+  earlier.write_text(json.dumps(landed) + "\n" + json.dumps(stale) + "\n")
+  report = ladder.write(out, experiments={"ship_current": [experiment]},
+                        earlier=reference.read_earlier(earlier))
+  rows = {tuple(r.split(",")[:3]): r.split(",") for r in
+          (report.parent / "ladder.csv").read_text().splitlines()[1:]}
+  assert float(rows[("ship_current", "hard", "Hierarchical hybrid (current)")][4]) == 12.5
+  assert np.isclose(float(rows[("ship_current", "easy", "Hierarchical hybrid (current)")][4]),
+                    easy["gate_pass_rate_normalized"], atol=1e-4)
 
 
 def test_levels_are_refused_in_one_line_where_they_cannot_apply(tmp_path):

@@ -190,7 +190,8 @@ def test_earlier_runs_complete_the_seeds_not_run_here(tmp_path, capsys):
                    str(tmp_path / "bad.jsonl"), "--out", str(second)]) == 2
   assert "bad.jsonl, line 1: not a run of runs.jsonl" in capsys.readouterr().err
   assert cli.main(["reproduce", "fig6", "--earlier", str(earlier), "--out", str(second)]) == 2
-  assert "--earlier completes `reproduce reference`" in capsys.readouterr().err
+  assert "--earlier completes `reproduce reference` or `reproduce ladder`" in \
+      capsys.readouterr().err
 
 
 def test_existing_is_refused_for_the_papers_figures(tmp_path, capsys):
