@@ -305,20 +305,23 @@ class ShipGoalVectorEnv(vector.ShipSteeringVectorEnv):
       self._achieved[i] = goal_core.goal_of(self._states[i])
 
   def _advance(self, r, active):
-    super()._advance(r, active)     # sails the ships (and judges them by ship/steer's gate)
-    islands, piers, cells = goal_core.level_shapes(self.level)
-    goal_core.judge_batch(self._states, self._samples, active, self._steps, self._desired,
-                          self.rules.max_steps, self.rules.success_reward,
-                          self.rules.failure_reward, self.tolerance, islands, piers, cells,
-                          self._achieved,
-                          (self._event, self._reward, self._terminated, self._truncated))
+    # The ships sail (ship/steer's judge, which `ShipSteeringVectorEnv` would run, is not
+    # this task's), count the step, and are judged by the goal's rule.
+    self._ships.control(self._states, r, active, self._samples)
+    if self._ships.integrate:
+      core.sail_batch(self._states, r, active, self._samples)
+    self._steps[active] += 1
+    judge, _, _ = goal_core.entries()
+    judge(self._states, self._samples, active, self._steps, self._desired, self.rules.max_steps,
+          self.rules.success_reward, self.rules.failure_reward, self.tolerance,
+          *goal_core.level_shapes(self.level), self._achieved,
+          (self._event, self._reward, self._terminated, self._truncated))
     return self._reward.copy(), self._terminated.copy(), self._truncated.copy()
 
   def _observations(self):
     if goal_core.OBSTACLES[self.level] is not None:
       if self._ships.integrate:
-        islands, piers, cells = goal_core.level_shapes(self.level)
-        harbour_core.ranges_batch(self._states, islands, piers, cells, self._ranges)
+        goal_core.entries()[2](self._states, *goal_core.level_shapes(self.level), self._ranges)
       else:
         for i, ship in enumerate(self._ships.ships):
           harbour_core.seen_ranges(ship.readings(), self._ranges[i], 0)

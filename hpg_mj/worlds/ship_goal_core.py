@@ -135,19 +135,38 @@ def gate_clear(x, y, s, c, islands, piers):
                                           islands, piers, CLEARANCE_M)
 
 
+@numba.njit(cache=True, error_model="numpy")
+def gate_of(draws, low, high, largest, islands, piers, gate):
+  """The gate [x, y, heading_deg] of `draws`, three uniforms on [0, 1), scaled as numpy's
+  `uniform` scales them (`low + (high - low) * u`, to the bit) onto the centre's square
+  and the heading's range, into `gate`; False where it does not stand clear of the
+  obstacles (`gate_clear`)."""
+  gate[0] = low + (high - low) * draws[0]
+  gate[1] = low + (high - low) * draws[1]
+  gate[2] = -largest + (2.0 * largest) * draws[2]
+  heading = math.radians(gate[2])
+  return gate_clear(gate[0], gate[1], math.sin(heading), math.cos(heading), islands, piers)
+
+
+@functools.cache
+def _gate_entry():
+  """`gate_of`'s entry point for one gate's arrays (a batch resets a few copies every
+  step; numba's dispatcher would type the arguments again at each)."""
+  f64 = numba.float64
+  return gate_of.compile((f64[::1], f64, f64, f64, f64[:, ::1], f64[:, ::1], f64[::1]))
+
+
 def draw_gate(random, level):
   """A gate [x, y, heading_deg] of `level` from `random` (a Generator or RandomState):
-  the centre uniform on the level's square, the heading on its range, drawn again
-  (three uniforms a try) until it stands clear of the level's obstacles (`gate_clear`;
-  the first try, in open water)."""
+  the centre uniform on the level's square, the heading on its range (the draws of three
+  `uniform`s, to the bit, from one call of the generator), drawn again until it stands
+  clear of the level's obstacles (`gate_of`; the first try, in open water)."""
   low, high, largest = level_range(level)
   islands, piers, _ = level_shapes(level)
+  entry, gate = _gate_entry(), np.empty(3)
   for _ in range(GATE_TRIES):
-    x, y = random.uniform(low, high), random.uniform(low, high)
-    heading_deg = random.uniform(-largest, largest)
-    heading = math.radians(heading_deg)
-    if gate_clear(x, y, math.sin(heading), math.cos(heading), islands, piers):
-      return np.array([x, y, heading_deg])
+    if entry(random.random(3), low, high, largest, islands, piers, gate):
+      return gate
   raise RuntimeError(f"ship goal: no gate clear of the obstacles of {level!r} in "
                      f"{GATE_TRIES:,} draws")
 
@@ -312,10 +331,10 @@ def judge_batch(states, samples, active, steps, desired, max_steps, gate_reward,
 
 
 @functools.cache
-def _one_ship():
-  """`judge_batch`'s and `ranges_into`'s entry points for one ship's arrays (a row
-  each): numba's dispatcher would type their arguments again at each step, most of
-  the call."""
+def entries():
+  """Entry points of `judge_batch` (for a batch of ships, or one ship's arrays as a row
+  each), `ranges_into` (one ship) and `harbour_core.ranges_batch` (a batch): numba's
+  dispatcher would type their arguments again at each step, much of the call."""
   f64, i64, b1 = numba.float64, numba.int64, numba.boolean
   judge = judge_batch.compile((f64[:, ::1], f64[:, :, ::1], b1[::1], i64[::1], f64[:, ::1], i64,
                                f64, f64, f64[::1], f64[:, ::1], f64[:, ::1], i64[:, :, ::1],
@@ -323,7 +342,9 @@ def _one_ship():
                                                                b1[::1]))))
   seen = harbour_core.ranges_into.compile((f64[::1], f64[:, ::1], f64[:, ::1], i64[:, :, ::1],
                                            f64[::1], i64))
-  return judge, seen
+  seen_batch = harbour_core.ranges_batch.compile((f64[:, ::1], f64[:, ::1], f64[:, ::1],
+                                                  i64[:, :, ::1], f64[:, ::1]))
+  return judge, seen, seen_batch
 
 
 class OneShip:
@@ -339,7 +360,7 @@ class OneShip:
     self._achieved = np.zeros((1, 4))
     self._outcome = (np.zeros(1, np.int64), np.zeros(1), np.zeros(1, np.bool_),
                      np.zeros(1, np.bool_))
-    self._judge, self._ranges = _one_ship()
+    self._judge, self._ranges, _ = entries()
 
   def __call__(self, samples, state, steps, desired):
     """(event, reward, terminated, truncated, event name) after a control step that
