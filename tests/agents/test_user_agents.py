@@ -276,3 +276,16 @@ def test_the_hierarchy_tutorials_task_file_trains_the_readmes_waypoints(tmp_path
   done = _run(tmp_path, "evaluate", "runs/mine", "--episodes", 5, "--json")
   assert done.returncode == 0, done.stderr
   assert json.loads(done.stdout)["policy"] == "greedy"
+
+
+def test_the_hierarchy_tutorials_ladder_environment_is_a_whole_section(tmp_path):
+  """Its ladder [environment] block, put in a shipped ladder task file in place of its
+  own, loads: every key the section needs is in the block."""
+  text = (REPO / "docs" / "tutorial_hierarchy.md").read_text().split("## Its task file\n")[1]
+  block = re.findall(r"```toml\n(.*?)```", text, re.S)[1]
+  shipped = (REPO / "tasks" / "ship_goal_hybrid.toml").read_text()
+  head, rest = shipped.split("[environment]\n", 1)
+  path = tmp_path / "t.toml"
+  path.write_text(head + block + "\n[" + rest.split("\n[", 1)[1])
+  task = agents.load_task(path)
+  assert (task.config.environment.world, task.config.environment.level) == ("ship_goal", "hard")
