@@ -4,6 +4,7 @@
 import functools
 
 import gymnasium
+import numba
 import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
@@ -279,6 +280,9 @@ class ShipGoalVectorEnv(vector.ShipSteeringVectorEnv):
     self._achieved = np.zeros((self.num_envs, 4))
     self._ranges = np.full((self.num_envs, goal_core.RAYS), harbour_core.MAX_RANGE_M)
     self.tolerance = goal_core.level_tolerance(level)
+    self._params = goal_core.env_params(level, self.rules.success_reward,
+                                        self.rules.failure_reward, self.rules.max_steps)
+    self._step = None
 
   def _make_ships(self, backend):
     if backend == "mujoco":
@@ -287,35 +291,35 @@ class ShipGoalVectorEnv(vector.ShipSteeringVectorEnv):
 
   def _start(self, indices, options):
     given = self._option_rows(options, "state", 4, "state")
-    for i in indices.tolist():
+    gates = self._option_rows(options, "gate", 3, "gate")
+    rows = np.empty((len(indices), 3))
+    for k, i in enumerate(indices.tolist()):     # each copy's generator: its ship, its gate
       if given is None:
         state = goal_core.sample_start(self.rules, self._rngs[i], self.level)
       else:
         state = goal_core.check_start(self.rules, given if given.ndim == 1 else given[i],
                                       self.level, f"{self.who} copy {i}")
       self._ships.set_state(self._states, i, state)
-    self._steps[indices] = 0
-    gates = self._option_rows(options, "gate", 3, "gate")
-    for i in indices.tolist():
       if gates is None:
-        self._desired[i] = goal_core.sample_gate(self._rngs[i], self.level)
+        rows[k] = goal_core.draw_gate(self._rngs[i], self.level)
       else:
-        self._desired[i] = goal_core.check_gate(gates if gates.ndim == 1 else gates[i],
-                                                f"{self.who} copy {i}", self.level)
-      self._achieved[i] = goal_core.goal_of(self._states[i])
+        rows[k] = gates if gates.ndim == 1 else gates[i]
+        goal_core.check_gate(rows[k], f"{self.who} copy {i}", self.level)
+    self._steps[indices] = 0
+    goal_core.place_batch(self._states, rows, np.ascontiguousarray(indices, dtype=np.int64),
+                          self._desired, self._achieved)
 
   def _advance(self, r, active):
     # The ships sail (ship/steer's judge, which `ShipSteeringVectorEnv` would run, is not
-    # this task's), count the step, and are judged by the goal's rule.
+    # this task's), count the step, and are judged by the goal's rule: one compiled call,
+    # typed once (numba's dispatcher would type its ten arguments at every step).
     self._ships.control(self._states, r, active, self._samples)
-    if self._ships.integrate:
-      core.sail_batch(self._states, r, active, self._samples)
-    self._steps[active] += 1
-    judge, _, _ = goal_core.entries()
-    judge(self._states, self._samples, active, self._steps, self._desired, self.rules.max_steps,
-          self.rules.success_reward, self.rules.failure_reward, self.tolerance,
-          *goal_core.level_shapes(self.level), self._achieved,
-          (self._event, self._reward, self._terminated, self._truncated))
+    args = (self._states, r, active, self._samples, self._steps, self._ships.integrate,
+            self._desired, self._params, self._achieved,
+            (self._event, self._reward, self._terminated, self._truncated))
+    if self._step is None:
+      self._step = goal_core.step_batch.compile(tuple(numba.typeof(a) for a in args))
+    self._step(*args)
     return self._reward.copy(), self._terminated.copy(), self._truncated.copy()
 
   def _observations(self):

@@ -324,10 +324,51 @@ def judge_batch(states, samples, active, steps, desired, max_steps, gate_reward,
     a[1] = states[i, 1]
     a[2] = math.sin(theta)
     a[3] = math.cos(theta)
-    event[i], reward[i] = step_outcome(samples[i], a, desired[i], gate_reward,
-                                       out_of_bounds_reward, tolerance, islands, piers, cells)
+    # `step_outcome`, its branch written out: as one inlined call the batch ran 1.3-1.9x
+    # slower (interleaved, 1,024 ships).
+    if harbour_core.track_aground(samples[i], islands, piers, cells):
+      event[i], reward[i] = AGROUND, core.STEP_REWARD + out_of_bounds_reward
+    else:
+      event[i], reward[i] = outcome_of(a, desired[i], gate_reward, out_of_bounds_reward,
+                                       tolerance)
     terminated[i] = event[i] != core.NO_EVENT
     truncated[i] = not terminated[i] and steps[i] >= max_steps
+
+
+@numba.njit(cache=True, error_model="numpy")
+def step_batch(states, r_deg, active, samples, steps, integrate, desired, params, achieved,
+               outcome):
+  """One control step of every `active` ship of a batch (`params` the level's `EnvParams`):
+  with `integrate` the ships sail Equation 1 here (`ship_core.sail_batch`; without it
+  `samples` and `states` already hold the step: the MuJoCo ships); each active ship's
+  `steps` grows by one and `judge_batch` fills `achieved` and `outcome`."""
+  if integrate:
+    core.sail_batch(states, r_deg, active, samples)
+  for i in range(states.shape[0]):
+    if active[i]:
+      steps[i] += 1
+  judge_batch(states, samples, active, steps, desired, params.max_steps, params.rewards[0],
+              params.rewards[1], params.tolerance, params.islands, params.piers, params.cells,
+              achieved, outcome)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def place_batch(states, gates, indices, desired, achieved):
+  """For the copies `indices` of a batch (its resets), the desired goals of `gates` (a row
+  [x, y, heading_deg] each, in `indices`' order: `check_gate`'s arithmetic) and the
+  achieved goals of `states` (`goal_of`'s)."""
+  for k in range(indices.shape[0]):
+    i = indices[k]
+    heading = math.radians(gates[k, 2])
+    desired[i, 0] = gates[k, 0]
+    desired[i, 1] = gates[k, 1]
+    desired[i, 2] = math.sin(heading)
+    desired[i, 3] = math.cos(heading)
+    theta = math.radians(states[i, 2])
+    achieved[i, 0] = states[i, 0]
+    achieved[i, 1] = states[i, 1]
+    achieved[i, 2] = math.sin(theta)
+    achieved[i, 3] = math.cos(theta)
 
 
 @functools.cache

@@ -91,11 +91,14 @@ def test_the_hard_level_runs_aground_sees_its_obstacles_and_refuses_gates_on_the
   open_water.close()
 
 
-@pytest.mark.parametrize("backend,steps,max_steps", [("analytic", 200, 30), ("mujoco", 25, 10)])
+@pytest.mark.parametrize("level,backend,steps,max_steps", [
+    ("easy", "analytic", 200, 30), ("easy", "mujoco", 25, 10),
+    ("hard", "analytic", 300, 100), ("hard", "mujoco", 25, 10)])   # hard: its obstacles
 @pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP],
                          ids=lambda m: m.value)
-def test_the_native_batch_follows_the_single_environments(mode, backend, steps, max_steps):
-  kwargs = {"level": "easy", "backend": backend, "max_steps": max_steps}
+def test_the_native_batch_follows_the_single_environments(mode, level, backend, steps,
+                                                          max_steps):
+  kwargs = {"level": level, "backend": backend, "max_steps": max_steps}
   native = gymnasium.make_vec(ID, 4, vectorization_mode="vector_entry_point",
                               autoreset_mode=mode, **kwargs)
   reference = gymnasium.make_vec(ID, 4, vectorization_mode="sync",
