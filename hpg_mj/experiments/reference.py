@@ -35,7 +35,7 @@ from hpg_mj.experiments import stats
 WORLDS = {
     "ship": {"experiments": ("reference_ship_hierarchy", "reference_ship_option_critic",
                              "reference_ship_ppo", "reference_ship_sac",
-                             "reference_ship_ppo_jax"),
+                             "reference_ship_ppo_jax", "reference_ship_sac_jax"),
              "title": "Ship steering: greedy scores against control steps trained",
              "panels": (("gate_pass_rate", "gate pass rate, greedy"),
                         ("J", "J (MushroomRL rewards), greedy")),
