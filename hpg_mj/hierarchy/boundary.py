@@ -316,3 +316,33 @@ def typing_line(message, module_path, roles, names, arguments):
          f"subtask{'s' if len(node) > 1 else ''} {', '.join(map(repr, node))}")
   return (f"{who}: its {role or 'rule'} reads call.{attr}; its calls bind {bound} (and "
           "call.origin, call.steps)")
+
+
+_AT = re.compile(r'File "([^"]+)", line (\d+)')
+_NOT_A_REASON = ("Failed in ", "During:", "File ", "<source", "^", "Enable logging",
+                 "This error may have been caused", "- Resolution", "- Of which",
+                 "For more information", "Rewrite", "The function")
+
+
+def user_typing_line(message, package_dir, module_path):
+  """The one line for any other numba typing error in a user's compiled code (a rule, a
+  binding or a learner kind of their own): where in their file it stopped and numba's
+  innermost reason ("Unknown attribute 'gate_weight' of type ..."); None where the error
+  names no file outside `package_dir` and the graph's module at `module_path`."""
+  places = [(path, line) for path, line in _AT.findall(message)
+            if not os.path.abspath(path).startswith(os.path.abspath(package_dir))
+            and os.path.basename(path) != os.path.basename(module_path)]
+  if not places:
+    return None
+  reasons, quoting = [], False     # (a `File ...:` line quotes source up to a blank line)
+  for line in message.splitlines():
+    if line.startswith("File "):
+      quoting = True
+    elif not line.strip():
+      quoting = False
+    elif not quoting and not line.startswith(_NOT_A_REASON):
+      reasons.append(line.strip())
+  reason = reasons[0] if reasons else "numba could not type it"
+  path, line = places[0]
+  return (f"{path}, line {line}: your compiled code does not compile: {reason} (numba's "
+          "reason; calling that function alone shows its whole message)")

@@ -22,6 +22,7 @@ The learned arrays are saved and restored by name (`state()`, `parameters()`):
 """
 import collections
 import inspect
+import os
 import re
 
 import numba
@@ -546,6 +547,9 @@ class Program:
     except numba.core.errors.TypingError as e:     # (the first call compiles the module)
       line = boundary.typing_line(str(e), self.module_path, self._roles, self.names,
                                   self._arguments)
+      if line is None:          # an error in a user's own compiled code: where, and why
+        line = boundary.user_typing_line(str(e), os.path.dirname(os.path.dirname(
+            boundary.__file__)), self.module_path)
       if line is None:
         raise
       raise GraphError(line) from None
