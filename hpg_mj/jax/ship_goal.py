@@ -39,7 +39,6 @@ of them changed. `split_obs` gives the dictionary back (any batch shape), and
 jittable, for Hindsight Experience Replay written in JAX.
 """
 import functools
-import math
 
 import jax
 import jax.numpy as jnp
@@ -274,14 +273,7 @@ class ShipGoal(ship.ShipSteering):
       raise ValueError(f"{self.env_id}: reset_to takes a gate [x, y, heading_deg] of shape "
                        f"(3,), got shape {gate.shape}")
     params = self.default_params if params is None else params
-    concrete = all(environment.is_concrete(v)
-                   for v in jax.tree.leaves((params.islands, params.piers)))
-    obstacles = None
-    if concrete:
-      islands = np.array([row for row in params.islands if row[2] > 0.0]).reshape(-1, 3)
-      piers = np.array([row for row in params.piers
-                        if math.hypot(row[2] - row[0], row[3] - row[1]) > 0.0]).reshape(-1, 5)
-      obstacles = (islands, harbour_core.pier_frames(piers))
+    obstacles = harbour.known_obstacles(params)
     if environment.is_concrete(arr):
       core.check_state(np.asarray(arr, dtype=np.float64), self.env_id, 0.0, self.size)
       if obstacles is not None:

@@ -82,6 +82,17 @@ class Obstacles:
   pier_live: jax.Array       # (MAX_PIERS,): a row that is a pier (length > 0)
 
 
+def known_obstacles(params):
+  """`params`' obstacles as the numba rules take them, (islands, pier frames) without the
+  rows of zeros, where their values are known (not under jit or vmap); else None."""
+  if not all(environment.is_concrete(v) for v in jax.tree.leaves((params.islands, params.piers))):
+    return None
+  islands = np.array([row for row in params.islands if row[2] > 0.0]).reshape(-1, 3)
+  piers = np.array([row for row in params.piers
+                    if math.hypot(row[2] - row[0], row[3] - row[1]) > 0.0]).reshape(-1, 5)
+  return islands, harbour_core.pier_frames(piers)
+
+
 def obstacles_of(params, dtype):
   """`params`' obstacles as arrays of `dtype`: the islands, and the piers' frames
   (`ship_harbour_core.pier_frames`: the centre, the unit vector along, the half
@@ -287,13 +298,10 @@ class ShipHarbour(ship.ShipSteering):
     if arr.shape != (4,):
       raise ValueError(f"{self.env_id}: reset_to takes a ship state [x, y, theta_deg, "
                        f"theta_dot_deg] of shape (4,), got shape {arr.shape}")
-    if environment.is_concrete(arr) and all(
-        environment.is_concrete(v) for v in jax.tree.leaves((params.islands, params.piers))):
-      islands = np.array([row for row in params.islands if row[2] > 0.0]).reshape(-1, 3)
-      piers = np.array([row for row in params.piers
-                        if math.hypot(row[2] - row[0], row[3] - row[1]) > 0.0]).reshape(-1, 5)
+    obstacles = known_obstacles(params)
+    if environment.is_concrete(arr) and obstacles is not None:
       harbour_core.check_start(ship_task.ShipRules("steer"), np.asarray(arr, np.float64),
-                               islands, harbour_core.pier_frames(piers), self.env_id)
+                               *obstacles, self.env_id)
     return self._start_at(arr, params)
 
   # ---- one control step ---------------------------------------------------------
