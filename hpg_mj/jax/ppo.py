@@ -443,10 +443,17 @@ class Trainer:
 
 def step_env(env, params, key, state, action):
   """gymnax's `step` (the reset of an ended episode in the same call, from the second
-  half of the key), keeping the last observation (for a time limit's bootstrap)."""
+  half of the key), keeping the last observation (for a time limit's bootstrap). The
+  start comes from the world's `auto_reset` where it has one (`environment.Environment`:
+  the regatta's course, the goal's and the harbour's starts drawn off the obstacles
+  are computed only for the copies whose episode ended), else from `reset_env` for
+  every copy, as gymnax's `step`; the copies that ended get the same start either way."""
   key_step, key_reset = jax.random.split(key)
   obs_end, state_end, reward, done, info = env.step_env(key_step, state, action, params)
-  obs_re, state_re = env.reset_env(key_reset, params)
+  if hasattr(env, "auto_reset"):
+    obs_re, state_re = env.auto_reset(key_reset, params, done)
+  else:
+    obs_re, state_re = env.reset_env(key_reset, params)
   state = jax.tree.map(lambda a, b: jnp.where(done, a, b), state_re, state_end)
   obs = jnp.where(done, obs_re, obs_end)
   return obs, state, obs_end, reward, done, info
