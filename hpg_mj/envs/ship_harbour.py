@@ -57,13 +57,17 @@ class ShipHarbourEnv(ship_env.ShipSteeringEnv):
   | easy | (400, 620) 60; (650, 230) 60 | none |
   | medium | (400, 570) 60; (400, 220) 60; | (180, 400)-(340, 400); |
   | | (720, 680) 70; (200, 780) 60 | (460, 400)-(760, 400) |
-  | hard | (400, 540) 50; (400, 260) 50; | (40, 400)-(340, 400); |
-  | | (760, 780) 80; (180, 780) 70; | (460, 400)-(960, 400); |
-  | | (780, 180) 60; (180, 180) 60 | (220, 406)-(220, 560); (580, 394)-(580, 240) |
+  | hard | (760, 780) 80; (180, 780) 70; | (40, 400)-(340, 400); (460, 400)-(960, 400); |
+  | | (780, 180) 60; (180, 180) 60 | (270, 450)-(530, 450); (270, 350)-(530, 350); |
+  | | | (270, 406)-(270, 450); (530, 394)-(530, 350); |
+  | | | (220, 406)-(220, 560); (580, 394)-(580, 240) |
 
   At medium the gate's line is prolonged by breakwaters, so that it is passed nearly
   square; at hard they reach within 40 m of the field's edges, the gate the only way
-  through the middle, and islands lie 90 m off the mouth on either side.
+  through the middle, and the mouth lies in a walled pocket on either side, 50 m deep
+  and closed at one end (the northern one is entered from the east, the southern from
+  the west): the gate is reached by a channel and a quarter turn. At hard the episode
+  also closes after 1,000 control steps (10 minutes).
 
   ## Action space
   `Box(-15, 15, (1,), float64)`: the desired turning rate r in deg/s, held for one
@@ -110,7 +114,8 @@ class ShipHarbourEnv(ship_env.ShipSteeringEnv):
   Terminated at the gate (`info["event"] == "gate"`), off the field
   (`"out_of_bounds"`) or on touching an obstacle (`"obstacle"`: a segment of the track
   sampled every 0.2 s meets its shape; the ship is a point, as for the gate and the
-  bounds). Truncated after 5,000 control steps (`max_steps`).
+  bounds). Truncated after 5,000 control steps (`max_steps`), at hard after 1,000
+  whatever a larger `max_steps` asks.
 
   ## Information
   `reset()` returns `{"event": None}`; `step()` returns `event` and `positions`, the
@@ -148,7 +153,8 @@ class ShipHarbourEnv(ship_env.ShipSteeringEnv):
                out_of_bounds_reward=harbour_core.OUT_OF_BOUNDS_REWARD):
     self.level = level
     harbour_core.level_obstacles(level, "ShipHarbourEnv")
-    super().__init__("steer", backend, render_mode, strict, max_steps, width, height, camera,
+    super().__init__("steer", backend, render_mode, strict,
+                     harbour_core.episode_steps(level, max_steps), width, height, camera,
                      gate_reward, out_of_bounds_reward)
     self._name = f"ShipHarbour({level}, backend={backend})"
     self.observation_space, self.action_space = spaces_of(self.rules)
@@ -206,7 +212,8 @@ class ShipHarbourVectorEnv(vector.ShipSteeringVectorEnv):
     harbour_core.level_obstacles(level, "ShipHarbourVectorEnv")
     self._islands, self._piers = harbour_core.level_shapes(level)
     self._cells = harbour_core.level_cells(level)
-    super().__init__(num_envs, "steer", backend, strict, max_steps, gate_reward,
+    super().__init__(num_envs, "steer", backend, strict,
+                     harbour_core.episode_steps(level, max_steps), gate_reward,
                      out_of_bounds_reward, autoreset_mode, render_mode)
     self.who = f"ShipHarbourVectorEnv({level}, backend={backend})"
     self.single_observation_space, _ = spaces_of(self.rules)

@@ -239,14 +239,15 @@ class ShipHarbour(ship.ShipSteering):
   def __init__(self, level=harbour_core.DEFAULT_LEVEL, env_id=None):
     self.level = level
     self.obstacles = level_obstacles(level, env_id or "ShipHarbour")
+    self.time_limit = harbour_core.TIME_LIMITS[level]
     super().__init__("steer", env_id or f"ShipHarbour({level})")
     self._reset_where = environment.where_needed(self.reset_env)
 
   @property
   def default_params(self):
     islands, piers = self.obstacles
-    return HarbourParams(max_steps_in_episode=core.STEER_MAX_STEPS, islands=islands,
-                         piers=piers)
+    return HarbourParams(max_steps_in_episode=harbour_core.episode_steps(self.level),
+                         islands=islands, piers=piers)
 
   def observation_space(self, params=None):
     # `hpg_mj.envs.ship_harbour.spaces_of`: the ship's state, then the ranges.

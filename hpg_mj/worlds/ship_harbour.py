@@ -6,7 +6,9 @@ Tasks:
   easy:   two islands of radius 60 m, north and south-east of the gate.
   medium: breakwaters on the gate's line either side of it, and four islands.
   hard:   breakwaters across the field up to 40 m from its edges, the gate the only way
-          through the middle; six islands, two of them 90 m off the mouth, and two piers.
+          through the middle, its mouth in a walled pocket on either side (entered from
+          one end: a channel and a quarter turn); two piers, four islands; the episode
+          closes after 1,000 control steps.
 
 The ship, the field, the gate, the uniform starts (drawn again on an obstacle) and the
 bounds are `ship/steer`'s. -1 per control step, +100 at the gate; -100 for leaving the
@@ -141,8 +143,8 @@ class HarbourTask(ship.ShipTask):
     harbour_core.level_obstacles(level, "ship_harbour")
     self._ship = None
     super().__init__("steer", random=random, initial_state=initial_state, strict=strict,
-                     max_steps=max_steps, gate_reward=gate_reward,
-                     out_of_bounds_reward=out_of_bounds_reward)
+                     max_steps=harbour_core.episode_steps(level, max_steps),
+                     gate_reward=gate_reward, out_of_bounds_reward=out_of_bounds_reward)
     self.name = f"ship_harbour-{level}"
     self._ship = harbour_core.OneShip(level, self.rules.max_steps, gate_reward,
                                       out_of_bounds_reward)
@@ -216,4 +218,4 @@ easy = SUITE.add("benchmarking", "easy")(_constructor("easy", "two islands"))
 medium = SUITE.add("benchmarking", "medium")(_constructor(
     "medium", "breakwaters either side of the gate, four islands"))
 hard = SUITE.add("benchmarking", "hard")(_constructor(
-    "hard", "breakwaters across the field, six islands, two piers"))
+    "hard", "breakwaters across the field, the mouth in walled pockets, closing at 1,000 steps"))

@@ -59,20 +59,28 @@ LEVELS = {
     "medium": (((400.0, 570.0, 60.0), (400.0, 220.0, 60.0), (720.0, 680.0, 70.0),
                 (200.0, 780.0, 60.0)),
                ((180.0, 400.0, 340.0, 400.0, 6.0), (460.0, 400.0, 760.0, 400.0, 6.0))),
-    # An enclosed harbour: breakwaters across the field up to 40 m from either edge, the
-    # gate the only way through the middle; islands 90 m before the mouth either side
-    # (80 m channels between them and the breakwaters), piers reaching out from the
-    # breakwaters, and more islands beyond.
-    "hard": (((400.0, 540.0, 50.0), (400.0, 260.0, 50.0), (760.0, 780.0, 80.0),
-              (180.0, 780.0, 70.0), (780.0, 180.0, 60.0), (180.0, 180.0, 60.0)),
+    # An enclosed harbour whose mouth lies in a walled pocket on either side: breakwaters
+    # across the field up to 40 m from either edge, the gate the only way through the
+    # middle; 50 m before it on either side a wall 260 m long, the pocket between them
+    # closed at one end (the northern pocket is entered from the east, the southern from
+    # the west), so the mouth is reached only by a channel and a quarter turn; piers
+    # reaching out from the breakwaters, and four islands beyond. The episode also
+    # closes (`TIME_LIMITS`).
+    "hard": (((760.0, 780.0, 80.0), (180.0, 780.0, 70.0), (780.0, 180.0, 60.0),
+              (180.0, 180.0, 60.0)),
              ((40.0, 400.0, 340.0, 400.0, 6.0), (460.0, 400.0, 960.0, 400.0, 6.0),
+              (270.0, 450.0, 530.0, 450.0, 6.0), (270.0, 350.0, 530.0, 350.0, 6.0),
+              (270.0, 406.0, 270.0, 450.0, 6.0), (530.0, 394.0, 530.0, 350.0, 6.0),
               (220.0, 406.0, 220.0, 560.0, 6.0), (580.0, 394.0, 580.0, 240.0, 6.0))),
 }
 DEFAULT_LEVEL = "easy"
 # level -> the control steps after which the episode is truncated, or None: the
-# environment's `max_steps` alone (`episode_steps`). The obstacles make the harbour's
-# hard level hard without one.
-TIME_LIMITS = {"easy": None, "medium": None, "hard": None}
+# environment's `max_steps` alone (`episode_steps`). The hard level closes after 1,000
+# (10 minutes), as the current's and the regatta's: its pockets alone did not make it
+# hard (flat PGRL, memorizing the fixed map, found the mouth on tuning seeds 0-2 after
+# about 1,000 control steps and reached 69-76 normalized; the best known takes 284 at
+# the median and 523 at most).
+TIME_LIMITS = {"easy": None, "medium": None, "hard": 1000}
 
 OUT_OF_BOUNDS_REWARD = core.OUT_OF_BOUNDS_REWARD   # also for touching an obstacle
 GATE_REWARD = core.GATE_REWARD
@@ -95,8 +103,9 @@ def level_obstacles(level, who="ship harbour"):
 
 
 def episode_steps(level, max_steps=None):
-  """The control steps a harbour episode at `level` runs at most (`max_steps`, None:
-  `ship_core.STEER_MAX_STEPS`; `TIME_LIMITS` sets none)."""
+  """The control steps a harbour episode at `level` runs at most: `max_steps` (None:
+  `ship_core.STEER_MAX_STEPS`), or the level's time limit (`TIME_LIMITS`) where that is
+  shorter."""
   level_obstacles(level)              # a one-line error for an unknown level
   return core.limited_steps(TIME_LIMITS[level], max_steps)
 
@@ -551,11 +560,12 @@ START_SIZE = 4                # an episode's start: the ship's state
 
 def env_params(level, gate_reward=GATE_REWARD, out_of_bounds_reward=OUT_OF_BOUNDS_REWARD,
                max_steps=core.STEER_MAX_STEPS):
-  """The `EnvParams` of `level` with the environment's rewards and step limit."""
+  """The `EnvParams` of `level` with the environment's rewards and step limit (the level's
+  time limit where shorter: `episode_steps`)."""
   islands, piers = level_shapes(level)
   return EnvParams(islands, piers, level_cells(level),
                    np.array([gate_reward, out_of_bounds_reward], dtype=np.float64),
-                   np.int64(max_steps))
+                   np.int64(episode_steps(level, max_steps)))
 
 
 def env_state(params):

@@ -16,8 +16,9 @@ from hpg_mj.worlds import ship_harbour_core as harbour_core
 
 ID = "hpg_mj/ShipHarbour-v0"
 LEVELS = list(harbour_core.LEVELS)
-# 60 m south of the hard level's island (400, 540) r 50, heading north: aground at step 6.
-START = [400.0, 480.0, 0.0, 0.0]
+# In the hard level's northern pocket, 10 m south of its wall's face (y = 444) and heading
+# north: aground at step 6.
+START = [400.0, 434.0, 0.0, 0.0]
 
 
 @pytest.mark.parametrize("backend", ["mujoco", "analytic"])

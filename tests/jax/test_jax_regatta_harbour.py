@@ -197,16 +197,20 @@ def test_the_harbours_starts_are_off_the_obstacles_and_its_ranges_the_numbas(x64
 
 def test_the_harbour_refuses_a_start_on_an_obstacle_and_its_levels_are_parameters():
   env, params = hpg_jax.make("ShipHarbour-v0", level="hard")
-  with pytest.raises(ValueError, match=r"^hpg_mj/ShipHarbour-v0: start position \(400.0, "
-                                       r"540.0\) lies on an obstacle"):
-    env.reset_to(np.array([400.0, 540.0, 0.0, 0.0]), params)
+  with pytest.raises(ValueError, match=r"^hpg_mj/ShipHarbour-v0: start position \(760.0, "
+                                       r"780.0\) lies on an obstacle"):
+    env.reset_to(np.array([760.0, 780.0, 0.0, 0.0]), params)
   islands, piers = harbour_core.LEVELS["hard"]
   assert params.islands == islands and params.piers == piers
+  # Every level's parameters have the same shapes: the most islands and piers of any,
+  # the unused rows zero.
+  most_islands, most_piers = len(params.islands), len(params.piers)
   easy = hpg_jax.make("ShipHarbour-v0")[1]
-  assert easy.islands[:2] == harbour_core.LEVELS["easy"][0] and easy.piers == ((0.0,) * 5,) * 4
+  assert easy.islands[:2] == harbour_core.LEVELS["easy"][0]
+  assert easy.piers == ((0.0,) * 5,) * most_piers and len(easy.islands) == most_islands
   # A harbour of one's own: one island across the steering task's start, in parameters.
-  mine = params.replace(islands=((500.0, 500.0, 100.0),) + ((0.0,) * 3,) * 5,
-                        piers=((0.0,) * 5,) * 4)
+  mine = params.replace(islands=((500.0, 500.0, 100.0),) + ((0.0,) * 3,) * (most_islands - 1),
+                        piers=((0.0,) * 5,) * most_piers)
   obs, _ = env.reset_to(np.array([500.0, 300.0, 0.0, 0.0]), mine)
   assert math.isclose(float(obs[7]), 100.0, rel_tol=1e-5)     # the ray ahead meets it
   with pytest.raises(ValueError, match=r"^hpg_mj/ShipRegatta-v0: a course is 8 gates"):

@@ -90,15 +90,19 @@ def test_ranges_in_closed_form():
   islands, piers = harbour_core.level_shapes("hard")
   cells = harbour_core.level_cells("hard")
   out = np.empty(harbour_core.RAYS)
-  # 60 m south of the island (400, 540) r 50 heading north: 10 m ahead, the rays at
-  # 30 degrees meet it at 10.4 m... from sqrt(50^2 - (60 sin 30)^2) less 60 cos 30.
-  harbour_core.ranges_into(np.array([400.0, 480.0, 0.0, 0.0]), islands, piers, cells, out, 0)
-  slant = 60.0 * math.cos(math.radians(30.0)) - math.sqrt(50.0 ** 2 - 30.0 ** 2)
-  np.testing.assert_allclose(out, [150.0, 150.0, slant, 10.0, slant, 150.0, 150.0],
-                             rtol=1e-14)
-  # Heading east 50 m north of the breakwater's centre line: the starboard beam reads
-  # the distance to its face (50 - 6 m); the pier at x = 220 is behind.
-  harbour_core.ranges_into(np.array([250.0, 450.0, 90.0, 0.0]), islands, piers, cells, out, 0)
+  # In the hard level's northern pocket, heading north 10 m short of its wall's face
+  # (y = 444): ahead 10 m, the rays at 30 and 60 degrees 10 / cos 30 and 10 / cos 60;
+  # to port the wall that closes the pocket (its face at x = 276), to starboard the
+  # pocket's open end.
+  harbour_core.ranges_into(np.array([400.0, 434.0, 0.0, 0.0]), islands, piers, cells, out, 0)
+  slant = 10.0 / math.cos(math.radians(30.0))
+  np.testing.assert_allclose(out, [124.0, 20.0, slant, 10.0, slant, 20.0, 150.0],
+                             rtol=1e-12)
+  # Heading east 50 m north of the medium breakwater's centre line: the starboard beam
+  # reads the distance to its face (50 - 6 m).
+  medium = harbour_core.level_shapes("medium")
+  harbour_core.ranges_into(np.array([250.0, 450.0, 90.0, 0.0]), *medium,
+                           harbour_core.level_cells("medium"), out, 0)
   assert out[6] == 44.0 and out[0] == 150.0
   readings = np.array([-1.0, 3.5, 150.0, 151.0, 0.0, 20.0, -1.0])
   harbour_core.seen_ranges(readings, out, 0)
@@ -115,7 +119,7 @@ def test_touching_an_obstacle_ends_the_episode_with_the_out_of_bounds_penalty():
                                       *harbour_core.level_shapes("easy"), 0.0)
   # A pier's side and end: sailing along its face 0.5 m off, nothing; across it, aground.
   hard = harbour_core.level_shapes("hard")
-  assert not harbour_core.segment_touches(240.0, 406.5, 330.0, 406.5, *hard, 0.0)
+  assert not harbour_core.segment_touches(100.0, 406.5, 200.0, 406.5, *hard, 0.0)
   assert harbour_core.segment_touches(100.0, 406.5, 100.0, 405.5, *hard, 0.0)
   assert harbour_core.segment_touches(215.0, 562.0, 225.0, 558.0, *hard, 0.0)
   # The gate, the steering task's pass from 9.85 m at step 6; off the field as there.

@@ -48,9 +48,10 @@ def test_every_path_closes_at_the_levels_limit(task, level):
 
 
 def test_the_hard_levels_that_close():
-  # SPEC section 11: the regatta's and the current's hard levels close after 1,000
-  # control steps; no other level closes.
+  # SPEC section 11: the regatta's, the current's and the harbour's hard levels close
+  # after 1,000 control steps; no other level closes.
   closes = {(task, level): ship_ladder.episode_steps(task, level, 10_000)
             for task in ship_ladder.TASKS for level in ship_ladder.LEVELS}
   assert {key: value for key, value in closes.items() if value < 10_000} == {
-      ("ship_current", "hard"): 1000, ("ship_regatta", "hard"): 1000}
+      ("ship_current", "hard"): 1000, ("ship_regatta", "hard"): 1000,
+      ("ship_harbour", "hard"): 1000}
