@@ -118,7 +118,7 @@ class Trainer:
     action = jnp.where(explore, random, greedy)
     keys = jax.random.split(step_key, s.n_envs)
     obs, env_state, obs_end, reward, done, info = jax.vmap(
-        lambda k, st, a: ppo.step_env(self.env, self.params, k, st, a))(
+        lambda k, st, a: self.env.step_keeping_end(k, st, a, self.params))(
         keys, runner.env_state, action)
     reward = reward.astype(jnp.float32)
     ep_return = runner.ep_return + reward

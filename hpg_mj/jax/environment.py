@@ -108,12 +108,19 @@ class Environment:
     step's, and `info` its own (`terminated`, `truncated`, `discount`, ...)."""
     if params is None:
       params = self.default_params
+    obs, state, _, reward, done, info = self.step_keeping_end(key, state, action, params)
+    return obs, state, reward, done, info
+
+  def step_keeping_end(self, key, state, action, params):
+    """`step`'s work (not jitted: a learner's loop jits it), also returning the ended
+    step's own observation before the reset: `(obs, state, obs_end, reward, done,
+    info)`, for a learner's bootstrap of a time limit (`hpg_mj.jax.ppo`)."""
     key_step, key_reset = jax.random.split(key)
     obs_st, state_st, reward, done, info = self.step_env(key_step, state, action, params)
     obs_re, state_re = self.auto_reset(key_reset, params, done)
     state = jax.tree.map(lambda x, y: jax.lax.select(done, x, y), state_re, state_st)
     obs = jax.lax.select(done, obs_re, obs_st)
-    return obs, state, reward, done, info
+    return obs, state, obs_st, reward, done, info
 
   @functools.partial(jax.jit, static_argnames=("self",))
   def reset(self, key, params=None):

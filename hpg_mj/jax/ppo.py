@@ -339,7 +339,7 @@ class Trainer:
     v = value(runner.networks, x)
     keys = jax.random.split(step_key, s.n_envs)
     obs, env_state, obs_end, reward, done, info = jax.vmap(
-        lambda k, st, a: step_env(self.env, self.params, k, st, a))(
+        lambda k, st, a: self.env.step_keeping_end(k, st, a, self.params))(
         keys, runner.env_state, self.io.act(action))
     reward = reward.astype(jnp.float32)
     ep_return = runner.ep_return + reward
@@ -440,24 +440,6 @@ class Trainer:
 
 
 # ---- episodes from given starts, without learning ---------------------------------------
-
-def step_env(env, params, key, state, action):
-  """gymnax's `step` (the reset of an ended episode in the same call, from the second
-  half of the key), keeping the last observation (for a time limit's bootstrap). The
-  start comes from the world's `auto_reset` where it has one (`environment.Environment`:
-  the regatta's course, the goal's and the harbour's starts drawn off the obstacles
-  are computed only for the copies whose episode ended), else from `reset_env` for
-  every copy, as gymnax's `step`; the copies that ended get the same start either way."""
-  key_step, key_reset = jax.random.split(key)
-  obs_end, state_end, reward, done, info = env.step_env(key_step, state, action, params)
-  if hasattr(env, "auto_reset"):
-    obs_re, state_re = env.auto_reset(key_reset, params, done)
-  else:
-    obs_re, state_re = env.reset_env(key_reset, params)
-  state = jax.tree.map(lambda a, b: jnp.where(done, a, b), state_re, state_end)
-  obs = jnp.where(done, obs_re, obs_end)
-  return obs, state, obs_end, reward, done, info
-
 
 def sail(trainer, act, starts, key, start=None):
   """One episode from each start (its world state vector, as `reset_to` takes it;

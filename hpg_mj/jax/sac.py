@@ -262,7 +262,7 @@ class Trainer:
     uniform = jax.random.uniform(random_key, a.shape, jnp.float32, -1.0, 1.0)
     a = jnp.where(runner.stored < s.learning_starts, uniform, a)
     obs, env_state, obs_end, reward, done, info = jax.vmap(
-        lambda k, st, r: ppo.step_env(self.env, self.params, k, st, r))(
+        lambda k, st, r: self.env.step_keeping_end(k, st, r, self.params))(
         jax.random.split(step_key, s.n_envs), runner.env_state, io.act(a))  # r = 15 a deg/s
     reward = reward.astype(jnp.float32)
     ep_return = runner.ep_return + reward
