@@ -325,8 +325,11 @@ def judge_batch(states, samples, active, steps, desired, max_steps, gate_reward,
     a[2] = math.sin(theta)
     a[3] = math.cos(theta)
     # `step_outcome`, its branch written out: as one inlined call the batch ran 1.3-1.9x
-    # slower (interleaved, 1,024 ships).
-    if harbour_core.track_aground(samples[i], islands, piers, cells):
+    # slower (interleaved, 1,024 ships). The track is looked at only in a cell near an
+    # obstacle: taking every ship's row of `samples` (a view) cost 28 ns a ship, more than
+    # the rest of the judgement (23 ns).
+    if harbour_core.may_touch(cells, samples[i, 0, 0], samples[i, 0, 1]) and \
+        harbour_core.track_aground(samples[i], islands, piers, cells):
       event[i], reward[i] = AGROUND, core.STEP_REWARD + out_of_bounds_reward
     else:
       event[i], reward[i] = outcome_of(a, desired[i], gate_reward, out_of_bounds_reward,

@@ -109,6 +109,35 @@ def test_ranges_in_closed_form():
   np.testing.assert_array_equal(out, [150.0, 3.5, 150.0, 150.0, 0.0, 20.0, 150.0])
 
 
+@pytest.mark.parametrize("level", LEVELS)
+def test_the_rays_skip_no_obstacle_they_could_see(level):
+  # Poses all over the field and close along the obstacles (where an obstacle lies just
+  # behind the ship or just off a ray's line): `ranges_into`, which skips the obstacles
+  # behind the ship and, for each ray, the rectangles wholly to one side of its line,
+  # reads what casting every ray at every obstacle (`ray_distance`) reads.
+  islands, piers = harbour_core.level_shapes(level)
+  cells = harbour_core.level_cells(level)
+  rng = np.random.default_rng(3)
+  corners = [(p[0] + sx * p[4] * p[2] + sy * p[5] * p[3],
+              p[1] + sx * p[4] * p[3] - sy * p[5] * p[2])
+             for p in piers for sx in (-1, 1) for sy in (-1, 1)]
+  near = [(c[0] + rng.normal(0, 8), c[1] + rng.normal(0, 8))
+          for c in corners + [tuple(i[:2] + i[2] * np.array([1.0, 0.0])) for i in islands]
+          for _ in range(40)]
+  poses = list(zip(rng.uniform(0, 1000, 2000), rng.uniform(0, 1000, 2000))) + near
+  out, seen = np.empty(harbour_core.RAYS), 0
+  for (x, y), theta in zip(poses, rng.uniform(-180, 180, len(poses))):
+    harbour_core.ranges_into(np.array([x, y, theta, 0.0]), islands, piers, cells, out, 0)
+    rad = math.radians(theta)
+    every = [harbour_core.ray_distance(
+        x, y, math.sin(rad) * math.cos(math.radians(b)) + math.cos(rad) * math.sin(math.radians(b)),
+        math.cos(rad) * math.cos(math.radians(b)) - math.sin(rad) * math.sin(math.radians(b)),
+        islands, piers, harbour_core.MAX_RANGE_M) for b in harbour_core.BEARINGS_DEG]
+    np.testing.assert_allclose(out, every, atol=1e-9, rtol=0)
+    seen += (out < harbour_core.MAX_RANGE_M).sum()
+  assert seen > 1000
+
+
 def test_touching_an_obstacle_ends_the_episode_with_the_out_of_bounds_penalty():
   # Heading north 12 m short of the easy island (400, 620) r 60 (its edge at y = 560):
   # the track meets it in the seventh step (12 / 1.8 = 6.7); its boundary counts.
