@@ -531,7 +531,8 @@ def check_start(rules, state, islands, piers, who):
   state = rules.check_state(state, who)
   if inside(state[0], state[1], islands, piers):
     raise ValueError(f"{who}: start position ({float(state[0])!r}, {float(state[1])!r}) lies on an "
-                     "obstacle; allowed: any position on the field off the level's obstacles")
+                     "obstacle; allowed: any position on the field off the harbour's islands "
+                     "and piers")
   return state
 
 

@@ -187,7 +187,7 @@ def test_bad_levels_and_starts_are_one_line_errors():
   rules = ship_task.ShipRules("steer")
   with pytest.raises(ValueError, match=r"^h: start position \(400.0, 620.0\) lies on an "
                                        r"obstacle; allowed: any position on the field off "
-                                       r"the level's obstacles$"):
+                                       r"the harbour's islands and piers$"):
     harbour_core.check_start(rules, [400.0, 620.0, 0.0, 0.0],
                              *harbour_core.level_shapes("easy"), "h")
 
