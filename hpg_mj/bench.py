@@ -109,6 +109,20 @@ def _bench_vector_env(env, actions, min_seconds, chunk=200):
   return _timed(run, min_seconds)
 
 
+# The ladder's rows of `bench_envs` and the steering task's row each is held against
+# (SPEC section 11: each task's analytic batch and MuJoCo backend at least half the
+# steering task's).
+_LADDER_DOMAINS = ("ship_current", "ship_goal", "ship_regatta", "ship_harbour")
+_LADDER_IDS = ("ShipCurrent", "ShipGoal", "ShipRegatta", "ShipHarbour")
+_AGAINST_STEERING = {
+    **{f"dm_control {d} hard (MuJoCo)": "dm_control ship steer (MuJoCo)" for d in _LADDER_DOMAINS},
+    **{f"Gymnasium {n}-v0 hard analytic, make_vec batch of 1024":
+       "Gymnasium ShipSteering-v0 analytic, make_vec batch of 1024" for n in _LADDER_IDS},
+    **{f"Gymnasium {n}-v0 hard mujoco, make_vec batch of 16 (loop)":
+       "Gymnasium ShipSteering-v0 mujoco, make_vec batch of 16 (loop)" for n in _LADDER_IDS},
+}
+
+
 def bench_envs(min_seconds=1.0):
   """Rows of (name, unit, steps per second)."""
   import gymnasium
@@ -126,7 +140,7 @@ def bench_envs(min_seconds=1.0):
   rows.append(("dm_control ship steer (MuJoCo)", "control steps/s",
                _bench_dm_env(suite.load("ship", "steer", {"random": 0}), np.array([5.0]),
                              min_seconds)))
-  for domain in ("ship_current", "ship_goal", "ship_regatta", "ship_harbour"):
+  for domain in _LADDER_DOMAINS:
     rows.append((f"dm_control {domain} hard (MuJoCo)", "control steps/s",
                  _bench_dm_env(suite.load(domain, "hard", {"random": 0}), np.array([5.0]),
                                min_seconds)))
@@ -140,7 +154,7 @@ def bench_envs(min_seconds=1.0):
   env = gymnasium.make_vec("hpg_mj/ShipSteering-v0", 1024, backend="analytic")
   rows.append(("Gymnasium ShipSteering-v0 analytic, make_vec batch of 1024", "control steps/s",
                _bench_vector_env(env, rng.uniform(-15, 15, (97, 1024, 1)), min_seconds)))
-  for name in ("ShipCurrent", "ShipGoal", "ShipRegatta", "ShipHarbour"):   # the ladder's, hardest
+  for name in _LADDER_IDS:   # the ladder's, hardest
     env = gymnasium.make_vec(f"hpg_mj/{name}-v0", 1024, level="hard", backend="analytic")
     rows.append((f"Gymnasium {name}-v0 hard analytic, make_vec batch of 1024",
                  "control steps/s",
@@ -149,7 +163,7 @@ def bench_envs(min_seconds=1.0):
   rows.append(("Gymnasium ShipSteering-v0 mujoco, make_vec batch of 16 (loop)",
                "control steps/s",
                _bench_vector_env(env, rng.uniform(-15, 15, (97, 16, 1)), min_seconds, 20)))
-  for name in ("ShipCurrent", "ShipGoal", "ShipRegatta", "ShipHarbour"):
+  for name in _LADDER_IDS:
     env = gymnasium.make_vec(f"hpg_mj/{name}-v0", 16, level="hard", backend="mujoco")
     rows.append((f"Gymnasium {name}-v0 hard mujoco, make_vec batch of 16 (loop)",
                  "control steps/s",
@@ -179,11 +193,17 @@ def bench_envs(min_seconds=1.0):
 
 def format_rows(rows):
   """The table `hpg-mj bench envs` prints: one line per (name, unit, steps per
-  second) row."""
+  second) row; a ladder task's row also gives its speed over the steering task's
+  same row (`_AGAINST_STEERING`), when both were measured."""
   width = max(len(name) for name, _, _ in rows)
+  rates = {name: rate for name, _, rate in rows}
   lines = [f"{'':<{width}}  {'steps per second':>18}  unit"]
   for name, unit, rate in rows:
-    lines.append(f"{name:<{width}}  {rate:>18,.0f}  {unit}")
+    line = f"{name:<{width}}  {rate:>18,.0f}  {unit}"
+    against = _AGAINST_STEERING.get(name)
+    if against in rates and rates[against]:
+      line += f" (x{rate / rates[against]:.2f} the steering task's)"
+    lines.append(line)
   return "\n".join(lines)
 
 
