@@ -154,6 +154,12 @@ class LadderMachineAgent(base.MachineAgent, _ship.ShipAgent):
 
   end_field, illegal_field = "passed", "gates"
 
+  @property
+  def required_fields(self):
+    """The record fields its metrics read: the regatta's gates too (`regatta_metrics`)."""
+    gate = ("passed", "steps", "return")
+    return gate + ("gates",) if self.config.environment.world == "ship_regatta" else gate
+
   def __init__(self, config=None, seed=0, task=None):
     super().__init__(config, seed, task)
     self.world = world_of(self.config.environment)

@@ -153,6 +153,8 @@ class ShipMachineAgent(base.MachineAgent, ShipAgent):
   """A ship agent whose `graph()` is made of blocks (`base.MachineAgent`), fused with
   the analytic ship."""
 
+  required_fields = ("passed", "steps", "return")
+
   def compiled(self, episodes, learn, sample, start=None):
     env = self.config.environment
     self.machine.start_schedule(self.episodes)
@@ -186,6 +188,7 @@ class ContinuingShipAgent(ShipMachineAgent):
   ContinuingEnvironment`; its record the fields steps, gates, departures, return."""
 
   end_field, illegal_field = "gates", "departures"    # a continuing row's (algorithm.run_continuing)
+  required_fields = ("steps", "gates", "departures", "return")
   record_steps = core.HOUR_STEPS       # one record row per hour
 
   def __init__(self, config=None, seed=0, task=None):

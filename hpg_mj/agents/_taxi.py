@@ -122,6 +122,7 @@ class TaxiMachineAgent(base.MachineAgent, TaxiAgent):
   the taxi's rules; its record's first field is the outcome."""
 
   end_field = "outcome"
+  required_fields = ("return", "steps", "outcome")
 
   @property
   def machine_world(self):

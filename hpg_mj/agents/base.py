@@ -86,6 +86,7 @@ class Agent:
   name = None
   Config = None
   record_fields = ()
+  required_fields = ()            # the record fields its metrics read
   figure = None
   tags = ()
   record_steps = None                # control steps per record row of a continuing agent
@@ -299,6 +300,7 @@ class MachineAgent(Agent):
   machine_world = None               # the program's `world` (the taxi's), if any
   fused_world = None                 # a world the program is fused with (a ladder task's)
   root_args = None
+  own_fields = ()                    # record fields the agent fills itself (a patrol's gain)
   obs_size = 4                       # the observation's length (the taxi's: 5, or 4 classic)
 
   @property
@@ -306,10 +308,30 @@ class MachineAgent(Agent):
     """The program of `graph()` (built when first needed, so that a subclass's graph
     is the one it runs)."""
     if self._machine is None:
-      self._machine = program_mod.Program(self.graph(), root_args=self.root_args,
-                                          obs_size=self.obs_size, world=self.machine_world,
-                                          fused=self.fused_world)
+      machine = program_mod.Program(self.graph(), root_args=self.root_args,
+                                    obs_size=self.obs_size, world=self.machine_world,
+                                    fused=self.fused_world)
+      self._check_record_fields(machine)
+      self._machine = machine
     return self._machine
+
+  def _check_record_fields(self, machine):
+    """Refuses, in one line, a record field the machine does not fill (a misspelt one
+    would stay a column of zeros) and a missing one its task's metrics read."""
+    fields = self.record_fields
+    allowed = [self.end_field, "steps", "return", self.illegal_field, "calls",
+               *self.own_fields]
+    for name in machine.names[:-1]:
+      allowed += [f"{name}_runs", f"{name}_successes"]
+    who = f"{type(self).__name__}.record_fields"
+    unknown = [f for f in fields if f not in allowed]
+    if unknown:
+      raise ValueError(f"{who}: {unknown[0]!r} is no field the machine records; allowed: "
+                       f"{list(dict.fromkeys(allowed))}")
+    missing = [f for f in self.required_fields if f not in fields]
+    if missing:
+      raise ValueError(f"{who} lacks {missing}: the task's metrics read "
+                       f"{list(self.required_fields)}")
 
   def graph(self):
     raise NotImplementedError(f"{type(self).__name__}.graph(): a hierarchy gives its "

@@ -102,6 +102,7 @@ class ShipPatrol(_ship.ContinuingShipAgent):
   record_fields = ("steps", "gates", "departures", "calls", "diagonal_runs",
                    "diagonal_successes", "straight_runs", "straight_successes", "return",
                    "gain")
+  own_fields = ("gain",)               # `finish_row`'s
   figure = "gates_per_hour"
   metric_window = 125                  # online metrics: the last 125 hours (beyond's block)
 

@@ -42,11 +42,12 @@ def binding(name, ref):
 
 
 def _label(parent, k, ref):
-  """How a message names one call: `root's child 0 (bind=GatePoint)`."""
+  """How a message names one call: `root's child 0 (x=300.0, yy=700.0)`, `root's
+  child 1 (bind=GatePoint)`."""
   if ref is None:
     return "the root call"
   how = f"bind={type(ref.bind).__name__}" if ref.bind is not None else \
-      ", ".join(f"{a}=" for a in ref.args) or "no arguments"
+      ", ".join(f"{a}={v!r}" for a, v in ref.args.items()) or "no arguments"
   return f"{parent}'s child {k} ({how})"
 
 

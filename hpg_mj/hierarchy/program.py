@@ -180,7 +180,7 @@ class Program:
                          "gives none")
     size = self._given(s.view.size, name, node.view, node.view)
     s.learner.check(name, node.learner, s.n_children, size)
-    s.size = s.learner.size(node.learner)
+    s.size = kinds_mod.base.checked_size(name, node.learner, s.learner.size(node.learner))
 
   # -- the text of the graph's operations --
 

@@ -107,3 +107,27 @@ def test_made_and_saved_in_python_without_a_task_file_it_loads_in_another_proces
   assert done.returncode != 0
   assert "saved from a class defined in a script (__main__), which another process cannot " \
          "import: put the class in a module" in done.stderr.strip().splitlines()[-1]
+
+
+def test_record_fields_the_machine_does_not_fill_or_the_metrics_need_are_one_line(tmp_path):
+  """A misspelt record field would stay a column of zeros, a missing `passed` would fail
+  only at the metrics, after training: both are refused when the graph is built, from
+  the command line in one line naming the class, the field and what is allowed."""
+  _module(tmp_path)
+  text = (tmp_path / "my_hierarchy.py").read_text()
+  for name, fields, expected in (
+      ("Misspelt", '("passed", "steps", "return", "goto_succeses")',
+       r"Misspelt.record_fields: 'goto_succeses' is no field the machine records; allowed: "
+       r"\['passed', 'steps', 'return', 'illegal', 'calls', 'goto_runs', 'goto_successes', "
+       r"'turn_runs', 'turn_successes'\]$"),
+      ("NoPassed", '("steps", "return", "goto_runs")',
+       r"NoPassed.record_fields lacks \['passed'\]: the task's metrics read "
+       r"\['passed', 'steps', 'return'\]$")):
+    text += f"\n\nclass {name}(Waypoints):\n  record_fields = {fields}\n"
+    (tmp_path / f"{name}.toml").write_text(TASK.replace("my_hierarchy:Waypoints",
+                                                        f"my_hierarchy:{name}"))
+    (tmp_path / "my_hierarchy.py").write_text(text)
+    done = _run(tmp_path, "train", f"{name}.toml", "--episodes", 5, "--out", name)
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert re.search(expected, done.stderr.strip()), done.stderr
+    assert not (tmp_path / name).exists()

@@ -267,6 +267,13 @@ def test_a_learner_kind_of_the_users_own():
   # the children in turn: 0, 1, 2, 0, ...
   assert state["root.visits"].sum() == _counter(program, rows, "goto", 0).sum()
   assert state["root.returns"][0] == rows[:, algorithm.ROW_RETURN].sum()
+  # Its size, from the user's block as given (a float here), is checked before any
+  # array is made of it: one line naming the node, what it gave and what is allowed.
+  graph.nodes["root"].learner = RoundRobin(400.0)
+  with pytest.raises(GraphError, match=r"^subtask 'root': the kind of its RoundRobin gave "
+                                       r"size 400.0; a learner kind's size\(block\) is an "
+                                       r"integer >= 1 "):
+    Program(graph)
 
 
 # ---- the boundary: each wrong thing a rule gives --------------------------------
@@ -595,11 +602,12 @@ class _Unregistered:
         learner=blocks.GaussianCMAC(CODER)), Subtask(
         "root", children=[Child("goto", x=1.0, y=2.0, limit=80), Child("goto", x=1.0, limit=80)],
         termination=blocks.Never(), view=Abstraction(cell), learner=blocks.QTable(400))]),
-     "subtask 'goto': its calls bind different arguments: root's child 0 (x=, y=, limit=) "
-     "binds ['limit', 'x', 'y']; root's child 1 (x=, limit=) binds ['limit', 'x']; every "
+     "subtask 'goto': its calls bind different arguments: root's child 0 (x=1.0, y=2.0, "
+     "limit=80) binds ['limit', 'x', 'y']; root's child 1 (x=1.0, limit=80) binds ['limit', "
+     "'x']; every "
      "call of a subtask binds the same names"),
     (lambda: _bound_graph(Point(1.0), extra=Child("goto", x=1.0, y=2.0)),
-     "subtask 'goto': its calls bind different arguments: root's child 2 (x=, y=) binds "
+     "subtask 'goto': its calls bind different arguments: root's child 2 (x=1.0, y=2.0) binds "
      "['x', 'y']; its other 2 calls bind ['limit', 'x', 'y']; every call of a subtask binds "
      "the same names"),
     (lambda: TaskGraph("root", [Primitive("turn"), Subtask(

@@ -99,6 +99,13 @@ def test_cmac_activates_nine_tiles_wraps_and_shares():
   np.testing.assert_array_equal(coder.active([-5.0, 40, 10, 0]), coder.active([0.0, 40, 10, 0]))
   with pytest.raises(ValueError, match="high > low"):
     tiles.TileCoder((0.0,), (0.0,), (5,), (False,))
+  # A float count of tiles (even 12.0) or tilings is refused, not truncated.
+  with pytest.raises(ValueError, match=r"^tile coder: n_tiles must be integers >= 1, got "
+                                       r"\(12.0, 6\)$"):
+    tiles.TileCoder((0.0, 0.0), (1.0, 1.0), (12.0, 6), (False, False))
+  with pytest.raises(ValueError, match=r"^tile coder: n_tilings must be an integer >= 1, "
+                                       r"got 9.0$"):
+    tiles.TileCoder((0.0,), (1.0,), (5,), (False,), n_tilings=9.0)
 
 
 def test_cmac_baseline_hand_worked():

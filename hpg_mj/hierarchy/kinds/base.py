@@ -238,3 +238,13 @@ def check_positive_int(block, field, value, low=1):
   if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
     raise GraphError(f"{type(block).__name__}.{field} = {value!r}: must be an integer >= {low}")
   return int(value)
+
+
+def checked_size(name, block, size):
+  """What a learner kind's `size(block)` gave at subtask `name`, refused in one line
+  unless an integer >= 1 (a user's kind may pass on its block's float)."""
+  if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
+    raise GraphError(f"subtask {name!r}: the kind of its {type(block).__name__} gave size "
+                     f"{size!r}; a learner kind's size(block) is an integer >= 1 (the states "
+                     "its view gives, or the numbers its coder tiles)")
+  return int(size)
