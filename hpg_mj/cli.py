@@ -205,29 +205,43 @@ def _print_metrics(metrics, as_json):
 
 
 def _cmd_train(args):
+  import os
   import pathlib
+  import shutil
   import time
+
+  import numpy as np
 
   from hpg_mj import agents
   from hpg_mj import storage
   from hpg_mj.agents import window
   from hpg_mj.experiments import bounds
-  task = agents.load_task(args.task_file, args.set)
-  seed = task.protocol.seed if args.seed is None else args.seed
-  episodes = task.protocol.episodes if args.episodes is None else args.episodes
-  out = pathlib.Path(args.out) if args.out else pathlib.Path("runs") / f"{task.path.stem}-seed{seed}"
-  storage.check_out(out, args.force)      # refused before training, not after
+  if args.resume is not None:
+    agent, earlier, out = _resumed(args)
+    task, seed, episodes = agent.task, agent.seed, args.episodes
+  elif args.task_file is None:
+    raise ValueError("give a task file (or a shipped one's name), or --resume AGENT_DIR "
+                     "--episodes N to train a saved agent further")
+  else:
+    task = agents.load_task(args.task_file, args.set)
+    seed = task.protocol.seed if args.seed is None else args.seed
+    episodes = task.protocol.episodes if args.episodes is None else args.episodes
+    out = pathlib.Path(args.out) if args.out else \
+        pathlib.Path("runs") / f"{task.path.stem}-seed{seed}"
+    storage.check_out(out, args.force)      # refused before training, not after
+    agent, earlier = agents.build(task, seed), None
   # Named as the task names itself, as given: its [task] label, else its file's name.
   bar, update, compiling = _progress_bar(episodes, args.quiet or args.json, task.name)
   compile_seconds = []
   try:
     with compiling, _compile_timer(compile_seconds.append):
       start = time.perf_counter()
-      agent, record, _ = agents.train(task, episodes=episodes, seed=seed,
-                                      backend=args.backend, progress=update)
+      record, _ = agents.train_further(agent, episodes, args.backend, update)
       wall = time.perf_counter() - start
   finally:
     bar.close()
+  if earlier is not None:              # the saved record, then these episodes'
+    record = np.concatenate([earlier, record])
   compiled = sum(compile_seconds, 0.0)
   metrics = agent.metrics(record)
   metrics.update(window.described(agent, len(record)))   # the rows the metrics are over
@@ -235,16 +249,44 @@ def _cmd_train(args):
   metrics.update(agent.final_metrics(record))    # e.g. a continuing agent's comparisons
   if isinstance(metrics.get("greedy"), dict):    # a greedy measure: normalized too (7.1)
     metrics["greedy"].update(bounds.normalized(bounds.task_name(agent), metrics["greedy"]))
-  metrics.update({"task": str(task.path), "seed": seed, "episodes": episodes,
+  metrics.update({"task": str(task.path), "seed": seed, "episodes": len(record),
                   "backend": args.backend or agent.backend,
                   # wall = compile + train: numba's compiling (0 once cached) apart, so
                   # that a speed is computed from train_seconds
                   "wall_seconds": round(wall, 3), "compile_seconds": round(compiled, 3),
                   "train_seconds": round(wall - compiled, 3)})
-  agents.save(agent, out, record, {"metrics": metrics})
+  if earlier is None:
+    agents.save(agent, out, record, {"metrics": metrics})
+  else:                                # the folder replaced only once the new one is whole
+    fresh = out.with_name(f"{out.name}.resumed-{os.getpid()}")
+    agents.save(agent, fresh, record, {"metrics": metrics})
+    old = out.with_name(f"{out.name}.before-{os.getpid()}")
+    os.replace(out, old)
+    os.replace(fresh, out)
+    shutil.rmtree(old)
   metrics["agent_dir"] = str(out)
   _print_metrics(metrics, args.json)
   return 0
+
+
+def _resumed(args):
+  """(the agent saved in --resume's folder, its record, the folder) for `hpg-mj train
+  --resume`: refuses what the saved agent already fixes (its task file, seed, folder)."""
+  import pathlib
+
+  from hpg_mj import agents
+  for given, value in (("task file", args.task_file), ("--set", args.set or None),
+                       ("--seed", args.seed), ("--out", args.out),
+                       ("--force", args.force or None)):
+    if value is not None:
+      raise ValueError(f"--resume takes no {given}: the saved agent goes on with its own task "
+                       "file and generator, into its own folder")
+  if args.episodes is None:
+    raise ValueError("--resume: give --episodes N, the episodes to train further")
+  agent, record, _ = agents.load(args.resume)
+  if record is None:
+    raise ValueError(f"--resume {args.resume}: the folder holds no training record")
+  return agent, record, pathlib.Path(args.resume)
 
 
 def _cmd_evaluate(args):
@@ -479,10 +521,14 @@ def build_parser():
   p.set_defaults(func=_cmd_render)
 
   p = sub.add_parser("train", help="train the agent of a task file and save it")
-  p.add_argument("task_file", help="a task file, or the name of a shipped one (ship_hybrid, ...)")
+  p.add_argument("task_file", nargs="?", default=None,
+                 help="a task file, or the name of a shipped one (ship_hybrid, ...)")
   p.add_argument("--episodes", type=_at_least(1), default=None,
                  help="override [protocol] episodes (a continuing agent's: record rows, "
-                 "hours for ship_patrol)")
+                 "hours for ship_patrol); with --resume, the episodes to train further")
+  p.add_argument("--resume", default=None, metavar="AGENT_DIR",
+                 help="train the agent saved in AGENT_DIR further (--episodes more), as a run "
+                 "never stopped would, and save it there with its whole record")
   p.add_argument("--seed", type=_seed, default=None, help="override [protocol] seed")
   p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                  help="set a key of the task file, e.g. environment.level=hard (repeatable; "

@@ -178,7 +178,7 @@ def test_render_checks_its_output_path_before_drawing(tmp_path, capsys):
 
 def test_options_are_refused_in_one_line(tmp_path, capsys):
   refused(capsys, ["train", TASK, "--episodes", "0"], "--episodes", ">= 1", "--help")
-  refused(capsys, ["train"], "task_file")
+  refused(capsys, ["train"], "give a task file")
   refused(capsys, ["bench", "envs", "--seconds", "nan"], "--seconds", "seconds > 0")
   refused(capsys, ["tune", TASK, "--seeds", "a,b"], "--seeds", "integers")
   refused(capsys, ["tune", TASK, "--json", tmp_path], "--json", "is a folder")

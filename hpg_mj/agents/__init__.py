@@ -338,6 +338,13 @@ def train(task, episodes=None, seed=None, backend=None, progress=None):
   """
   agent = build(task, seed)
   episodes = task.protocol.episodes if episodes is None else episodes
+  return (agent,) + train_further(agent, episodes, backend, progress)
+
+
+def train_further(agent, episodes, backend=None, progress=None):
+  """Trains `agent` (a fresh one, or one loaded from its folder: it goes on from its
+  generator and learners as a run never stopped would) `episodes` more; returns (the
+  record of these episodes, wall seconds). `progress` as `train`'s."""
   if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
     raise ValueError(f"episodes must be a positive integer, got {episodes!r}")
   records = []
@@ -346,7 +353,7 @@ def train(task, episodes=None, seed=None, backend=None, progress=None):
     records.append(record)
     if progress is not None:
       progress(done, episodes, agent.progress(record))
-  return agent, np.concatenate(records), time.perf_counter() - start
+  return np.concatenate(records), time.perf_counter() - start
 
 
 # ---- saving and loading --------------------------------------------------------------

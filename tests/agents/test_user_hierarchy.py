@@ -77,6 +77,31 @@ def test_a_run_stopped_and_resumed_gives_the_numbers_of_one_never_stopped(tmp_pa
     np.testing.assert_array_equal(whole[name], cut[name], err_msg=name)
 
 
+def test_a_trained_folder_trained_further_is_the_run_never_stopped(tmp_path):
+  """`hpg-mj train --resume DIR --episodes N` goes on from the saved generator and
+  learners: 200 + 100 episodes save the arrays and record of 300 at once, bit for bit;
+  what the saved agent fixes (its task file, seed, folder) is refused in one line."""
+  _module(tmp_path)
+  for args in (("t.toml", "--episodes", 200, "--out", "a"), ("--resume", "a", "--episodes", 100),
+               ("t.toml", "--episodes", 300, "--out", "b")):
+    done = _run(tmp_path, "train", *args, "--json")
+    assert done.returncode == 0, done.stderr
+  assert json.loads(done.stdout)["episodes"] == 300
+  (meta_a, a), (_, b) = storage.load(tmp_path / "a"), storage.load(tmp_path / "b")
+  assert sorted(a) == sorted(b) and len(a["record"]) == 300 and meta_a["episodes"] == 300
+  for name in a:
+    np.testing.assert_array_equal(a[name], b[name], err_msg=name)
+  assert not [p for p in os.listdir(tmp_path) if ".resumed-" in p or ".before-" in p]
+  for args, said in ((("--resume", "a"), "--resume: give --episodes N, the episodes to train "
+                      "further"),
+                     (("t.toml", "--resume", "a", "--episodes", 5), "--resume takes no task "
+                      "file: the saved agent goes on with its own task file and generator, "
+                      "into its own folder")):
+    done = _run(tmp_path, "train", *args)
+    assert done.returncode == 2 and done.stderr.strip().splitlines() == [
+        f"hpg-mj train: error: {said}"], done.stderr
+
+
 def test_made_and_saved_in_python_without_a_task_file_it_loads_in_another_process(tmp_path):
   """The README's own lines (`Waypoints(seed=0)`, no task file), then `agents.save`:
   the saved folder records a task file that rebuilds its configuration, so another
