@@ -393,6 +393,7 @@ def save(agent, directory, record, extra=None, compress=True):
   meta = {"task_file": str(agent.task.path) if agent.task else None,
           "task_text": text, "seed": agent.seed, "episodes": agent.episodes,
           "agent_class": class_path(type(agent)),      # found by `load` in a new process
+          "agent_file": getattr(sys.modules.get(type(agent).__module__), "__file__", None),
           "provenance": provenance.collect(text, agent.seed)}
   meta.update(extra or {})
   arrays = dict(agent.state())
@@ -418,7 +419,14 @@ def load(directory):
   if not isinstance(kind, str) or script or (kind not in names() and ":" not in kind):
     _find_saved_class(kind, meta.get("agent_class"), directory)
   path = pathlib.Path(meta.get("task_file") or "task.toml")
-  task = taskfile.loads(meta.get("task_text") or "", path, _Registry)
+  try:
+    task = taskfile.loads(meta.get("task_text") or "", path, _Registry)
+  except taskfile.TaskFileError as err:
+    where = meta.get("agent_file")
+    if not where or "no module" not in str(err):
+      raise
+    raise taskfile.TaskFileError(f"{err} (its class was saved from {where}: run from that "
+                                 "folder, or put it on PYTHONPATH)") from None
   agent = build(task, meta.get("seed", 0))
   record = arrays.pop("record", None)
   agent.restore(arrays, directory)

@@ -102,6 +102,17 @@ def test_a_trained_folder_trained_further_is_the_run_never_stopped(tmp_path):
         f"hpg-mj train: error: {said}"], done.stderr
 
 
+def test_evaluated_from_another_folder_it_says_where_its_class_was(tmp_path):
+  _module(tmp_path)
+  assert _run(tmp_path, "train", "t.toml", "--episodes", 5, "--out", "a").returncode == 0
+  (tmp_path / "elsewhere").mkdir()
+  done = _run(tmp_path / "elsewhere", "evaluate", tmp_path / "a", "--episodes", 2)
+  assert done.returncode == 2 and done.stderr.strip().splitlines()[-1] == (
+      "hpg-mj evaluate: error: t.toml: [task] kind = 'my_hierarchy:Waypoints': no module "
+      "'my_hierarchy' in the current folder or on sys.path (its class was saved from "
+      f"{tmp_path / 'my_hierarchy.py'}: run from that folder, or put it on PYTHONPATH)")
+
+
 def test_made_and_saved_in_python_without_a_task_file_it_loads_in_another_process(tmp_path):
   """The README's own lines (`Waypoints(seed=0)`, no task file), then `agents.save`:
   the saved folder records a task file that rebuilds its configuration, so another

@@ -28,7 +28,9 @@ arrays shared by the nodes that share the block, `N` the node's own scratch):
   float64 vector (`reads = "features"`; the learner tiles it itself); in `observe`
   it is the view of s' (when s' is `terminal`, the view of the state the choice was
   made in: nothing bootstraps from a terminal state). `n` the node's children,
-  `rng` the run's generator (`learners.rng`: draw only from it), `signal` R + G.
+  `rng` the run's generator state (`learners.rng`: draw only from it; a module that
+  imports `learners.rng` as `rng` names it `rng_state`, as the tutorial does), `signal`
+  R + G.
 * a **view** gives the node's learner its state: `view(P, obs, call, samples)` (or,
   for a user's rule, `rule(obs, call)`) -> an integer state, or a tuple of numbers; a
   features kind with `writes` writes its numbers instead: `view(P, obs, call,
