@@ -135,7 +135,9 @@ class ShipCurrentEnv(ship_env.ShipSteeringEnv):
   Control*, MIT Press, 1990.
 
   ## Version history
-  - v0: initial release.
+  - v0: the first release (not yet tagged: until then a v0 task may still change;
+    each change is dated in docs/changelog.md, and scores made before it are not
+    comparable with later ones).
   """
 
   def __init__(self, level=current_core.DEFAULT_LEVEL, backend="mujoco", render_mode=None,

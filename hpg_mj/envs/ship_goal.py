@@ -178,7 +178,11 @@ class ShipGoalEnv(ship_env.ShipSteeringEnv):
   Advances in Neural Information Processing Systems 30 (NIPS), 2017.
 
   ## Version history
-  - v0: initial release.
+  - v0: the first release (not yet tagged: until then a v0 task may still change;
+    each change is dated in docs/changelog.md, and scores made before it are not
+    comparable with later ones).
+  - v0, 2026-12-06: `hard`'s gate is drawn among the harbour's medium obstacles;
+    the observation gains `ranges` at every level.
   """
 
   def __init__(self, level=goal_core.DEFAULT_LEVEL, backend="mujoco", render_mode=None,

@@ -142,7 +142,11 @@ class ShipHarbourEnv(ship_env.ShipSteeringEnv):
   [2] hpg_mj's specification, docs/SPEC.md section 11: this task's levels and numbers.
 
   ## Version history
-  - v0: initial release.
+  - v0: the first release (not yet tagged: until then a v0 task may still change;
+    each change is dated in docs/changelog.md, and scores made before it are not
+    comparable with later ones).
+  - v0, 2026-12-06: `hard`'s mouth lies in a walled pocket on either side, and the
+    level closes after 1,000 control steps.
   """
 
   model_file = "ship_harbour.xml"

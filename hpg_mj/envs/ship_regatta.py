@@ -145,7 +145,9 @@ class ShipRegattaEnv(ship_env.ShipSteeringEnv):
   [3] hpg_mj's specification, docs/SPEC.md section 11: this task's levels and numbers.
 
   ## Version history
-  - v0: initial release.
+  - v0: the first release (not yet tagged: until then a v0 task may still change;
+    each change is dated in docs/changelog.md, and scores made before it are not
+    comparable with later ones).
   """
 
   model_file = "ship_regatta.xml"

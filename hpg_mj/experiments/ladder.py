@@ -226,7 +226,8 @@ def write(out, quick=False, experiments=None, earlier=None):
   if picture is not None:
     lines += ["![the ladder](ladder.png)", "", "`ladder.png`: per task, each learner's "
               f"greedy {', '.join(sorted({scores(t)[0] for t in found}))} normalized at "
-              "each level, a bar with its 95% interval (`ladder.csv`: the numbers).", ""]
+              "each level, a bar with its 95% interval (`ladder.csv`: these bars' numbers; "
+              "`runs.jsonl`: every run's metrics, J among them).", ""]
   made = {}
   for task, entries in found.items():
     lines += [f"## {task}", "", *table(task, entries), ""]
