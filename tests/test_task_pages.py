@@ -76,6 +76,21 @@ def test_every_task_page_has_gymnasiums_sections_and_its_episode_limit(pages, ke
   assert problems(pages[key], cls) == []
 
 
+def test_a_scored_tasks_page_gives_its_published_bounds(pages):
+  # Every task the benchmark scores (not the subtasks, not the patrol) gives each
+  # score's random and best known as `benchmark.bounds()` publishes them.
+  from hpg_mj import benchmark
+  published = benchmark.bounds()["tasks"]
+  for key, page in pages.items():
+    name = task_pages._BENCHMARK.get(key)
+    row = re.search(r"^\| bounds \(`benchmark.bounds\(\)`\) \| (.*) \|$", page, re.M)
+    assert (row is None) == (name is None), key
+    for score in published[name]["scores"] if name else ():
+      entry = published[name]
+      assert (f"{score}: random {entry['random'][score]:.5g}, best known "
+              f"{entry['best'][score]:.5g}") in row.group(1), (key, score)
+
+
 def test_the_observation_table_is_the_space_as_built(pages):
   """Min and Max are the built space's, a row per element of this task's space: the
   classic taxi's page has no fuel row, the hard current's the fastest water."""

@@ -253,6 +253,22 @@ def _scoring(domain, task):
           "model, an agent)")
 
 
+def _bounds(domain, task):
+  """The page's line on the task's published bounds (`benchmark.bounds()`, SPEC section
+  7.1): each score's random and best known, what the best known is, and how a score is
+  normalized; None for a task without bounds (a subtask, the patrol)."""
+  from hpg_mj import benchmark
+  name = _BENCHMARK.get((domain, task))
+  entry = benchmark.bounds()["tasks"].get(name) if name else None
+  if entry is None:
+    return None
+  scores = "; ".join(f"{score}: random {entry['random'][score]:.5g}, best known "
+                     f"{entry['best'][score]:.5g}" for score in entry["scores"])
+  return (f"{scores} (over the {entry['max_steps']:,}-step limit). `<score>_normalized` = "
+          "100 (score - random) / (best known - random). Best known: "
+          f"{entry['best_is']}")
+
+
 def _make(domain, task):
   """The task's Gymnasium environment as the page describes it (the analytic ship)."""
   env_id = TASKS[(domain, task)][0]
@@ -304,6 +320,9 @@ def render(domain, task):
             tag for tag in module.SUITE.tags() if task in module.SUITE.tagged(tag))) or "none"),
         ("score a policy", _scoring(domain, task)),
     ]
+    bounds = _bounds(domain, task)
+    if bounds is not None:
+      facts.append(("bounds (`benchmark.bounds()`)", bounds))
   finally:
     env.close()
     dm_env.close()
