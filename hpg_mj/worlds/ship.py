@@ -176,8 +176,8 @@ def _environment(kind, random, initial_state, strict, max_steps, environment_kwa
 def steer(random=None, initial_state=None, strict=False, max_steps=None,
           environment_kwargs=None, gate_reward=core.GATE_REWARD,
           out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD):
-  """The full ship steering task (SPEC section 2); the gate's and the bounds' rewards
-  are those of SPEC section 2 unless given (a task file's [environment] does)."""
+  """The full ship steering task (SPEC section 2); the rewards at the gate and off the
+  field are those of SPEC section 2 unless given (a task file's [environment] does)."""
   return _environment("steer", random, initial_state, strict, max_steps, environment_kwargs,
                       gate_reward=gate_reward, out_of_bounds_reward=out_of_bounds_reward)
 

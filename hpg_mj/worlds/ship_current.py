@@ -157,8 +157,8 @@ def _constructor(level):
                     out_of_bounds_reward=out_of_bounds_reward), environment_kwargs)
   task.__name__ = task.__qualname__ = level
   task.__doc__ = (f"`ship/steer` in the current of level {level!r} (water up to "
-                  f"{current_core.max_speed(current_core.LEVELS[level]):.2f} m/s); the gate's "
-                  "and the bounds' rewards are SPEC section 2's unless given.")
+                  f"{current_core.max_speed(current_core.LEVELS[level]):.2f} m/s); the rewards "
+                  "at the gate and off the field are SPEC section 2's unless given.")
   if current_core.TIME_LIMITS[level] is not None:
     task.__doc__ += (f" The episode closes after {current_core.TIME_LIMITS[level]:,} control "
                      "steps, whatever a larger `max_steps` asks.")

@@ -143,8 +143,8 @@ def _constructor(level):
   task.__doc__ = (f"Pass a gate drawn each episode (level {level!r}: centre uniform on "
                   f"[{low:g}, {high:g}] m each way, heading within {largest:g} degrees of "
                   f"north; {2 * half_width:g} m wide, passed heading within {degrees:g} "
-                  "degrees of it); `gate=[x, y, heading_deg]` fixes it. The gate's and the "
-                  "bounds' rewards are SPEC section 2's unless given.")
+                  "degrees of it); `gate=[x, y, heading_deg]` fixes it. The rewards at the "
+                  "gate and off the field are SPEC section 2's unless given.")
   if goal_core.OBSTACLES[level] is not None:
     task.__doc__ += (f" The water holds ship_harbour/{goal_core.OBSTACLES[level]}'s obstacles; "
                      "touching one ends the episode as leaving the field, and the gate is "
