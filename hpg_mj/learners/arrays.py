@@ -1,6 +1,13 @@
-"""Small array helpers for the compiled loops."""
+"""Small array helpers for the compiled loops, and the one test of a count."""
 
 import numba
+import numpy as np
+
+
+def is_count(n, low=1):
+  """Whether `n` is an integer >= `low` (a bool or a float is not, even 12.0): a
+  number of tiles, states or anything an array is made of."""
+  return isinstance(n, (int, np.integer)) and not isinstance(n, bool) and n >= low
 
 
 @numba.njit(cache=True, inline="always")

@@ -23,16 +23,13 @@ import math
 import numba
 import numpy as np
 
+from hpg_mj.learners.arrays import is_count
+
 
 Tiling = collections.namedtuple("Tiling", ("low", "width", "n_tiles", "wrap", "offsets"))
 Tiling.__doc__ = """The arrays of a `TileCoder` as the compiled functions take them:
 each dimension's low end, tile width, tiles and whether it wraps; each tiling's
 offsets, in fractions of a tile."""
-
-
-def _count(n):
-  """Whether `n` is an integer >= 1 (a bool or a float is not, even 12.0)."""
-  return isinstance(n, (int, np.integer)) and not isinstance(n, bool) and n >= 1
 
 
 @dataclasses.dataclass(frozen=True)
@@ -50,12 +47,12 @@ class TileCoder:
       raise ValueError(f"tile coder: low, high, n_tiles and wrap must have one entry per "
                        f"dimension, got {self.low}, {self.high}, {self.n_tiles}, {self.wrap}")
     for lo, hi, n in zip(self.low, self.high, self.n_tiles):
-      if not _count(n):
+      if not is_count(n):
         raise ValueError(f"tile coder: n_tiles must be integers >= 1, got {self.n_tiles}")
       if not hi > lo:
         raise ValueError(f"tile coder: need high > low and n_tiles >= 1, got [{lo}, {hi}) "
                          f"with {n} tiles")
-    if not _count(self.n_tilings):
+    if not is_count(self.n_tilings):
       raise ValueError(f"tile coder: n_tilings must be an integer >= 1, got {self.n_tilings!r}")
 
   @property

@@ -70,6 +70,7 @@ import numba
 import numpy as np
 
 from hpg_mj.hierarchy.graph import GraphError
+from hpg_mj.learners import arrays
 
 
 # A shipped kind's operation that only forwards to the compiled rule below it (a
@@ -237,7 +238,7 @@ class RewardKind(NodeKind):
 
 def check_positive_int(block, field, value, low=1):
   """A block's integer field, refused in one line naming it and what is allowed."""
-  if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+  if not arrays.is_count(value, low):
     raise GraphError(f"{type(block).__name__}.{field} = {value!r}: must be an integer >= {low}")
   return int(value)
 
@@ -245,7 +246,7 @@ def check_positive_int(block, field, value, low=1):
 def checked_size(name, block, size):
   """What a learner kind's `size(block)` gave at subtask `name`, refused in one line
   unless an integer >= 1 (a user's kind may pass on its block's float)."""
-  if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 1:
+  if not arrays.is_count(size):
     raise GraphError(f"subtask {name!r}: the kind of its {type(block).__name__} gave size "
                      f"{size!r}; a learner kind's size(block) is an integer >= 1 (the states "
                      "its view gives, or the numbers its coder tiles)")
