@@ -116,3 +116,21 @@ def test_bad_counts_are_refused_with_the_allowed_range(argv, message, capsys):
   err = capsys.readouterr().err
   # One line (issue 23), not argparse's usage block.
   assert err == f"hpg-mj {argv[0]}: error: {message} (see hpg-mj {argv[0]} --help)\n"
+
+
+def test_a_reports_provenance_names_seeds_by_their_ranges():
+  """REPORT.md's provenance lists a task's seeds as ranges where they run on (the ladder's
+  report named each of its ~1,000 runs one by one)."""
+  from hpg_mj.experiments import figures
+  assert figures.seed_list([1009, *range(1000, 1009), 1011, 1013, 1014]) == \
+      "1000-1009, 1011, 1013, 1014"
+  assert figures.seed_list([]) == ""
+  made = lambda commit: {"hpg_mj": "0.1.0", "git_commit": commit}
+  results = {"a_easy": [{"seed": s, "provenance": made("x")} for s in range(1000, 1010)],
+             "b_easy": [{"seed": s, "provenance": made("y")} for s in (1100, 1101, 1102)]}
+  lines = figures.provenance_lines(results)
+  made_lines = [line for line in lines if line.startswith("- Runs made by")]
+  assert len(made_lines) == 2
+  assert made_lines[0].endswith(": a_easy seeds 1000-1009.")
+  assert made_lines[1].endswith(": b_easy seeds 1100-1102.")
+  assert "| a_easy | None | 1000-1009 |" in lines

@@ -486,6 +486,21 @@ def write_report(root, experiment, results, drawn, protocol=None):
   return root / "REPORT.md"
 
 
+def seed_list(seeds):
+  """Seeds as a short text: sorted, each run of three or more consecutive ones as
+  "first-last" ([1000, ..., 1009, 1011] -> "1000-1009, 1011")."""
+  seeds, parts = sorted(int(s) for s in seeds), []
+  i = 0
+  while i < len(seeds):
+    j = i
+    while j + 1 < len(seeds) and seeds[j + 1] == seeds[j] + 1:
+      j += 1
+    parts += ([f"{seeds[i]}-{seeds[j]}"] if j - i >= 2 else
+              [str(s) for s in seeds[i:j + 1]])
+    i = j + 1
+  return ", ".join(parts)
+
+
 def provenance_lines(results):
   """REPORT.md's last section: what made each run (their metrics.json), and this report."""
   from hpg_mj import provenance
@@ -495,17 +510,17 @@ def provenance_lines(results):
   for task, runs in results.items():
     for m in runs:
       record = m.get("provenance") or {}
-      made_by.setdefault(provenance.markdown(record) if record else
-                         "not recorded (made before hpg_mj recorded provenance)", []).append(
-          f"{task} seed {m.get('seed')}")
+      made = (provenance.markdown(record) if record else
+              "not recorded (made before hpg_mj recorded provenance)")
+      made_by.setdefault(made, {}).setdefault(task, []).append(m.get("seed"))
   for made, which in made_by.items():
     lines.append(f"- Runs made by {made}: " + (
-        "all of them." if len(made_by) == 1 else ", ".join(which) + "."))
+        "all of them." if len(made_by) == 1 else
+        "; ".join(f"{task} seeds {seed_list(seeds)}" for task, seeds in which.items()) + "."))
   lines += ["", "| task | task file SHA-256 | seeds |", "|---|---|---|"]
   for task, runs in results.items():
     shas = sorted({str((m.get("provenance") or {}).get("task_file_sha256")) for m in runs})
-    lines.append(f"| {task} | {', '.join(shas)} | "
-                 f"{', '.join(str(m.get('seed')) for m in runs)} |")
+    lines.append(f"| {task} | {', '.join(shas)} | {seed_list(m.get('seed') for m in runs)} |")
   return lines
 
 
