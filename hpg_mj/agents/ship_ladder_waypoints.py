@@ -36,7 +36,8 @@ map is fixed, the gate is the steering task's): the root reads where the ship is
 the hybrid's root learns it); its styles are the gate's centre, a line-up point
 `lineup_m` before and one after it, and three detours fixed where the ship is when the
 root calls (`blocks.ShipPoint`: `DETOURS`, 100 m ahead and 100 m to either side, 150 m
-dead ahead); and the approach also reads the clearance ahead, the nearest of the three
+dead ahead, each kept `detour_within_m` inside the field's edges, so that near an edge
+a detour leads back in); and the approach also reads the clearance ahead, the nearest of the three
 forward rangefinders (`aim_clear`, over a third tile dimension), so that it learns to
 swerve, its pseudo-reward -200 where the ship ran aground as where it left the field
 (`HARBOUR_PSEUDO`).
@@ -238,6 +239,9 @@ class Root(ship_hybrid.Root):
                            "the harbour)", low=0)
   lineup_m: float = param(80.0, "the line-up point before the gate (the harbour: and one "
                           "after it), m", low=0)
+  detour_within_m: float = param(60.0, "the harbour's: each detour moved to lie at least "
+                                 "this far inside the field's edges, m (0: not moved)",
+                                 low=0, high=400)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -308,13 +312,14 @@ class ShipLadderWaypoints(hierarchy.ShipLadderHierarchy):
     frame (`blocks.GatePoint`, `_ladder.GATE_FRAMES`): the gate's centre, `lateral_m` to
     port and to starboard across it, `lineup_m` before it. The current's gate stands
     still, so its points are the same numbers at every call. On the harbour: the
-    centre, `lineup_m` before and after it, and the `DETOURS` (`blocks.ShipPoint`)."""
+    centre, `lineup_m` before and after it, and the `DETOURS` (`blocks.ShipPoint`, kept
+    `detour_within_m` inside the field)."""
     world, r = self.config.environment.world, self.config.root
     frame = _ladder.GATE_FRAMES[world]
     if self.harbour:                # the centre, a line-up point either side, the detours
       return [Child("approach", px=gate_frame.CENTRE_X, py=gate_frame.CENTRE_Y + along)
               for along in (0.0, -r.lineup_m, r.lineup_m)] + [
-          Child("approach", bind=blocks.ShipPoint(ahead, starboard))
+          Child("approach", bind=blocks.ShipPoint(ahead, starboard, r.detour_within_m))
           for ahead, starboard in DETOURS]
     offsets = [{}, {"lateral_m": -r.lateral_m}, {"lateral_m": r.lateral_m},
                {"along_m": -r.lineup_m}]

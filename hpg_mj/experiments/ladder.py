@@ -35,7 +35,7 @@ TASKS = {
     "ship_current": ("ladder_current", "ladder_current_ppo_jax"),
     "ship_goal": ("ladder_goal", "ladder_goal_ppo_jax"),
     "ship_regatta": ("ladder_regatta", "ladder_regatta_ppo_jax"),
-    "ship_harbour": ("ladder_harbour", "ladder_harbour_ppo_jax"),
+    "ship_harbour": ("ladder_harbour", "ladder_harbour_waypoints", "ladder_harbour_ppo_jax"),
 }
 EXPERIMENTS = tuple(name for names in TASKS.values() for name in names)
 LEVELS = bounds.LEVELS

@@ -298,9 +298,12 @@ class GatePoint:
 class ShipPoint:
   """A `Child`'s binding: a point of the field, (px, py), fixed where the ship is when the
   parent calls, `ahead_m` along its heading and `starboard_m` across it (negative: to
-  port); `kinds.gate_point`. A detour the parent may choose."""
+  port); `kinds.gate_point`. A detour the parent may choose. With `within_m` > 0 the
+  point is moved, coordinate by coordinate, to lie at least `within_m` inside the
+  field's edges (a detour never leads off the field)."""
   ahead_m: float = 0.0
   starboard_m: float = 0.0
+  within_m: float = 0.0
 
 
 @dataclasses.dataclass(frozen=True)

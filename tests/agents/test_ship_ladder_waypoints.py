@@ -37,9 +37,16 @@ def test_the_harbours_root_reads_the_map_and_its_approach_the_water_ahead():
   assert waypoints.harbour_state(obs, None) == (2 * 20 + 19) * 4 + 3   # heading east
   call = collections.namedtuple("Call", ("px", "py"))(120.0, 1080.0)  # due north
   assert waypoints.aim_clear(obs, call) == (90.0, 3.0, 45.0)
-  # ShipPoint: 100 m ahead (east) and 100 m to port (north) of a ship heading east.
-  np.testing.assert_allclose(_ship_point(gate_point.ShipPointSettings(100.0, -100.0), obs),
+  assert [c.bind.within_m for c in styles[3:]] == [60.0] * 3    # [root] detour_within_m
+  # ShipPoint: 100 m ahead (east) and 100 m to port (north) of a ship heading east; kept
+  # 60 m inside the field, the point moves in to y = 940.
+  np.testing.assert_allclose(_ship_point(gate_point.ShipPointSettings(100.0, -100.0, 0.0), obs),
                              (220.0, 1080.0))
+  np.testing.assert_allclose(_ship_point(gate_point.ShipPointSettings(100.0, -100.0, 60.0), obs),
+                             (220.0, 940.0))
+  west = np.array([30.0, 20.0, -90.0, 0.0])          # 30 m from the west edge, heading west
+  np.testing.assert_allclose(_ship_point(gate_point.ShipPointSettings(150.0, 0.0, 60.0), west),
+                             (60.0, 60.0))
   g = waypoints.HARBOUR_PSEUDO["easy"]
   assert g(np.array([400.0, 620.0, 0.0, 0.0]), None, 0) == waypoints.LEFT_G      # an island
   assert g(np.array([400.0, -1.0, 0.0, 0.0]), None, 0) == waypoints.LEFT_G       # off the field
@@ -103,3 +110,21 @@ def test_its_metrics_read_the_approachs_runs():
   assert 0 <= (record["calls"] - record["approach_runs"]).min()
   assert (record["calls"] - record["approach_runs"]).max() <= 1
   assert {"finish_rate", "gates_passed", "mean_return"} <= set(metrics)
+
+
+@pytest.mark.parametrize("within", [-1.0, 500.0, float("nan")])
+def test_a_detour_kept_outside_the_field_is_refused_in_one_line(within):
+  """`ShipPoint.within_m` below 0 or from half the field up cannot keep a point inside it:
+  refused as the graph is built, naming the node and what is allowed; [root]
+  detour_within_m is bounded in the task file."""
+  from hpg_mj.hierarchy.graph import GraphError
+  config = taskfile.updated(waypoints.Config(), environment={"world": "ship_harbour",
+                                                             "level": "easy"})
+  agent = waypoints.ShipLadderWaypoints(config, seed=0)
+  kind = gate_point.ShipPointKind()
+  from hpg_mj.hierarchy import blocks
+  with pytest.raises(GraphError, match=r"^subtask 'root': ShipPoint.within_m = .*: must be"):
+    kind.settings("root", blocks.ShipPoint(100.0, 0.0, within))
+  assert agent.styles()[3].bind.within_m == 60.0
+  with pytest.raises(ValueError, match="detour_within_m"):
+    taskfile.updated(waypoints.Config(), root={"detour_within_m": -5.0})

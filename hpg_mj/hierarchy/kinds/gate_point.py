@@ -20,6 +20,9 @@ heading theta and `starboard_m` across it (a detour round what lies ahead):
 
     px = x + ahead_m sin(theta) + starboard_m cos(theta)
     py = y + ahead_m cos(theta) - starboard_m sin(theta)
+
+each then moved to [within_m, 1000 - within_m] where `within_m` > 0 (the field's
+edges; a detour the parent chooses near an edge then leads back into the field).
 """
 import collections
 import math
@@ -30,6 +33,7 @@ from hpg_mj.hierarchy import blocks
 from hpg_mj.hierarchy.graph import GraphError
 from hpg_mj.hierarchy.kinds import base
 from hpg_mj.hierarchy.kinds import gate_frame
+from hpg_mj.worlds import ship_core as core
 
 Settings = collections.namedtuple("Settings", ("at", "relative", "lateral", "along"))
 Settings.__doc__ = """A GatePoint's settings: where the gate is in the observation and
@@ -67,9 +71,10 @@ class GatePointKind(base.BindingKind):
                     _metres(name, block, "along_m"))
 
 
-ShipPointSettings = collections.namedtuple("ShipPointSettings", ("ahead", "starboard"))
-ShipPointSettings.__doc__ = """A ShipPoint's offsets along and across the ship's heading
-(m)."""
+ShipPointSettings = collections.namedtuple("ShipPointSettings", ("ahead", "starboard",
+                                                                 "within"))
+ShipPointSettings.__doc__ = """A ShipPoint's offsets along and across the ship's heading,
+and how far inside the field's edges the point is kept (0: anywhere) (m)."""
 
 
 @numba.njit(cache=True, error_model="numpy", _nrt=False, no_cpython_wrapper=True,
@@ -79,7 +84,11 @@ def bind_ship(P, obs, call):
   the ship's heading from where it is, in the field's coordinates."""
   rad = math.radians(obs[2])
   s, c = math.sin(rad), math.cos(rad)
-  return (obs[0] + P.ahead * s + P.starboard * c, obs[1] + P.ahead * c - P.starboard * s)
+  px, py = obs[0] + P.ahead * s + P.starboard * c, obs[1] + P.ahead * c - P.starboard * s
+  if P.within > 0.0:
+    low, high = P.within, core.FIELD_SIZE - P.within
+    px, py = min(max(px, low), high), min(max(py, low), high)
+  return px, py
 
 
 class ShipPointKind(base.BindingKind):
@@ -91,7 +100,12 @@ class ShipPointKind(base.BindingKind):
     return {"px": False, "py": False}
 
   def settings(self, name, block):
-    return ShipPointSettings(_metres(name, block, "ahead_m"), _metres(name, block, "starboard_m"))
+    within = _metres(name, block, "within_m")
+    if not 0.0 <= within < core.FIELD_SIZE / 2:
+      raise GraphError(f"subtask {name!r}: ShipPoint.within_m = {within!r}: must be >= 0 "
+                       f"and below half the field ({core.FIELD_SIZE / 2:g} m)")
+    return ShipPointSettings(_metres(name, block, "ahead_m"), _metres(name, block, "starboard_m"),
+                             within)
 
 
 KINDS = (GatePointKind(), ShipPointKind())
