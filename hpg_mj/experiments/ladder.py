@@ -43,6 +43,10 @@ EASY_AT_LEAST, HARD_BELOW = 90.0, 70.0     # the headroom checks' bounds (normal
 # The learners that count as hierarchies for the easy check (their agents' kinds): the
 # designed ones (Figure 3's carried to each task, the regatta's waypoints).
 HIERARCHY_KINDS = ("ship_ladder_hybrid", "ship_ladder_waypoints")
+# The order of every task's table and figure (by agent kind; another kind after these):
+# the designed hierarchies, flat PGRL, the learned hierarchy, the deep learner.
+ORDER = ("ship_ladder_hybrid", "ship_ladder_waypoints", "ship_ladder_flat_pg",
+         "ship_ladder_option_critic", "ladder_ppo_jax")
 
 
 def scores(task):
@@ -93,6 +97,7 @@ def collect(out, quick=False, experiments=None, earlier=None):
           elif (variant.path.stem, seed) in earlier:
             entry["runs"][level].append(earlier[(variant.path.stem, seed)])
       found[task].extend(learners.values())
+    found[task].sort(key=lambda e: ORDER.index(e["kind"]) if e["kind"] in ORDER else len(ORDER))
   return found
 
 
@@ -120,6 +125,21 @@ def leads(task, entries):
       out[level] = (label, best, all(stats.separated(best, s) and best["mean"] > s["mean"]
                                      for _, s in ranked[1:]) and len(ranked) > 1)
   return out
+
+
+def helmsman_line(task):
+  """The report's line for scale: the scripted helmsman's normalized score at each level
+  (SPEC section 7.1's bounds: a policy of the observation alone, not a learner)."""
+  score = scores(task)[0]
+  cells = []
+  for level in LEVELS:
+    key = bounds.bounds_key(task, level)
+    entry = bounds.bounds()["tasks"].get(key) or {}
+    value = bounds.normalize(key, score, (entry.get("helmsman") or {}).get(score))
+    cells.append(f"{level} {'-' if value is None else f'{value:.1f}'}")
+  return (f"- for scale, not a learner: the scripted helmsman (`benchmark.ladder_helmsman`, a "
+          f"policy of the observation alone, SPEC section 7.1) scores {', '.join(cells)} "
+          f"({score}, normalized).")
 
 
 def headroom(task, entries):
@@ -238,7 +258,8 @@ def write(out, quick=False, experiments=None, earlier=None):
     easy, hard = headroom(task, entries)
     lines += [f"- headroom: a hierarchy reaches {EASY_AT_LEAST:.0f} at easy: "
               f"{_verdict(easy, 'yes', 'no')}; no learner reaches {HARD_BELOW:.0f} at hard: "
-              f"{_verdict(hard, 'yes', 'no: the level is not hard enough')}.", ""]
+              f"{_verdict(hard, 'yes', 'no: the level is not hard enough')}."]
+    lines += [helmsman_line(task), ""]
     for e in entries:
       for level in LEVELS:
         if e["runs"][level]:

@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pytest
 
+from hpg_mj.experiments import bounds
 from hpg_mj.experiments import ladder, reference, runner
 from experiment_file import assert_refused
 
@@ -62,6 +63,12 @@ def test_an_experiment_runs_each_task_at_each_level_and_the_ladder_report_reads_
   assert "## ship_current" in text and "| Hierarchical hybrid (current) |" in text
   assert "- easy: Hierarchical hybrid (current) leads (" in text   # (hard: unfinished now)
   assert "- headroom: a hierarchy reaches 90 at easy: " in text
+  # For scale, the scripted helmsman's normalized score from the published bounds.
+  bound = bounds.bounds()["tasks"]["ship_current/hard"]
+  helmsman = 100 * (bound["helmsman"]["gate_pass_rate"] - bound["random"]["gate_pass_rate"]) / (
+      bound["best"]["gate_pass_rate"] - bound["random"]["gate_pass_rate"])
+  assert "- for scale, not a learner: the scripted helmsman" in text
+  assert f", hard {helmsman:.1f} (gate_pass_rate, normalized)." in text
   assert (report.parent / "ladder.png").is_file()
   rows = (report.parent / "ladder.csv").read_text().splitlines()
   assert rows[0] == "task,level,learner,score,mean,low,high,runs" and len(rows) == 2  # easy
