@@ -127,16 +127,24 @@ def leads(task, entries):
   return out
 
 
-def helmsman_line(task):
-  """The report's line for scale: the scripted helmsman's normalized score at each level
-  (SPEC section 7.1's bounds: a policy of the observation alone, not a learner)."""
-  score = scores(task)[0]
-  cells = []
+def helmsman(task):
+  """The scripted helmsman's normalized score (`scores(task)[0]`) at each level, from SPEC
+  section 7.1's bounds (a policy of the observation alone, not a learner); nan where
+  none is published."""
+  score, out = scores(task)[0], []
   for level in LEVELS:
     key = bounds.bounds_key(task, level)
     entry = bounds.bounds()["tasks"].get(key) or {}
     value = bounds.normalize(key, score, (entry.get("helmsman") or {}).get(score))
-    cells.append(f"{level} {'-' if value is None else f'{value:.1f}'}")
+    out.append(np.nan if value is None else value)
+  return out
+
+
+def helmsman_line(task):
+  """The report's line for scale: `helmsman(task)` at each level."""
+  score = scores(task)[0]
+  cells = [f"{level} {'-' if np.isnan(v) else f'{v:.1f}'}"
+           for level, v in zip(LEVELS, helmsman(task))]
   return (f"- for scale, not a learner: the scripted helmsman (`benchmark.ladder_helmsman`, a "
           f"policy of the observation alone, SPEC section 7.1) scores {', '.join(cells)} "
           f"({score}, normalized).")
@@ -183,7 +191,7 @@ def draw(root, found):
   tasks = [t for t, entries in found.items() if any(any(e["runs"].values()) for e in entries)]
   if not tasks:
     return None
-  fig, axes = plt.subplots(1, len(tasks), figsize=(4.2 * len(tasks), 3.6), squeeze=False)
+  fig, axes = plt.subplots(1, len(tasks), figsize=(4.2 * len(tasks), 4.4), squeeze=False)
   rows = ["task,level,learner,score,mean,low,high,runs"]
   for ax, task in zip(axes[0], tasks):
     entries = [e for e in found[task] if any(e["runs"].values())]
@@ -205,12 +213,15 @@ def draw(root, found):
                     f"{s['low']:.4f},{s['high']:.4f},{s['n']}")
       x = np.arange(len(LEVELS)) - 0.4 + width * (k + 0.5)
       ax.bar(x, means, width, yerr=errors, capsize=2, label=e["label"])
+    ax.plot(range(len(LEVELS)), helmsman(task), "k_", markersize=28, markeredgewidth=1.5,
+            label="scripted helmsman (not a learner)")
     ax.axhline(100.0, color="k", lw=0.6, ls="--")
     ax.axhline(0.0, color="k", lw=0.6)
     ax.set_xticks(range(len(LEVELS)), LEVELS)
     ax.set_title(task)
     ax.set_ylabel(f"{score}, normalized (greedy)")
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2,
+              frameon=False)
   fig.tight_layout()
   path = root / "ladder.png"
   fig.savefig(path, dpi=110)
@@ -246,7 +257,8 @@ def write(out, quick=False, experiments=None, earlier=None):
   if picture is not None:
     lines += ["![the ladder](ladder.png)", "", "`ladder.png`: per task, each learner's "
               f"greedy {', '.join(sorted({scores(t)[0] for t in found}))} normalized at "
-              "each level, a bar with its 95% interval (`ladder.csv`: these bars' numbers; "
+              "each level, a bar with its 95% interval, and a black dash where the scripted "
+              "helmsman stands (for scale; `ladder.csv`: the bars' numbers; "
               "`runs.jsonl`: every run's metrics, J among them).", ""]
   made = {}
   for task, entries in found.items():
