@@ -133,10 +133,16 @@ def evaluate(policy, task=None, episodes=base.GREEDY_STARTS, max_steps=None, *,
   if backend not in base.BACKENDS:
     raise ValueError(f"unknown backend {backend!r}; valid backends: {list(base.BACKENDS)}")
   if isinstance(policy, base.Agent):
+    task_arg = task
     own = task_of(policy)
     task = own if task is None and level is None else task_of(task, level=level)
     if task.name != own.name:
       raise ValueError(f"agent {policy.name!r} acts on the task {own.name!r}, not {task.name!r}")
+    asked = level if level is not None else (task.level if isinstance(task_arg, str) and
+                                             "/" in task_arg else None)
+    if asked is not None and asked != own.level:
+      raise ValueError(f"agent {policy.name!r} acts on {own.name!r} at level {own.level!r}, "
+                       f"its task file's, not {asked!r}; set [environment] level there")
     if max_steps is not None and int(max_steps) != own.max_steps:
       raise ValueError(f"agent {policy.name!r} runs its task file's max_steps = "
                        f"{own.max_steps}; set [environment] max_steps there, not max_steps")
@@ -239,8 +245,13 @@ def _actor(policy, batched):
     return act, True if batched is None else batched
   if callable(policy):
     return policy, bool(getattr(policy, "batched", False)) if batched is None else batched
-  raise ValueError(f"policy {policy!r} is not a function, an object with "
-                   "predict(obs, deterministic=True) or an hpg_mj agent")
+  if isinstance(policy, tuple) and policy and isinstance(policy[0], base.Agent):
+    raise ValueError(f"policy is a tuple of {len(policy)} (agents.load returns (agent, "
+                     "record, metadata)); pass its agent, agents.load(path)[0]")
+  shown = " ".join(repr(policy).split())
+  shown = shown if len(shown) <= 80 else f"{shown[:77]}..."
+  raise ValueError(f"policy {shown} (a {type(policy).__name__}) is not a function, an object "
+                   "with predict(obs, deterministic=True) or an hpg_mj agent")
 
 
 class Pilot:

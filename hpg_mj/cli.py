@@ -323,6 +323,12 @@ def _cmd_evaluate(args):
   from hpg_mj.agents import window
   # SPEC section 7.1: every score also normalized (none for a subtask or the patrol)
   metrics.update(bounds.normalized(bounds.task_name(agent), metrics))
+  name = bounds.task_name(agent)          # the benchmark task it acts on, if any
+  if name is not None:
+    task, _, level = name.partition("/")
+    metrics = {"task": task, **({"level": level} if level else {}), **metrics,
+               "official": bool(args.seed is None and policy == "greedy" and
+                                args.episodes == agents.base.GREEDY_STARTS)}
   metrics.update({"agent_dir": str(args.agent_dir), "episodes": args.episodes,
                   "evaluation_window": window.evaluated(agent, len(record)),
                   "backend": backend, "policy": policy, "starts": starts,

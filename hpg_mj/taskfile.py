@@ -4,9 +4,12 @@
 
 An agent's `Config` dataclass is the schema: its fields are the sections, each a
 dataclass whose fields (made with `param`) are the keys, with their types,
-defaults, meanings and allowed ranges. Every key of a section is required; an
-unknown key, a wrong type, a missing value or one out of range is refused with
-the file, the key and what is allowed, before anything runs.
+defaults, meanings and allowed ranges. Every key of a section is required, but for a
+key added to a schema after task files of it were written and saved with agents
+(`param(absent=...)`): a file without it means the value `absent`, the behaviour before
+the key, so that an agent saved before it loads and runs as it did. An unknown key, a
+wrong type, a missing value or one out of range is refused with the file, the key and
+what is allowed, before anything runs.
 """
 import dataclasses
 import math
@@ -107,13 +110,18 @@ def check_table(path, where, table, required, optional=None):
 
 # ---- configurations as dataclasses: the schema of a task file -------------------
 
+_REQUIRED = object()
+
+
 def param(default, doc="", *, low=None, high=None, low_open=False, high_open=False,
-          choices=None, length=None):
+          choices=None, length=None, absent=_REQUIRED):
   """A field of a task file's section: its default, what it means, and what is
   allowed (`low`/`high` bounds, open with `low_open`/`high_open`; `choices`;
-  `length` for a list of positive integers)."""
+  `length` for a list of positive integers). `absent`: for a key added after files
+  without it were written, the value a file without it means (the behaviour before the
+  key); without `absent` the key is required."""
   meta = {"doc": doc, "low": low, "high": high, "low_open": low_open,
-          "high_open": high_open, "choices": choices, "length": length}
+          "high_open": high_open, "choices": choices, "length": length, "absent": absent}
   if isinstance(default, (list, dict)):
     return dataclasses.field(default_factory=lambda: type(default)(default), metadata=meta)
   return dataclasses.field(default=default, metadata=meta)
@@ -184,8 +192,13 @@ class Section:
 
 def build_section(where, section, section_class, table):
   """A section dataclass from a TOML table: keys, types and ranges checked."""
-  values = check_table(where, f"[{section}]", table, section_schema(section_class))
-  for field in dataclasses.fields(section_class):
+  schema, fields = section_schema(section_class), dataclasses.fields(section_class)
+  optional = {f.name: schema.pop(f.name) for f in fields
+              if f.metadata.get("absent", _REQUIRED) is not _REQUIRED}
+  values = check_table(where, f"[{section}]", table, schema, optional)
+  for field in fields:
+    if field.name not in values:
+      values[field.name] = field.metadata["absent"]
     check_range(where, section, field, values[field.name])
   return section_class(**values)
 

@@ -109,6 +109,20 @@ def regatta_returns(record, env):
           + regatta_core.FINISH_REWARD * finished + regatta_core.OUT_OF_BOUNDS_REWARD * left)
 
 
+def gate_returns(record, env):
+  """Each episode's return on the current, the goal or the harbour under SPEC section
+  11's rewards (section 2's: -1 a control step, +100 the gate, -100 off the field or
+  aground: those its bounds are on), whatever rewards the agent trained with (`env`,
+  its [environment]): from its steps and pass (record fields passed, steps, return).
+  An episode that neither passed nor ran to its step limit left the field; one that
+  stopped at the limit left it only if its return holds the out-of-bounds reward."""
+  steps, passed = record["steps"], record["passed"] > 0
+  left = ~passed & ((steps < env.episode_steps) | (
+      (env.out_of_bounds_reward != 0.0) &
+      np.isclose(record["return"], -steps + env.out_of_bounds_reward)))
+  return -steps + core.GATE_REWARD * passed + core.OUT_OF_BOUNDS_REWARD * left
+
+
 def regatta_metrics(record, env):
   """What a regatta record (fields passed: finished, gates, steps, return) says over all
   its episodes, as the benchmark names it: the finish rate, the mean gates passed, the
@@ -238,21 +252,28 @@ class LadderMachineAgent(base.MachineAgent, _ship.ShipAgent):
 
   def metrics(self, record):
     """The benchmark's metrics of the task (`hpg_mj.benchmark.metrics_of`) over the last
-    `metric_window` episodes: the gate's (gate_pass_rate, steps_to_gate, mean_return,
-    J) or the regatta's (finish_rate, gates_passed, steps_to_finish, and mean_return
-    under SPEC section 11's rewards, its score: `regatta_returns`)."""
+    `metric_window` episodes: the gate's (gate_pass_rate, steps_to_gate, J, and
+    mean_return under SPEC section 11's rewards: `gate_returns`) or the regatta's
+    (finish_rate, gates_passed, steps_to_finish, and mean_return under SPEC section 11's
+    rewards, its score: `regatta_returns`): whatever rewards trained the agent, as the
+    benchmark scores any policy."""
     if self.config.environment.world != "ship_regatta":
-      return super().metrics(record)
+      out = super().metrics(record)
+      w = record[-self.metric_window:]
+      if len(w):
+        out["mean_return"] = float(gate_returns(w, self.config.environment).mean())
+      return out
     w = record[-self.metric_window:]
     return {"episodes_measured": int(len(w)), **regatta_metrics(w, self.config.environment),
             "control_steps": int(record["steps"].sum())}
 
   def scored(self, record):
     """Its record as the benchmark's (`hpg_mj.benchmark`): {field: values} of passed,
-    steps, return, or the regatta's finished, gates, steps and its return under SPEC
-    section 11's rewards (`regatta_returns`)."""
+    steps and its return under SPEC section 11's rewards (`gate_returns`), or the
+    regatta's finished, gates, steps and return (`regatta_returns`)."""
     if self.config.environment.world != "ship_regatta":
-      return {name: record[name] for name in ("passed", "steps", "return")}
+      return {"passed": record["passed"], "steps": record["steps"],
+              "return": gate_returns(record, self.config.environment)}
     return {"finished": record["passed"], "gates": record["gates"], "steps": record["steps"],
             "return": regatta_returns(record, self.config.environment)}
 

@@ -240,8 +240,9 @@ class Root(ship_hybrid.Root):
   lineup_m: float = param(80.0, "the line-up point before the gate (the harbour: and one "
                           "after it), m", low=0)
   detour_within_m: float = param(60.0, "the harbour's: each detour moved to lie at least "
-                                 "this far inside the field's edges, m (0: not moved)",
-                                 low=0, high=400)
+                                 "this far inside the field's edges, m (0: not moved; a "
+                                 "file without the key, written before it: 0)",
+                                 low=0, high=400, absent=0.0)
 
 
 @dataclasses.dataclass(frozen=True)

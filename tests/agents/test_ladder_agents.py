@@ -135,7 +135,11 @@ def test_the_command_line_trains_evaluates_and_renders_a_ladder_agent(tmp_path, 
   for backend in ("analytic", "mujoco"):
     assert cli.main(["evaluate", str(out), "--episodes", "2", "--backend", backend,
                      "--json"]) == 0
-    assert json.loads(capsys.readouterr().out)["episodes_measured"] == 2
+    got = json.loads(capsys.readouterr().out)
+    assert got["episodes_measured"] == 2
+    # What it acts on, and whether the score is the benchmark's (all 1,000 fixed starts,
+    # greedily), as `evaluate --policy` says it.
+    assert (got["task"], got["level"], got["official"]) == ("ship_regatta", "easy", False)
   gif = tmp_path / "regatta.gif"
   assert cli.main(["render", "--agent", str(out), "--out", str(gif), "--width", "160",
                    "--height", "128"]) == 0

@@ -128,3 +128,18 @@ def test_a_detour_kept_outside_the_field_is_refused_in_one_line(within):
   assert agent.styles()[3].bind.within_m == 60.0
   with pytest.raises(ValueError, match="detour_within_m"):
     taskfile.updated(waypoints.Config(), root={"detour_within_m": -5.0})
+
+
+def test_a_harbour_file_written_before_detour_within_m_keeps_its_detours_where_they_were():
+  """[root] detour_within_m came after harbour files (and agents saved with them) without
+  it: such a file means 0, the detours unmoved, so that those agents load and run as
+  before (`taskfile.param(absent=...)`); the shipped file says 60."""
+  shipped = agents.load_task("ship_harbour_waypoints")
+  assert shipped.config.root.detour_within_m == 60.0
+  text = "\n".join(line for line in shipped.text.splitlines()
+                   if not line.startswith("detour_within_m"))
+  older = taskfile.loads(text, "older.toml", agents._Registry)
+  assert older.config.root.detour_within_m == 0.0
+  assert [c.bind.within_m for c in agents.build(older, seed=0).styles()[3:]] == [0.0] * 3
+  with pytest.raises(taskfile.TaskFileError, match=r"older.toml: \[root\] alpha is missing"):
+    taskfile.loads(text.replace("\nalpha = 0.1\n", "\n", 1), "older.toml", agents._Registry)
