@@ -432,7 +432,11 @@ def write_report(root, experiment, results, drawn, protocol=None):
   else:
     lines += _table(experiment, results, _SHIP_ROWS)
     js = [t for t in results if not np.isnan(_value(results[t][0], "greedy.J"))]
-    if js:
+    # MushroomRL's published J and the straight-line bound are the steering task's: a
+    # ladder task's J compares with its own bounds (its normalized rows), not these.
+    steering = all((t.section("environment") or {}).get("world", "ship") == "ship"
+                   for t in experiment["task_files"])
+    if js and steering:
       lines += ["", "J is the discounted return (gamma = 0.99) under MushroomRL's "
                 "ShipSteering rewards (-1 per control step, 0 on the step that passes the "
                 "gate, -100 on the step that leaves), so that it compares with published "

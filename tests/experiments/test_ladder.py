@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from hpg_mj.experiments import bounds
+from hpg_mj.experiments import figures
 from hpg_mj.experiments import ladder, reference, runner
 from experiment_file import assert_refused
 
@@ -52,6 +53,10 @@ def test_an_experiment_runs_each_task_at_each_level_and_the_ladder_report_reads_
   easy = results["ship_current_hybrid_easy"][0]["greedy"]
   assert {"J_normalized", "gate_pass_rate_normalized"} <= set(hard)
   assert hard != easy                                       # other bounds, other starts
+  # The steering task's published MushroomRL J is not set beside a ladder task's.
+  figures.write_report(root, experiment, results, {})
+  assert "| J (MushroomRL rewards), greedy |" in (root / "REPORT.md").read_text()
+  assert "J ~ -92.7" not in (root / "REPORT.md").read_text()
   # A file changed since its runs began is not run over them.
   copy.write_text(copy.read_text() + "\n# edited\n")
   (root / "ship_current_hybrid_hard" / "seed1000" / "metrics.json").unlink()
