@@ -266,6 +266,10 @@ def _cmd_train(args):
     shutil.rmtree(old)
   metrics["agent_dir"] = str(out)
   _print_metrics(metrics, args.json)
+  if not args.json and not args.quiet and any(k.endswith("_normalized") for k in metrics):
+    print(f"(the scores above are online: {metrics.get('online_window', 'training')}, "
+          f"exploring and learning; the benchmark's score, greedy on the fixed starts: "
+          f"hpg-mj evaluate {out})")
   return 0
 
 

@@ -134,3 +134,15 @@ def test_evaluate_names_its_window_too(tmp_path, capsys):
   assert metrics["evaluation_window"] == ("all 7 episodes of the evaluation (fewer than the "
                                           "window, the last 1,000)")
   assert metrics["episodes_measured"] == 7
+
+
+def test_train_says_its_normalized_scores_are_online_and_how_to_get_the_benchmarks(
+    tmp_path, capsys):
+  """A newcomer read `hpg-mj train`'s J_normalized as a benchmark score: its text output
+  says the scores are online, over which window, and which command gives the greedy one."""
+  out = tmp_path / "a"
+  assert cli.main(["train", "taxi_fuel_hpg", "--episodes", "30", "--out", str(out)]) == 0
+  last = capsys.readouterr().out.splitlines()[-1]
+  assert last == ("(the scores above are online: all 30 episodes of training (fewer than the "
+                  "window, the last 1,000), exploring and learning; the benchmark's score, "
+                  f"greedy on the fixed starts: hpg-mj evaluate {out})")
