@@ -144,10 +144,9 @@ def _task_of_environment(task):
     raise ValueError(f"{where}: not one of the benchmark's tasks {list(TASKS)} (the full "
                      "ship task or the taxi, episodic)")
   env = holder.config.environment
-  if "/" in name:                       # a ladder task at its level
-    name, level = name.split("/")
-    return Task(name, int(env.max_steps), float(env.gate_reward),
-                float(env.out_of_bounds_reward), level=level)
+  if "/" in name:                       # a ladder task at its level, under its rewards
+    name, level = name.split("/")     # (SPEC section 11's, whatever rewards train on it)
+    return Task(name, int(env.max_steps), level=level)
   if name == "ship":
     return Task(name, int(env.max_steps), float(env.gate_reward), float(env.out_of_bounds_reward))
   return Task(name, int(env.max_steps), capacity=int(env.capacity))

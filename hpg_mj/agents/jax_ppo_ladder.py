@@ -193,14 +193,38 @@ class LadderPPOJax(jax_ppo._JaxAgent, _ship.ShipAgent):
 
   # ---- metrics -----------------------------------------------------------------------
 
+  def scored(self, record):
+    """An evaluation's rows (a row an episode) as the benchmark's record
+    (`hpg_mj.benchmark`): the gate's passed, steps and return, or the regatta's
+    finished, gates, steps and return, each return under SPEC section 11's rewards."""
+    return {"passed": record["gates"], "finished": record["gates"],
+            "gates": record["gates_passed"], "steps": record["steps"],
+            "return": self._task_returns(record)}
+
+  def _task_returns(self, rows):
+    """Each episode's return under SPEC section 11's rewards, from an evaluation's rows
+    (a row an episode: its length, success, gates and return under the agent's)."""
+    env = self.config.environment
+    if self.regatta:
+      return _ladder.regatta_returns({"passed": rows["gates"], "gates": rows["gates_passed"],
+                                      "steps": rows["steps"], "return": rows["return_sum"]}, env)
+    return _ladder.gate_returns({"passed": rows["gates"], "steps": rows["steps"],
+                                 "return": rows["return_sum"]}, env)
+
   def metrics(self, record):
     """The benchmark's metrics of the task from the row sums, over the last 100 rows
     of training (or a whole evaluation): the gate's (gate_pass_rate, steps_to_gate,
     mean_return, J) or the regatta's (finish_rate, gates_passed, steps_to_finish,
-    mean_return)."""
+    mean_return). An evaluation's mean_return (a row an episode: the greedy measure) is
+    under SPEC section 11's rewards, as every ladder agent's and any policy's
+    (`_ladder.gate_returns`, `regatta_returns`); training's, summed in the JAX world,
+    under the rewards it trains with."""
     w = self._window(record)
     episodes, gates = w["episodes"].sum(), w["gates"].sum()
     mean = lambda field: float(w[field].sum() / episodes) if episodes else None  # noqa: E731
+    if len(w) and w is record and np.all(w["episodes"] == 1):     # an evaluation's rows
+      mean = lambda field: (float(self._task_returns(w).mean()) if field == "return_sum"  # noqa: E731
+                            else float(w[field].sum() / episodes))
     steps = float(w["gate_steps"].sum() / gates) if gates else None
     out = {"episodes_measured": int(episodes), "rows_measured": int(len(w))}
     if self.regatta:
