@@ -34,6 +34,7 @@ import importlib.util
 import pathlib
 import sys
 import time
+import warnings
 
 import numpy as np
 
@@ -380,6 +381,37 @@ def _find_saved_class(kind, spec, directory):
       raise storage.AgentFileError(f"{where}: {err}") from None
 
 
+def _class_file(agent):
+  """The file of the module that holds the agent's class (None: none, or hpg_mj's own,
+  which the provenance's commit names)."""
+  module = type(agent).__module__
+  if module == "hpg_mj" or module.startswith("hpg_mj."):
+    return None
+  return getattr(sys.modules.get(module), "__file__", None)
+
+
+def _file_sha256(path):
+  """The SHA-256 of a file's bytes, or None where it cannot be read."""
+  import hashlib
+  try:
+    return hashlib.sha256(pathlib.Path(path).read_bytes()).hexdigest() if path else None
+  except OSError:
+    return None
+
+
+def _warn_if_edited(agent, meta, directory):
+  """A VersionWarning when the file of a user's agent class differs from the one it was
+  saved with: its rules, view and graph now run as edited, so its scores may change."""
+  saved = meta.get("agent_file_sha256")
+  now = _file_sha256(_class_file(agent))
+  if saved and now and saved != now:
+    from hpg_mj import provenance
+    warnings.warn(f"{directory}: the file of its class, {_class_file(agent)}, has changed "
+                  "since it was saved (its SHA-256 differs): it runs the code as it is now, "
+                  "and its scores may differ from those it was saved with",
+                  provenance.VersionWarning, stacklevel=3)
+
+
 def save(agent, directory, record, extra=None, compress=True):
   """Writes the agent's whole state, its record, its task file and what made it
   (`hpg_mj.provenance`) to `directory` (`compress`: see `storage.save`)."""
@@ -393,7 +425,8 @@ def save(agent, directory, record, extra=None, compress=True):
   meta = {"task_file": str(agent.task.path) if agent.task else None,
           "task_text": text, "seed": agent.seed, "episodes": agent.episodes,
           "agent_class": class_path(type(agent)),      # found by `load` in a new process
-          "agent_file": getattr(sys.modules.get(type(agent).__module__), "__file__", None),
+          "agent_file": _class_file(agent),
+          "agent_file_sha256": _file_sha256(_class_file(agent)),
           "provenance": provenance.collect(text, agent.seed)}
   meta.update(extra or {})
   arrays = dict(agent.state())
@@ -428,6 +461,7 @@ def load(directory):
     raise taskfile.TaskFileError(f"{err} (its class was saved from {where}: run from that "
                                  "folder, or put it on PYTHONPATH)") from None
   agent = build(task, meta.get("seed", 0))
+  _warn_if_edited(agent, meta, directory)
   record = arrays.pop("record", None)
   agent.restore(arrays, directory)
   agent.episodes = meta.get("episodes", 0)

@@ -44,6 +44,8 @@ named fields, seeding, progress. A minimal agent can skip `compiled`: the
 "analytic" backend then runs its step-by-step path on the Gymnasium
 environment.
 """
+import dataclasses
+
 import numpy as np
 
 from hpg_mj.hierarchy import executor as executor_mod
@@ -80,6 +82,27 @@ def seeded_starts(draw, episodes=GREEDY_STARTS, seed=GREEDY_SEED):
                    for i in range(int(episodes))])
 
 
+def _check_sections(cls, config):
+  """Refuses, in one line, a configuration whose section is not of the class its agent's
+  `Config` declares (a dataclass does not check it): a ladder task's environment given to
+  an agent of the steering ship trained the steering ship without a word."""
+  if cls.Config is None or not dataclasses.is_dataclass(config):
+    return
+  for field in dataclasses.fields(cls.Config):
+    want = field.type if isinstance(field.type, type) else None
+    if want is None and field.default_factory is not dataclasses.MISSING:
+      want = field.default_factory if isinstance(field.default_factory, type) else None
+    got = getattr(config, field.name, None)
+    if want is None or not dataclasses.is_dataclass(want) or isinstance(got, want):
+      continue
+    hint = ""
+    if field.name == "environment" and hasattr(got, "level") and not hasattr(want, "level"):
+      hint = ("; a ladder task's environment is for an agent of the ladder (subclass "
+              "hpg_mj.agents.ShipLadderHierarchy, whose Config takes a LadderEnvironment)")
+    raise ValueError(f"{cls.__name__}: its [{field.name}] is a {type(got).__name__}; its Config "
+                     f"takes a {want.__name__}{hint}")
+
+
 class Agent:
   """Base class of every agent (see the module docstring)."""
 
@@ -96,6 +119,7 @@ class Agent:
   def __init__(self, config=None, seed=0, task=None):
     if self.Config is not None and config is None:
       config = self.Config()
+    _check_sections(type(self), config)
     self.config = config
     self.task = task                 # the TaskFile it came from, if any
     self.seed = int(seed)

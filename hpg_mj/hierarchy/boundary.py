@@ -346,3 +346,52 @@ def user_typing_line(message, package_dir, module_path):
   path, line = places[0]
   return (f"{path}, line {line}: your compiled code does not compile: {reason} (numba's "
           "reason; calling that function alone shows its whole message)")
+
+
+def is_users(fn):
+  """Whether `fn` is a compiled function of a user's own (not of hpg_mj)."""
+  module = getattr(getattr(fn, "py_func", None), "__module__", None) or ""
+  return (isinstance(fn, numba.core.registry.CPUDispatcher) and module != "hpg_mj" and
+          not module.startswith("hpg_mj."))
+
+
+_CHECKED = {}
+
+
+def bounds_checked(fn):
+  """`fn` compiled with numba's bounds check where it is a user's own compiled function
+  (a rule, a kind's operation): an index past an array's end (`obs[11]` of the
+  harbour's 11 numbers) raises IndexError, caught as one line (`read_past`),
+  where unchecked it read whatever memory lay there. Not cached by numba (the user's
+  own dispatcher keeps its cache); the graph's module, which calls it, is. hpg_mj's
+  own functions as they are."""
+  if not is_users(fn):
+    return fn
+  if id(fn) not in _CHECKED:
+    options = {k: v for k, v in fn.targetoptions.items()
+               if k not in ("nopython", "boundscheck", "cache")}
+    _CHECKED[id(fn)] = (fn, numba.njit(**{**options, "boundscheck": True})(fn.py_func))
+  return _CHECKED[id(fn)][1]
+
+
+def read_past(error, functions, roles, obs_size):
+  """The IndexError a bounds-checked function raised (`bounds_checked`) as one line naming
+  the user's code the graph compiles (`functions`: (global name, function) pairs;
+  `roles`: a rule's role by global name) and the observation's length; `error` itself
+  where the graph holds none of a user's."""
+  users = [roles.get(name, getattr(fn, "__name__", name)) for name, fn in functions
+           if is_users(fn)]
+  if not users:
+    return error
+  return IndexError(f"the graph's compiled program read past the end of an array ({error}); "
+                    f"numba checks the bounds in your own code: {', '.join(users)} (the "
+                    f"observation holds {obs_size} numbers, obs[0] to obs[{obs_size - 1}])")
+
+
+def compile_error_line(text, module_path, roles, names, arguments):
+  """The one line of a TypingError from a graph's first compile (`typing_line`; else, an
+  error in a user's own compiled code, `user_typing_line`: where, and why), or None."""
+  line = typing_line(text, module_path, roles, names, arguments)
+  if line is None:
+    line = user_typing_line(text, os.path.dirname(os.path.dirname(__file__)), module_path)
+  return line

@@ -9,7 +9,7 @@ import inspect
 import os
 import sys
 
-_VERSION = "1"        # of the generated text's layout
+_VERSION = "2"        # of the generated text's layout (2: a user's functions bounds checked)
 _HEADER = ("from hpg_mj.hierarchy import boundary", "from hpg_mj.hierarchy import calls")
 
 

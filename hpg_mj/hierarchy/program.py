@@ -22,7 +22,6 @@ The learned arrays are saved and restored by name (`state()`, `parameters()`):
 """
 import collections
 import inspect
-import os
 import re
 
 import numba
@@ -185,9 +184,9 @@ class Program:
   # -- the text of the graph's operations --
 
   def _function(self, fn):
-    """The global name the module gives `fn`."""
+    """The global name the module gives `fn` (a user's bounds checked: `boundary`)."""
     if id(fn) not in self._functions:
-      self._functions[id(fn)] = (f"_f{len(self._functions)}", fn)
+      self._functions[id(fn)] = (f"_f{len(self._functions)}", boundary.bounds_checked(fn))
     return self._functions[id(fn)][0]
 
   def _record(self, field, value):
@@ -542,20 +541,21 @@ class Program:
     """A compiled entry point, a boundary fault raised as its one line."""
     try:
       return fn(self.G, *args)
-    except ValueError as e:
+    except (ValueError, IndexError) as e:
       self._explain(e)
     except numba.core.errors.TypingError as e:     # (the first call compiles the module)
-      line = boundary.typing_line(str(e), self.module_path, self._roles, self.names,
-                                  self._arguments)
-      if line is None:          # an error in a user's own compiled code: where, and why
-        line = boundary.user_typing_line(str(e), os.path.dirname(os.path.dirname(
-            boundary.__file__)), self.module_path)
+      line = boundary.compile_error_line(str(e), self.module_path, self._roles, self.names,
+                                         self._arguments)
       if line is None:
         raise
       raise GraphError(line) from None
 
   def _explain(self, error):
-    """Raises a boundary fault (`hierarchy.boundary`) as its one line; else `error`."""
+    """Raises a boundary fault (`hierarchy.boundary`), or a user's read past an array's
+    end (`boundary.read_past`), as its one line; else `error`."""
+    if isinstance(error, IndexError):
+      raise boundary.read_past(error, self._functions.values(), self._roles,
+                               self.obs_size) from None
     if str(error) == boundary.FAULT_MESSAGE:
       raise ValueError(boundary.explain(self.frames.fault, self._whats)) from None
     raise error
@@ -580,7 +580,7 @@ class Program:
       return out
     try:
       return entry(self.G, *args)
-    except ValueError as e:
+    except (ValueError, IndexError) as e:
       self._explain(e)
 
   _entry_points = {}

@@ -11,11 +11,13 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 
 import numpy as np
 import pytest
 
 from hpg_mj import agents
+from hpg_mj import provenance
 from hpg_mj import storage
 from hpg_mj.experiments import runs
 
@@ -289,3 +291,44 @@ def test_the_hierarchy_tutorials_ladder_environment_is_a_whole_section(tmp_path)
   path.write_text(head + block + "\n[" + rest.split("\n[", 1)[1])
   task = agents.load_task(path)
   assert (task.config.environment.world, task.config.environment.level) == ("ship_goal", "hard")
+
+
+def test_a_saved_agent_whose_class_file_was_edited_loads_with_a_warning(tmp_path,
+                                                                        monkeypatch):
+  """A newcomer edited their module after saving and `hpg-mj evaluate` scored the saved
+  agent with the edited rules (0.900 -> 0.698) without a word. The folder records the
+  class file's SHA-256; loading it after an edit warns, naming the file."""
+  code = _block("Write your own hierarchy").split("agent = Waypoints(seed=0)")[0]
+  module = tmp_path / "edited_module.py"
+  module.write_text(code)
+  monkeypatch.syspath_prepend(str(tmp_path))
+  import importlib
+  mine = importlib.import_module("edited_module")
+  agent = mine.Waypoints(seed=0)
+  record = agent.train(5)
+  agents.save(agent, tmp_path / "a", record)
+  meta = json.loads((tmp_path / "a" / "agent.json").read_text())
+  assert meta["agent_file"] == str(module)
+  with warnings.catch_warnings():
+    warnings.simplefilter("error", provenance.VersionWarning)
+    agents.load(tmp_path / "a")                      # unchanged: no warning
+  module.write_text(code + "\n# edited\n")
+  with pytest.warns(provenance.VersionWarning, match="edited_module.py, has changed since it "
+                    "was saved"):
+    agents.load(tmp_path / "a")
+
+
+def test_a_steering_agent_given_a_ladder_environment_is_refused_in_one_line():
+  """A newcomer subclassed ShipHierarchy (the steering ship's) with a LadderEnvironment
+  for the harbour: it trained the steering ship silently, its rules reading past the
+  observation. An agent's sections must be of its Config's classes."""
+  code = _block("Write your own hierarchy").split("agent = Waypoints(seed=0)")[0]
+  space = {}
+  exec(compile(code, "readme", "exec"), space)
+  Waypoints = space["Waypoints"]
+  environment = agents.LadderEnvironment(world="ship_harbour", level="easy")
+  with pytest.raises(ValueError, match=r"^Waypoints: its \[environment\] is a "
+                     r"LadderEnvironment; its Config takes a ShipEnvironment; a ladder task's "
+                     r"environment is for an agent of the ladder \(subclass "
+                     r"hpg_mj.agents.ShipLadderHierarchy"):
+    Waypoints(Waypoints.Config(environment=environment), seed=0)

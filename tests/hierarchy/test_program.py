@@ -361,6 +361,35 @@ def test_a_wrong_value_step_by_step_is_the_same_line_and_no_crash():
     program.run_stepwise(_gym(), 3, True, True, a, _start(a), lambda last: 0.0)
 
 
+@numba.njit
+def _past_the_observation(obs, call):
+  return (obs[2], obs[3], obs[4])        # the steering ship's observation holds 4 numbers
+
+
+def test_a_rule_reading_past_the_observation_is_one_line_not_memory():
+  """A newcomer's view read obs[11] of the harbour's 11 numbers and trained on whatever
+  memory lay there. A user's own compiled functions are compiled with numba's bounds
+  check (`program.bounds_checked`): the read raises, one line naming the user's code,
+  on both paths; hpg_mj's own functions are compiled as they are."""
+  from hpg_mj.hierarchy import boundary
+  assert boundary.bounds_checked(arrived) is not arrived
+  assert boundary.bounds_checked(arrived).targetoptions["boundscheck"] is True
+  assert boundary.bounds_checked(arrived) is boundary.bounds_checked(arrived)
+  assert boundary.bounds_checked(ship_rules.sample_start) is ship_rules.sample_start
+  graph = lambda: one_node_graph(view=Features(_past_the_observation),  # noqa: E731
+                                 learner=blocks.GaussianCMAC(CODER3))
+  want = (r"^the graph's compiled program read past the end of an array \(index is out of "
+          r"bounds\); numba checks the bounds in your own code: view "
+          r"Features\(_past_the_observation\), termination Termination\(arrived\) \(the "
+          r"observation holds 4 numbers, obs\[0\] to obs\[3\]\)$")
+  with pytest.raises(IndexError, match=want):
+    Program(graph(), root_args=GOTO).run(3, True, True, rng.make_state(0), WORLD)
+  a = rng.make_state(0)
+  with pytest.raises(IndexError, match=want):
+    Program(graph(), root_args=GOTO).run_stepwise(_gym(), 3, True, True, a, _start(a),
+                                                  lambda last: 0.0)
+
+
 # A learner kind of the user's that chooses what its block says: a child's index
 # past the node's children, or a float that is not one, is refused, not read as a
 # primitive (it had run silently: no call of a subtask, the last action repeated).
