@@ -434,11 +434,11 @@ def test_hpg_mj_bounds_writes_what_compute_bounds_gives(tmp_path, capsys):
 
 
 def test_a_ladder_agent_is_scored_at_its_own_level_under_the_tasks_rewards(tmp_path):
-  """An agent on the harbour trained with -300 for running aground is scored as any
+  """An agent on the current trained with -300 for leaving the field is scored as any
   policy is, under the task's -100 (`_ladder.gate_returns`); another level than its task
   file's is refused in one line, as the command line refuses --level; agents.load's
   whole tuple is refused naming what to pass."""
-  task = agents.load_task("ship_harbour_waypoints")
+  task = agents.load_task("ship_current_hybrid")
   assert task.config.environment.out_of_bounds_reward == -300.0
   agent = agents.build(task, seed=0)
   trained = agent.train(20)
@@ -449,12 +449,12 @@ def test_a_ladder_agent_is_scored_at_its_own_level_under_the_tasks_rewards(tmp_p
   np.testing.assert_array_equal(record["return"],
                                 -record["steps"] + 100.0 * record["passed"] - 100.0 * left)
   assert got.metrics["mean_return"] == record["return"].mean()
-  for kw in ({"task": "ship_harbour", "level": "hard"}, {"task": "ship_harbour/hard"}):
-    with pytest.raises(ValueError, match=r"^agent 'ship_ladder_waypoints' acts on "
-                       r"'ship_harbour' at level 'easy', its task file's, not 'hard'; set "
+  for kw in ({"task": "ship_current", "level": "hard"}, {"task": "ship_current/hard"}):
+    with pytest.raises(ValueError, match=r"^agent 'ship_ladder_hybrid' acts on "
+                       r"'ship_current' at level 'easy', its task file's, not 'hard'; set "
                        r"\[environment\] level there$"):
       benchmark.evaluate(agent, episodes=1, progress=False, **kw)
-  assert benchmark.evaluate(agent, "ship_harbour/easy", 2, progress=False).metrics["level"] == "easy"
+  assert benchmark.evaluate(agent, "ship_current/easy", 2, progress=False).metrics["level"] == "easy"
   agents.save(agent, tmp_path / "agent", trained)
   with pytest.raises(ValueError, match=r"^policy is a tuple of 3 \(agents.load returns "
                      r"\(agent, record, metadata\)\); pass its agent, agents.load\(path\)\[0\]$"):

@@ -298,13 +298,13 @@ def test_a_saved_agent_whose_class_file_was_edited_loads_with_a_warning(tmp_path
   """A newcomer edited their module after saving and `hpg-mj evaluate` scored the saved
   agent with the edited rules (0.900 -> 0.698) without a word. The folder records the
   class file's SHA-256; loading it after an edit warns, naming the file."""
-  code = _block("Write your own hierarchy").split("agent = Waypoints(seed=0)")[0]
+  code = _block("Write your own agent").split("agents.register(")[0]
   module = tmp_path / "edited_module.py"
   module.write_text(code)
   monkeypatch.syspath_prepend(str(tmp_path))
   import importlib
   mine = importlib.import_module("edited_module")
-  agent = mine.Waypoints(seed=0)
+  agent = mine.TabularQ(seed=0)
   record = agent.train(5)
   agents.save(agent, tmp_path / "a", record)
   meta = json.loads((tmp_path / "a" / "agent.json").read_text())
