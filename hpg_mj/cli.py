@@ -255,6 +255,8 @@ def _cmd_train(args):
                   # that a speed is computed from train_seconds
                   "wall_seconds": round(wall, 3), "compile_seconds": round(compiled, 3),
                   "train_seconds": round(wall - compiled, 3)})
+  if earlier is not None:              # `episodes` is the whole record's; these added to it
+    metrics.update({"resumed_from": len(earlier), "episodes_added": len(record) - len(earlier)})
   if earlier is None:
     agents.save(agent, out, record, {"metrics": metrics})
   else:                                # the folder replaced only once the new one is whole

@@ -82,11 +82,15 @@ def test_a_trained_folder_trained_further_is_the_run_never_stopped(tmp_path):
   learners: 200 + 100 episodes save the arrays and record of 300 at once, bit for bit;
   what the saved agent fixes (its task file, seed, folder) is refused in one line."""
   _module(tmp_path)
+  said = {}
   for args in (("t.toml", "--episodes", 200, "--out", "a"), ("--resume", "a", "--episodes", 100),
                ("t.toml", "--episodes", 300, "--out", "b")):
     done = _run(tmp_path, "train", *args, "--json")
     assert done.returncode == 0, done.stderr
-  assert json.loads(done.stdout)["episodes"] == 300
+    said[args[0]] = json.loads(done.stdout)
+  assert said["t.toml"]["episodes"] == 300 and "resumed_from" not in said["t.toml"]
+  assert [said["--resume"][k] for k in ("episodes", "resumed_from", "episodes_added")] == [
+      300, 200, 100]                      # the whole record's, and what this run added
   (meta_a, a), (_, b) = storage.load(tmp_path / "a"), storage.load(tmp_path / "b")
   assert sorted(a) == sorted(b) and len(a["record"]) == 300 and meta_a["episodes"] == 300
   for name in a:
