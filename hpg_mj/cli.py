@@ -328,8 +328,8 @@ def _cmd_evaluate(args):
   metrics = agent.metrics(record)
   from hpg_mj.agents import window
   # SPEC section 7.1: every score also normalized (none for a subtask or the patrol)
-  metrics.update(bounds.normalized(bounds.task_name(agent), metrics))
   name = bounds.task_name(agent)          # the benchmark task it acts on, if any
+  metrics.update(bounds.normalized(name, metrics))
   if name is not None:
     task, _, level = name.partition("/")
     metrics = {"task": task, **({"level": level} if level else {}), **metrics,

@@ -402,11 +402,11 @@ def _file_sha256(path):
 def _warn_if_edited(agent, meta, directory):
   """A VersionWarning when the file of a user's agent class differs from the one it was
   saved with: its rules, view and graph now run as edited, so its scores may change."""
-  saved = meta.get("agent_file_sha256")
-  now = _file_sha256(_class_file(agent))
+  saved, path = meta.get("agent_file_sha256"), _class_file(agent)
+  now = _file_sha256(path)
   if saved and now and saved != now:
     from hpg_mj import provenance
-    warnings.warn(f"{directory}: the file of its class, {_class_file(agent)}, has changed "
+    warnings.warn(f"{directory}: the file of its class, {path}, has changed "
                   "since it was saved (its SHA-256 differs): it runs the code as it is now, "
                   "and its scores may differ from those it was saved with",
                   provenance.VersionWarning, stacklevel=3)
@@ -425,7 +425,7 @@ def save(agent, directory, record, extra=None, compress=True):
   meta = {"task_file": str(agent.task.path) if agent.task else None,
           "task_text": text, "seed": agent.seed, "episodes": agent.episodes,
           "agent_class": class_path(type(agent)),      # found by `load` in a new process
-          "agent_file": _class_file(agent),
+          "agent_file": getattr(sys.modules.get(type(agent).__module__), "__file__", None),
           "agent_file_sha256": _file_sha256(_class_file(agent)),
           "provenance": provenance.collect(text, agent.seed)}
   meta.update(extra or {})

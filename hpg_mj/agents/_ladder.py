@@ -92,6 +92,15 @@ def world_of(env):
                       env.max_steps, env.finish_reward)
 
 
+def _left(record, success, trained, env):
+  """Whether each episode left the field (or ran aground): it neither succeeded nor ran
+  to its step limit, or it stopped at the limit with the agent's out-of-bounds reward
+  in its return (`trained`: the return it would hold without that reward)."""
+  return ~success & ((record["steps"] < env.episode_steps) | (
+      (env.out_of_bounds_reward != 0.0) &
+      np.isclose(record["return"], trained + env.out_of_bounds_reward)))
+
+
 def regatta_returns(record, env):
   """Each regatta episode's return under SPEC section 11's rewards (-1 a control step,
   +100 each gate but the last, +500 the last, -100 off the field: those its bounds are
@@ -101,10 +110,7 @@ def regatta_returns(record, env):
   the limit left it only if its return holds the out-of-bounds reward."""
   steps, gates = record["steps"], record["gates"]
   finished = record["passed"] > 0
-  trained = -steps + env.gate_reward * gates
-  left = ~finished & ((steps < env.episode_steps) | (
-      (env.out_of_bounds_reward != 0.0) &
-      np.isclose(record["return"], trained + env.out_of_bounds_reward)))
+  left = _left(record, finished, -steps + env.gate_reward * gates, env)
   return (-steps + regatta_core.GATE_REWARD * (gates - finished)
           + regatta_core.FINISH_REWARD * finished + regatta_core.OUT_OF_BOUNDS_REWARD * left)
 
@@ -117,9 +123,7 @@ def gate_returns(record, env):
   An episode that neither passed nor ran to its step limit left the field; one that
   stopped at the limit left it only if its return holds the out-of-bounds reward."""
   steps, passed = record["steps"], record["passed"] > 0
-  left = ~passed & ((steps < env.episode_steps) | (
-      (env.out_of_bounds_reward != 0.0) &
-      np.isclose(record["return"], -steps + env.out_of_bounds_reward)))
+  left = _left(record, passed, -steps, env)
   return -steps + core.GATE_REWARD * passed + core.OUT_OF_BOUNDS_REWARD * left
 
 

@@ -222,17 +222,16 @@ class LadderPPOJax(jax_ppo._JaxAgent, _ship.ShipAgent):
     w = self._window(record)
     episodes, gates = w["episodes"].sum(), w["gates"].sum()
     mean = lambda field: float(w[field].sum() / episodes) if episodes else None  # noqa: E731
-    if len(w) and w is record and np.all(w["episodes"] == 1):     # an evaluation's rows
-      mean = lambda field: (float(self._task_returns(w).mean()) if field == "return_sum"  # noqa: E731
-                            else float(w[field].sum() / episodes))
+    evaluation = len(w) and w is record and np.all(w["episodes"] == 1)   # a row an episode
+    mean_return = float(self._task_returns(w).mean()) if evaluation else mean("return_sum")
     steps = float(w["gate_steps"].sum() / gates) if gates else None
     out = {"episodes_measured": int(episodes), "rows_measured": int(len(w))}
     if self.regatta:
       out.update(finish_rate=float(gates / episodes) if episodes else None,
                  gates_passed=mean("gates_passed"), steps_to_finish=steps,
-                 mean_return=mean("return_sum"))
+                 mean_return=mean_return)
     else:
       out.update(gate_pass_rate=float(gates / episodes) if episodes else None,
-                 steps_to_gate=steps, mean_return=mean("return_sum"), J=mean("j_sum"))
+                 steps_to_gate=steps, mean_return=mean_return, J=mean("j_sum"))
     out["control_steps"] = int(record["steps"].sum())
     return out
