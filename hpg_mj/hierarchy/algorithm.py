@@ -38,13 +38,14 @@ import numpy as np
 from hpg_mj.hierarchy import ship_rules
 from hpg_mj.hierarchy import taxi_subtasks
 from hpg_mj.learners import arrays
+from hpg_mj.learners import jit
 from hpg_mj.worlds import ship_core as core
 from hpg_mj.worlds import taxi_rules
 
 Frames = collections.namedtuple("Frames", (
     "stack", "choice", "action", "steps", "child_steps", "reward", "origin", "args", "x",
     "counters", "episode", "total", "flags", "rng", "fault", "obs", "samples", "board",
-    "mask", "restart"))
+    "mask", "restart", "ops"))
 Frames.__doc__ = """The machine's state, per node (a node is on the call stack at
 most once: the graph is acyclic) and per run. `stack[d]`: the node called at depth d. Per node: its
 `choice` (a child's index) and `action` (a continuous child's value), its call's
@@ -60,7 +61,10 @@ out around a compiled call), the `fault` a boundary check wrote
 ship's step (`samples`), the taxi's own state in its fused loop (`board`:
 taxi_rules' int64 state, then its episode's steps, outcome and illegal moves) and,
 per node, the children it may choose now (`mask`: its `available`'s, else all);
-the continuing ship's state after a departure (`restart`)."""
+the continuing ship's state after a departure (`restart`); the addresses of the
+code of the graph's `enter`, `resume` and `judge` in this process (`ops`, as OP_ENTER
+...: `learners.jit.call_at`)."""
+OP_ENTER, OP_RESUME, OP_JUDGE = range(3)
 E_DEPTH, E_STEPS, E_EVENT, E_LEARNED, E_RESTART = range(5)
 LEARN, SAMPLE = range(2)
 CALLS, RUNS, SUCCESSES = range(3)
@@ -161,7 +165,7 @@ def call(G, d, node):
   M.child_steps[node] = 0
   M.reward[node] = 0.0
   arrays.copy_into(M.origin[node], M.obs)
-  enter(G, node)
+  jit.call_at(enter, M.ops[OP_ENTER], (G, node))
 
 
 @numba.njit(**_INLINE)
@@ -211,7 +215,7 @@ def step(G, reward, terminated, truncated):
   d = depth
   while True:
     node = M.stack[d]
-    event, internal = judge(G, node)
+    event, internal = jit.call_at(judge, M.ops[OP_JUDGE], (G, node))
     done = event != NO_EVENT or over
     terminal = terminated or event != NO_EVENT
     if CONTINUING and d == 0:      # the world's events end the children's calls only
@@ -224,7 +228,7 @@ def step(G, reward, terminated, truncated):
     M.reward[node] = 0.0
     if d == 0 and learn:
       schedule_decided(G)
-    resume(G, node, seen + internal, done, terminal, terminated)
+    jit.call_at(resume, M.ops[OP_RESUME], (G, node, seen + internal, done, terminal, terminated))
     M.child_steps[node] = 0        # (after `resume`: a learner may read its tau)
     if not done:
       return False, descend(G, d)

@@ -16,6 +16,7 @@ them into `reset(start) -> obs` and `step(action) -> Step`.
 """
 import numpy as np
 
+from hpg_mj.hierarchy import algorithm
 from hpg_mj.hierarchy.graph import Call, Primitive, Step
 
 
@@ -121,6 +122,38 @@ def step_values(adapter):
 
 
 _PLAIN_STEPS = (GymAdapter.step, DmControlAdapter.step)
+
+
+def run_program(program, env, episodes, learn, sample, rng_state, start, ended, on_call=None):
+  """A compiled graph's `program` (`hierarchy.program.Program`) for `episodes` episodes
+  through `env` (any Gymnasium or dm_control environment), each from `start()`;
+  `ended(last step)` gives the row's end (or a pair: the end and its ROW_ILLEGAL
+  column). Rows as `Program.run`'s.
+  `on_call(call)`, if given, is told of every subtask called below the root (a
+  `graph.Call`: its node, its arguments, the observation where it was called)."""
+  adapter = adapter_for(env)
+  step = step_values(adapter)
+  sample = learn if sample is None else (sample or learn)
+  rows = np.zeros((int(episodes), algorithm.ROW_COUNTERS + 3 * len(program.names)))
+  for i in range(int(episodes)):
+    obs = adapter.reset(start())
+    action = program.begin(obs, learn, sample, rng_state)
+    over = False
+    while not over:
+      if on_call is not None:
+        for call in program.calls_begun():
+          on_call(call)
+      obs, reward, terminated, truncated, info = step(action)
+      over, action = program.advance(obs, reward, terminated, truncated, info, learn, sample,
+                                     rng_state)
+    end = ended(Step(obs, float(reward), bool(terminated), bool(truncated), info))
+    if isinstance(end, tuple):             # (the row's end, its ROW_ILLEGAL column)
+      end, rows[i, algorithm.ROW_ILLEGAL] = end
+    rows[i, algorithm.ROW_END] = end
+    rows[i, algorithm.ROW_STEPS] = program.episode_steps
+    rows[i, algorithm.ROW_RETURN] = program.episode_return
+    rows[i, algorithm.ROW_COUNTERS:] = program.counters()
+  return rows
 
 
 class Executor:

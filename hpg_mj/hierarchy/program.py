@@ -22,11 +22,13 @@ The learned arrays are saved and restored by name (`state()`, `parameters()`):
 """
 import collections
 import inspect
+import os
 import re
 
 import numba
 import numpy as np
 
+from hpg_mj import _collector
 from hpg_mj.hierarchy import algorithm
 from hpg_mj.hierarchy import arguments
 from hpg_mj.hierarchy import boundary
@@ -513,7 +515,7 @@ class Program:
         fault=np.zeros(4), obs=np.zeros(self.obs_size),
         samples=np.zeros((core.SAMPLES_PER_CONTROL + 1, 2)), board=np.zeros(8, dtype=np.int64),
         mask=np.ones((n, max([s.n_children for s in self._subtasks] + [1])), dtype=np.bool_),
-        restart=np.zeros(self.obs_size))
+        restart=np.zeros(self.obs_size), ops=np.zeros(3, dtype=np.int64))
     root = self.index[self.graph.root]
     for j, arg in enumerate(self._arguments.get(self.graph.root, {})):
       self.frames.args[root, j] = float(self._root_args[arg])
@@ -538,8 +540,14 @@ class Program:
   _flags_set = (None, None)
 
   def _run(self, fn, *args):
-    """A compiled entry point, a boundary fault raised as its one line."""
+    """A compiled entry point, a boundary fault raised as its one line. The first in a
+    process compiles the graph's operations before it (`graph_module.link`)."""
     try:
+      if self._linked_in != os.getpid():
+        with _collector.paused():              # (one collection after all the compiles)
+          graph_module.link(self._module, self.G, self.frames.ops)
+          self._linked_in = os.getpid()
+          return fn(self.G, *args)
       return fn(self.G, *args)
     except (ValueError, IndexError) as e:
       self._explain(e)
@@ -549,6 +557,8 @@ class Program:
       if line is None:
         raise
       raise GraphError(line) from None
+
+  _linked_in = None     # the process whose addresses `Frames.ops` holds
 
   def _explain(self, error):
     """Raises a boundary fault (`hierarchy.boundary`), or a user's read past an array's
@@ -740,35 +750,11 @@ class Program:
     return out
 
   def run_stepwise(self, env, episodes, learn, sample, rng_state, start, ended, on_call=None):
-    """`episodes` episodes through `env` (any Gymnasium or dm_control environment),
-    each from `start()`; `ended(last step)` gives the row's end (or a pair: the end and
-    its ROW_ILLEGAL column). Rows as `run`'s.
-    `on_call(call)`, if given, is told of every subtask called below the root (a
-    `graph.Call`: its node, its arguments, the observation where it was called)."""
+    """`episodes` episodes through `env`, any Gymnasium or dm_control environment
+    (`executor.run_program`: `start`, `ended` and `on_call` there)."""
     from hpg_mj.hierarchy import executor
-    adapter = executor.adapter_for(env)
-    step = executor.step_values(adapter)
-    sample = learn if sample is None else (sample or learn)
-    rows = np.zeros((int(episodes), algorithm.ROW_COUNTERS + 3 * len(self.names)))
-    for i in range(int(episodes)):
-      obs = adapter.reset(start())
-      action = self.begin(obs, learn, sample, rng_state)
-      over = False
-      while not over:
-        if on_call is not None:
-          for call in self.calls_begun():
-            on_call(call)
-        obs, reward, terminated, truncated, info = step(action)
-        over, action = self.advance(obs, reward, terminated, truncated, info, learn, sample,
-                                    rng_state)
-      end = ended(executor.Step(obs, float(reward), bool(terminated), bool(truncated), info))
-      if isinstance(end, tuple):             # (the row's end, its ROW_ILLEGAL column)
-        end, rows[i, algorithm.ROW_ILLEGAL] = end
-      rows[i, algorithm.ROW_END] = end
-      rows[i, algorithm.ROW_STEPS] = self.episode_steps
-      rows[i, algorithm.ROW_RETURN] = self.episode_return
-      rows[i, algorithm.ROW_COUNTERS:] = self.counters()
-    return rows
+    return executor.run_program(self, env, episodes, learn, sample, rng_state, start, ended,
+                                on_call)
 
   # -- saved by name --
 

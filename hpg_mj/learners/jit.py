@@ -18,53 +18,13 @@ innermost code was compiled six times over, two fifths of a first train's LLVM t
 Through its address, a function's code is compiled once, in its own library; the
 caller cannot inline it, so it is for calls whose work outweighs a call (a subtask's
 call, a control step of the ship).
-
-While numba compiles hpg_mj's code, Python's cyclic garbage collector is paused
-(`_CollectorPause`).
 """
-import gc
-
 import numba
 from numba.core import cgutils
 from numba.core import errors
-from numba.core import event
 from numba.core import types
 from numba.core.compiler_lock import global_compiler_lock
 from numba.extending import intrinsic
-
-
-class _CollectorPause(event.Listener):
-  """Pauses Python's cyclic garbage collector while numba compiles a function of
-  hpg_mj (with all it compiles inside: the callees, a user's rules), and collects the
-  young objects once when that compile ends. numba's compiler makes hundreds of
-  thousands of objects in reference cycles (IR blocks and their scopes, types); their
-  allocation set off the collector, and each of its full collections walked the whole
-  heap again: 1.7-1.8 s of the ship hybrid's first trains of 11.8-12.0 s (the
-  collector's own callbacks), 0.6-0.75 s in all with the pause. A collector the
-  process turned off stays off, and a compile of code outside hpg_mj is left as it
-  is. numba compiles under one lock, so the depth needs none."""
-
-  def __init__(self):
-    self.depth = 0
-    self.paused = False
-
-  def on_start(self, ev):
-    self.depth += 1
-    function = getattr(ev.data.get("dispatcher"), "py_func", None)
-    if self.depth == 1 and gc.isenabled() and \
-        (getattr(function, "__module__", None) or "").startswith("hpg_mj."):
-      gc.disable()
-      self.paused = True
-
-  def on_end(self, ev):
-    self.depth = max(self.depth - 1, 0)     # 0: registered while a compile ran
-    if self.depth == 0 and self.paused:
-      self.paused = False
-      gc.enable()
-      gc.collect(0)
-
-
-event.register("numba:compile", _CollectorPause())
 
 
 def compile_first(loop, rules):

@@ -2,3 +2,4 @@
 compiled core of plain-array rules (`ship_core`, `taxi_core`, ...), which every
 backend and agent steps, and a module beside it with its dm_control `Physics` and
 `Task` (`ship`, `taxi`, ...); the MuJoCo model is in assets/."""
+from hpg_mj import _collector  # noqa: F401  (pauses the collector while numba compiles)

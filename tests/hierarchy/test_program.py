@@ -127,6 +127,27 @@ def test_fused_and_step_by_step_agree_bit_for_bit():
     np.testing.assert_array_equal(value, stepped.state()[name], err_msg=name)
 
 
+def test_the_graphs_operations_compile_once_before_its_entry_points():
+  """`graph_module.link` compiles each of the graph's operations for the types
+  Algorithm 1 calls them with, so neither the fused loop nor the step-by-step entry
+  points compile one again; each program holds the addresses of `enter`, `resume` and
+  `judge` (a second program of the graph too), and takes them again in another
+  process (here: its record of whose addresses they are lost)."""
+  fused, stepped = Program(waypoint_graph()), Program(waypoint_graph())
+  a, b = rng.make_state(5), rng.make_state(5)
+  rows = fused.run(3, True, True, a, WORLD)
+  stepped.run_stepwise(_gym(), 3, True, True, b, _start(b), lambda last: False)
+  for op in ("enter", "resume", "judge", "chosen", "schedule_run", "schedule_episode",
+             "schedule_decided"):
+    assert len(getattr(fused._module, op).signatures) == 1, op
+  assert (fused.frames.ops != 0).all()
+  np.testing.assert_array_equal(fused.frames.ops, stepped.frames.ops)
+  fused.frames.ops[:] = 0
+  fused._linked_in = None
+  again = fused.run(3, True, True, rng.make_state(5), WORLD)
+  assert again.shape == rows.shape and (fused.frames.ops != 0).all()
+
+
 class _Goto:
   """The oracle's goto(x, y): the same rules, in Python."""
 

@@ -1,12 +1,12 @@
 """Python's cyclic collector is paused while numba compiles hpg_mj's code, and only
-then (`learners.jit._CollectorPause`)."""
+then (`hpg_mj._collector`), a graph's program's too."""
 import gc
 
 import numba
 import pytest
 from numba.core import event
 
-from hpg_mj.learners import jit  # noqa: F401  (registers the pause)
+import hpg_mj.learners  # noqa: F401  (registers the pause)
 
 
 class _Seen(event.Listener):
@@ -75,3 +75,29 @@ def test_the_collector_is_on_again_after_a_compile_that_fails(collector_on):
   with pytest.raises(numba.core.errors.TypingError):
     numba.njit(broken)(1)
   assert gc.isenabled()
+
+
+def test_a_graphs_program_compiles_with_the_collector_off(collector_on):
+  assert _compile(_fresh("hpg_mj_graph_0123456789abcdef0123")) == [False, False]
+  assert gc.isenabled()
+
+
+def test_importing_either_bottom_layer_registers_the_pause():
+  """In a fresh interpreter: the worlds alone, or the learners alone, pause it."""
+  import subprocess
+  import sys
+  for layer in ("hpg_mj.worlds", "hpg_mj.learners"):
+    code = (f"import {layer}, gc, numba\n"
+            "def f(x):\n  return x + 1\n"
+            "f.__module__ = 'hpg_mj.probe'\n"
+            "seen = []\n"
+            "from numba.core import event\n"
+            "class L(event.Listener):\n"
+            "  def on_start(self, ev): seen.append(gc.isenabled())\n"
+            "  def on_end(self, ev): pass\n"
+            "with event.install_listener('numba:compile', L()):\n"
+            "  g = numba.njit(f)\n"
+            "  g.compile((numba.int64,))\n"
+            "print(seen, gc.isenabled())")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[False] True", (layer, out.stdout, out.stderr)
