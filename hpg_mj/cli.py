@@ -692,6 +692,7 @@ def _parse(parser, argv):
 def main(argv=None):
   """Runs `hpg-mj` with the arguments `argv` (the process's when None)."""
   import hpg_mj  # noqa: F401  (registers the Gymnasium ids)
+  from hpg_mj import _stack
   from hpg_mj._render_worker import RenderingUnavailable
   args = _parse(build_parser(), argv)
   import warnings
@@ -709,7 +710,7 @@ def main(argv=None):
     from hpg_mj import agents
     for module in args.imports:          # a user's agents, registered before the command
       agents.import_module(module)
-    return args.func(args)
+    return _stack.roomy(args.func, args)   # (numba compiles below it: `hpg_mj._stack`)
   except RenderingUnavailable as err:
     print(f"hpg-mj {args.command}: error: {err}", file=sys.stderr)
     return 2

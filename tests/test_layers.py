@@ -2,7 +2,7 @@
 each other, hierarchies above them, agents above those, experiments and the
 command line on top; no folder-level cycle. (Top-level `_` modules are shared
 utilities: the assets, validation, headless imports, the render worker, the checks
-of user-given paths, the collector paused while numba compiles.)"""
+of user-given paths, the collector paused while numba compiles, a roomy frame stack.)"""
 import ast
 import pathlib
 
@@ -11,11 +11,11 @@ import pytest
 PACKAGE = pathlib.Path(__file__).resolve().parents[1] / "hpg_mj"
 # folder -> the hpg_mj folders (and top-level modules) it may import
 ALLOWED = {
-    "learners": {"_collector"},
+    "learners": {"_collector", "_stack"},
     "worlds": {"_assets", "_validation", "_headless", "_render_worker", "_collector"},
     "envs": {"worlds", "render", "_validation", "_assets", "_headless"},
     "render": {"worlds", "_assets", "_validation", "_headless", "_render_worker"},
-    "hierarchy": {"learners", "worlds", "_collector"},
+    "hierarchy": {"learners", "worlds", "_collector", "_stack"},
     # (hpg_mj.jax: the JAX agents' learner, imported when such an agent is built)
     "agents": {"hierarchy", "learners", "worlds", "envs", "suite", "render", "provenance",
                "_paths", "taskfile", "storage", "jax"},

@@ -29,6 +29,7 @@ import numba
 import numpy as np
 
 from hpg_mj import _collector
+from hpg_mj import _stack
 from hpg_mj.hierarchy import algorithm
 from hpg_mj.hierarchy import arguments
 from hpg_mj.hierarchy import boundary
@@ -545,9 +546,9 @@ class Program:
     try:
       if self._linked_in != os.getpid():
         with _collector.paused():              # (one collection after all the compiles)
-          graph_module.link(self._module, self.G, self.frames.ops)
+          _stack.roomy(graph_module.link, self._module, self.G, self.frames.ops)
           self._linked_in = os.getpid()
-          return fn(self.G, *args)
+          return _stack.roomy(fn, self.G, *args)
       return fn(self.G, *args)
     except (ValueError, IndexError) as e:
       self._explain(e)

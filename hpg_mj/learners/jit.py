@@ -26,6 +26,8 @@ from numba.core import types
 from numba.core.compiler_lock import global_compiler_lock
 from numba.extending import intrinsic
 
+from hpg_mj import _stack
+
 
 def compile_first(loop, rules):
   """Before `loop`'s first call in this process, compiles (or loads from numba's
@@ -36,7 +38,7 @@ def compile_first(loop, rules):
   if loop.signatures:
     return
   for dispatcher, example in rules():
-    dispatcher.compile(tuple(numba.typeof(value) for value in example))
+    _stack.roomy(dispatcher.compile, tuple(numba.typeof(value) for value in example))
 
 
 def _canonical(typ):

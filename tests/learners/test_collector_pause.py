@@ -101,3 +101,14 @@ def test_importing_either_bottom_layer_registers_the_pause():
             "print(seen, gc.isenabled())")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[False] True", (layer, out.stdout, out.stderr)
+
+
+def test_a_roomy_call_gives_what_the_function_gives_and_raises_what_it_raises():
+  """`hpg_mj._stack.roomy`: the call through a frame of ~2 MB is the call itself."""
+  from hpg_mj import _stack
+
+  def deep(n, add=0):
+    return add if n == 0 else deep(n - 1, add) + 1
+  assert _stack.roomy(deep, 500, add=2) == 502
+  with pytest.raises(ZeroDivisionError):
+    _stack.roomy(lambda: 1 / 0)
