@@ -12,8 +12,9 @@ empty caches), by the depth it happened to compile at.
 the interpreter gives that frame a chunk of 4 MB, and the frames of everything
 `fn` calls fit in the chunk's other ~2 MB, so no call below it crosses a boundary.
 Elsewhere (other Pythons) it is one larger frame. The entry points that compile
-call through it: the command line, a graph's program's first run, and the rules
-compiled leaves first (`learners.jit.compile_first`).
+call through it: the command line, an experiment's worker processes (and Ray's), a
+graph's program's first run, and the rules compiled leaves first
+(`learners.jit.compile_first`).
 """
 import types
 

@@ -30,6 +30,7 @@ import time
 
 import numpy as np
 
+from hpg_mj import _stack
 from hpg_mj.experiments import cores
 
 TASK = "ship_patrol_average_reward"
@@ -100,7 +101,7 @@ def _in_order(fn, items, workers):
       yield fn(*item)
     return
   with concurrent.futures.ProcessPoolExecutor(max_workers=min(workers, len(items))) as pool:
-    for future in [pool.submit(fn, *item) for item in items]:
+    for future in [pool.submit(_stack.roomy, fn, *item) for item in items]:
       yield future.result()
 
 

@@ -77,6 +77,7 @@ import time
 
 import numpy as np
 
+from hpg_mj import _stack
 from hpg_mj import _paths
 from hpg_mj import agents
 from hpg_mj.experiments import locks
@@ -353,7 +354,7 @@ def _run_processes(todo, workers, options, poll, on_finished):
     return
   pool = concurrent.futures.ProcessPoolExecutor(max_workers=workers)
   try:
-    futures = {pool.submit(runs.run, *job, **options): job for job in todo}
+    futures = {pool.submit(_stack.roomy, runs.run, *job, **options): job for job in todo}
     waiting = set(futures)
     while waiting:
       finished, waiting = concurrent.futures.wait(
@@ -376,7 +377,7 @@ def _run_on_ray(*job, **options):
   """`runs.run` on a Ray worker; a refused run comes back as its message, so that
   the driver raises it as `locks.RunLocked`, not as a Ray task error."""
   try:
-    return runs.run(*job, **options)
+    return _stack.roomy(runs.run, *job, **options)
   except locks.RunLocked as err:
     return _Refused(str(err))
 

@@ -15,6 +15,7 @@ import time
 
 import numpy as np
 
+from hpg_mj import _stack
 from hpg_mj import agents
 from hpg_mj.experiments import cores
 
@@ -124,7 +125,8 @@ def tune(task, budget=None, episodes=None, seeds=None, progress=None, workers=1)
   else:
     import concurrent.futures
     with concurrent.futures.ProcessPoolExecutor(max_workers=workers) as pool:
-      futures = {pool.submit(_one_run, *args): job for job, args in zip(jobs, arguments)}
+      futures = {pool.submit(_stack.roomy, _one_run, *args): job
+                 for job, args in zip(jobs, arguments)}
       try:
         for future in concurrent.futures.as_completed(futures):
           finished(futures[future], *future.result())
