@@ -46,9 +46,10 @@ class CollectorPause(event.Listener):
 
 @contextlib.contextmanager
 def paused():
-  """The collector paused over several compiles (and whatever runs between them), and
-  the young objects collected once after: each compile's own pause collects them at
-  its end, ~50 ms after each of a graph's first compiles."""
+  """The collector paused over several compiles and what runs between them, with one
+  collection of the young objects after. Inside it a compile's own pause stays idle
+  (the collector is already off), so the compiles do not each end with a collection
+  (~50 ms after each of a graph's first compiles)."""
   if not gc.isenabled():
     yield
     return

@@ -4,9 +4,10 @@ On Python 3.11 and 3.12 the interpreter keeps its frames in chunks of 16 KB, map
 chunk when a call crosses into it and unmaps it when that call returns (CPython
 gh-142183, fixed in later 3.13 and 3.14 releases). numba's compiler recurses
 hundreds of frames deep and back, millions of times in a first compile, so wherever
-its depth swings across a chunk's boundary every call maps and unmaps a chunk: that
-cost the ship hybrid's first train from 1 s to 4.5 s (`hpg-mj train ship_hybrid`,
-empty caches), by the depth it happened to compile at.
+its depth swings across a chunk's boundary every call maps and unmaps a chunk. How
+often depends on the depth the compile starts at: the ship hybrid's first train (empty
+caches) took 14.1-14.5 s of CPU, 1.2 s of it in the kernel, started two frames deeper
+than `hpg-mj train` starts it, and 9.1-9.2 s (0.28 s) through `roomy`.
 
 `roomy` calls `fn(*args)` from a frame of ~2 MB (its code's stack size made large):
 the interpreter gives that frame a chunk of 4 MB, and the frames of everything
