@@ -388,6 +388,27 @@ def read_past(error, functions, roles, obs_size):
                     f"observation holds {obs_size} numbers, obs[0] to obs[{obs_size - 1}])")
 
 
+def attribute_line(error, module_path):
+  """The one line for an AttributeError numba raised typing a user's compiled code (a
+  module's name that is not there, `math.hypotenuse`: numba passes Python's own error
+  on, without a place): the user's file and line where typing stopped (the innermost
+  frame typing a place outside hpg_mj and the graph's module), or None."""
+  package_dir = os.path.abspath(os.path.dirname(os.path.dirname(__file__)))
+  place, tb = None, error.__traceback__
+  while tb is not None:
+    owner = tb.tb_frame.f_locals.get("self")
+    loc = getattr(owner, "loc", None)
+    path = getattr(loc, "filename", None)
+    if isinstance(path, str) and not os.path.abspath(path).startswith(package_dir) and \
+        os.path.basename(path) != os.path.basename(module_path):
+      place = (path, loc.line)
+    tb = tb.tb_next
+  if place is None:
+    return None
+  return (f"{place[0]}, line {place[1]}: your compiled code does not compile: {error} "
+          "(numba's reason; calling that function alone shows its whole message)")
+
+
 def compile_error_line(text, module_path, roles, names, arguments):
   """The one line of a TypingError from a graph's first compile (`typing_line`; else, an
   error in a user's own compiled code, `user_typing_line`: where, and why), or None."""

@@ -558,6 +558,11 @@ class Program:
       if line is None:
         raise
       raise GraphError(line) from None
+    except AttributeError as e:      # numba's, typing a user's `math.no_such_name`
+      line = boundary.attribute_line(e, self.module_path)
+      if line is None:
+        raise
+      raise GraphError(line) from None
 
   _linked_in = None     # the process whose addresses `Frames.ops` holds
 

@@ -575,6 +575,24 @@ def _reads_array_field(obs, call):
   return (obs.nothing, obs[3])
 
 
+@numba.njit
+def _no_such_function(obs, call):
+  return (math.hypotenuse(call.x - obs[0], call.y - obs[1]), obs[3])
+
+
+def test_a_rule_naming_what_a_module_lacks_is_one_line_too():
+  """`math.hypotenuse`: numba passes Python's AttributeError on with no place (150
+  lines of numba's); it is the same one line, naming the user's file and line."""
+  program = Program(one_node_graph(view=Features(_no_such_function)), root_args=GOTO)
+  with pytest.raises(GraphError) as e:
+    program.run(1, True, True, rng.make_state(0), WORLD)
+  line = _no_such_function.py_func.__code__.co_firstlineno + 2
+  assert re.fullmatch(rf"\S*test_program\.py, line {line}: your compiled code does not "
+                      r"compile: module 'math' has no attribute 'hypotenuse' \(numba's "
+                      r"reason; calling that function alone shows its whole message\)",
+                      str(e.value)), str(e.value)
+
+
 def test_a_rule_reading_an_argument_nobody_binds_is_one_line_naming_the_subtask():
   """numba's typing error (40 lines into the graph's module) read for the subtask, its
   rule and the names its calls bind; any other typing error in the user's own code, one
