@@ -330,8 +330,7 @@ def user_typing_line(message, package_dir, module_path):
   innermost reason ("Unknown attribute 'gate_weight' of type ..."); None where the error
   names no file outside `package_dir` and the graph's module at `module_path`."""
   places = [(path, line) for path, line in _AT.findall(message)
-            if not os.path.abspath(path).startswith(os.path.abspath(package_dir))
-            and os.path.basename(path) != os.path.basename(module_path)]
+            if _outside(path, package_dir, module_path)]
   if not places:
     return None
   reasons, quoting = [], False     # (a `File ...:` line quotes source up to a blank line)
@@ -343,9 +342,19 @@ def user_typing_line(message, package_dir, module_path):
     elif not quoting and not line.startswith(_NOT_A_REASON):
       reasons.append(line.strip())
   reason = reasons[0] if reasons else "numba could not type it"
-  path, line = places[0]
+  return _user_line(*places[0], reason)
+
+
+def _user_line(path, line, reason):
+  """The one line of a compile error in a user's own code: where, and numba's reason."""
   return (f"{path}, line {line}: your compiled code does not compile: {reason} (numba's "
           "reason; calling that function alone shows its whole message)")
+
+
+def _outside(path, package_dir, module_path):
+  """Whether `path` is a user's file: neither hpg_mj's nor the graph's module."""
+  return (not os.path.abspath(path).startswith(os.path.abspath(package_dir))
+          and os.path.basename(path) != os.path.basename(module_path))
 
 
 def is_users(fn):
@@ -388,31 +397,30 @@ def read_past(error, functions, roles, obs_size):
                     f"observation holds {obs_size} numbers, obs[0] to obs[{obs_size - 1}])")
 
 
-def attribute_line(error, module_path):
+def attribute_line(error, package_dir, module_path):
   """The one line for an AttributeError numba raised typing a user's compiled code (a
   module's name that is not there, `math.hypotenuse`: numba passes Python's own error
   on, without a place): the user's file and line where typing stopped (the innermost
-  frame typing a place outside hpg_mj and the graph's module), or None."""
-  package_dir = os.path.abspath(os.path.dirname(os.path.dirname(__file__)))
+  frame typing a place outside `package_dir` and the graph's module), or None."""
   place, tb = None, error.__traceback__
   while tb is not None:
-    owner = tb.tb_frame.f_locals.get("self")
-    loc = getattr(owner, "loc", None)
+    loc = getattr(tb.tb_frame.f_locals.get("self"), "loc", None)
     path = getattr(loc, "filename", None)
-    if isinstance(path, str) and not os.path.abspath(path).startswith(package_dir) and \
-        os.path.basename(path) != os.path.basename(module_path):
+    if isinstance(path, str) and _outside(path, package_dir, module_path):
       place = (path, loc.line)
     tb = tb.tb_next
-  if place is None:
-    return None
-  return (f"{place[0]}, line {place[1]}: your compiled code does not compile: {error} "
-          "(numba's reason; calling that function alone shows its whole message)")
+  return None if place is None else _user_line(*place, error)
 
 
-def compile_error_line(text, module_path, roles, names, arguments):
-  """The one line of a TypingError from a graph's first compile (`typing_line`; else, an
-  error in a user's own compiled code, `user_typing_line`: where, and why), or None."""
+def compile_error_line(error, module_path, roles, names, arguments):
+  """The one line of an error from a graph's first compile, or None: a TypingError
+  (`typing_line`; else, one in a user's own compiled code, `user_typing_line`: where,
+  and why) or the AttributeError numba passes on from a user's code (`attribute_line`)."""
+  package_dir = os.path.dirname(os.path.dirname(__file__))
+  if isinstance(error, AttributeError):
+    return attribute_line(error, package_dir, module_path)
+  text = str(error)
   line = typing_line(text, module_path, roles, names, arguments)
   if line is None:
-    line = user_typing_line(text, os.path.dirname(os.path.dirname(__file__)), module_path)
+    line = user_typing_line(text, package_dir, module_path)
   return line

@@ -552,14 +552,11 @@ class Program:
       return fn(self.G, *args)
     except (ValueError, IndexError) as e:
       self._explain(e)
-    except numba.core.errors.TypingError as e:     # (the first call compiles the module)
-      line = boundary.compile_error_line(str(e), self.module_path, self._roles, self.names,
+    # (the first call compiles the module; an AttributeError is numba's, typing a user's
+    # `math.no_such_name`)
+    except (numba.core.errors.TypingError, AttributeError) as e:
+      line = boundary.compile_error_line(e, self.module_path, self._roles, self.names,
                                          self._arguments)
-      if line is None:
-        raise
-      raise GraphError(line) from None
-    except AttributeError as e:      # numba's, typing a user's `math.no_such_name`
-      line = boundary.attribute_line(e, self.module_path)
       if line is None:
         raise
       raise GraphError(line) from None

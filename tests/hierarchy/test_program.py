@@ -586,11 +586,17 @@ def test_a_rule_naming_what_a_module_lacks_is_one_line_too():
   program = Program(one_node_graph(view=Features(_no_such_function)), root_args=GOTO)
   with pytest.raises(GraphError) as e:
     program.run(1, True, True, rng.make_state(0), WORLD)
-  line = _no_such_function.py_func.__code__.co_firstlineno + 2
+  _assert_names_the_line(e.value, _no_such_function,
+                         r"module 'math' has no attribute 'hypotenuse'")
+
+
+def _assert_names_the_line(error, fn, reason):
+  """`error` is the one line of a compile error in `fn` (its body's first line), with
+  numba's `reason` (a regular expression)."""
+  line = fn.py_func.__code__.co_firstlineno + 2
   assert re.fullmatch(rf"\S*test_program\.py, line {line}: your compiled code does not "
-                      r"compile: module 'math' has no attribute 'hypotenuse' \(numba's "
-                      r"reason; calling that function alone shows its whole message\)",
-                      str(e.value)), str(e.value)
+                      rf"compile: {reason} \(numba's reason; calling that function alone "
+                      r"shows its whole message\)", str(error)), str(error)
 
 
 def test_a_rule_reading_an_argument_nobody_binds_is_one_line_naming_the_subtask():
@@ -610,11 +616,8 @@ def test_a_rule_reading_an_argument_nobody_binds_is_one_line_naming_the_subtask(
   program = Program(one_node_graph(view=Features(_reads_array_field)), root_args=GOTO)
   with pytest.raises(GraphError) as e:
     program.run(1, True, True, rng.make_state(0), WORLD)
-  line = _reads_array_field.py_func.__code__.co_firstlineno + 2
-  assert re.fullmatch(rf"\S*test_program\.py, line {line}: your compiled code does not "
-                      r"compile: Unknown attribute 'nothing' of type array\(float64, 1d, C\) "
-                      r"\(numba's reason; calling that function alone shows its whole "
-                      r"message\)", str(e.value)), str(e.value)
+  _assert_names_the_line(e.value, _reads_array_field,
+                         r"Unknown attribute 'nothing' of type array\(float64, 1d, C\)")
 
 
 def _twins(view):
