@@ -125,6 +125,8 @@ def evaluate(policy, task=None, episodes=base.GREEDY_STARTS, max_steps=None, *,
   `progress`: a progress bar on stderr (None: when stderr is a terminal).
   """
   _count("episodes", episodes)
+  if episodes == 0:
+    raise ValueError("episodes must be at least 1 (no episode has no score), got 0")
   _count("seed", seed)
   if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
     raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
@@ -280,8 +282,7 @@ class Pilot:
                  if isinstance(obs, dict) else np.asarray(obs)[None])
         out = np.asarray(self.act(batch))[0]
     except Exception as err:
-      raise PolicyError(f"the policy raised at step {self.steps}: {type(err).__name__}: "
-                        f"{err}") from err
+      raise _raised(f"step {self.steps}", err, obs) from err
     self.steps += 1
     return out
 
@@ -376,6 +377,15 @@ def sail(act, batched, task, starts, num_envs=DEFAULT_NUM_ENVS, backend="analyti
   return record
 
 
+def _raised(where, err, obs):
+  """The PolicyError for a policy that raised at `where`; reading a dictionary
+  observation (the goal's) as an array is said so."""
+  hint = ""
+  if isinstance(obs, dict) and isinstance(err, (TypeError, KeyError, IndexError)):
+    hint = f" (the observation is a dictionary of {', '.join(map(repr, obs))})"
+  return PolicyError(f"the policy raised at {where}: {type(err).__name__}: {err}{hint}")
+
+
 def _act(act, batched, obs, episodes, steps, check):
   """The policy's actions for the live copies, checked."""
   if batched:
@@ -384,7 +394,7 @@ def _act(act, batched, obs, episodes, steps, check):
     try:
       out = act(obs)
     except Exception as err:
-      raise PolicyError(f"the policy raised at {where}: {type(err).__name__}: {err}") from err
+      raise _raised(where, err, obs) from err
     return check(out, len(episodes), lambda k: f"episode {int(episodes[k])}, step {int(steps[k])}",
                  where)
   def at(k):
@@ -394,7 +404,7 @@ def _act(act, batched, obs, episodes, steps, check):
     for k, one in enumerate(_each(obs)):
       outs.append(act(one))
   except Exception as err:
-    raise PolicyError(f"the policy raised at {at(k)}: {type(err).__name__}: {err}") from err
+    raise _raised(at(k), err, obs) from err
   try:                # one conversion for the batch (the common case: a number each)
     arr = np.asarray(outs)
   except Exception:   # shapes that differ: checked one by one below

@@ -374,6 +374,7 @@ def _benchmark_task(task, level):
   """`hpg-mj evaluate --policy`'s --task and --level as a benchmark task, or a one-line
   error naming the option and what it allows."""
   from hpg_mj import benchmark
+  named = "the default task, ship" if task is None else f"--task {task}"
   task = "ship" if task is None else task
   if "/" in task and task.split("/", 1)[0] in benchmark.LADDER:    # ship_goal/hard
     if level is not None:
@@ -385,7 +386,7 @@ def _benchmark_task(task, level):
                      f"{', '.join(benchmark.TASKS + benchmark.LADDER)}")
   if level is not None and task not in benchmark.LADDER:
     raise ValueError(f"--level is for the ladder's tasks ({', '.join(benchmark.LADDER)}), "
-                     f"not --task {task}")
+                     f"not {named}")
   if task in benchmark.LADDER:
     level = benchmark.LEVELS[0] if level is None else level
     if level not in benchmark.LEVELS:

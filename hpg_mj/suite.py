@@ -5,7 +5,10 @@ from hpg_mj import suite
 env = suite.load("ship", "steer")
 ```
 
-Domains and tasks are listed in `ALL_TASKS`, as in `dm_control.suite`.
+Domains and tasks are listed in `ALL_TASKS`, and by tag as in `dm_control.suite`:
+`BENCHMARKING` (every task the benchmark scores), `EXTRA` (the rest: none today),
+`EASY`, `MEDIUM` and `HARD` (the task ladder's levels; the steering and taxi tasks
+have no level). `TAGS` lists every tag a task carries, `tagged(tag)` the tasks of one.
 """
 from hpg_mj.worlds import ship, ship_current, ship_goal, ship_harbour, ship_regatta, taxi
 
@@ -18,6 +21,29 @@ ALL_TASKS = tuple((domain_name, task_name)
                   for task_name in domain.SUITE)
 
 TASKS_BY_DOMAIN = {name: tuple(domain.SUITE) for name, domain in _DOMAINS.items()}
+
+# Every tag some task carries, in a fixed order (dm_control's TaggedTasks lists none).
+TAGS = tuple(dict.fromkeys(tag for domain in _DOMAINS.values()
+                           for tag in domain.SUITE._tags))  # pylint: disable=protected-access
+
+
+def tagged(tag):
+  """Returns the (domain_name, task_name) of every task carrying `tag`, in `ALL_TASKS`' order.
+
+  Raises:
+    ValueError: for a tag no task carries, listing those some task does (`TAGS`).
+  """
+  if tag not in TAGS:
+    raise ValueError(f"no task is tagged {tag!r}; tags: {list(TAGS)}")
+  return tuple((domain_name, task_name) for domain_name, domain in _DOMAINS.items()
+               for task_name in domain.SUITE if task_name in domain.SUITE.tagged(tag))
+
+
+BENCHMARKING = tagged("benchmarking")
+EXTRA = tuple(task for task in ALL_TASKS if task not in BENCHMARKING)
+EASY = tagged("easy")
+MEDIUM = tagged("medium")
+HARD = tagged("hard")
 
 
 def load(domain_name, task_name, task_kwargs=None, environment_kwargs=None,
@@ -40,7 +66,7 @@ def load(domain_name, task_name, task_kwargs=None, environment_kwargs=None,
   domain = _DOMAINS[domain_name]
   if task_name not in domain.SUITE:
     raise ValueError(f"unknown task {task_name!r} in domain {domain_name!r}; "
-                     f"valid tasks: {sorted(domain.SUITE)}")
+                     f"valid tasks: {list(domain.SUITE)}")
   task_kwargs = dict(task_kwargs or {})
   if environment_kwargs is not None:
     task_kwargs["environment_kwargs"] = environment_kwargs

@@ -232,6 +232,16 @@ def test_nan_and_raising_are_refused_with_the_episode_and_step():
     benchmark.evaluate(batch_with_nan, "ship", 10, batched=True, progress=False)
 
 
+@pytest.mark.parametrize("batched", [False, True])
+def test_a_policy_reading_the_goals_dictionary_as_an_array_is_told_it_is_one(batched):
+  with pytest.raises(benchmark.PolicyError) as err:
+    benchmark.evaluate(lambda obs: obs[:, 0] if batched else obs[0], "ship_goal", 3,
+                       batched=batched, progress=False)
+  assert str(err.value).startswith("the policy raised at episode 0, step 0")
+  assert str(err.value).endswith("(the observation is a dictionary of 'observation', "
+                                 "'achieved_goal', 'desired_goal', 'ranges')")
+
+
 def test_a_taxi_action_outside_the_actions_is_refused():
   with pytest.raises(benchmark.PolicyError) as err:
     benchmark.evaluate(lambda obs: 7, "taxi_fuel", 3, progress=False)
@@ -247,6 +257,9 @@ def test_bad_arguments_are_refused():
     benchmark.evaluate(lambda obs: 0.0, "boat", 1, progress=False)
   with pytest.raises(ValueError, match="max_steps must be a positive integer, got 0"):
     benchmark.evaluate(lambda obs: 0.0, "ship", 1, max_steps=0, progress=False)
+  with pytest.raises(ValueError, match=r"^episodes must be at least 1 \(no episode has no "
+                                       r"score\), got 0$"):
+    benchmark.evaluate(lambda obs: 0.0, "ship", 0, progress=False)
   with pytest.raises(ValueError, match="is not a function, an object with predict"):
     benchmark.evaluate(42, "ship", 1, progress=False)
   agent = _flat_pg(episodes=1)

@@ -153,7 +153,9 @@ def test_a_bad_task_or_level_is_refused_in_one_line(kwargs, message):
     (["--task", "ship_goals"], "--task 'ship_goals' is not a task; allowed: ship, taxi_fuel, "
      "taxi, ship_current, ship_goal, ship_regatta, ship_harbour"),
     (["--level", "hard"], "--level is for the ladder's tasks (ship_current, ship_goal, "
-     "ship_regatta, ship_harbour), not --task ship"),
+     "ship_regatta, ship_harbour), not the default task, ship"),
+    (["--task", "taxi", "--level", "hard"], "--level is for the ladder's tasks (ship_current, "
+     "ship_goal, ship_regatta, ship_harbour), not --task taxi"),
 ])
 def test_hpg_mj_evaluate_refuses_a_bad_task_or_level_in_one_line(argv, message, capsys):
   assert cli.main(["evaluate", "--policy", "math:sin", *argv]) == 2

@@ -40,6 +40,20 @@ def test_all_tasks_listed():
                                   ("ship_harbour", "medium"), ("ship_harbour", "hard")}
 
 
+def test_tasks_are_listed_by_tag_as_in_dm_control():
+  # dm_control.suite's BENCHMARKING, EXTRA, EASY and HARD, and the ladder's MEDIUM.
+  assert suite.BENCHMARKING == suite.ALL_TASKS and suite.EXTRA == ()
+  ladder = ("ship_current", "ship_goal", "ship_regatta", "ship_harbour")
+  for level, listed in (("easy", suite.EASY), ("medium", suite.MEDIUM), ("hard", suite.HARD)):
+    assert listed == tuple((domain, level) for domain in ladder)
+    assert listed == suite.tagged(level)
+  assert suite.tagged("subtask") == (("ship", "diagonal"), ("ship", "straight"))
+  assert suite.tagged("continuing") == (("ship", "patrol"),)
+  assert set(suite.TAGS) == {"benchmarking", "subtask", "continuing", "easy", "medium", "hard"}
+  with pytest.raises(ValueError, match=r"^no task is tagged 'hardest'; tags: \['benchmarking', "):
+    suite.tagged("hardest")
+
+
 @pytest.mark.parametrize("domain,task", suite.ALL_TASKS)
 def test_components_have_names_and_cameras(domain, task):
   env = suite.load(domain, task, {"random": 0})
@@ -109,7 +123,7 @@ def test_unknown_domain_and_task_list_the_valid_ones():
   with pytest.raises(ValueError, match=r"unknown domain 'boat'.*'ship', 'ship_current', "
                                        r"'ship_goal', 'ship_harbour', 'ship_regatta', 'taxi'"):
     suite.load("boat", "steer")
-  with pytest.raises(ValueError, match=r"unknown task 'sail'.*'diagonal', 'patrol', 'steer', 'straight'"):
+  with pytest.raises(ValueError, match=r"unknown task 'sail'.*'steer', 'diagonal', 'straight', 'patrol'"):
     suite.load("ship", "sail")
 
 

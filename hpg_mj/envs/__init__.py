@@ -26,6 +26,13 @@ VECTOR_ENTRY_POINTS = {
 }
 
 
+def refuse_level(who, level):
+  """Refuses a `level` for a task without levels, naming the ids that have them."""
+  if level is not None:
+    raise ValueError(f"{who} has no levels (level={level!r}); the ids with levels: "
+                     f"{[i for i, (_, kwargs) in ENV_IDS.items() if 'level' in kwargs]}")
+
+
 def register_all():
   """Registers every hpg_mj Gymnasium id (and its vector entry point) not yet
   registered; importing hpg_mj calls it."""

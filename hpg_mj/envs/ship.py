@@ -4,6 +4,7 @@ import numpy as np
 from gymnasium import spaces
 
 from hpg_mj import _assets
+from hpg_mj import envs
 from hpg_mj import _validation
 from hpg_mj.worlds import ship_core as core
 from hpg_mj.worlds import ship_task
@@ -175,6 +176,8 @@ class ShipSteeringEnv(gymnasium.Env):
     `steer` and `patrol`, "local" for the subtasks.
   - `gate_reward=100.0`, `out_of_bounds_reward=-100.0`: the +100 and -100 of
     SPEC section 2 (for the subtasks: reaching and failing the local goal).
+  - `level=None`: the task ladder's argument (`hpg_mj/ShipHarbour-v0`...); these
+    tasks have no levels, and any level is refused, naming the ids that have.
 
   ## References
   [1] M. Ghavamzadeh and S. Mahadevan, "Hierarchical Policy Gradient
@@ -193,7 +196,9 @@ class ShipSteeringEnv(gymnasium.Env):
 
   def __init__(self, task="steer", backend="mujoco", render_mode=None, strict=False,
                max_steps=None, width=640, height=480, camera=None,
-               gate_reward=core.GATE_REWARD, out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD):
+               gate_reward=core.GATE_REWARD, out_of_bounds_reward=core.OUT_OF_BOUNDS_REWARD,
+               level=None):
+    envs.refuse_level(f"ShipSteeringEnv(task={task!r})", level)
     self.rules = ship_task.ShipRules(task, max_steps, gate_reward, out_of_bounds_reward)
     if render_mode not in (None, "rgb_array"):
       raise ValueError(f"unknown render_mode {render_mode!r}; valid: None, 'rgb_array'")

@@ -131,7 +131,8 @@ class ShipHarbourEnv(ship_env.ShipSteeringEnv):
     obstacles; `width=640`, `height=480`, `camera=None` ("top"; or "overview",
     "chase", "local").
   - `strict=False`: refuse out-of-range turning rates instead of clipping them.
-  - `max_steps=None`: the episode limit in control steps (5,000).
+  - `max_steps=None`: the episode limit in control steps (5,000; at most 1,000 at
+    `hard`).
   - `gate_reward=100.0`, `out_of_bounds_reward=-100.0`: the rewards above.
 
   ## References

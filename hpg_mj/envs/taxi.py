@@ -4,6 +4,7 @@ import numpy as np
 from gymnasium import spaces
 
 from hpg_mj import _validation
+from hpg_mj import envs
 from hpg_mj.worlds import taxi_core
 
 
@@ -139,6 +140,9 @@ class TaxiEnv(gymnasium.Env):
   SPEC section 5's defaults for the time limit, the square of F, the tank and
   the start fuel range.
 
+  `level=None`: the task ladder's argument (`hpg_mj/ShipHarbour-v0`...); the taxi
+  has no levels, and any level is refused, naming the ids that have.
+
   ## References
   <a id="hpg_ref"></a>[1] M. Ghavamzadeh and S. Mahadevan, "Hierarchical Policy
   Gradient Algorithms," ICML 2003.
@@ -160,8 +164,9 @@ class TaxiEnv(gymnasium.Env):
   def __init__(self, render_mode=None, fuel=True, width=480, height=480, camera="top",
                strict=True, max_steps=taxi_core.MAX_STEPS, fuel_station=taxi_core.FUEL_STATION,
                capacity=taxi_core.FUEL_CAPACITY,
-               start_fuel=(taxi_core.START_FUEL_MIN, taxi_core.START_FUEL_MAX)):
+               start_fuel=(taxi_core.START_FUEL_MIN, taxi_core.START_FUEL_MAX), level=None):
     self.name = "hpg_mj/TaxiFuel-v0" if fuel else "hpg_mj/Taxi-v0"
+    envs.refuse_level(self.name, level)
     if render_mode is not None and render_mode not in self.metadata["render_modes"]:
       raise ValueError(f"{self.name}: render_mode {render_mode!r} is not supported; "
                        f"allowed: None or one of {self.metadata['render_modes']}")

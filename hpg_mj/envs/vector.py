@@ -28,6 +28,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from hpg_mj import envs
 from hpg_mj.envs import ship as ship_env
 from hpg_mj.worlds import ship_core
 from hpg_mj.worlds import ship_task
@@ -256,7 +257,7 @@ class ShipSteeringVectorEnv(_BatchedEnv):
   the copies that did.
 
   Arguments: `num_envs`, `task`, `backend`, `strict`, `max_steps`,
-  `gate_reward`, `out_of_bounds_reward` as for `ShipSteeringEnv`, and
+  `gate_reward`, `out_of_bounds_reward`, `level` as for `ShipSteeringEnv`, and
   `autoreset_mode` ("NextStep", "SameStep" or "Disabled"). Reset options:
   `state` (an `(N, 4)` array of exact starts, or one state for every copy reset)
   and `reset_mask`. No rendering: render one copy with the single environment.
@@ -268,8 +269,9 @@ class ShipSteeringVectorEnv(_BatchedEnv):
   def __init__(self, num_envs=1, task="steer", backend="mujoco", strict=False, max_steps=None,
                gate_reward=ship_core.GATE_REWARD,
                out_of_bounds_reward=ship_core.OUT_OF_BOUNDS_REWARD,
-               autoreset_mode=AutoresetMode.NEXT_STEP, render_mode=None):
+               autoreset_mode=AutoresetMode.NEXT_STEP, render_mode=None, level=None):
     who = f"ShipSteeringVectorEnv({task}, backend={backend})"
+    envs.refuse_level(who, level)
     super().__init__(num_envs, autoreset_mode, who)
     if render_mode is not None:
       raise ValueError(f"{who}: render_mode {render_mode!r} is not supported by the batch; "
@@ -400,7 +402,7 @@ class TaxiVectorEnv(_BatchedEnv):
   an `(N, 7)` int8 array (`(N, 6)`), as the single environment's.
 
   Arguments: `num_envs`, `fuel`, `max_steps`, `fuel_station`, `capacity`,
-  `start_fuel` as for `TaxiEnv`, and `autoreset_mode`. Reset options: `state`
+  `start_fuel`, `level` as for `TaxiEnv`, and `autoreset_mode`. Reset options: `state`
   (an `(N, 5)` array, or one state for every copy reset; strict as `TaxiEnv`'s
   default, a passenger waiting at its destination is refused) and `reset_mask`.
   """
@@ -411,8 +413,9 @@ class TaxiVectorEnv(_BatchedEnv):
   def __init__(self, num_envs=1, fuel=True, max_steps=taxi_core.MAX_STEPS,
                fuel_station=taxi_core.FUEL_STATION, capacity=taxi_core.FUEL_CAPACITY,
                start_fuel=(taxi_core.START_FUEL_MIN, taxi_core.START_FUEL_MAX),
-               autoreset_mode=AutoresetMode.NEXT_STEP, render_mode=None):
+               autoreset_mode=AutoresetMode.NEXT_STEP, render_mode=None, level=None):
     who = "TaxiVectorEnv(" + ("hpg_mj/TaxiFuel-v0" if fuel else "hpg_mj/Taxi-v0") + ")"
+    envs.refuse_level(who, level)
     super().__init__(num_envs, autoreset_mode, who)
     if render_mode is not None:
       raise ValueError(f"{who}: render_mode {render_mode!r} is not supported by the batch; "

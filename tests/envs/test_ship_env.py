@@ -119,6 +119,18 @@ def test_unknown_ids_backends_and_options_list_the_valid_ones():
     env.reset(options={"start": [1, 2, 3, 4]})
 
 
+@pytest.mark.parametrize("env_id", ["hpg_mj/ShipSteering-v0", "hpg_mj/ShipPatrol-v0",
+                                    "hpg_mj/TaxiFuel-v0", "hpg_mj/Taxi-v0"])
+def test_a_level_for_a_task_without_levels_names_the_ids_with_levels(env_id):
+  # The ladder's argument given to another id: one line, not Gymnasium's TypeError.
+  match = (r"has no levels \(level='hard'\); the ids with levels: \['hpg_mj/ShipCurrent-v0', "
+           r"'hpg_mj/ShipGoal-v0', 'hpg_mj/ShipRegatta-v0', 'hpg_mj/ShipHarbour-v0'\]$")
+  with pytest.raises(ValueError, match=match):
+    gymnasium.make(env_id, level="hard")
+  with pytest.raises(ValueError, match=match):
+    gymnasium.make_vec(env_id, num_envs=2, level="hard")
+
+
 def test_backends_agree_closely():
   a = gymnasium.make("hpg_mj/ShipSteering-v0", backend="mujoco")
   b = gymnasium.make("hpg_mj/ShipSteering-v0", backend="analytic")

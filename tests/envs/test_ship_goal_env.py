@@ -183,7 +183,7 @@ def test_bad_levels_are_one_line_errors():
   with pytest.raises(ValueError, match=r"^ShipGoalVectorEnv: unknown level None; " + allowed):
     gymnasium.make_vec(ID, 2, level=None)
   with pytest.raises(ValueError, match=r"^unknown task 'far' in domain 'ship_goal'; "
-                                       r"valid tasks: \['easy', 'hard', 'medium'\]$"):
+                                       r"valid tasks: \['easy', 'medium', 'hard'\]$"):
     suite.load("ship_goal", "far")
 
 
