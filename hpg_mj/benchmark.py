@@ -73,7 +73,7 @@ from hpg_mj.experiments.bounds import (KEYS, LADDER, LEVELS, SCORES, TASKS,  # n
 from hpg_mj.benchmark_tasks import (ENV_IDS, Task, _count, _start_count,  # noqa: F401
                                     fixed_starts, optimal_returns, task_of)  # (public here)
 from hpg_mj import benchmark_spaces
-from hpg_mj.benchmark_spaces import rescaled  # noqa: F401  (public here)
+from hpg_mj.benchmark_spaces import PolicyError, rescaled  # noqa: F401  (public here)
 from hpg_mj.hierarchy import ship_rules
 from hpg_mj.worlds import ship_core
 from hpg_mj.worlds import taxi_core
@@ -84,11 +84,6 @@ RECORD_FIELDS = {"ship": ("passed", "steps", "return", "J"),
                  "taxi": ("return", "steps", "outcome", "delivered", "optimal_return")}
 DEFAULT_NUM_ENVS = 1000
 RANDOM_POLICY_SEED = 0        # the random policy's own generator (bounds)
-
-
-class PolicyError(ValueError):
-  """A policy that raised or returned an action the task cannot take; the
-  message names the episode (its index in the fixed start set) and the step."""
 
 
 # ---- scoring ---------------------------------------------------------------------------
@@ -282,7 +277,7 @@ class Pilot:
                  if isinstance(obs, dict) else np.asarray(obs)[None])
         out = np.asarray(self.act(batch))[0]
     except Exception as err:
-      raise _raised(f"step {self.steps}", err, obs) from err
+      raise benchmark_spaces.raised(f"step {self.steps}", err, obs) from err
     self.steps += 1
     return out
 
@@ -377,15 +372,6 @@ def sail(act, batched, task, starts, num_envs=DEFAULT_NUM_ENVS, backend="analyti
   return record
 
 
-def _raised(where, err, obs):
-  """The PolicyError for a policy that raised at `where`; reading a dictionary
-  observation (the goal's) as an array is said so."""
-  hint = ""
-  if isinstance(obs, dict) and isinstance(err, (TypeError, KeyError, IndexError)):
-    hint = f" (the observation is a dictionary of {', '.join(map(repr, obs))})"
-  return PolicyError(f"the policy raised at {where}: {type(err).__name__}: {err}{hint}")
-
-
 def _act(act, batched, obs, episodes, steps, check):
   """The policy's actions for the live copies, checked."""
   if batched:
@@ -394,7 +380,7 @@ def _act(act, batched, obs, episodes, steps, check):
     try:
       out = act(obs)
     except Exception as err:
-      raise _raised(where, err, obs) from err
+      raise benchmark_spaces.raised(where, err, obs) from err
     return check(out, len(episodes), lambda k: f"episode {int(episodes[k])}, step {int(steps[k])}",
                  where)
   def at(k):
@@ -404,7 +390,7 @@ def _act(act, batched, obs, episodes, steps, check):
     for k, one in enumerate(_each(obs)):
       outs.append(act(one))
   except Exception as err:
-    raise _raised(at(k), err, obs) from err
+    raise benchmark_spaces.raised(at(k), err, obs) from err
   try:                # one conversion for the batch (the common case: a number each)
     arr = np.asarray(outs)
   except Exception:   # shapes that differ: checked one by one below

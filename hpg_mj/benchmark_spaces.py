@@ -8,8 +8,23 @@ actions would be taken as turning rates of -1 to 1 deg/s. `benchmark.evaluate`
 refuses it in one line; `rescaled(model, task)` maps the task's observations onto
 the model's observation space and its actions back onto the task's, each bounded
 Box component affinely (low to low, high to high), as the wrappers did in training.
+A policy that raises or acts outside the task is a `PolicyError`.
 """
 import numpy as np
+
+
+class PolicyError(ValueError):
+  """A policy that raised or returned an action the task cannot take; the
+  message names the episode (its index in the fixed start set) and the step."""
+
+
+def raised(where, err, obs):
+  """The PolicyError for a policy that raised at `where`; reading a dictionary
+  observation (the goal's) as an array is said so."""
+  hint = ""
+  if isinstance(obs, dict) and isinstance(err, (TypeError, KeyError, IndexError)):
+    hint = f" (the observation is a dictionary of {', '.join(map(repr, obs))})"
+  return PolicyError(f"the policy raised at {where}: {type(err).__name__}: {err}{hint}")
 
 
 def task_spaces(task):

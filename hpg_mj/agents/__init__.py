@@ -91,8 +91,9 @@ _SHIPPED = {
     "taxi_ppo_jax": "hpg_mj.agents.jax_ppo:TaxiPPOJax",
     "taxi_dqn_jax": "hpg_mj.agents.jax_dqn:TaxiDQNJax",
     "ship_sac_jax": "hpg_mj.agents.jax_sac:ShipSACJax",
-    # PPO in JAX on the task ladder's JAX worlds, the task and level named by the file
+    # PPO and SAC in JAX on the task ladder's JAX worlds, the task and level named by the file
     "ladder_ppo_jax": "hpg_mj.agents.jax_ppo_ladder:LadderPPOJax",
+    "ladder_sac_jax": "hpg_mj.agents.jax_ppo_ladder:LadderSACJax",
 }
 _registered = {}          # name -> class, or "module:Class" until first used
 _entry_points_read = False

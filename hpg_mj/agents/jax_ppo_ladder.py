@@ -41,6 +41,7 @@ from hpg_mj.agents import _ladder
 from hpg_mj.agents import _ship
 from hpg_mj.agents import base
 from hpg_mj.agents import jax_ppo
+from hpg_mj.agents import jax_sac
 from hpg_mj.learners import rng
 from hpg_mj.taskfile import param
 from hpg_mj.worlds import ship_ladder
@@ -124,13 +125,15 @@ class LadderPPOJax(jax_ppo._JaxAgent, _ship.ShipAgent):
                                _ship.J_OUT_OF_BOUNDS_REWARD)
     return world, params, row
 
+  trainer_class = "LadderTrainer"       # of hpg_mj.jax.ppo_ladder
+
   @property
   def trainer(self):
-    """The learner (`hpg_mj.jax.ppo_ladder.LadderTrainer`) on the task's JAX world."""
+    """The learner (`hpg_mj.jax.ppo_ladder`'s `trainer_class`) on the task's JAX world."""
     if self._trainer is None:
       from hpg_mj.jax import ppo_ladder
       env, params, row = self._world(jax_ppo._learner())
-      self._trainer = ppo_ladder.LadderTrainer(env, params, self.section, row)
+      self._trainer = getattr(ppo_ladder, self.trainer_class)(env, params, self.section, row)
     return self._trainer
 
   def _compiled(self):
@@ -235,3 +238,26 @@ class LadderPPOJax(jax_ppo._JaxAgent, _ship.ShipAgent):
                  steps_to_gate=steps, mean_return=mean_return, J=mean("j_sum"))
     out["control_steps"] = int(record["steps"].sum())
     return out
+
+
+@dataclasses.dataclass(frozen=True)
+class LadderSACJaxConfig:
+  """The task file's schema: its sections [environment] and [sac] (ship_sac_jax's)."""
+  environment: LadderEnvironment = dataclasses.field(default_factory=LadderEnvironment)
+  sac: jax_sac.SACSection = dataclasses.field(default_factory=lambda: jax_sac.SACSection(
+      n_envs=4, learning_rate=3e-4, gamma=0.995, gradient_steps=4, reward_scale=0.01,
+      net_arch=(64, 64)))
+
+  __post_init__ = jax_sac.ShipSACJaxConfig.__post_init__
+
+
+class LadderSACJax(LadderPPOJax):
+  """SAC in JAX on a task of the ladder at a level ([environment] world and level):
+  ship_sac_jax's learner and loop (`hpg_mj.jax.sac`) where `ladder_ppo_jax` has PPO's,
+  everything else (the world, the record, the greedy measure, the scorer's policy,
+  saving) the same; the actor's a in [-1, 1] acted as r = 15 a deg/s, greedily 15
+  tanh of its mean."""
+  name = "ladder_sac_jax"
+  algorithm = "sac"
+  Config = LadderSACJaxConfig
+  trainer_class = "LadderSACTrainer"

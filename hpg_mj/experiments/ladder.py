@@ -32,10 +32,11 @@ from hpg_mj.experiments import stats
 # Per task: its experiments, and the scores (each normalized) its table gives, the first
 # the one the figure, the leads and the headroom checks read.
 TASKS = {
-    "ship_current": ("ladder_current", "ladder_current_ppo_jax"),
-    "ship_goal": ("ladder_goal", "ladder_goal_ppo_jax"),
-    "ship_regatta": ("ladder_regatta", "ladder_regatta_ppo_jax"),
-    "ship_harbour": ("ladder_harbour", "ladder_harbour_waypoints", "ladder_harbour_ppo_jax"),
+    "ship_current": ("ladder_current", "ladder_current_ppo_jax", "ladder_current_sac_jax"),
+    "ship_goal": ("ladder_goal", "ladder_goal_ppo_jax", "ladder_goal_sac_jax"),
+    "ship_regatta": ("ladder_regatta", "ladder_regatta_ppo_jax", "ladder_regatta_sac_jax"),
+    "ship_harbour": ("ladder_harbour", "ladder_harbour_waypoints", "ladder_harbour_ppo_jax",
+                     "ladder_harbour_sac_jax"),
 }
 EXPERIMENTS = tuple(name for names in TASKS.values() for name in names)
 LEVELS = bounds.LEVELS
@@ -44,9 +45,9 @@ EASY_AT_LEAST, HARD_BELOW = 90.0, 70.0     # the headroom checks' bounds (normal
 # designed ones (Figure 3's carried to each task, the regatta's waypoints).
 HIERARCHY_KINDS = ("ship_ladder_hybrid", "ship_ladder_waypoints")
 # The order of every task's table and figure (by agent kind; another kind after these):
-# the designed hierarchies, flat PGRL, the learned hierarchy, the deep learner.
+# the designed hierarchies, flat PGRL, the learned hierarchy, the deep learners.
 ORDER = ("ship_ladder_hybrid", "ship_ladder_waypoints", "ship_ladder_flat_pg",
-         "ship_ladder_option_critic", "ladder_ppo_jax")
+         "ship_ladder_option_critic", "ladder_ppo_jax", "ladder_sac_jax")
 
 
 def scores(task):

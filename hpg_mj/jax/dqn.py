@@ -164,18 +164,20 @@ class Trainer:
     """What acts without learning: the runner's Q-network."""
     return runner.q
 
+  def action(self, q, x, key, sample):
+    """The action at x: greedy (the largest Q) or, with `sample`, epsilon-greedy at
+    exploration_final_eps, drawn with `key`."""
+    greedy = jnp.argmax(ppo.mlp(q, x), axis=-1)
+    if not sample:
+      return greedy
+    pick, explore = jax.random.split(key)
+    random = jax.random.randint(pick, greedy.shape, 0, self.io.n_outputs)
+    return jnp.where(jax.random.uniform(explore, greedy.shape) <
+                     self.section.exploration_final_eps, random, greedy)
+
   def episodes(self, q, starts, key, sample):
-    """One episode from each start, all at once: greedy (the largest Q) or, with
-    `sample`, epsilon-greedy at exploration_final_eps."""
-    def act(x, key):
-      greedy = jnp.argmax(ppo.mlp(q, x), axis=-1)
-      if not sample:
-        return greedy
-      pick, explore = jax.random.split(key)
-      random = jax.random.randint(pick, greedy.shape, 0, self.io.n_outputs)
-      return jnp.where(jax.random.uniform(explore, greedy.shape) <
-                       self.section.exploration_final_eps, random, greedy)
-    return ppo.sail(self, act, starts, key)
+    """One episode from each start, all at once (`ppo.sail`), each action `action`'s."""
+    return ppo.sail(self, lambda x, key: self.action(q, x, key, sample), starts, key)
 
 
 compiled = ppo.compiled     # `init`, the jitted `update` and `episodes`, once a configuration

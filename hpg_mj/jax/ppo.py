@@ -429,14 +429,16 @@ class Trainer:
     """What `episodes` acts with: the networks."""
     return runner.networks
 
+  def action(self, networks, x, key, sample):
+    """The policy's action at x (what `io.act` takes): greedy (the most likely: the
+    Gaussian's mean, the softmax's largest) or, with `sample`, drawn with `key`."""
+    return (sample_action(networks, self.io, x, key) if sample
+            else greedy_action(networks, self.io, x))
+
   def episodes(self, networks, starts, key, sample):
-    """One episode from each start, all at once, without learning (`sail`): greedy
-    (the most likely action: the Gaussian's mean, the softmax's largest) or, with
-    `sample`, drawn from the policy."""
-    def act(x, key):
-      return (sample_action(networks, self.io, x, key) if sample
-              else greedy_action(networks, self.io, x))
-    return sail(self, act, starts, key)
+    """One episode from each start, all at once, without learning (`sail`), each
+    action `action`'s."""
+    return sail(self, lambda x, key: self.action(networks, x, key, sample), starts, key)
 
 
 # ---- episodes from given starts, without learning ---------------------------------------

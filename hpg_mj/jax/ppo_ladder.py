@@ -1,17 +1,20 @@
-"""PPO in JAX on the task ladder (SPEC section 11): what `hpg_mj.jax.ppo`'s loop needs
-beyond the steering ship's, for the agent `hpg_mj.agents.jax_ppo_ladder`.
+"""PPO and SAC in JAX on the task ladder (SPEC section 11): what the loops of
+`hpg_mj.jax.ppo` and `hpg_mj.jax.sac` need beyond the steering ship's, for the agents
+of `hpg_mj.agents.jax_ppo_ladder` (`ladder_ppo_jax`, `ladder_sac_jax`).
 
-The loop is `ppo.Trainer` as it is, over the ladder's JAX worlds (`hpg_mj.jax.make`
-by the Gymnasium id and `level`): `ppo.ShipIO` maps every number of the world's
-observation Box onto [-1, 1] (the current's six, the goal's nineteen, the harbour's
-and the regatta's) and acts r = 15 u deg/s. This module adds
+The loops are `ppo.Trainer`'s and `sac.Trainer`'s as they are, over the ladder's JAX
+worlds (`hpg_mj.jax.make` by the Gymnasium id and `level`): `ppo.ShipIO` maps every
+number of the world's observation Box onto [-1, 1] (the current's six, the goal's
+nineteen, the harbour's and the regatta's) and acts r = 15 u deg/s (SAC's a in
+[-1, 1] the same way). This module adds
 
 - `LadderRow`: what an ended episode adds to a record row on any ladder task (the
   task's success: the gate, the goal's gate, the regatta's finish, `info["event"]`
   1; any other ending before the clock, leaving the field or touching an obstacle,
   counts as leaving for J; the regatta's gates passed from `info["gates_passed"]`);
-- `LadderTrainer`: the greedy (or sampled) episodes from the ladder's starts, given
-  as the Gymnasium reset's options (the goal's gate with the ship's state);
+- `LadderTrainer` (PPO's) and `LadderSACTrainer`: the greedy (or sampled) episodes
+  from the ladder's starts, given as the Gymnasium reset's options (the goal's gate
+  with the ship's state);
 - `flat`: the Gymnasium observation as the JAX world's one array (the goal's
   dictionary in `GOAL_KEYS` order, `hpg_mj.jax.ship_goal`'s slices);
 - `compiled`: the loop's jitted functions, `init` among them, and the policy's;
@@ -25,6 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from hpg_mj.jax import ppo
+from hpg_mj.jax import sac
 from hpg_mj.worlds import ship_core
 from hpg_mj.worlds import ship_goal_core
 
@@ -71,48 +75,55 @@ def flat(obs):
   return np.asarray(obs, dtype=np.float64)
 
 
-@dataclasses.dataclass(frozen=True)
-class LadderTrainer(ppo.Trainer):
-  """`ppo.Trainer` on a ladder world, its greedy (or sampled) episodes starting from
-  the ladder's starts: a dictionary of arrays, the reset options of the Gymnasium
-  environment ("state" (n, 4), and the goal's "gate" (n, 3) or the regatta's
-  "course" (n, gates, 3); `hpg_mj.worlds.ship_ladder.fixed_starts`), given to the
-  world's `reset_to` in that order."""
+class _LadderStarts:
+  """A learner's trainer on a ladder world (mixed in before it), its greedy (or
+  sampled) episodes starting from the ladder's starts: a dictionary of arrays, the
+  reset options of the Gymnasium environment ("state" (n, 4), and the goal's "gate"
+  (n, 3) or the regatta's "course" (n, gates, 3); `hpg_mj.worlds.ship_ladder.
+  fixed_starts`), given to the world's `reset_to` in that order."""
 
   def start(self, one):
     """`(obs, state)` of the world at one start (a dictionary of reset options)."""
     return self.env.reset_to(one["state"], *(v for k, v in one.items() if k != "state"),
                              params=self.params)
 
-  def episodes(self, networks, starts, key, sample):
-    """`ppo.Trainer.episodes` from the ladder's starts (a dictionary, `start`)."""
-    def act(x, key):
-      return (ppo.sample_action(networks, self.io, x, key) if sample
-              else ppo.greedy_action(networks, self.io, x))
-    return ppo.sail(self, act, starts, key, self.start)
+  def episodes(self, acting, starts, key, sample):
+    """The learner's `episodes` from the ladder's starts (a dictionary, `start`)."""
+    return ppo.sail(self, lambda x, key: self.action(acting, x, key, sample), starts, key,
+                    self.start)
+
+
+@dataclasses.dataclass(frozen=True)
+class LadderTrainer(_LadderStarts, ppo.Trainer):
+  """`ppo.Trainer` on a ladder world, sailing from the ladder's starts."""
+
+
+@dataclasses.dataclass(frozen=True)
+class LadderSACTrainer(_LadderStarts, sac.Trainer):
+  """`sac.Trainer` on a ladder world, sailing from the ladder's starts."""
 
 
 _COMPILED = {}
 
 
 def compiled(trainer):
-  """`ppo.compiled(trainer)`'s `(init, update, episodes)` with `init` jitted too, and
-  `act(networks, obs, key, sample)`, the policy's turning rates (deg/s, clipped to
-  [-15, 15]) for a batch of the world's observations, jitted; compiled once for all
-  trainers of the same world, parameters, section and row. `init` is jitted here,
-  not run op by op as `ppo.compiled` runs it: a saved run loaded, a checkpoint
-  resumed and each seed of a process build a runner, and op by op each costs what
-  one compile does (measured on this 2-core machine under load: 5-11 s a runner
-  op by op, 8 s compiled once)."""
-  what = (type(trainer.env), trainer.env.name, trainer.params, trainer.section, trainer.row)
+  """The learner's `compiled(trainer)` (`ppo.compiled`, `sac.compiled`): `(init, update,
+  episodes)` with `init` jitted too, and `act(acting, obs, key, sample)`, the policy's
+  turning rates (deg/s, clipped to [-15, 15]) for a batch of the world's observations,
+  jitted; compiled once for all trainers of the same learner, world, parameters,
+  section and row. `init` is jitted here, not run op by op as `ppo.compiled` runs it:
+  a saved run loaded, a checkpoint resumed and each seed of a process build a runner,
+  and op by op each costs what one compile does (measured on this 2-core machine under
+  load: 5-11 s a runner op by op, 8 s compiled once)."""
+  what = (type(trainer), type(trainer.env), trainer.env.name, trainer.params, trainer.section,
+          trainer.row)
   if what not in _COMPILED:
     io = trainer.io
-    _, update, episodes = ppo.compiled(trainer)
+    learner = sac if isinstance(trainer, sac.Trainer) else ppo
+    _, update, episodes = learner.compiled(trainer)
 
-    def act(networks, obs, key, sample):
-      x = io.observe(obs)
-      u = (ppo.sample_action(networks, io, x, key) if sample
-           else ppo.greedy_action(networks, io, x))
+    def act(acting, obs, key, sample):
+      u = trainer.action(acting, io.observe(obs), key, sample)
       return jnp.clip(io.act(u)[..., 0], -ship_core.MAX_TURN_RATE, ship_core.MAX_TURN_RATE)
     _COMPILED[what] = (jax.jit(trainer.init), update, episodes,
                        jax.jit(act, static_argnums=3))
@@ -120,11 +131,12 @@ def compiled(trainer):
 
 
 class Actor:
-  """The policy of `trainer` (a `ppo.Trainer` on a ladder world) with `networks`, on
-  batches of the Gymnasium environment's observations: `__call__(obs, sample)` gives
-  the turning rates in deg/s, clipped to [-15, 15] as the world clips them: greedy
-  (15 times the Gaussian's mean) or, with `sample`, drawn from the policy with the
-  actor's own key (`seed`). Every batch is padded to the largest it has seen (a
+  """The policy of `trainer` (a `LadderTrainer` or `LadderSACTrainer`) with `networks`
+  (what it acts with, `trainer.acting(runner)`), on batches of the Gymnasium
+  environment's observations: `__call__(obs, sample)` gives the turning rates in
+  deg/s, clipped to [-15, 15] as the world clips them: greedy (`trainer.action`'s:
+  15 times PPO's Gaussian mean, 15 tanh of SAC's) or, with `sample`, drawn from the
+  policy with the actor's own key (`seed`). Every batch is padded to the largest it has seen (a
   power of two, at least 8): an evaluation's batches shrink as its episodes end, and
   each size would be compiled anew."""
 

@@ -310,12 +310,15 @@ class Trainer:
     """What acts without learning: the runner's actor."""
     return runner.nets.actor
 
+  def action(self, actor, x, key, sample_policy):
+    """The actor's a in [-1, 1] at x (r = 15 a deg/s): greedy (tanh of the mean) or,
+    with `sample_policy`, drawn from the squashed Gaussian with `key`."""
+    return sample(actor, x, key)[0] if sample_policy else greedy(actor, x)
+
   def episodes(self, actor, starts, key, sample_policy):
-    """One episode from each start, all at once: greedy (r = 15 tanh(mean)) or, with
-    `sample_policy`, drawn from the squashed Gaussian."""
-    def act(x, key):
-      return sample(actor, x, key)[0] if sample_policy else greedy(actor, x)
-    return ppo.sail(self, act, starts, key)
+    """One episode from each start, all at once (`ppo.sail`), each action `action`'s."""
+    return ppo.sail(self, lambda x, key: self.action(actor, x, key, sample_policy), starts,
+                    key)
 
 
 _INIT = {}
