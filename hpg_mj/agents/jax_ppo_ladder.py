@@ -2,12 +2,13 @@
 loop of `ship_ppo_jax` (`hpg_mj.jax.ppo`: the whole update one jitted function, seeds
 vmapped into one compile by `make_train`) over the ladder's JAX worlds, the task and
 its level named by the task file's [environment] (`world = "ship_current"`, `level =
-"easy"`), with the rewards and step limit of the ladder's Gymnasium environment.
-It needs the extra `pip install 'hpg_mj[jax]'`; JAX is imported only when the agent
+"easy"`), with the rewards and step limit of the ladder's Gymnasium environment;
+and `ladder_sac_jax`, the same agent with `ship_sac_jax`'s learner (`hpg_mj.jax.sac`)
+and [sac] section (`LadderSACJax`). It needs the extra `pip install 'hpg_mj[jax]'`; JAX is imported only when the agent
 is built, so hpg_mj without it loads these task files.
 
 The tasks are those of `hpg_mj.benchmark.LADDER` whose Gymnasium id has a JAX
-environment in `hpg_mj.jax.ENV_IDS` (`TASKS`: the current and the goal today): a
+environment in `hpg_mj.jax.ENV_IDS` (`TASKS`: all four today): a
 ladder task whose JAX environment is registered there trains here with no change.
 
 What the networks see and do (`hpg_mj.jax.ppo.ShipIO`): every number of the task's
