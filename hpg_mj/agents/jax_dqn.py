@@ -29,13 +29,7 @@ class TaxiDQNJaxConfig:
   dqn: DQNSection = dataclasses.field(default_factory=DQNSection)
 
   def __post_init__(self):
-    s = self.dqn
-    if s.n_steps % s.train_freq:
-      raise ValueError(f"[dqn] train_freq = {s.train_freq} must divide n_steps = {s.n_steps} "
-                       "(the steps of one compiled call)")
-    if s.buffer_size < s.n_envs:
-      raise ValueError(f"[dqn] buffer_size = {s.buffer_size} must hold one step of every copy "
-                       f"(n_envs = {s.n_envs})")
+    jax_ppo.check_replay("dqn", self.dqn)
 
 
 class TaxiDQNJax(jax_ppo.TaxiPPOJax):

@@ -56,6 +56,18 @@ def _check_batch(section):
                      f"= {batch} (each epoch cuts the rollout into whole minibatches)")
 
 
+def check_replay(name, section):
+  """Refuses a replay learner's section ([sac], [dqn]) whose compiled call or buffer
+  does not fit, in one line."""
+  s = section
+  if s.n_steps % s.train_freq:
+    raise ValueError(f"[{name}] train_freq = {s.train_freq} must divide n_steps = {s.n_steps} "
+                     "(the steps of one compiled call)")
+  if s.buffer_size < s.n_envs:
+    raise ValueError(f"[{name}] buffer_size = {s.buffer_size} must hold one step of every copy "
+                     f"(n_envs = {s.n_envs})")
+
+
 @dataclasses.dataclass(frozen=True)
 class ShipPPOJaxConfig:
   """The task file's schema: its sections [environment] and [ppo]."""

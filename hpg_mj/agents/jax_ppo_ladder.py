@@ -246,10 +246,10 @@ class LadderSACJaxConfig:
   """The task file's schema: its sections [environment] and [sac] (ship_sac_jax's)."""
   environment: LadderEnvironment = dataclasses.field(default_factory=LadderEnvironment)
   sac: jax_sac.SACSection = dataclasses.field(default_factory=lambda: jax_sac.SACSection(
-      n_envs=4, learning_rate=3e-4, gamma=0.995, gradient_steps=4, reward_scale=0.01,
-      net_arch=(64, 64)))
+      gamma=0.995, net_arch=(64, 64)))
 
-  __post_init__ = jax_sac.ShipSACJaxConfig.__post_init__
+  def __post_init__(self):
+    jax_ppo.check_replay("sac", self.sac)
 
 
 class LadderSACJax(LadderPPOJax):

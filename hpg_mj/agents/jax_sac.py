@@ -29,13 +29,7 @@ class ShipSACJaxConfig:
       learning_rate=1e-4, gamma=0.995))
 
   def __post_init__(self):
-    s = self.sac
-    if s.n_steps % s.train_freq:
-      raise ValueError(f"[sac] train_freq = {s.train_freq} must divide n_steps = {s.n_steps} "
-                       "(the steps of one compiled call)")
-    if s.buffer_size < s.n_envs:
-      raise ValueError(f"[sac] buffer_size = {s.buffer_size} must hold one step of every copy "
-                       f"(n_envs = {s.n_envs})")
+    jax_ppo.check_replay("sac", self.sac)
 
 
 class ShipSACJax(jax_ppo.ShipPPOJax):

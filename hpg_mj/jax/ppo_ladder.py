@@ -107,8 +107,8 @@ _COMPILED = {}
 
 
 def compiled(trainer):
-  """The learner's `compiled(trainer)` (`ppo.compiled`, `sac.compiled`): `(init, update,
-  episodes)` with `init` jitted too, and `act(acting, obs, key, sample)`, the policy's
+  """`ppo.compiled(trainer)`'s `(init, update, episodes)` (any learner's trainer: PPO's or
+  SAC's) with `init` jitted too, and `act(acting, obs, key, sample)`, the policy's
   turning rates (deg/s, clipped to [-15, 15]) for a batch of the world's observations,
   jitted; compiled once for all trainers of the same learner, world, parameters,
   section and row. `init` is jitted here, not run op by op as `ppo.compiled` runs it:
@@ -119,8 +119,7 @@ def compiled(trainer):
           trainer.row)
   if what not in _COMPILED:
     io = trainer.io
-    learner = sac if isinstance(trainer, sac.Trainer) else ppo
-    _, update, episodes = learner.compiled(trainer)
+    _, update, episodes = ppo.compiled(trainer)
 
     def act(acting, obs, key, sample):
       u = trainer.action(acting, io.observe(obs), key, sample)
