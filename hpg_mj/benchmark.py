@@ -162,9 +162,7 @@ def evaluate(policy, task=None, episodes=base.GREEDY_STARTS, max_steps=None, *,
   elif task.world == "taxi":
     record["optimal_return"] = optimal_returns(task, starts)
     record["delivered"] = record["outcome"] == taxi_rules.DELIVERED
-  official = (episodes == base.GREEDY_STARTS and seed == base.GREEDY_SEED
-              and task.max_steps == task.default_max_steps
-              and task.capacity == taxi_core.FUEL_CAPACITY)
+  official = episodes == base.GREEDY_STARTS and seed == base.GREEDY_SEED and task.standard
   level = {} if task.level is None else {"level": task.level}
   metrics = {"task": task.name, **level, "episodes": int(episodes),
              "max_steps": task.max_steps, **metrics_of(record, task),

@@ -66,6 +66,12 @@ class Task:
       return ship_ladder.episode_steps(self.name, self.level)
     return taxi_core.MAX_STEPS if self.world == "taxi" else ship_core.STEER_MAX_STEPS
 
+  @property
+  def standard(self):
+    """Whether its rules are the benchmark's own: its world's episode length and the
+    taxi's tank (a score of anything else is not official)."""
+    return self.max_steps == self.default_max_steps and self.capacity == taxi_core.FUEL_CAPACITY
+
   def env_kwargs(self, backend="analytic"):
     """The keyword arguments that make its environment: the ship's backend, length,
     rewards and level, or the taxi's length and capacity."""

@@ -299,6 +299,7 @@ def _cmd_evaluate(args):
   import time
 
   from hpg_mj import agents
+  from hpg_mj import benchmark
   from hpg_mj.experiments import bounds
   if args.agent_dir is None:
     if args.policy is None or args.policy in agents.POLICIES:
@@ -334,7 +335,8 @@ def _cmd_evaluate(args):
     task, _, level = name.partition("/")
     metrics = {"task": task, **({"level": level} if level else {}), **metrics,
                "official": bool(args.seed is None and policy == "greedy" and
-                                args.episodes == agents.base.GREEDY_STARTS)}
+                                args.episodes == agents.base.GREEDY_STARTS and
+                                benchmark.task_of(agent).standard)}
   metrics.update({"agent_dir": str(args.agent_dir), "episodes": args.episodes,
                   "evaluation_window": window.evaluated(agent, len(record)),
                   "backend": backend, "policy": policy, "starts": starts,

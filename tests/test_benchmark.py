@@ -135,6 +135,22 @@ def test_the_optimal_taxi_earns_the_optimum_of_every_start(task):
   assert m["official"]
 
 
+@pytest.mark.parametrize("max_steps, official", [(200, True), (100, False)])
+def test_hpg_mj_evaluate_says_official_only_under_the_task_s_own_rules(max_steps, official,
+                                                                      tmp_path, capsys):
+  # An agent trained with another step limit is scored under it: not official (as
+  # benchmark.evaluate(agent) says), though every fixed start is sailed.
+  out = tmp_path / "agent"
+  assert cli.main(["train", "taxi_fuel_flat_q", "--episodes", "5", "--quiet", "--out", str(out),
+                   "--set", f"environment.max_steps={max_steps}"]) == 0
+  capsys.readouterr()
+  assert cli.main(["evaluate", str(out), "--json", "--quiet"]) == 0
+  printed = json.loads(capsys.readouterr().out)
+  agent = agents.load(out)[0]
+  assert printed["official"] is official
+  assert benchmark.evaluate(agent, progress=False).metrics["official"] is official
+
+
 def test_a_taxi_policy_of_one_observation():
   def always_fill_up(obs):          # one observation of 5 -> Fillup, forever
     assert np.shape(obs) == (5,)
