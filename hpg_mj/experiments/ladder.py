@@ -74,16 +74,16 @@ def collect(out, quick=False, experiments=None, earlier=None):
   """{task: [{"experiment", "learner" (its task file's stem), "label", "kind", "runs":
   {level: [each finished run's metrics]}}]} over `experiments` ({task: [experiments,
   loaded]}, each with `levels`; default `shipped()`); a learner with no finished run
-  has empty lists. `earlier` (`reference.read_earlier`): an earlier report's runs, each
+  has empty lists. One entry a task file: where experiments run its levels apart (a
+  level redrawn on fresh seeds), their runs meet there ("experiment": the first's). `earlier` (`reference.read_earlier`): an earlier report's runs, each
   taken for a seed whose run is not finished under OUT (a run under OUT wins), so that
   held-out runs finished and committed piece by piece make one table."""
   earlier = earlier or {}
   found = {}
   for task, loaded in (shipped() if experiments is None else experiments).items():
-    found[task] = []
+    learners = {}              # a learner's levels may be run by different experiments
     for experiment in loaded:
       root = runner.folder(experiment, out, quick)
-      learners = {}
       for variant in experiment["task_files"]:
         level = variant.section("environment")["level"]
         stem = variant.path.stem[:-len(level) - 1]       # "<file>_<level>"
@@ -97,7 +97,7 @@ def collect(out, quick=False, experiments=None, earlier=None):
             entry["runs"][level].append(runs.read_metrics(run))
           elif (variant.path.stem, seed) in earlier:
             entry["runs"][level].append(earlier[(variant.path.stem, seed)])
-      found[task].extend(learners.values())
+    found[task] = list(learners.values())
     found[task].sort(key=lambda e: ORDER.index(e["kind"]) if e["kind"] in ORDER else len(ORDER))
   return found
 

@@ -98,6 +98,31 @@ def test_an_experiment_runs_each_task_at_each_level_and_the_ladder_report_reads_
                     easy["gate_pass_rate_normalized"], atol=1e-4)
 
 
+def test_a_level_redrawn_by_another_experiment_joins_its_learner_in_one_row(tmp_path):
+  """A level made harder is run again on fresh seeds by an experiment of its own; the
+  table holds one row a learner, its levels from each experiment's seeds."""
+  (tmp_path / "tiny_ladder.toml").write_text(EXPERIMENT.format(levels='"easy"'))
+  (tmp_path / "tiny_hard.toml").write_text(
+      EXPERIMENT.format(levels='"hard"').replace('name = "tiny_ladder"', 'name = "tiny_hard"')
+      .replace("first_seed = 1000", "first_seed = 1300"))
+  loaded = [runner.load_experiment(tmp_path / f"{n}.toml") for n in ("tiny_ladder", "tiny_hard")]
+
+  def run(stem, seed, value):
+    return {"seed": seed, "episodes": 1000,
+            "greedy": {"gate_pass_rate_normalized": value, "J_normalized": value}}
+  earlier = {("ship_current_hybrid_easy", 1000): run("ship_current_hybrid_easy", 1000, 91.0),
+             ("ship_current_hybrid_hard", 1000): run("ship_current_hybrid_hard", 1000, 80.0),
+             ("ship_current_hybrid_hard", 1300): run("ship_current_hybrid_hard", 1300, 20.0)}
+  found = ladder.collect(tmp_path / "out", experiments={"ship_current": loaded},
+                         earlier=earlier)["ship_current"]
+  assert len(found) == 1 and found[0]["label"] == "Hierarchical hybrid (current)"
+  runs_ = found[0]["runs"]
+  # the former hard level's run (seed 1000) is not the hard experiment's: left out
+  assert [m["seed"] for m in runs_["easy"]] == [1000] and not runs_["medium"]
+  assert [m["seed"] for m in runs_["hard"]] == [1300]
+  assert ladder.headroom("ship_current", found) == (True, True)
+
+
 def test_levels_are_refused_in_one_line_where_they_cannot_apply(tmp_path):
   assert_refused(tmp_path, EXPERIMENT.format(levels='"easy", "easy"'),
                  r"\[experiment\] levels = \['easy', 'easy'\]; allowed: one or more levels, "
