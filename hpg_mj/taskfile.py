@@ -21,7 +21,7 @@ from hpg_mj.learners.rng import MAX_SEED
 
 # Types accepted for a schema entry: "float" (int or float), "int", "bool",
 # "str", "str_list" (a non-empty list of strings), ("choice", options),
-# ("int_list", length) (positive integers), ("int_min", least),
+# ("int_list", length) (positive integers; length None: one or more), ("int_min", least),
 # ("float_lists", length, description) (a non-empty list of lists of numbers).
 
 
@@ -36,9 +36,11 @@ def _check(path, where, key, value, kind):
       raise TaskFileError(f"{where} = {value!r} is not allowed; allowed: {list(kind[1])}")
     return value
   if isinstance(kind, tuple) and kind[0] == "int_list":
-    if (not isinstance(value, list) or len(value) != kind[1]
+    count = "one or more" if kind[1] is None else kind[1]
+    if (not isinstance(value, list) or not value
+        or (kind[1] is not None and len(value) != kind[1])
         or not all(_is_int(v) and v > 0 for v in value)):
-      raise TaskFileError(f"{where} must be a list of {kind[1]} positive integers, got {value!r}")
+      raise TaskFileError(f"{where} must be a list of {count} positive integers, got {value!r}")
     return tuple(value)
   if isinstance(kind, tuple) and kind[0] == "int_min":
     if not _is_int(value) or value < kind[1]:
@@ -117,7 +119,7 @@ def param(default, doc="", *, low=None, high=None, low_open=False, high_open=Fal
           choices=None, length=None, absent=_REQUIRED):
   """A field of a task file's section: its default, what it means, and what is
   allowed (`low`/`high` bounds, open with `low_open`/`high_open`; `choices`;
-  `length` for a list of positive integers). `absent`: for a key added after files
+  `length` for a list of positive integers, None for one or more). `absent`: for a key added after files
   without it were written, the value a file without it means (the behaviour before the
   key); without `absent` the key is required."""
   meta = {"doc": doc, "low": low, "high": high, "low_open": low_open,
@@ -530,7 +532,8 @@ def check_tuning(path, table, config_class):
 def _describe(kind):
   if isinstance(kind, tuple):
     return {"choice": lambda: f"one of {list(kind[1])}",
-            "int_list": lambda: f"a list of {kind[1]} integers",
+            "int_list": lambda: ("a list of one or more positive integers" if kind[1] is None
+                                 else f"a list of {kind[1]} integers"),
             "int_min": lambda: "a positive integer" if kind[1] == 1 else f"an integer >= {kind[1]}",
             "float_lists": lambda: f"a non-empty list of {kind[2]}"}[kind[0]]()
   return {"float": "a number", "int": "an integer", "bool": "true or false",

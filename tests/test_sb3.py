@@ -176,6 +176,16 @@ def test_training_does_not_depend_on_how_it_is_cut_nor_on_evaluations(tmp_path):
   np.testing.assert_array_equal(np.concatenate([first, cut.train(2)]), whole)
 
 
+def test_net_arch_gives_sb3_its_hidden_layers_however_many(tmp_path):
+  path = tiny_task(tmp_path, "ship_ppo")
+  path.write_text(path.read_text().replace("net_arch = [8, 8]", "net_arch = [8, 6, 4]"))
+  agent = agents.build(agents.load_task(path), seed=0)
+  agent.train(1)
+  widths = [layer.out_features for layer in agent.model.policy.mlp_extractor.policy_net
+            if hasattr(layer, "out_features")]
+  assert widths == [8, 6, 4]
+
+
 def test_dqn_epsilon_decays_over_the_declared_control_steps(tmp_path):
   """One `learn` call is 4 copies x 1,000 steps; epsilon follows [dqn]
   exploration_steps (8,000 here), not the length of the call."""

@@ -19,6 +19,11 @@ def test_keys_are_set_in_the_text_and_checked_as_the_file_s():
   assert again.config == task.config and again.tuning == task.tuning   # the rest kept
   bare = agents.load_task("taxi_fuel_ppo_jax", ["environment.world=taxi", "ppo.net_arch=[8,8]"])
   assert bare.config.ppo.net_arch == (8, 8)
+  # Hidden layers: one or more, as SB3's net_arch takes them (a newcomer's trial: the
+  # files once took exactly two).
+  deep = agents.load_task("ship_sac_jax", ["sac.net_arch=[32,32,16]"])
+  assert deep.config.sac.net_arch == (32, 32, 16)
+  assert agents.load_task("ship_ppo", ["ppo.net_arch=[8]"]).config.ppo.net_arch == (8,)
 
 
 @pytest.mark.parametrize("assignment, message", [
@@ -34,6 +39,14 @@ def test_keys_are_set_in_the_text_and_checked_as_the_file_s():
 def test_a_bad_assignment_is_refused_in_one_line(assignment, message):
   with pytest.raises(taskfile.TaskFileError, match=r"ship_hybrid.toml: " + message) as err:
     agents.load_task("ship_hybrid", [assignment])
+  assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("layers", ["[]", "[64, 0]", "[64, 1.5]"])
+def test_hidden_layers_are_one_or_more_positive_integers(layers):
+  with pytest.raises(taskfile.TaskFileError, match=r"ship_ppo.toml: \[ppo\] net_arch must be "
+                     r"a list of one or more positive integers, got \[") as err:
+    agents.load_task("ship_ppo", [f"ppo.net_arch={layers}"])
   assert "\n" not in str(err.value)
 
 

@@ -84,7 +84,7 @@ class PPOSection(taskfile.Section):
   clip_range: float = param(0.2, "PPO's clip range", low=0, low_open=True)
   ent_coef: float = param(0.0, "entropy bonus", low=0)
   reward_scale: float = param(1.0, REWARD_SCALE_DOC, low=0, low_open=True)
-  net_arch: tuple = param((64, 64), NET_ARCH_DOC, length=2, low=1)
+  net_arch: tuple = param((64, 64), NET_ARCH_DOC, length=None, low=1)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -101,7 +101,7 @@ class SACSection(taskfile.Section):
   train_freq: int = param(1, "steps of every copy between updates", low=1)
   gradient_steps: int = param(4, "gradient steps per update", low=1)
   reward_scale: float = param(0.01, REWARD_SCALE_DOC, low=0, low_open=True)
-  net_arch: tuple = param((256, 256), "hidden layers of actor and critics", length=2, low=1)
+  net_arch: tuple = param((256, 256), "hidden layers of actor and critics", length=None, low=1)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -123,7 +123,7 @@ class DQNSection(taskfile.Section):
   exploration_initial_eps: float = param(1.0, "epsilon at first", low=0, high=1)
   exploration_final_eps: float = param(0.05, "epsilon after the decay", low=0, high=1)
   reward_scale: float = param(1.0, REWARD_SCALE_DOC, low=0, low_open=True)
-  net_arch: tuple = param((64, 64), NET_ARCH_DOC, length=2, low=1)
+  net_arch: tuple = param((64, 64), NET_ARCH_DOC, length=None, low=1)
 
 
 def _model_kwargs(algorithm, section):
