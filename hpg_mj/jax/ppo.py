@@ -29,38 +29,16 @@ gate, returns and MushroomRL's J; the taxi's returns, lengths and deliveries).
 """
 import dataclasses
 import math
-import os
 from typing import NamedTuple
 
+import jax
+import jax.numpy as jnp
+import numpy as np
 
-def _prefer_whole_loop_compilation():
-  """Asks XLA's CPU backend for the runtime that compiles a whole loop into one
-  function (`--xla_cpu_use_thunk_runtime=false`, its default before the thunk
-  runtime): measured here, the PPO update runs 1.6-1.9x faster with it. Only where
-  the user's XLA_FLAGS say nothing of it, only for the jaxlib versions measured to
-  take the flag (XLA refuses an unknown flag at start), and only before JAX's first
-  computation in the process (later it changes nothing): `hpg-mj` trains in fresh
-  processes, a user's script imports this module first."""
-  from importlib import metadata
-  flags = os.environ.get("XLA_FLAGS", "")
-  try:
-    version = tuple(int(p) for p in metadata.version("jaxlib").split(".")[:3])
-  except (metadata.PackageNotFoundError, ValueError):
-    return
-  if "xla_cpu_use_thunk_runtime" not in flags and (0, 4, 32) <= version < (0, 11):
-    os.environ["XLA_FLAGS"] = (flags + " --xla_cpu_use_thunk_runtime=false").strip()
-
-
-_prefer_whole_loop_compilation()
-
-import jax  # noqa: E402  (after the flag above)
-import jax.numpy as jnp  # noqa: E402
-import numpy as np  # noqa: E402
-
-from hpg_mj.jax import ship as jax_ship  # noqa: E402
-from hpg_mj.jax import taxi as jax_taxi  # noqa: E402
-from hpg_mj.worlds import ship_core  # noqa: E402
-from hpg_mj.worlds import taxi_rules  # noqa: E402
+from hpg_mj.jax import ship as jax_ship
+from hpg_mj.jax import taxi as jax_taxi
+from hpg_mj.worlds import ship_core
+from hpg_mj.worlds import taxi_rules
 
 
 # ---- what the networks see, and what they act ------------------------------------
