@@ -188,11 +188,11 @@ def _compile_listener(callback):
   return listening()
 
 
-def _compile_timer(callback):
-  """A context after which `callback(seconds)` is told the time numba spent
-  compiling in it (outermost compilations; loading from its cache is not one)."""
-  from numba.core import event
-  return event.install_timer("numba:compile", callback)
+def _compile_timer(callback, agent=None):
+  """A context after which `callback(seconds)` is told the time numba and XLA (for an
+  `agent` that learns in JAX) spent compiling in it (`hpg_mj._compiling.timer`)."""
+  from hpg_mj import _compiling
+  return _compiling.timer(callback, _compiling.uses_jax(agent))
 
 
 def _print_metrics(metrics, as_json):
@@ -234,7 +234,7 @@ def _cmd_train(args):
   bar, update, compiling = _progress_bar(episodes, args.quiet or args.json, task.name)
   compile_seconds = []
   try:
-    with compiling, _compile_timer(compile_seconds.append):
+    with compiling, _compile_timer(compile_seconds.append, agent):
       start = time.perf_counter()
       record, _ = agents.train_further(agent, episodes, args.backend, update)
       wall = time.perf_counter() - start
@@ -251,8 +251,8 @@ def _cmd_train(args):
     metrics["greedy"].update(bounds.normalized(bounds.task_name(agent), metrics["greedy"]))
   metrics.update({"task": str(task.path), "seed": seed, "episodes": len(record),
                   "backend": args.backend or agent.backend,
-                  # wall = compile + train: numba's compiling (0 once cached) apart, so
-                  # that a speed is computed from train_seconds
+                  # wall = compile + train: numba's and XLA's compiling (numba's 0 once
+                  # cached) apart, so that a speed is computed from train_seconds
                   "wall_seconds": round(wall, 3), "compile_seconds": round(compiled, 3),
                   "train_seconds": round(wall - compiled, 3)})
   if earlier is not None:              # `episodes` is the whole record's; these added to it

@@ -20,7 +20,7 @@ ALLOWED = {
     "agents": {"hierarchy", "learners", "worlds", "envs", "suite", "render", "provenance",
                "_paths", "taskfile", "storage", "jax"},
     "experiments": {"agents", "hierarchy", "learners", "worlds", "envs", "suite", "render",
-                    "provenance", "_paths", "taskfile", "storage", "_stack"},
+                    "provenance", "_paths", "taskfile", "storage", "_stack", "_compiling"},
     # The JAX worlds (the `jax` extra) take the numba worlds' constants, nothing else;
     # the MJX ship (the `mjx` extra) reads the shipped MJCF.
     "jax": {"worlds", "_assets"},

@@ -49,8 +49,8 @@ import sys
 import time
 
 import numpy as np
-from numba.core import event
 
+from hpg_mj import _compiling
 from hpg_mj import agents
 from hpg_mj import provenance
 from hpg_mj.agents import base
@@ -263,7 +263,7 @@ def _run_locked(task_path, seed, episodes, run_dir, checkpoint_every, stop_after
   task = agents.load_task(task_path)
   (run_dir / "checkpoints").mkdir(parents=True, exist_ok=True)
   agent, records, done, wall, compiled = _resume(task, seed, run_dir)
-  compiling = []                      # numba's compile seconds in this process's chunks
+  compiling = []                      # numba's and XLA's compile seconds in this process's chunks
   if done > episodes:
     raise ValueError(f"{run_dir}: its checkpoint is at episode {done}, past the {episodes} "
                      f"episodes asked for; use another output folder")
@@ -275,7 +275,7 @@ def _run_locked(task_path, seed, episodes, run_dir, checkpoint_every, stop_after
   # Training stops at each greedy point still to come (chunks never cross one).
   stops = sorted({p for p in greedy_at if done < p < episodes} | {episodes})
   try:
-    with event.install_timer("numba:compile", compiling.append):
+    with _compiling.timer(compiling.append, _compiling.uses_jax(agent)):
       for stop in stops:
         for now, record, seconds in agents.chunks(agent, stop, done=done,
                                                   every=checkpoint_every):
@@ -285,8 +285,10 @@ def _run_locked(task_path, seed, episodes, run_dir, checkpoint_every, stop_after
           progress.write(done, wall, n / max(seconds, 1e-9),
                          next(iter(agent.progress(record).values())))
           if curve is not None and done == stop < episodes:   # before its checkpoint
+            before = len(compiling)
             curve.add({"episodes": done, "steps": _steps(records),
                        **_greedy_scores(agent, agent.evaluate_fixed(GREEDY_STARTS))})
+            del compiling[before:]     # its compiles are not in `wall`, the chunks' time
           if done % checkpoint_every == 0 and done < episodes:
             records = [np.concatenate(records)]
             _write_checkpoint(agent, records[0], run_dir, done, wall, compiled + sum(compiling))
@@ -306,8 +308,8 @@ def _run_locked(task_path, seed, episodes, run_dir, checkpoint_every, stop_after
     curve.add({"episodes": episodes, "steps": _steps(records), **metrics["greedy"]})
     metrics["greedy_curve"] = curve.points
   metrics.update({"task": task.path.stem, "seed": seed, "episodes": episodes,
-                  # wall = compile + train: numba's compiling apart (0 once cached), so
-                  # that a speed is computed from train_seconds
+                  # wall = compile + train: numba's and XLA's compiling apart (numba's 0
+                  # once cached), so that a speed is computed from train_seconds
                   "wall_seconds": round(wall, 3), "compile_seconds": round(compiled, 3),
                   "train_seconds": round(wall - compiled, 3),
                   "provenance": provenance.collect(task.text, seed)})

@@ -42,6 +42,33 @@ PREFIX = "hpg_mj/"
 INSTALL = "pip install hpg_mj[jax]"
 
 
+# jax.monitoring's duration events of one compile: the lowering of a traced function
+# and the backend's compile (the tracing is left out: it is part of running).
+COMPILE_EVENTS = ("/jax/core/compile/jaxpr_to_mlir_module_duration",
+                  "/jax/core/compile/backend_compile_duration")
+
+
+def listen_to_compiles(callback):
+  """Tells `callback(seconds)` the seconds of each of XLA's compiles (`COMPILE_EVENTS`)
+  from now on, until the function returned is called (`hpg_mj._compiling.timer`, which
+  keeps `hpg-mj train`'s compile_seconds apart from its train_seconds)."""
+  _require_jax()
+  from jax import monitoring
+  listening = [True]
+
+  def listener(name, seconds, **_):
+    if listening[0] and name in COMPILE_EVENTS:
+      callback(seconds)
+  monitoring.register_event_duration_secs_listener(listener)
+  unregister = getattr(monitoring, "unregister_event_duration_listener", None)
+
+  def stop():
+    listening[0] = False              # where this JAX cannot unregister, silent instead
+    if unregister is not None:
+      unregister(listener)
+  return stop
+
+
 def canonical_id(env_id):
   """The registered id of `env_id`, given with or without the `hpg_mj/` prefix."""
   name = env_id if not isinstance(env_id, str) or env_id.startswith(PREFIX) else PREFIX + env_id

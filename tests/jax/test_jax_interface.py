@@ -187,3 +187,19 @@ def test_where_needed_computes_only_the_copies_that_need_it():
     assert not np.asarray(got[name][~needed]).any()
     assert np.array_equal(np.asarray(twice[name]).reshape(got[name].shape), got[name])
     assert np.array_equal(alone[0][name], want[name][0]) and not np.asarray(alone[1][name]).any()
+
+
+def test_xla_s_compiling_is_timed_apart_from_training_while_the_timer_is_open():
+  """`hpg-mj train`'s and the runs' compile_seconds (`hpg_mj._compiling.timer`) count
+  XLA's compiles of a JAX agent, not only numba's (a newcomer saw 0 for every JAX run)."""
+  from hpg_mj import _compiling
+  seconds = []
+  with _compiling.timer(seconds.append):
+    jax.jit(lambda x: jnp.tanh(x) @ x.T + 41.0)(jnp.ones((7, 7))).block_until_ready()
+  told = len(seconds)
+  assert told >= len(hpg_jax.COMPILE_EVENTS) and sum(seconds) > 0.0   # (jnp.ones is one too)
+  jax.jit(lambda x: jnp.tanh(x) @ x.T + 43.0)(jnp.ones((7, 7))).block_until_ready()
+  assert len(seconds) == told                              # closed: told nothing more
+  from hpg_mj import agents
+  assert _compiling.uses_jax(agents.build(agents.load_task("ship_ppo_jax"), seed=0))
+  assert not _compiling.uses_jax(agents.build(agents.load_task("ship_hybrid"), seed=0))
