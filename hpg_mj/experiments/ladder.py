@@ -75,9 +75,10 @@ def collect(out, quick=False, experiments=None, earlier=None):
   {level: [each finished run's metrics]}}]} over `experiments` ({task: [experiments,
   loaded]}, each with `levels`; default `shipped()`); a learner with no finished run
   has empty lists. One entry a task file: where experiments run its levels apart (a
-  level redrawn on fresh seeds), their runs meet there ("experiment": the first's). `earlier` (`reference.read_earlier`): an earlier report's runs, each
-  taken for a seed whose run is not finished under OUT (a run under OUT wins), so that
-  held-out runs finished and committed piece by piece make one table."""
+  level redrawn on fresh seeds), their runs meet there ("experiment": the first's).
+  `earlier` (`reference.read_earlier`): an earlier report's runs, each taken for a
+  seed whose run is not finished under OUT (a run under OUT wins), so that held-out
+  runs finished and committed piece by piece make one table."""
   earlier = earlier or {}
   found = {}
   for task, loaded in (shipped() if experiments is None else experiments).items():
