@@ -119,9 +119,9 @@ def param(default, doc="", *, low=None, high=None, low_open=False, high_open=Fal
           choices=None, length=None, absent=_REQUIRED):
   """A field of a task file's section: its default, what it means, and what is
   allowed (`low`/`high` bounds, open with `low_open`/`high_open`; `choices`;
-  `length` for a list of positive integers, None for one or more). `absent`: for a key added after files
-  without it were written, the value a file without it means (the behaviour before the
-  key); without `absent` the key is required."""
+  `length` for a list of positive integers, None for one or more). `absent`: for a
+  key added after files without it were written, the value a file without it means
+  (the behaviour before the key); without `absent` the key is required."""
   meta = {"doc": doc, "low": low, "high": high, "low_open": low_open,
           "high_open": high_open, "choices": choices, "length": length, "absent": absent}
   if isinstance(default, (list, dict)):
