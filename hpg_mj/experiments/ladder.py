@@ -270,9 +270,13 @@ def write(out, quick=False, experiments=None, earlier=None):
                    + ("its interval lies above every other learner's." if clear else
                       "not distinguishable from the next (their intervals overlap)."))
     easy, hard = headroom(task, entries)
-    lines += [f"- headroom: a hierarchy reaches {EASY_AT_LEAST:.0f} at easy: "
-              f"{_verdict(easy, 'yes', 'no')}; no learner reaches {HARD_BELOW:.0f} at hard: "
-              f"{_verdict(hard, 'yes', 'no: the level is not hard enough')}."]
+    unrun = [e["label"] for e in entries if not e["runs"]["hard"]]
+    lines += [f"- headroom ({scores(task)[0]}, normalized, the mean over runs): a hierarchy "
+              f"reaches {EASY_AT_LEAST:.0f} at easy: {_verdict(easy, 'yes', 'no')}; no "
+              f"learner reaches {HARD_BELOW:.0f} at hard: "
+              f"{_verdict(hard, 'yes', 'no: the level is not hard enough')}"
+              + (f" (of those run there; not yet run at hard: {', '.join(unrun)})"
+                 if unrun and hard is not None else "") + "."]
     lines += [helmsman_line(task), ""]
     for e in entries:
       for level in LEVELS:

@@ -67,7 +67,8 @@ def test_an_experiment_runs_each_task_at_each_level_and_the_ladder_report_reads_
   text = report.read_text()
   assert "## ship_current" in text and "| Hierarchical hybrid (current) |" in text
   assert "- easy: Hierarchical hybrid (current) leads (" in text   # (hard: unfinished now)
-  assert "- headroom: a hierarchy reaches 90 at easy: " in text
+  assert ("- headroom (gate_pass_rate, normalized, the mean over runs): a hierarchy "
+          "reaches 90 at easy: ") in text
   # For scale, the scripted helmsman's normalized score from the published bounds.
   bound = bounds.bounds()["tasks"]["ship_current/hard"]
   helmsman = 100 * (bound["helmsman"]["gate_pass_rate"] - bound["random"]["gate_pass_rate"]) / (
@@ -94,6 +95,8 @@ def test_an_experiment_runs_each_task_at_each_level_and_the_ladder_report_reads_
   rows = {tuple(r.split(",")[:3]): r.split(",") for r in
           (report.parent / "ladder.csv").read_text().splitlines()[1:]}
   assert float(rows[("ship_current", "hard", "Hierarchical hybrid (current)")][4]) == 12.5
+  # The hard check says which learners it has not seen yet (none here: the one has run).
+  assert "not yet run at hard" not in report.read_text()
   assert np.isclose(float(rows[("ship_current", "easy", "Hierarchical hybrid (current)")][4]),
                     easy["gate_pass_rate_normalized"], atol=1e-4)
 
@@ -121,6 +124,15 @@ def test_a_level_redrawn_by_another_experiment_joins_its_learner_in_one_row(tmp_
   assert [m["seed"] for m in runs_["easy"]] == [1000] and not runs_["medium"]
   assert [m["seed"] for m in runs_["hard"]] == [1300]
   assert ladder.headroom("ship_current", found) == (True, True)
+  # A learner with no run at hard yet is named beside the check's "yes".
+  (tmp_path / "tiny_other.toml").write_text(
+      EXPERIMENT.format(levels='"easy"').replace('name = "tiny_ladder"', 'name = "tiny_other"')
+      .replace('"ship_current_hybrid"', '"ship_current_flat_pg"'))
+  loaded.append(runner.load_experiment(tmp_path / "tiny_other.toml"))
+  text = ladder.write(tmp_path / "out", experiments={"ship_current": loaded},
+                      earlier=earlier).read_text()
+  assert ("no learner reaches 70 at hard: yes (of those run there; not yet run at hard: "
+          "Flat PGRL (current)).") in text
 
 
 def test_levels_are_refused_in_one_line_where_they_cannot_apply(tmp_path):
