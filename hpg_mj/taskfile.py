@@ -427,8 +427,8 @@ def assigned(task, assignments, registry):
   TOML (a string may go unquoted), written over the line `key = ...` of the file's
   [section] (every key of a section has one), and the text loaded again, so that it
   is checked as a task file is and an agent saved with it rebuilds the same
-  configuration. One line naming the assignment where it is malformed, or where
-  the file has no such section or key."""
+  configuration. One line naming the assignment where it is malformed, where the
+  file has no such section or key, or where the file refuses the value."""
   text = task.text
   for assignment in assignments:
     name, sep, raw = str(assignment).partition("=")
@@ -441,7 +441,12 @@ def assigned(task, assignments, registry):
     except tomllib.TOMLDecodeError:
       value = raw.strip()                  # a bare word: a string
     text = _set_line(text, task.path, section, key, value, assignment)
-  return loads(text, task.path, registry)
+  try:
+    return loads(text, task.path, registry)
+  except TaskFileError as err:         # a value the file's schema refuses: name the --set
+    sets = " ".join(f"--set {a!r}" for a in assignments)
+    raise TaskFileError(f"{task.path}, with {sets}: "
+                        f"{str(err).removeprefix(f'{task.path}: ')}") from None
 
 
 def _set_line(text, path, section, key, value, assignment):
