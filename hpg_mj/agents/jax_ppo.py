@@ -133,6 +133,13 @@ class _JaxAgent:
     # the episodes an update finished past the rows returned.
     self._pending = np.zeros((0, len(self.record_fields)))
 
+  def final_metrics(self, record):
+    """The control steps the learner trained, all copies together
+    (`control_steps_trained`): whole updates, so up to one update past the record's
+    rows (`control_steps`; a 2-row run of 64 copies x 128 steps trains 8,192); the
+    episodes ended past the rows are the next call's."""
+    return {"control_steps_trained": self.control_steps}
+
   @property
   def trainer(self):
     if self._trainer is None:

@@ -191,9 +191,11 @@ class LadderPPOJax(jax_ppo._JaxAgent, _ship.ShipAgent):
 
   def final_metrics(self, record):
     """The greedy measure of the trained policy (`evaluate_fixed`: the scorer's 1,000
-    fixed starts), as "greedy"; `hpg-mj train` normalizes it against the task's bounds."""
-    return {"greedy": {**self.metrics(self.evaluate_fixed()), "starts": base.GREEDY_STARTS,
-                       "start_seed": base.GREEDY_SEED}}
+    fixed starts), as "greedy"; `hpg-mj train` normalizes it against the task's bounds.
+    With the JAX agents' `control_steps_trained`."""
+    greedy = {**self.metrics(self.evaluate_fixed()), "starts": base.GREEDY_STARTS,
+              "start_seed": base.GREEDY_SEED}
+    return {**jax_ppo._JaxAgent.final_metrics(self, record), "greedy": greedy}
 
   # ---- metrics -----------------------------------------------------------------------
 

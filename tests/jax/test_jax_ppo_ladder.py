@@ -186,7 +186,8 @@ def test_a_bad_level_or_world_is_refused_in_one_line(small):
   for key, value, allowed in (("level", "extreme", r"\['easy', 'medium', 'hard'\]"),
                               ("world", "ship", r"\['ship_current', 'ship_goal'"),
                               ("world", "taxi", r"\['ship_current', 'ship_goal'")):
-    with pytest.raises(ValueError, match=rf"ship_current_ppo_jax.toml: \[environment\] "
+    with pytest.raises(ValueError, match=rf"ship_current_ppo_jax.toml, with --set "
+                                         rf"'environment.{key}={value}': \[environment\] "
                                          rf"{key} = '{value}' is not allowed; allowed: {allowed}"):
       agents.load_task(small, [f"environment.{key}={value}"])
   with pytest.raises(ValueError, match=r"--set 'environment.levl=hard': \[environment\] has no "
@@ -211,7 +212,8 @@ def test_cli_trains_with_a_level_set_and_prints_the_scorer_s_normalised_score(sm
   greedy = trained["greedy"]
   assert greedy["episodes_measured"] == greedy["starts"] == 1000
   assert "J_normalized" in greedy and "gate_pass_rate_normalized" in greedy
-  assert trained["control_steps"] == 1000
+  # the record's one row; the learner trained whole updates of 8 x 16 control steps
+  assert trained["control_steps"] == 1000 and trained["control_steps_trained"] == 1024
   assert cli.main(["evaluate", str(out), "--episodes", "8", "--json", "--quiet"]) == 0
   scored = json.loads(capsys.readouterr().out)
   assert scored["episodes_measured"] == 8 and "J_normalized" in scored
