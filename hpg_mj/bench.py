@@ -207,14 +207,15 @@ def format_rows(rows):
   return "\n".join(lines)
 
 
-def bench_task(path, min_seconds=2.0):
-  """One task file's agent (a shipped one, or a user's) on its compiled path, learning:
-  {task, unit, compile_seconds, train_seconds, steps, steps_per_second}. The first
-  call, one episode, is timed apart: it holds numba's compiling (or loading from its
-  cache); the speed is over at least `min_seconds` of training after it."""
+def bench_task(path, min_seconds=2.0, assignments=()):
+  """One task file's agent (a shipped one, or a user's; with `assignments` set as
+  `hpg-mj train --set` sets them) on its compiled path, learning: {task, unit,
+  compile_seconds, train_seconds, steps, steps_per_second}. The first call, one
+  episode, is timed apart: it holds numba's compiling (or loading from its cache); the
+  speed is over at least `min_seconds` of training after it."""
   from hpg_mj import agents
 
-  task = agents.load_task(path)
+  task = agents.load_task(path, assignments)
   agent = agents.build(task, seed=0)
   unit = "primitive steps/s" if task.section("environment")["world"] == "taxi" else \
       "control steps/s"                    # the ship's tasks, the ladder's among them
@@ -240,16 +241,16 @@ def bench_task(path, min_seconds=2.0):
           "train_seconds": seconds, "steps": steps, "steps_per_second": _rate(steps, seconds)}
 
 
-def bench_rounds(tasks, min_seconds=2.0, rounds=1):
-  """`bench_task` of each task file in `rounds` interleaved rounds (the order reversed
-  every other round, so that all see the same machine load): a row per task file, the
-  first round's, with `steps_per_second` the median over the rounds and
-  `rounds_steps_per_second` each round's."""
+def bench_rounds(tasks, min_seconds=2.0, rounds=1, assignments=()):
+  """`bench_task` of each task file (with `assignments`) in `rounds` interleaved rounds
+  (the order reversed every other round, so that all see the same machine load): a row
+  per task file, the first round's, with `steps_per_second` the median over the rounds
+  and `rounds_steps_per_second` each round's."""
   import statistics
   rows = {path: [] for path in tasks}
   for r in range(rounds):
     for path in (tasks if r % 2 == 0 else tasks[::-1]):
-      rows[path].append(bench_task(path, min_seconds))
+      rows[path].append(bench_task(path, min_seconds, assignments))
   out = []
   for each in rows.values():
     rates = [row["steps_per_second"] for row in each]
@@ -258,18 +259,19 @@ def bench_rounds(tasks, min_seconds=2.0, rounds=1):
   return out
 
 
-def bench_train(min_seconds=2.0, tasks=None, rounds=1):
+def bench_train(min_seconds=2.0, tasks=None, rounds=1, assignments=()):
   """Rows of (name, unit, steps per second): every shipped task file's agent (or the
-  task files `tasks`) on its compiled path, learning, and, for the shipped set, the
-  stand-alone subtasks and the hybrid step by step through dm_control. The task
-  files `tasks` are measured in `rounds` interleaved rounds (the order reversed
-  every other round, so that all see the same machine load), each row the median."""
+  task files `tasks`, each with `assignments`) on its compiled path, learning, and, for
+  the shipped set, the stand-alone subtasks and the hybrid step by step through
+  dm_control. The task files `tasks` are measured in `rounds` interleaved rounds (the
+  order reversed every other round, so that all see the same machine load), each row
+  the median."""
   from hpg_mj import agents
 
   if tasks:
     return [(f"{row['task']}, learning" + (f", median of {rounds} rounds" if rounds > 1
                                             else ""), row["unit"], row["steps_per_second"])
-            for row in bench_rounds(tasks, min_seconds, rounds)]
+            for row in bench_rounds(tasks, min_seconds, rounds, assignments)]
   rows = []
   for path in agents.shipped_tasks().values():
     if "stable-baselines3" in agents.lookup(agents.load_task(path).kind).tags:

@@ -78,18 +78,21 @@ def _cmd_bench(args):
     print(bench.format_rows(bench.bench_envs(min_seconds=args.seconds or 1.0)))
   elif args.what == "train":
     seconds = 2.0 if args.seconds is None else args.seconds
+    if args.set and not args.task:
+      raise ValueError("bench train --set sets keys of the --task files; give them with --task")
     if args.json:
       from hpg_mj import agents
       tasks = args.task or list(agents.shipped_tasks().values())
       import json
-      rows = bench.bench_rounds(tasks, seconds, args.rounds)
+      rows = bench.bench_rounds(tasks, seconds, args.rounds, args.set)
       for row in rows[1:] if args.task else ():    # as the plain table's last lines
         row["first_over_this"] = (rows[0]["steps_per_second"] / row["steps_per_second"]
                                   if row["steps_per_second"] else None)
         row["first"] = rows[0]["task"]
       print(json.dumps(rows, indent=2))
     else:
-      rows = bench.bench_train(min_seconds=seconds, tasks=args.task, rounds=args.rounds)
+      rows = bench.bench_train(min_seconds=seconds, tasks=args.task, rounds=args.rounds,
+                               assignments=args.set)
       print(bench.format_rows(rows))
       for name, _, rate in rows[1:] if args.task else ():
         print(f"{rows[0][0].split(',')[0]} / {name.split(',')[0]}: {rows[0][2] / rate:.1f}x")
@@ -247,6 +250,10 @@ def _cmd_train(args):
   metrics.update(window.described(agent, len(record)))   # the rows the metrics are over
   metrics.update(bounds.normalized(bounds.task_name(agent), metrics))   # SPEC section 7.1
   metrics.update(agent.final_metrics(record))    # e.g. a continuing agent's comparisons
+  # A ladder level's time limit closes episodes before a larger max_steps: the one in force.
+  limit = getattr(getattr(agent.config, "environment", None), "episode_steps", None)
+  if limit is not None:
+    metrics["max_steps"] = limit
   if isinstance(metrics.get("greedy"), dict):    # a greedy measure: normalized too (7.1)
     metrics["greedy"].update(bounds.normalized(bounds.task_name(agent), metrics["greedy"]))
   metrics.update({"task": str(task.path), "seed": seed, "episodes": len(record),
@@ -608,7 +615,8 @@ def build_parser():
   p.add_argument("--batched", action="store_true",
                  help="with --policy: the function takes a batch of observations")
   p.add_argument("--max-steps", type=_at_least(1), default=None,
-                 help="with --policy: a step cap (default the task's: ship 5000, taxi 200)")
+                 help="with --policy: a step cap (default the task's: ship 5000, taxi 200; "
+                      "the current's, the regatta's and the harbour's hard levels 1000)")
   p.add_argument("--num-envs", type=_at_least(1), default=1000,
                  help="with --policy: episodes sailed side by side (default 1000)")
   p.add_argument("--episodes", type=_at_least(1), default=1000)
@@ -641,8 +649,11 @@ def build_parser():
   p.add_argument("--task", action="append", default=None, metavar="FILE",
                  help="train: this task file (a shipped name or a path; repeat for more) "
                       "instead of every shipped one")
+  p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                 help="train with --task: set a key of every task file, as hpg-mj train "
+                      "--set does (e.g. environment.level=hard; repeatable)")
   p.add_argument("--json", action="store_true",
-                 help="train: one JSON object per task file, compile seconds apart from "
+                 help="train: a JSON list, an object per task file, compile seconds apart from "
                       "training seconds, the median over --rounds and each round's (with "
                       "--task, each after the first has first_over_this: the first's "
                       "speed over its own)")

@@ -38,7 +38,7 @@ def test_cli_bench_train_json_gives_the_ratios_the_table_prints(capsys, monkeypa
   each task after the first carries the same ratio (the measuring itself stubbed)."""
   from hpg_mj import bench
   rates = {"a": 3000.0, "b": 1500.0, "c": 0.0}
-  monkeypatch.setattr(bench, "bench_task", lambda path, seconds: {
+  monkeypatch.setattr(bench, "bench_task", lambda path, seconds, assignments: {
       "task": path, "unit": "control steps/s", "steps_per_second": rates[path]})
   assert cli.main(["bench", "train", "--task", "a", "--task", "b", "--task", "c",
                    "--json"]) == 0
@@ -56,17 +56,28 @@ def test_cli_bench_train_json_takes_the_median_of_interleaved_rounds(capsys, mon
   calls = []
   rates = iter([1.0, 10.0, 20.0, 2.0, 3.0, 30.0])      # a b | b a | a b
 
-  def measure(path, seconds):
-    calls.append(path)
+  def measure(path, seconds, assignments):
+    calls.append((path, tuple(assignments)))
     return {"task": path, "unit": "control steps/s", "steps_per_second": next(rates)}
   monkeypatch.setattr(bench, "bench_task", measure)
   assert cli.main(["bench", "train", "--task", "a", "--task", "b", "--rounds", "3",
-                   "--json"]) == 0
+                   "--set", "environment.level=hard", "--json"]) == 0
   rows = json.loads(capsys.readouterr().out)
-  assert calls == ["a", "b", "b", "a", "a", "b"]
+  assert calls == [(path, ("environment.level=hard",)) for path in "abbaab"]
   assert rows[0]["rounds_steps_per_second"] == [1.0, 2.0, 3.0]
   assert rows[0]["steps_per_second"] == 2.0 and rows[1]["steps_per_second"] == 20.0
   assert rows[1]["first_over_this"] == 0.1
+
+
+def test_cli_bench_train_sets_keys_of_its_task_files_as_train_does(capsys):
+  """`bench train --set` goes through `hpg-mj train --set`'s checks (refused before
+  anything compiles), and only with --task."""
+  assert cli.main(["bench", "train", "--task", "ship_current_hybrid", "--set",
+                   "environment.levl=hard"]) == 2
+  assert "--set 'environment.levl=hard': [environment] has no key 'levl'" in \
+      capsys.readouterr().err
+  assert cli.main(["bench", "train", "--set", "environment.level=hard"]) == 2
+  assert "--set sets keys of the --task files; give them with --task" in capsys.readouterr().err
 
 
 def test_cli_render_rejects_an_unknown_task(capsys, tmp_path):

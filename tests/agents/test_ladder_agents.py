@@ -129,9 +129,14 @@ def test_the_command_line_trains_evaluates_and_renders_a_ladder_agent(tmp_path, 
   assert cli.main(["train", str(path), "--episodes", "30", "--out", str(out), "--json",
                    "--quiet"]) == 0
   metrics = json.loads(capsys.readouterr().out)
-  assert metrics["episodes_measured"] == 30
+  assert metrics["episodes_measured"] == 30 and metrics["max_steps"] == 40
   assert {"finish_rate", "gates_passed", "mean_return_normalized",
           "finish_rate_normalized"} <= set(metrics)
+  # The step limit in force: at hard the level's time limit, under the file's 5,000.
+  assert cli.main(["train", "ship_regatta_hybrid", "--set", "environment.level=hard",
+                   "--episodes", "2", "--out", str(tmp_path / "hard"), "--json",
+                   "--quiet"]) == 0
+  assert json.loads(capsys.readouterr().out)["max_steps"] == 1000
   for backend in ("analytic", "mujoco"):
     assert cli.main(["evaluate", str(out), "--episodes", "2", "--backend", backend,
                      "--json"]) == 0
