@@ -770,21 +770,31 @@ def load_policy(spec):
   if not isinstance(spec, str) or spec.count(":") < 1:
     raise ValueError(f"--policy {spec!r}: give module:attribute (e.g. my_policies:steer) "
                      "or path/to/file.py:attribute")
+  from hpg_mj import agents
   module_name, attribute = spec.rsplit(":", 1)
   if module_name.endswith(".py"):
     path = pathlib.Path(module_name)
     if not path.is_file():
       raise ValueError(f"--policy {spec!r}: no file {path}")
     loaded = importlib.util.spec_from_file_location(path.stem, path)
-    module = importlib.util.module_from_spec(loaded)
-    loaded.loader.exec_module(module)
+
+    def importing():
+      module = importlib.util.module_from_spec(loaded)
+      loaded.loader.exec_module(module)
+      return module
   else:
     if "" not in sys.path and "." not in sys.path:
       sys.path.insert(0, "")
-    try:
-      module = importlib.import_module(module_name)
-    except ImportError as err:
-      raise ValueError(f"--policy {spec!r}: cannot import {module_name!r}: {err}") from None
+
+    def importing():
+      return importlib.import_module(module_name)
+  try:
+    module = importing()
+  except ModuleNotFoundError as err:
+    raise ValueError(f"--policy {spec!r}: cannot import {module_name!r}: {err}") from None
+  except Exception as err:  # noqa: BLE001  (a user's module may raise anything)
+    # one line naming the module, not the error alone (it read as a bad option)
+    raise ValueError(f"--policy {spec!r}: {agents.import_error(err)}") from None
   if not hasattr(module, attribute):
     raise ValueError(f"--policy {spec!r}: {module_name} has no attribute {attribute!r}")
   return getattr(module, attribute)

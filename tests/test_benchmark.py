@@ -377,6 +377,18 @@ def test_hpg_mj_evaluate_refuses(argv, message, capsys):
   assert message in capsys.readouterr().err
 
 
+def test_a_policy_module_that_raises_on_import_is_named_in_one_line(tmp_path, capsys,
+                                                                    monkeypatch):
+  """A newcomer's module failing as it loads read as a bad option ("error: boom")."""
+  (tmp_path / "broken_policy.py").write_text("x = 1\nraise ValueError('boom at import')\n")
+  monkeypatch.chdir(tmp_path)
+  for spec in ("broken_policy:steer", str(tmp_path / "broken_policy.py") + ":steer"):
+    assert cli.main(["evaluate", "--policy", spec]) == 2
+    err = capsys.readouterr().err
+    assert f"--policy '{spec}': importing it raised ValueError: boom at import (" in err
+    assert "broken_policy.py, line 2)" in err and len(err.strip().splitlines()) == 1
+
+
 def test_a_real_stable_baselines3_model_is_scored():
   sb3 = pytest.importorskip("stable_baselines3")
   import gymnasium

@@ -220,7 +220,7 @@ def import_module(name):
     spec.loader.exec_module(module)
   except Exception as err:  # noqa: BLE001  (a user's module may raise anything)
     del sys.modules[path.stem]
-    raise AgentNotFound(f"{what}: {_raised(err)}") from None
+    raise AgentNotFound(f"{what}: {import_error(err)}") from None
   return module
 
 
@@ -234,12 +234,12 @@ def _import(module_name, what):
     if err.name and (module_name + ".").startswith(err.name + "."):
       raise AgentNotFound(f"{what}: no module {err.name!r} in the current folder or on "
                           f"sys.path") from None
-    raise AgentNotFound(f"{what}: {_raised(err)}") from None
+    raise AgentNotFound(f"{what}: {import_error(err)}") from None
   except Exception as err:  # noqa: BLE001  (a user's module may raise anything)
-    raise AgentNotFound(f"{what}: {_raised(err)}") from None
+    raise AgentNotFound(f"{what}: {import_error(err)}") from None
 
 
-def _raised(err):
+def import_error(err):
   """'importing it raised NameError: ... (file.py, line 3)': one line on a failed import."""
   import traceback
   where = traceback.extract_tb(err.__traceback__)
