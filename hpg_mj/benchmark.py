@@ -31,9 +31,9 @@ name such as "ship_hybrid", a path, or a loaded `TaskFile`). The task ladder's
 (`LADDER`, SPEC section 11), each at a level of `LEVELS` (`level="hard"`, or
 "ship_goal/hard"): "ship_current", "ship_goal", "ship_regatta" and "ship_harbour",
 the Gymnasium environments' observations (the goal's a dictionary: `observation`,
-`achieved_goal`, `desired_goal`, each (n, 4) in a batch; the harbour's the state and
-seven ranges, (n, 11)) and the turning rate; start i is the episode the environment
-lays out at `reset(seed=GREEDY_SEED + i)`.
+`achieved_goal`, `desired_goal`, each (n, 4) in a batch, and `ranges`, (n, 7); the
+harbour's the state and seven ranges, (n, 11)) and the turning rate; start i is the
+episode the environment lays out at `reset(seed=GREEDY_SEED + i)`.
 
 Metrics (one implementation each, shared with the agents' reports):
   ship   gate_pass_rate, steps_to_gate (mean control steps over the passes),
@@ -73,7 +73,7 @@ from hpg_mj.experiments.bounds import (KEYS, LADDER, LEVELS, SCORES, TASKS,  # n
 from hpg_mj.benchmark_tasks import (ENV_IDS, Task, _count, _start_count,  # noqa: F401
                                     fixed_starts, optimal_returns, task_of)  # (public here)
 from hpg_mj import benchmark_spaces
-from hpg_mj.benchmark_spaces import PolicyError, rescaled  # noqa: F401  (public here)
+from hpg_mj.benchmark_spaces import PolicyError, fixed_batch, rescaled  # noqa: F401  (public)
 from hpg_mj.hierarchy import ship_rules
 from hpg_mj.worlds import ship_core
 from hpg_mj.worlds import taxi_core

@@ -8,7 +8,9 @@ actions would be taken as turning rates of -1 to 1 deg/s. `benchmark.evaluate`
 refuses it in one line; `rescaled(model, task)` maps the task's observations onto
 the model's observation space and its actions back onto the task's, each bounded
 Box component affinely (low to low, high to high), as the wrappers did in training.
-A policy that raises or acts outside the task is a `PolicyError`.
+A policy that raises or acts outside the task is a `PolicyError`. `fixed_batch` gives
+a batched policy the same batch size at every call (a jitted JAX function then
+compiles once).
 """
 import numpy as np
 
@@ -138,3 +140,36 @@ def rescaled(model, task, level=None):
   found = task_of(task, level=level)
   name = found.name if found.level is None else f"{found.name}/{found.level}"
   return Rescaled(model, name, *task_spaces(found))
+
+
+class FixedBatch:
+  """A batched policy called with `size` observations at every step (`fixed_batch`)."""
+  batched = True
+
+  def __init__(self, policy, size):
+    if isinstance(size, bool) or not isinstance(size, int) or size < 1:
+      raise ValueError(f"fixed_batch: size must be a positive integer, got {size!r}")
+    self.policy, self.size = policy, size
+
+  def __call__(self, obs):
+    n = len(next(iter(obs.values())) if isinstance(obs, dict) else obs)
+    if n > self.size:
+      raise ValueError(f"fixed_batch: a batch of {n} observations, more than its size "
+                       f"{self.size}; give evaluate num_envs <= {self.size}")
+
+    def pad(rows):
+      rows = np.asarray(rows)
+      return np.concatenate([rows, np.repeat(rows[:1], self.size - n, axis=0)])
+    padded = {k: pad(v) for k, v in obs.items()} if isinstance(obs, dict) else pad(obs)
+    return np.asarray(self.policy(padded))[:n]
+
+
+def fixed_batch(policy, size=1000):
+  """`policy`, a function of a batch of observations, called with exactly `size` of
+  them at every step (`evaluate`'s default num_envs is 1,000): `evaluate` hands a
+  batched policy its live episodes, a batch that shrinks as the last ones end (some
+  460 sizes over the 1,000 fixed starts), and a jitted JAX function compiles once a
+  size. The batch is padded with copies of its first row, whose actions are dropped,
+  so a function of the observation alone scores the same. Use
+  `evaluate(fixed_batch(jax.jit(f)), task)`."""
+  return FixedBatch(policy, size)

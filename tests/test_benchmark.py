@@ -258,6 +258,33 @@ def test_a_policy_reading_the_goals_dictionary_as_an_array_is_told_it_is_one(bat
                                  "'achieved_goal', 'desired_goal', 'ranges')")
 
 
+def test_a_fixed_batch_policy_is_called_with_one_size_and_scores_the_same():
+  """`fixed_batch`: the shrinking batch of the last episodes padded to `size` (a jitted
+  JAX policy compiles once), the padded rows' actions dropped; the goal's dictionary
+  too."""
+  sizes = []
+
+  def recording(policy):
+    def act(obs):
+      sizes.append(len(next(iter(obs.values())) if isinstance(obs, dict) else obs))
+      return policy(obs)
+    return act
+  for task in ("ship", "ship_goal"):
+    helm = benchmark.helmsman if task == "ship" else benchmark.ladder_helmsman(task)
+    plain = benchmark.evaluate(helm, task, 12, progress=False)
+    sizes.clear()
+    fixed = benchmark.evaluate(benchmark.fixed_batch(recording(helm), size=16), task, 12,
+                               progress=False)
+    np.testing.assert_array_equal(fixed.record, plain.record)
+    assert set(sizes) == {16} and len(sizes) == plain.record["steps"].max()
+  with pytest.raises(ValueError, match="a batch of 12 observations, more than its size 8; "
+                                       "give evaluate num_envs <= 8"):
+    benchmark.evaluate(benchmark.fixed_batch(benchmark.helmsman, size=8), "ship", 12,
+                       progress=False)
+  with pytest.raises(ValueError, match="fixed_batch: size must be a positive integer, got 0"):
+    benchmark.fixed_batch(benchmark.helmsman, size=0)
+
+
 def test_a_taxi_action_outside_the_actions_is_refused():
   with pytest.raises(benchmark.PolicyError) as err:
     benchmark.evaluate(lambda obs: 7, "taxi_fuel", 3, progress=False)
