@@ -39,7 +39,12 @@ def record(cls):
   names = [f.name for f in dataclasses.fields(cls)]
 
   def replace(self, **changes):
-    """A copy with the fields `changes` names replaced (flax's `replace`)."""
+    """A copy with the fields `changes` names replaced (flax's `replace`); a name that
+    is no field is refused naming the fields, as `make` refuses one."""
+    unknown = sorted(set(changes) - set(names))
+    if unknown:
+      raise ValueError(f"{cls.__name__}.replace: unknown parameter(s) {unknown}; allowed: "
+                       f"{names}")
     return dataclasses.replace(self, **changes)
   cls.replace = replace
   return jax.tree_util.register_dataclass(cls, data_fields=names, meta_fields=[])

@@ -46,6 +46,11 @@ def test_bad_ids_and_parameters_are_refused_in_one_line():
   with pytest.raises(ValueError, match=r"hpg_mj/Taxi-v0: unknown parameter\(s\) \['fuel'\]; "
                                        r"allowed: \['max_steps_in_episode'"):
     hpg_jax.make("Taxi-v0", fuel=False)
+  _, params = hpg_jax.make("ShipCurrent-v0")           # a subclass's own fields named
+  with pytest.raises(ValueError, match=r"CurrentParams.replace: unknown parameter\(s\) "
+                                       r"\['rivr'\]; allowed: \[.*'river'"):
+    params.replace(rivr=2.0)
+  assert params.replace(river=2.0).river == 2.0
 
 
 def test_bad_actions_and_states_are_refused_naming_what_is_allowed():
