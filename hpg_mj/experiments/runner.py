@@ -244,9 +244,14 @@ def _at_levels(path, tasks, levels):
   """Each task file at each of `levels` (`levels` above): its [environment] level set,
   named "<file>_<level>" (its `path`, the name of the file `task_path` writes)."""
   import dataclasses
+  from hpg_mj.worlds import ship_ladder
   if not levels or len(set(levels)) < len(levels):
     raise taskfile.TaskFileError(f"{path}: [experiment] levels = {levels}; allowed: one or "
                                  "more levels, each once")
+  for level in levels:          # here, not as the task file refuses a --set (naming it)
+    if level not in ship_ladder.LEVELS:
+      raise taskfile.TaskFileError(f"{path}: [experiment] levels: {level!r} is not a level; "
+                                   f"allowed: {list(ship_ladder.LEVELS)}")
   out = []
   for task in tasks:
     if "level" not in task.section("environment"):

@@ -140,8 +140,8 @@ def test_levels_are_refused_in_one_line_where_they_cannot_apply(tmp_path):
                  r"\[experiment\] levels = \['easy', 'easy'\]; allowed: one or more levels, "
                  "each once")
   assert_refused(tmp_path, EXPERIMENT.format(levels='"extreme"'),
-                 r"ship_current_hybrid.toml: \[environment\] level = 'extreme' is not "
-                 r"allowed; allowed: \['easy', 'medium', 'hard'\]")
+                 r"bad.toml: \[experiment\] levels: 'extreme' is not a level; allowed: "
+                 r"\['easy', 'medium', 'hard'\]")
   assert_refused(tmp_path, EXPERIMENT.format(levels='"easy"').replace(
       '"ship_current_hybrid"', '"ship_hybrid"'),
       r"\[experiment\] levels: ship_hybrid.toml has no \[environment\] level \(only the "
