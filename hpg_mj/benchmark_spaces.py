@@ -7,7 +7,8 @@ A model trained through `gymnasium.wrappers.RescaleAction` (or
 actions would be taken as turning rates of -1 to 1 deg/s. `benchmark.evaluate`
 refuses it in one line; `rescaled(model, task)` maps the task's observations onto
 the model's observation space and its actions back onto the task's, each bounded
-Box component affinely (low to low, high to high), as the wrappers did in training.
+Box component affinely (low to low, high to high), as the wrappers did in training (a
+dictionary observation's, the goal's, each key's).
 A policy that raises or acts outside the task is a `PolicyError`. `fixed_batch` gives
 a batched policy the same batch size at every call (a jitted JAX function then
 compiles once).
@@ -94,31 +95,41 @@ class Rescaled:
     self.model = model
     self.observation_space, self.action_space = observation_space, action_space
     self._obs = _affine(observation_space, model.observation_space, model.observation_space,
-                        observation_space, "observation", task_name)
+                        observation_space, "observation_space", task_name)
     self._act = _affine(model.action_space, action_space, model.action_space, action_space,
-                        "action", task_name)
+                        "action_space", task_name)
 
   def predict(self, obs, deterministic=True):
     """The model's actions in the task's units for a batch of the task's observations."""
-    inner = obs if self._obs is None else (np.asarray(obs) - self._obs[0]) * self._obs[1] \
-        + self._obs[2]
-    out = self.model.predict(inner, deterministic=deterministic)
-    action = out[0] if isinstance(out, tuple) else out
-    if self._act is not None:
-      action = (np.asarray(action, dtype=np.float64) - self._act[0]) * self._act[1] + self._act[2]
-    return action, None
+    out = self.model.predict(_mapped(self._obs, obs), deterministic=deterministic)
+    return _mapped(self._act, out[0] if isinstance(out, tuple) else out), None
+
+
+def _mapped(affine, x):
+  """`x` through `_affine`'s map (a dictionary's, key by key)."""
+  if affine is None:
+    return x
+  if isinstance(affine, dict):
+    return {key: _mapped(affine.get(key), value) for key, value in x.items()}
+  low, scale, target_low = affine
+  return (np.asarray(x, dtype=np.float64) - low) * scale + target_low
 
 
 def _affine(source, target, model_space, task_space, which, task_name):
   """(source low, scale, target low) taking `source` onto `target` (x' = (x - source
-  low) * scale + target low), or None where the two are one; one line where no affine
+  low) * scale + target low), or None where the two are one, or a dictionary of those
+  for Dict spaces of the same keys (the goal's observation); one line where no affine
   map of bounded Boxes of one shape takes one to the other."""
   if _same(source, target):
     return None
+  if (type(source).__name__ == type(target).__name__ == "Dict"
+      and list(source.spaces) == list(target.spaces)):
+    return {key: _affine(source[key], target[key], model_space[key], task_space[key],
+                         f"{which}[{key!r}]", task_name) for key in source.spaces}
   boxes = type(source).__name__ == type(target).__name__ == "Box"
   if not (boxes and source.shape == target.shape and
           all(np.isfinite(s.low).all() and np.isfinite(s.high).all() for s in (source, target))):
-    raise ValueError(f"benchmark.rescaled: the model's {which}_space {_describe(model_space)} "
+    raise ValueError(f"benchmark.rescaled: the model's {which} {_describe(model_space)} "
                      f"is no rescaling of the task {task_name!r}'s {_describe(task_space)}: "
                      "only bounded Boxes of one shape map onto each other")
   source_low = np.asarray(source.low, dtype=np.float64)

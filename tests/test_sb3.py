@@ -330,6 +330,38 @@ def test_rescaled_refuses_what_no_affine_map_takes_to_the_task():
   assert benchmark.evaluate(taxi, "taxi_fuel", episodes=3).metrics["episodes"] == 3
 
 
+def test_a_model_on_the_goal_s_rescaled_dictionary_is_scored_through_rescaled():
+  """A newcomer's HER model on the goal, its dictionary's Boxes each on [-1, 1]:
+  `evaluate` named `rescaled`, which then refused the dictionary; it maps each key."""
+  import gymnasium
+
+  from hpg_mj import benchmark
+  task_space = gymnasium.make("hpg_mj/ShipGoal-v0").observation_space
+  unit = gymnasium.spaces.Dict({k: gymnasium.spaces.Box(-1.0, 1.0, box.shape)
+                                for k, box in task_space.spaces.items()})
+  seen = []
+
+  class Model:                          # SB3's predict and spaces, acting 0
+    observation_space = unit
+    action_space = gymnasium.spaces.Box(-1.0, 1.0, (1,))
+
+    def predict(self, obs, deterministic=True):
+      seen.append(obs)
+      return np.zeros((len(obs["observation"]), 1)), None
+  with pytest.raises(ValueError, match=r"benchmark.rescaled\(model, 'ship_goal/easy'\)"):
+    benchmark.evaluate(Model(), "ship_goal", episodes=2, max_steps=2)
+  raw = []
+  scored = benchmark.evaluate(benchmark.rescaled(Model(), "ship_goal/easy"), "ship_goal",
+                              episodes=4, max_steps=2)
+  benchmark.evaluate(lambda obs: raw.append(obs) or np.zeros(4), "ship_goal", episodes=4,
+                     max_steps=2, batched=True)
+  assert scored.metrics["episodes"] == 4 and set(seen[0]) == set(task_space.spaces)
+  for key, box in task_space.spaces.items():
+    expected = (raw[0][key] - box.low) / (box.high - box.low) * 2.0 - 1.0
+    np.testing.assert_allclose(seen[0][key], expected, atol=1e-12)
+    assert np.abs(seen[0][key]).max() <= 1.0 + 1e-12
+
+
 def test_a_ladder_model_is_refused_naming_its_level_and_scored_at_it():
   """A newcomer's PPO on the current at level medium: the refusal named the task alone,
   and `rescaled(model, 'ship_current')` (easy's spaces) then failed; it names the level."""
