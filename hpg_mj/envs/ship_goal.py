@@ -118,10 +118,11 @@ class ShipGoalEnv(ship_env.ShipSteeringEnv):
 
   ## Rewards
   `compute_reward(achieved_goal, desired_goal, info)` (any batch shape): -1 per
-  control step, +100 more when the goal is reached, -100 more when the achieved
-  position is off the field or when `info` says the step's track touched an obstacle
-  (its `event` "obstacle", whatever the goals: a dictionary, or a sequence of them as
-  `HerReplayBuffer` gives). Reached: in the gate's frame the ship is between the posts
+  control step, +100 more when the goal is reached (99 in all), -100 more (-101) when
+  the achieved position is off the field or when `info` says the step's track touched
+  an obstacle (its `event` "obstacle", whatever the goals: a dictionary, or a
+  sequence of them as `HerReplayBuffer` gives). Never both: a touched obstacle gives
+  -101 though the goal be reached; a goal reached off the field, 99. Reached: in the gate's frame the ship is between the posts
   (|lateral| <= 50 m; 25 m at `hard`), at most one control step of sailing past the
   gate line (0 <= forward < 1.8 m) and heading within 45 degrees of the gate's heading
   (30 at `hard`). A ship
