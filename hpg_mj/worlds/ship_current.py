@@ -129,6 +129,16 @@ class CurrentTask(ship.ShipTask):
 
   def __init__(self, level=current_core.DEFAULT_LEVEL, random=None, initial_state=None,
                strict=False, max_steps=None, **rewards):
+    """Args:
+      level: "easy", "medium" or "hard" (`ship_current_core.LEVELS`).
+      random: seed, np.random.RandomState or None.
+      initial_state: optional fixed start [x, y, theta_deg, theta_dot_deg].
+      strict: if True, a turning rate outside [-15, 15] deg/s is an error; by
+        default it is clipped. NaN and infinity are always errors.
+      max_steps: control steps before the episode is truncated (default 5,000; at
+        hard at most the level's time limit, 1,000).
+      **rewards: `gate_reward`, `out_of_bounds_reward` (as `ShipTask`'s).
+    """
     self.level = level
     self.field = current_core.level_field(level, "ship_current")
     super().__init__("steer", random=random, initial_state=initial_state, strict=strict,

@@ -43,6 +43,16 @@ class GoalTask(ship.ShipTask):
 
   def __init__(self, level=goal_core.DEFAULT_LEVEL, random=None, initial_state=None, gate=None,
                strict=False, max_steps=None, **rewards):
+    """Args:
+      level: "easy", "medium" or "hard" (`ship_goal_core.LEVELS`).
+      random: seed, np.random.RandomState or None.
+      initial_state: optional fixed start [x, y, theta_deg, theta_dot_deg].
+      strict: if True, a turning rate outside [-15, 15] deg/s is an error; by
+        default it is clipped. NaN and infinity are always errors.
+      max_steps: control steps before the episode is truncated (default 5,000).
+      gate: optional fixed gate [x, y, heading_deg]; by default drawn each episode.
+      **rewards: `gate_reward`, `out_of_bounds_reward` (as `ShipTask`'s).
+    """
     self.level = level
     self.level_range = goal_core.level_range(level, "ship_goal")
     super().__init__("steer", random=random, initial_state=initial_state, strict=strict,

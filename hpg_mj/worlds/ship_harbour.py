@@ -139,6 +139,17 @@ class HarbourTask(ship.ShipTask):
   def __init__(self, level=harbour_core.DEFAULT_LEVEL, random=None, initial_state=None,
                strict=False, max_steps=None, gate_reward=harbour_core.GATE_REWARD,
                out_of_bounds_reward=harbour_core.OUT_OF_BOUNDS_REWARD):
+    """Args:
+      level: "easy", "medium" or "hard" (`ship_harbour_core.LEVELS`).
+      random: seed, np.random.RandomState or None.
+      initial_state: optional fixed start [x, y, theta_deg, theta_dot_deg].
+      strict: if True, a turning rate outside [-15, 15] deg/s is an error; by
+        default it is clipped. NaN and infinity are always errors.
+      max_steps: control steps before the episode is truncated (default 5,000; at
+        hard at most the level's time limit, 1,000).
+      gate_reward: passing the gate; out_of_bounds_reward: leaving the field or
+        touching an obstacle.
+    """
     self.level = level
     harbour_core.level_obstacles(level, "ship_harbour")
     self._ship = None

@@ -53,6 +53,19 @@ class RegattaTask(ship.ShipTask):
                course=None, strict=False, max_steps=None, gate_reward=regatta_core.GATE_REWARD,
                finish_reward=regatta_core.FINISH_REWARD,
                out_of_bounds_reward=regatta_core.OUT_OF_BOUNDS_REWARD):
+    """Args:
+      level: "easy", "medium" or "hard" (`ship_regatta_core.LEVELS`).
+      random: seed, np.random.RandomState or None.
+      initial_state: optional fixed start [x, y, theta_deg, theta_dot_deg].
+      strict: if True, a turning rate outside [-15, 15] deg/s is an error; by
+        default it is clipped. NaN and infinity are always errors.
+      max_steps: control steps before the episode is truncated (default 5,000; at
+        hard at most the level's time limit, 1,000).
+      course: optional fixed course, [[x, y, heading_deg], ...]; by default laid out
+        at each reset.
+      gate_reward: each gate passed but the last; finish_reward: the last;
+      out_of_bounds_reward: leaving the field.
+    """
     self.level = level
     self.layout = regatta_core.level_layout(level, "ship_regatta")
     super().__init__("steer", random=random, initial_state=initial_state, strict=strict,
