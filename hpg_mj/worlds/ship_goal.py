@@ -45,10 +45,8 @@ class GoalTask(ship.ShipTask):
                strict=False, max_steps=None, **rewards):
     """Args:
       level: "easy", "medium" or "hard" (`ship_goal_core.LEVELS`).
-      random: seed, np.random.RandomState or None.
-      initial_state: optional fixed start [x, y, theta_deg, theta_dot_deg].
-      strict: if True, a turning rate outside [-15, 15] deg/s is an error; by
-        default it is clipped. NaN and infinity are always errors.
+      random, initial_state, strict: as `ShipTask`'s (a seed, a fixed start, whether a
+        turning rate outside [-15, 15] deg/s is an error rather than clipped).
       max_steps: control steps before the episode is truncated (default 5,000).
       gate: optional fixed gate [x, y, heading_deg]; by default drawn each episode.
       **rewards: `gate_reward`, `out_of_bounds_reward` (as `ShipTask`'s).

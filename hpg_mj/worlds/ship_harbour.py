@@ -141,10 +141,8 @@ class HarbourTask(ship.ShipTask):
                out_of_bounds_reward=harbour_core.OUT_OF_BOUNDS_REWARD):
     """Args:
       level: "easy", "medium" or "hard" (`ship_harbour_core.LEVELS`).
-      random: seed, np.random.RandomState or None.
-      initial_state: optional fixed start [x, y, theta_deg, theta_dot_deg].
-      strict: if True, a turning rate outside [-15, 15] deg/s is an error; by
-        default it is clipped. NaN and infinity are always errors.
+      random, initial_state, strict: as `ShipTask`'s (a seed, a fixed start, whether a
+        turning rate outside [-15, 15] deg/s is an error rather than clipped).
       max_steps: control steps before the episode is truncated (default 5,000; at
         hard at most the level's time limit, 1,000).
       gate_reward: passing the gate; out_of_bounds_reward: leaving the field or
