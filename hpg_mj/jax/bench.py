@@ -2,12 +2,12 @@
 or of the MuJoCo ship through MJX against MuJoCo and the analytic ship.
 
 ```bash
-python -m hpg_mj.jax.bench [--envs 4096] [--steps 1000] [--x64]
+python -m hpg_mj.jax.bench [--envs 4096] [--steps 1000] [--x64] [--task current/hard ...]
 python -m hpg_mj.jax.bench --mjx [--ships 1,64,1024,4096] [--steps 100] [--x64]
 ```
 
 For each task (the ship, the taxi with fuel, the regatta and the harbour at their hard
-level), the same batch of `--envs` episodes under uniform random actions:
+level; or those `--task` names, any ladder world at any level among them), the same batch of `--envs` episodes under uniform random actions:
 the JAX environment's `step` (gymnax's, with its auto-reset) vmapped over the batch
 and scanned over `--steps` steps in one jitted call, timed after its compilation
 (reported apart); and `gymnasium.make_vec(id, num_envs, ...)` stepped `--steps`
@@ -32,6 +32,23 @@ TASKS = {"ship": ("ShipSteering-v0", {"backend": "analytic"}),
          "taxi_fuel": ("TaxiFuel-v0", {}),
          "regatta/hard": ("ShipRegatta-v0", {"backend": "analytic", "level": "hard"}),
          "harbour/hard": ("ShipHarbour-v0", {"backend": "analytic", "level": "hard"})}
+# The task ladder's worlds, any of which `--task WORLD/LEVEL` names.
+LADDER = {"current": "ShipCurrent-v0", "goal": "ShipGoal-v0", "regatta": "ShipRegatta-v0",
+          "harbour": "ShipHarbour-v0"}
+
+
+def task(name):
+  """(id, the native vector environment's arguments) of `--task NAME`: a name of
+  TASKS, or a ladder world and level (`current/medium`); a ValueError names what is
+  allowed."""
+  if name in TASKS:
+    return TASKS[name]
+  from hpg_mj.worlds.ship_ladder import LEVELS
+  world, _, level = name.partition("/")
+  if world not in LADDER or level not in LEVELS:
+    raise ValueError(f"--task {name!r}: allowed ship, taxi_fuel, or WORLD/LEVEL with WORLD "
+                     f"one of {', '.join(LADDER)} and LEVEL one of {', '.join(LEVELS)}")
+  return LADDER[world], {"backend": "analytic", "level": level}
 
 
 def jax_steps_per_second(env_id, n_envs, n_steps, seed=0, level=None):
@@ -197,7 +214,17 @@ def main(argv=None):
                       help="the MuJoCo ship through MJX, MuJoCo and the analytic ship")
   parser.add_argument("--ships", default="1,64,1024,4096",
                       help="with --mjx: the batch sizes, comma-separated")
+  parser.add_argument("--task", action="append", default=None, metavar="TASK",
+                      help="only this task (repeatable): ship, taxi_fuel, or a ladder world "
+                           "and level, such as current/medium or goal/hard (default: ship, "
+                           "taxi_fuel, regatta/hard, harbour/hard)")
   args = parser.parse_args(argv)
+  try:
+    tasks = {name: task(name) for name in args.task or TASKS}
+  except ValueError as error:
+    parser.error(str(error))
+  if args.mjx and args.task:
+    parser.error("--task is for the environments' table; --mjx times the ship's physics alone")
   if args.steps is None:
     args.steps = 100 if args.mjx else 1000
   try:
@@ -217,11 +244,11 @@ def main(argv=None):
     return
   print(f"{args.envs} environments x {args.steps} steps, JAX on {jax.devices()[0]} "
         f"({'float64' if args.x64 else 'float32'})")
-  for task, (env_id, kwargs) in TASKS.items():
+  for name, (env_id, kwargs) in tasks.items():
     jax_rate, compile_s = jax_steps_per_second(env_id, args.envs, args.steps,
                                                level=kwargs.get("level"))
     numba_rate = numba_steps_per_second(env_id, kwargs, args.envs, args.steps)
-    print(f"{task:12s} JAX {jax_rate:13,.0f} steps/s (compiled in {compile_s:.1f} s)   "
+    print(f"{name:14s} JAX {jax_rate:13,.0f} steps/s (compiled in {compile_s:.1f} s)   "
           f"numba vector env {numba_rate:13,.0f} steps/s   x{jax_rate / numba_rate:.2f}")
 
 

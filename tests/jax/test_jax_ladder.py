@@ -509,3 +509,19 @@ def x64():
   jax.config.update("jax_enable_x64", True)
   yield
   jax.config.update("jax_enable_x64", previous)
+
+
+def test_the_benchmark_times_any_ladder_world_at_any_level_and_refuses_others(capsys):
+  """`python -m hpg_mj.jax.bench --task WORLD/LEVEL` (a newcomer timing their own
+  task's world): the ladder's worlds and levels are the package's, a run prints the
+  named task's row, and a name outside them is refused naming what is allowed."""
+  from hpg_mj.jax import bench
+  assert {bench.task(f"{world}/{level}")[0] for world in bench.LADDER
+          for level in ship_ladder.LEVELS} == {
+      "ShipCurrent-v0", "ShipGoal-v0", "ShipRegatta-v0", "ShipHarbour-v0"}
+  bench.main(["--envs", "4", "--steps", "3", "--task", "current/hard"])
+  rows = capsys.readouterr().out.splitlines()[1:]
+  assert len(rows) == 1 and rows[0].startswith("current/hard ") and "numba" in rows[0]
+  with pytest.raises(SystemExit):
+    bench.main(["--task", "current/extreme"])
+  assert "--task 'current/extreme': allowed ship, taxi_fuel" in capsys.readouterr().err
