@@ -619,7 +619,9 @@ def build_parser():
                       "the current's, the regatta's and the harbour's hard levels 1000)")
   p.add_argument("--num-envs", type=_at_least(1), default=1000,
                  help="with --policy: episodes sailed side by side (default 1000)")
-  p.add_argument("--episodes", type=_at_least(1), default=1000)
+  p.add_argument("--episodes", type=_at_least(1), default=1000,
+                 help="episodes to score (default 1000: the fixed start set of the reports; "
+                      "a count other than 1000 is not an official score)")
   p.add_argument("--seed", type=_seed, default=None,
                  help="a saved agent: draw the starts from this seed (default: the fixed "
                       "seeded start set of the reports, SPEC section 7)")

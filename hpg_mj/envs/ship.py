@@ -154,7 +154,8 @@ class ShipSteeringEnv(gymnasium.Env):
   `reset()` returns `{"event": None}`. `step()` returns:
   - `event`: what happened in the step: "gate" (`steer`, `patrol`: the gate
     passed), "goal" (a subtask's goal reached), "out_of_bounds" (the field
-    left), "timeout" (a subtask's 300 control steps without success) or None.
+    left), "timeout" (a subtask's 300 control steps without success) or None
+    (nothing ended, or the step limit truncated the episode: `truncated` says).
   - `positions`: a `(4, 2)` array, the positions sampled every 0.2 s during the
     step (row 0 where it began), on which the gate and the bounds are checked.
   - `state_before_restart` (`patrol`, after leaving the field): the state where

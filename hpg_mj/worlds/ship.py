@@ -151,7 +151,9 @@ class ShipTask(base.Task):
 
   @property
   def last_event(self):
-    """What ended the last step: "gate", "goal", "out_of_bounds", "timeout" or None."""
+    """What ended the last step: "gate", "goal", "out_of_bounds", "timeout" (a
+    subtask's 300 control steps without success) or None (the step ended nothing, or
+    the episode's step limit truncated it: `get_termination`'s discount tells)."""
     return self._outcome[3]
 
 
