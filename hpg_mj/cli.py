@@ -472,7 +472,8 @@ def _add_run_options(p):
                  help="with --executor ray: a Ray cluster's address (default: a local Ray)")
   p.add_argument("--checkpoint-every", type=_at_least(1), default=runs.CHECKPOINT_EVERY,
                  metavar="N",
-                 help=f"episodes between checkpoints (default {runs.CHECKPOINT_EVERY})")
+                 help=f"episodes between checkpoints (default {runs.CHECKPOINT_EVERY}; the SB3 "
+                      "and JAX agents save more often on their own: docs/experiments.md)")
   p.add_argument("--quiet", action="store_true", help="no progress bar")
   p.add_argument("--no-wait", action="store_true",
                  help="refuse, rather than wait, when another command holds a run of the "

@@ -264,3 +264,4 @@ class LadderSACJax(LadderPPOJax):
   algorithm = "sac"
   Config = LadderSACJaxConfig
   trainer_class = "LadderSACTrainer"
+  checkpoint_rows = jax_sac.ShipSACJax.checkpoint_rows   # 0.1 M control steps: SAC's pace

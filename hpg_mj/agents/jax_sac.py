@@ -37,3 +37,6 @@ class ShipSACJax(jax_ppo.ShipPPOJax):
   name = "ship_sac_jax"
   algorithm = "sac"
   Config = ShipSACJaxConfig
+  # `hpg-mj run` checkpoints at least every 0.1 M control steps: one to two minutes of
+  # SAC on a core here (PPO's 1 M would leave a whole run unsaved).
+  checkpoint_rows = 100

@@ -37,6 +37,7 @@ def test_the_shipped_task_file_loads_its_agent():
   assert (s.n_envs, s.n_steps, s.gradient_steps, s.buffer_size) == (4, 250, 4, 1_000_000)
   assert task.config.environment.backend == "analytic"
   assert task.control_steps == 1_000_000 and task.protocol.episodes == 1000
+  assert agent.checkpoint_rows == 100        # `hpg-mj run` saves a run every 0.1 M steps
   assert task.tuning_seeds == tuple(range(10))
   assert task.tuning["budget"] == 4 and task.tuning["episodes"] == 1000
   assert task.tuning["grid"] == {"sac": {"learning_rate": [0.0001, 0.0003], "gamma": [0.99, 0.995]}}

@@ -43,6 +43,8 @@ def test_the_shipped_files_are_ship_sac_jax_s_learner_on_each_ladder_task(task):
   assert mine.tuning["grid"] == ship.tuning["grid"] and mine.tuning["budget"] == 4
   assert mine.tuning["score"] == ("mean_return" if task == "regatta" else "J")
   assert f"ladder_{task}_sac_jax" in ladder.TASKS[f"ship_{task}"]
+  # `hpg-mj run` saves a run every 0.1 M steps: a 1 M-step run is 15-25 minutes here.
+  assert agent.checkpoint_rows == 100 < mine.protocol.episodes
 
 
 def test_it_trains_on_the_goal_in_the_ladder_s_record(goal):
