@@ -2,6 +2,8 @@
 dm_control tasks: `check_env` on every level (dm_env's `EnvironmentTestMixin`:
 tests/test_suite_environment_mixin.py), the step's reward is `compute_reward`'s, and
 Stable-Baselines3's `HerReplayBuffer` trains on it unmodified."""
+import warnings
+
 import gymnasium
 import numpy as np
 import pytest
@@ -174,6 +176,18 @@ def test_her_trains_on_it_unmodified():
                                        batch.observations["desired_goal"].numpy(), None)
   np.testing.assert_array_equal(rewards, again.astype(np.float32))
   assert (rewards == 99.0).sum() >= 10                     # relabelled successes
+
+
+@pytest.mark.parametrize("level", ["easy", "hard"])
+def test_sb3_s_check_env_passes_on_the_environment_itself(level):
+  # docs/getting_started.md: SB3's checker calls compute_reward on what it is given, so
+  # it is handed `unwrapped` (Gymnasium 1's wrappers do not pass the method on).
+  from stable_baselines3.common.env_checker import check_env
+  env = gymnasium.make(ID, level=level, backend="analytic")
+  with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    check_env(env.unwrapped)
+  assert all("recommend" in str(w.message) for w in caught), [str(w.message) for w in caught]
 
 
 def test_bad_levels_are_one_line_errors():
