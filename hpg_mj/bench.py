@@ -244,9 +244,9 @@ def bench_task(path, min_seconds=2.0, assignments=()):
 def bench_rounds(tasks, min_seconds=2.0, rounds=1, assignments=()):
   """`bench_task` of each task file (with `assignments`) in `rounds` interleaved rounds
   (the order reversed every other round, so that all see the same machine load): a row
-  per task file, the first round's, with `steps_per_second` the median over the rounds
+  per task file, the median round's whole (the lower middle of an even count), so that
+  its `steps_per_second` is its steps over its seconds, with `median_round` (0-based)
   and `rounds_steps_per_second` each round's."""
-  import statistics
   rows = {path: [] for path in tasks}
   for r in range(rounds):
     for path in (tasks if r % 2 == 0 else tasks[::-1]):
@@ -254,8 +254,8 @@ def bench_rounds(tasks, min_seconds=2.0, rounds=1, assignments=()):
   out = []
   for each in rows.values():
     rates = [row["steps_per_second"] for row in each]
-    out.append({**each[0], "steps_per_second": statistics.median(rates),
-                "rounds_steps_per_second": rates})
+    median = sorted(range(len(rates)), key=rates.__getitem__)[(len(rates) - 1) // 2]
+    out.append({**each[median], "median_round": median, "rounds_steps_per_second": rates})
   return out
 
 

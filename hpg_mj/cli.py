@@ -657,7 +657,8 @@ def build_parser():
                       "--set does (e.g. environment.level=hard; repeatable)")
   p.add_argument("--json", action="store_true",
                  help="train: a JSON list, an object per task file, compile seconds apart from "
-                      "training seconds, the median over --rounds and each round's (with "
+                      "training seconds, the median round of --rounds whole and each "
+                      "round's speed (with "
                       "--task, each after the first has first_over_this: the first's "
                       "speed over its own)")
   p.add_argument("--rounds", type=_at_least(1), default=1,

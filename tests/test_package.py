@@ -50,15 +50,19 @@ def test_cli_bench_train_json_gives_the_ratios_the_table_prints(capsys, monkeypa
 
 
 def test_cli_bench_train_json_takes_the_median_of_interleaved_rounds(capsys, monkeypatch):
-  """With --rounds the JSON rows are the median over rounds, each round's rate kept, the
-  order reversed every other round (the measuring itself stubbed: a rate per call)."""
+  """With --rounds a JSON row is the median round's whole (its steps, seconds and rate
+  agree: a newcomer found round 1's steps beside the median's rate), each round's rate
+  kept, the order reversed every other round (the measuring itself stubbed: a rate per
+  call)."""
   from hpg_mj import bench
   calls = []
   rates = iter([1.0, 10.0, 20.0, 2.0, 3.0, 30.0])      # a b | b a | a b
 
   def measure(path, seconds, assignments):
     calls.append((path, tuple(assignments)))
-    return {"task": path, "unit": "control steps/s", "steps_per_second": next(rates)}
+    rate = next(rates)
+    return {"task": path, "unit": "control steps/s", "steps": 2 * rate,
+            "train_seconds": 2.0, "steps_per_second": rate}
   monkeypatch.setattr(bench, "bench_task", measure)
   assert cli.main(["bench", "train", "--task", "a", "--task", "b", "--rounds", "3",
                    "--set", "environment.level=hard", "--json"]) == 0
@@ -66,6 +70,8 @@ def test_cli_bench_train_json_takes_the_median_of_interleaved_rounds(capsys, mon
   assert calls == [(path, ("environment.level=hard",)) for path in "abbaab"]
   assert rows[0]["rounds_steps_per_second"] == [1.0, 2.0, 3.0]
   assert rows[0]["steps_per_second"] == 2.0 and rows[1]["steps_per_second"] == 20.0
+  assert rows[0]["median_round"] == rows[1]["median_round"] == 1
+  assert all(row["steps"] / row["train_seconds"] == row["steps_per_second"] for row in rows)
   assert rows[1]["first_over_this"] == 0.1
 
 
