@@ -93,8 +93,19 @@ def differences(recorded):
   if not isinstance(recorded, dict):
     return ["it records no versions (saved before hpg_mj recorded them)"]
   here = versions()
-  return [f"{key} {recorded.get(key, 'unrecorded')}, here {here[key]}" for key in VERSION_KEYS
+  return [_difference(key, recorded.get(key, "unrecorded"), here[key]) for key in VERSION_KEYS
           if recorded.get(key) != here[key]]
+
+
+def _difference(key, then, now):
+  """One difference in words; two commits that differ only in the checkout's
+  uncommitted changes ("-dirty") say so."""
+  if key == "git_commit" and isinstance(then, str) and isinstance(now, str) and \
+      then.removesuffix("-dirty") == now.removesuffix("-dirty"):
+    changes = "with" if now.endswith("-dirty") else "without"
+    return (f"git_commit {then}, here the same commit {changes} uncommitted changes to "
+            "the checkout's files")
+  return f"{key} {then}, here {now}"
 
 
 def warn_if_different(recorded, what):

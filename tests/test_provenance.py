@@ -63,6 +63,21 @@ def test_an_agent_of_another_version_says_so(tmp_path, capsys):
     agents.load(tmp_path / "agent")
 
 
+def test_a_commit_that_differs_only_in_uncommitted_changes_says_so(monkeypatch):
+  # A newcomer read "git_commit 29cbed2..., here 29cbed2...-dirty" as two versions.
+  commit = "a" * 40
+  for then, now, words in ((commit, commit + "-dirty", "with"), (commit + "-dirty", commit,
+                                                                  "without")):
+    monkeypatch.setattr(provenance, "versions",
+                        lambda: {key: "x" for key in provenance.VERSION_KEYS} | {"git_commit": now})
+    recorded = {key: "x" for key in provenance.VERSION_KEYS} | {"git_commit": then}
+    assert provenance.differences(recorded) == [
+        f"git_commit {then}, here the same commit {words} uncommitted changes to the "
+        "checkout's files"]
+  recorded["git_commit"] = "b" * 40
+  assert provenance.differences(recorded) == [f"git_commit {'b' * 40}, here {commit}"]
+
+
 def test_a_finished_run_and_its_report_record_their_provenance(tmp_path, capsys):
   task = agents.load_task("taxi_fuel_flat_q")
   metrics = runs.run(str(task.path), 2, 1000, tmp_path / "run")
