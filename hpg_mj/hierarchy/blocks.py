@@ -130,7 +130,13 @@ STEP = "step"
 
 @dataclasses.dataclass(eq=False)
 class QTable:
-  """Watkins's Q(lambda) on a table of `n_states` states x the node's children."""
+  """Watkins's Q(lambda) on a table of `n_states` states x the node's children.
+
+  `n_states` the number of states its view gives (an integer in [0, n_states));
+  `alpha` the step size; `trace_decay` lambda; `epsilon` the epsilon-greedy choice's
+  chance of a uniform child, or, `epsilon_schedule` True, the graph's `schedule`
+  instead (`HeldEpsilon`, `LinearEpsilon`); `gamma` the discount per decision;
+  `trace_capacity` the most (state, child) entries its trace holds at once."""
   n_states: int
   alpha: float = 0.1
   trace_decay: float = 0.9
@@ -154,7 +160,8 @@ def check_width(width_alpha, sigma_low, sigma_high, where="GaussianCMAC"):
 @dataclasses.dataclass(eq=False)
 class TiledQTable:
   """Watkins's Q(lambda) linear in `coder`'s tiles x the node's children (its view: a
-  StateTiles over `coder`); `trace_capacity` None: every weight once."""
+  StateTiles over `coder`); the settings are QTable's, `trace_capacity` None: every
+  weight once."""
   coder: tiles_mod.TileCoder
   alpha: float = 0.1
   trace_decay: float = 0.9
@@ -182,7 +189,14 @@ class RLearning:
 class GaussianCMAC:
   """Eq. 3 with a Gaussian-with-sigmoid policy over `coder`'s tiles; with
   `width_alpha` > 0, its exploration width sigma(s) learned too, in
-  [sigma_low, sigma_high] (`policies.gaussian_width_act`; 0: the paper's sigma = 1)."""
+  [sigma_low, sigma_high] (`policies.gaussian_width_act`; 0: the paper's sigma = 1).
+
+  `coder` the tiles of the node's view (a `Features` view gives it its numbers);
+  `alpha` Eq. 3's step size; `trace_gamma` the decay of Eq. 3's trace z per step (1:
+  the whole episode's); `baseline` the step size of a baseline b(s) over the same
+  tiles (0: none); `r_max` the largest action: u ~ Normal(m(s), sigma) is acted as
+  r_max (2 sigmoid(u) - 1), for the ship's turning rate 15 deg/s; `width_alpha`,
+  `sigma_low`, `sigma_high` the learned width's step size and bounds."""
   coder: tiles_mod.TileCoder
   alpha: float = 0.01
   trace_gamma: float = 1.0
@@ -199,7 +213,9 @@ class GaussianCMAC:
 @dataclasses.dataclass(eq=False)
 class ActorCritic:
   """Konda's actor-critic: the actor over `actor_coder`'s tiles of the state, the
-  critic over `critic_coder`'s tiles of (state, r)."""
+  critic over `critic_coder`'s tiles of (state, r). `alpha_actor` and `alpha_critic`
+  their step sizes, `trace_decay` the critic's lambda, `r_max` the largest action, as
+  GaussianCMAC's."""
   actor_coder: tiles_mod.TileCoder
   critic_coder: tiles_mod.TileCoder
   alpha_actor: float = 1e-4
@@ -214,7 +230,8 @@ class GibbsTable:
   node's children (paper section 5.1), optionally with a baseline b(s) learned by
   TD(0) with step size `baseline` (0: none, Eq. 3 exactly); its step size is alpha
   times a warm-up: `start_fraction` for the first `delay` learning episodes, then a
-  linear rise to 1 over `ramp` episodes."""
+  linear rise to 1 over `ramp` episodes. `trace_gamma` the decay of Eq. 3's trace per
+  step, as GaussianCMAC's."""
   n_states: int
   alpha: float = 0.1
   trace_gamma: float = 1.0
