@@ -68,6 +68,22 @@ def test_components_have_names_and_cameras(domain, task):
   assert all(model.id2name(i, "body") for i in range(1, model.nbody))
 
 
+@pytest.mark.parametrize("domain,task", [("ship", "steer"), ("ship_harbour", "hard"),
+                                         ("taxi", "fuel")])
+def test_dm_control_s_pixels_wrapper_sees_the_field_from_its_default_camera(domain, task):
+  # A newcomer's pixels.Wrapper(env), camera -1 as dm_control's default, drew a black
+  # frame: MuJoCo's free camera looked between the field and the ship's hidden target,
+  # 5 km away. The model's <statistic> now points it at the field (the taxi's board was
+  # already in view).
+  from dm_control.suite.wrappers import pixels
+  env = pixels.Wrapper(suite.load(domain, task, {"random": 0}),
+                       render_kwargs={"height": 60, "width": 80})
+  frame = env.reset().observation["pixels"]
+  assert frame.shape == (60, 80, 3)
+  assert (frame.astype(int).sum(-1) > 100).mean() > 0.5
+  env.close()
+
+
 @pytest.mark.parametrize("domain,task", suite.ALL_TASKS)
 def test_actions_and_observations_conform_to_specs(domain, task):
   env = suite.load(domain, task, {"random": 1})

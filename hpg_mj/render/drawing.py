@@ -14,6 +14,17 @@ _MARK_RGBA = np.array([1.0, 0.35, 0.1, 1.0], dtype=np.float32)
 _MAX_WAKE_SEGMENTS = 1500
 
 
+def _scene_option():
+  """MuJoCo's default visual options less its rangefinder rays: a frame shows the world,
+  not the harbour's sensors (drawn to whatever they hit, past the 150 m they read)."""
+  option = mujoco.MjvOption()
+  option.flags[mujoco.mjtVisFlag.mjVIS_RANGEFINDER] = False
+  return option
+
+
+SCENE_OPTION = _scene_option()
+
+
 def _pixel_size(model, camera_id, height):
   """Metres per pixel at the sea for an orthographic camera, else a fixed guess."""
   if camera_id >= 0 and model.cam_projection[camera_id] == mujoco.mjtProjection.mjPROJ_ORTHOGRAPHIC:
@@ -101,7 +112,8 @@ class ShipDrawing:
       from hpg_mj.worlds import ship_model
       ship_model.place_harbour_obstacles(model, obstacles)
     mujoco.mj_forward(model, self.physics.data.ptr)
-    self._renderer.update_scene(self.physics.data.ptr, camera=camera_id)
+    self._renderer.update_scene(self.physics.data.ptr, camera=camera_id,
+                                scene_option=SCENE_OPTION)
     pixel = _pixel_size(model, camera_id, self.height)
     add_polyline(self._renderer.scene, trail, width_px=max(1.0, self.height / 160.0),
                  rgba=_WAKE_RGBA)
@@ -143,7 +155,8 @@ class PhysicsDrawing:
     if key not in self._renderers:
       self._renderers[key] = mujoco.Renderer(self.model, *key)
     renderer = self._renderers[key]
-    renderer.update_scene(self.data, camera=_camera_id(self.model, camera_id, self.model_name))
+    renderer.update_scene(self.data, camera=_camera_id(self.model, camera_id, self.model_name),
+                          scene_option=SCENE_OPTION)
     return renderer.render().copy()
 
   def close(self):

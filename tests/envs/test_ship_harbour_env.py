@@ -127,6 +127,18 @@ def test_the_analytic_harbour_imports_neither_mujoco_nor_dm_control():
   assert done.stdout.strip().splitlines()[-1] == "[]"
 
 
+def test_frames_show_no_rangefinder_rays():
+  # MuJoCo draws a rangefinder's ray (yellow: 255, 255, under 100) to whatever it hits, past the
+  # 150 m the observation reads: a pixel agent saw more than the ranges. Off in every
+  # frame; at this start six rays hit islands and piers ahead.
+  dm = suite.load("ship_harbour", "hard", {"initial_state": [500.0, 300.0, 0.0, 0.0]})
+  dm.reset()
+  assert (dm.physics.data.sensordata[:7] > 0).sum() == 6
+  frame = dm.physics.render(240, 320, camera_id="top")
+  assert ((frame[..., 0] == 255) & (frame[..., 1] == 255) & (frame[..., 2] < 100)).sum() == 0
+  dm.close()
+
+
 def test_pixels_show_the_levels_obstacles_alike_on_both_paths():
   # The Gymnasium frame (the render worker's ship scene on assets/ship_harbour.xml) and
   # dm_control's physics.render of the same ship are the same picture, the level's
