@@ -158,10 +158,14 @@ def _check_render_args(parser, args):
   """Refuses the options that do not apply (with or without --agent); fills defaults."""
   def flag(name):
     return "--" + name.replace("_", "-")
+
+  def error(message):                # as the subcommands' own: "hpg-mj render: error: ..."
+    parser.exit(2, f"{parser.prog} render: error: {message} (see {parser.prog} render "
+                   "--help)\n")
   if args.agent is not None:
     given = [flag(n) for n in RENDER_TASK_ONLY if getattr(args, n) is not None]
     if given:
-      parser.error(f"render: {', '.join(given)} cannot be used with --agent (the agent's own "
+      error(f"{', '.join(given)} cannot be used with --agent (the agent's own "
                    "task and greedy policy are filmed); with --agent use --seed, --out, --gif, "
                    "--width, --height, --backend, --stride, --max-frames, --quiet")
     args.width = args.width or videos_defaults()[0]
@@ -170,14 +174,16 @@ def _check_render_args(parser, args):
   else:
     given = [flag(n) for n in RENDER_AGENT_ONLY if getattr(args, n) is not None]
     if given:
-      parser.error(f"render: {', '.join(given)} only applies with --agent")
+      error(f"{', '.join(given)} only applies with --agent")
     args.domain = args.domain or "ship"
     if args.level is not None:
       from hpg_mj.render import video
-      if args.domain not in video.LADDER_IDS or args.task not in (None, args.level):
-        parser.error(f"render: --level {args.level} is a level of the ladder's domains "
-                     "(--domain ship_current, ship_goal, ship_regatta, ship_harbour), given "
-                     "once (--level or --task)")
+      if args.domain not in video.LADDER_IDS:
+        error(f"--level {args.level}: --domain {args.domain} has no levels; the ladder's "
+              "domains have them: ship_current, ship_goal, ship_regatta, ship_harbour")
+      if args.task not in (None, args.level):
+        error(f"--level {args.level} and --task {args.task} both name the level of "
+              f"{args.domain}; give one of them")
       args.task = args.level
     args.task = args.task or {"ship": "steer", "taxi": "fuel"}.get(args.domain, "easy")
     args.policy = args.policy or "scripted"
@@ -186,7 +192,7 @@ def _check_render_args(parser, args):
   for name in ("width", "height", "stride", "max_frames"):
     value = getattr(args, name)
     if value is not None and value < 1:
-      parser.error(f"render: {flag(name)} must be a positive integer, got {value}")
+      error(f"{flag(name)} must be a positive integer, got {value}")
 
 
 def videos_defaults():

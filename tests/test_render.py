@@ -53,7 +53,15 @@ def test_a_ladder_task_is_filmed_at_its_level_by_the_planners_helmsman(tmp_path,
                                      f"{domain} is its level; valid: easy, medium, hard\n")
   with pytest.raises(SystemExit):
     cli.main(["render", "--level", "hard", "--out", str(tmp_path / "z.gif")])
-  assert "--level hard is a level of the ladder's domains" in capsys.readouterr().err
+  assert capsys.readouterr().err == (
+      "hpg-mj render: error: --level hard: --domain ship has no levels; the ladder's domains "
+      "have them: ship_current, ship_goal, ship_regatta, ship_harbour (see hpg-mj render "
+      "--help)\n")
+  with pytest.raises(SystemExit):         # a newcomer's: two levels, read as one muddle
+    cli.main(["render", "--domain", domain, "--task", "easy", "--level", "hard"])
+  assert capsys.readouterr().err == (
+      f"hpg-mj render: error: --level hard and --task easy both name the level of {domain}; "
+      "give one of them (see hpg-mj render --help)\n")
   with pytest.raises(ValueError, match=r"the scripted helmsman of ship_goal is the planners'"):
     video.render_task("ship_goal", "easy", out=tmp_path / "y.gif")
 

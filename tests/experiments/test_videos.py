@@ -87,7 +87,8 @@ def test_render_refuses_task_options_with_an_agent(capsys, extra, named):
 def test_render_refuses_options_that_do_not_apply(capsys, argv, message):
   with pytest.raises(SystemExit):
     cli.main(argv)
-  assert message in capsys.readouterr().err
+  err = capsys.readouterr().err
+  assert message in err and err.startswith("hpg-mj render: error: ")
 
 
 def test_quick_trajectory_films_use_the_quick_size(monkeypatch, tmp_path):
