@@ -216,6 +216,7 @@ class ShipSteeringEnv(gymnasium.Env):
     self._renderer = None
     self._trail = []
     self._steps = 0
+    self._episode = None       # None before the first reset, then "on", "ended", "warned"
 
   def _make_backend(self, name):
     """The ship this environment sails (a task on other water brings its own)."""
@@ -237,15 +238,35 @@ class ShipSteeringEnv(gymnasium.Env):
     super().reset(seed=seed)
     state, _ = self._start(options)
     self.backend.set_state(state)
-    self._steps = 0
-    obs = self.backend.state()
-    self._trail = [obs[:2].copy()]
+    obs = self._begun()
     return obs, {"event": None}
+
+  def _begun(self):
+    """An episode begun from the backend's state (set): its steps counted from 0, its
+    wake from the ship; returns the state."""
+    self._steps = 0
+    self._episode = "on"
+    state = self.backend.state()
+    self._trail = [state[:2].copy()]
+    return state
 
   def _sail(self, action):
     """One control step of the ship under `action` (checked, clipped as `strict` says):
     the step counted and, when rendering, the wake drawn on. Returns (the positions
-    sampled in it, the state after it)."""
+    sampled in it, the state after it). Before the first reset it is refused; after the
+    episode ended, refused with `strict`, else warned of once (Gymnasium's CartPole's
+    words) and sailed on."""
+    if self._episode is None:
+      raise RuntimeError(f"{self._name}: call reset() before step()")
+    if self._episode != "on":
+      if self.strict:
+        raise RuntimeError(f"{self._name}: the episode has ended; call reset() before step() "
+                           "(strict=False sails on, with a warning)")
+      if self._episode == "ended":
+        gymnasium.logger.warn(
+            f"{self._name}: step() called after the episode ended (terminated or "
+            "truncated); call reset() first: any further steps are undefined behavior")
+        self._episode = "warned"
     r = _validation.bounded_scalar_action(action, -core.MAX_TURN_RATE, core.MAX_TURN_RATE,
                                           strict=self.strict, task=self._name,
                                           name="turning rate r (deg/s)")
@@ -264,7 +285,13 @@ class ShipSteeringEnv(gymnasium.Env):
       self.backend.set_state(self.rules.sample_start(self.np_random))
       obs = self.backend.state()
       self._trail = [obs[:2].copy()]   # the wake starts again there
-    return obs, float(reward), terminated, truncated, info
+    return self._result(obs, float(reward), terminated, truncated, info)
+
+  def _result(self, obs, reward, terminated, truncated, info):
+    """A step's five values, the episode marked ended where they end it."""
+    if (terminated or truncated) and self._episode == "on":
+      self._episode = "ended"
+    return obs, reward, terminated, truncated, info
 
   def render(self):
     if self.render_mode is None:

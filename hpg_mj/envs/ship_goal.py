@@ -233,9 +233,7 @@ class ShipGoalEnv(ship_env.ShipSteeringEnv):
     self.backend.set_state(state)
     if hasattr(self.backend, "physics"):     # the MuJoCo ship's gate geoms, where the rule's is
       self.backend.physics.place_gate(goal_core.gate_posts(self._desired, self.tolerance[0]))
-    self._steps = 0
-    state = self.backend.state()
-    self._trail = [state[:2].copy()]
+    state = self._begun()
     return self._observation(state), {"event": None, "is_success": False}
 
   def step(self, action):
@@ -243,7 +241,7 @@ class ShipGoalEnv(ship_env.ShipSteeringEnv):
     event, reward, terminated, truncated, name = self._judge(samples, state, self._steps,
                                                              self._desired)
     info = {"event": name, "positions": samples, "is_success": event == core.SUCCESS}
-    return self._observation(state), reward, terminated, truncated, info
+    return self._result(self._observation(state), reward, terminated, truncated, info)
 
   def compute_reward(self, achieved_goal, desired_goal, info):
     """The reward of achieved and desired goals of any batch shape, aground where `info`

@@ -195,7 +195,7 @@ class ShipHarbourEnv(ship_env.ShipSteeringEnv):
     samples, state = self._sail(action)
     event, reward, terminated, truncated = self._ship(samples, self._steps)
     info = {"event": harbour_core.EVENT_NAMES[event], "positions": samples}
-    return self._observe(state), reward, terminated, truncated, info
+    return self._result(self._observe(state), reward, terminated, truncated, info)
 
   def _drawn(self):
     return {"obstacles": self.level}

@@ -191,9 +191,7 @@ class ShipRegattaEnv(ship_env.ShipSteeringEnv):
     self._ship.set_course(course)
     self.backend.set_state(state)
     self._place_course()
-    self._steps = 0
-    state = self.backend.state()
-    self._trail = [state[:2].copy()]
+    state = self._begun()
     return self._ship.observe(state), {"event": None, "gates_passed": 0,
                                        "course": self.course}
 
@@ -205,7 +203,7 @@ class ShipRegattaEnv(ship_env.ShipSteeringEnv):
       self._place_course()
     info = {"event": regatta_core.EVENT_NAMES[event], "gates_passed": self._ship.next_gate,
             "positions": samples}
-    return self._ship.observe(state), reward, terminated, truncated, info
+    return self._result(self._ship.observe(state), reward, terminated, truncated, info)
 
   def _drawn(self):
     return {"course": self._ship.posts, "next_gate": self._ship.next_gate}

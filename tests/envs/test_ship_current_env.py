@@ -148,3 +148,29 @@ def test_pixels_of_both_paths_are_the_same_picture():
   np.testing.assert_array_equal(dm.physics.render(120, 160, camera_id="top"), frame)
   env.close()
   dm.close()
+
+
+def test_a_step_before_reset_is_refused_and_one_after_the_end_warned_or_refused():
+  # A newcomer sailed on after leaving the field, reward -101 a step and no word; and
+  # the environment itself (unwrapped, without Gymnasium's order check) stepped from
+  # (0, 0, 0, 0) before any reset. As Gymnasium's CartPole: warned once an episode;
+  # with strict=True refused, as the taxi's.
+  with pytest.raises(RuntimeError, match=r"^ShipCurrent\(hard, backend=analytic\): call "
+                     r"reset\(\) before step\(\)$"):
+    gymnasium.make(ID, level="hard", backend="analytic").unwrapped.step([0.0])
+  for strict in (False, True):
+    env = gymnasium.make(ID, level="hard", backend="analytic", strict=strict)
+    env.reset(seed=0, options={"state": [5.0, 500.0, -90.0, 0.0]})
+    terminated = False
+    while not terminated:
+      terminated = env.step([0.0])[2]
+    if strict:
+      with pytest.raises(RuntimeError, match="the episode has ended; call reset"):
+        env.step([0.0])
+      continue
+    with pytest.warns(UserWarning, match="step\\(\\) called after the episode ended") as caught:
+      env.step([0.0])
+      env.step([0.0])
+    assert len(caught) == 1
+    env.reset()
+    assert env.step([0.0])[2] is False     # a new episode sails as before

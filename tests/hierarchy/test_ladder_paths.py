@@ -89,6 +89,8 @@ def test_the_fused_world_observes_as_the_environment():
     np.testing.assert_array_equal(mine, ship_goal_core.flatten(obs))
     np.testing.assert_array_equal(samples, info["positions"])
     assert (got, ended, cut) == (reward, terminated, truncated)
+    if terminated or truncated:           # past its end the environment only warns
+      break
 
 
 def test_the_gate_frame_is_an_isometry_of_the_ship():
