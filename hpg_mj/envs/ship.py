@@ -190,6 +190,8 @@ class ShipSteeringEnv(gymnasium.Env):
 
   ## Version history
   - v0: initial release (SPEC sections 1-3); `patrol` (SPEC section 8).
+  - v0, 2026-12-07: a step before the first reset is refused, one after the episode's
+    end warned of (refused with `strict=True`).
   """
 
   metadata = {"render_modes": ["rgb_array"], "render_fps": 10}

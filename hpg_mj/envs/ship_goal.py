@@ -184,6 +184,9 @@ class ShipGoalEnv(ship_env.ShipSteeringEnv):
     comparable with later ones).
   - v0, 2026-12-06: `hard`'s gate is drawn among the harbour's medium obstacles;
     the observation gains `ranges` at every level.
+  - v0, 2026-12-07: frames no longer draw the rangefinders' rays; a step before the
+    first reset is refused, one after the episode's end warned of (refused with
+    `strict=True`).
   """
 
   def __init__(self, level=goal_core.DEFAULT_LEVEL, backend="mujoco", render_mode=None,

@@ -148,6 +148,9 @@ class ShipHarbourEnv(ship_env.ShipSteeringEnv):
     comparable with later ones).
   - v0, 2026-12-06: `hard`'s mouth lies in a walled pocket on either side, and the
     level closes after 1,000 control steps.
+  - v0, 2026-12-07: frames no longer draw the rangefinders' rays; a step before the
+    first reset is refused, one after the episode's end warned of (refused with
+    `strict=True`).
   """
 
   model_file = "ship_harbour.xml"

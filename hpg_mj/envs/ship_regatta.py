@@ -148,6 +148,8 @@ class ShipRegattaEnv(ship_env.ShipSteeringEnv):
   - v0: the first release (not yet tagged: until then a v0 task may still change;
     each change is dated in docs/changelog.md, and scores made before it are not
     comparable with later ones).
+  - v0, 2026-12-07: a step before the first reset is refused, one after the episode's
+    end warned of (refused with `strict=True`).
   """
 
   model_file = "ship_regatta.xml"
