@@ -73,18 +73,21 @@ def bench_current_batch(min_seconds, level="hard", ships=1024, controls=200):
   return _timed(run, min_seconds)
 
 
-def _bench_dm_env(env, action, min_seconds, chunk=2000):
+def _dm_stepper(env, actions, chunk=2000):
+  """A function that steps the dm_control `env` `chunk` times through `actions` in turn
+  (reset at each end) and returns the steps it took."""
   env.reset()
+  n = len(actions)
 
   def run():
-    for _ in range(chunk):
-      if env.step(action).last():
+    for i in range(chunk):
+      if env.step(actions[i % n]).last():
         env.reset()
     return chunk
-  return _timed(run, min_seconds)
+  return run
 
 
-def _bench_gym_env(env, actions, min_seconds, chunk=2000):
+def _gym_stepper(env, actions, chunk=2000):
   env.reset(seed=0)
   n = len(actions)
 
@@ -94,11 +97,11 @@ def _bench_gym_env(env, actions, min_seconds, chunk=2000):
       if terminated or truncated:
         env.reset()
     return chunk
-  return _timed(run, min_seconds)
+  return run
 
 
-def _bench_vector_env(env, actions, min_seconds, chunk=200):
-  """Control (or primitive) steps per second of a vector env: copies x batch steps."""
+def _vector_stepper(env, actions, chunk=200):
+  """Control (or primitive) steps of a vector env: copies x batch steps."""
   env.reset(seed=0)
   n = len(actions)
 
@@ -106,25 +109,32 @@ def _bench_vector_env(env, actions, min_seconds, chunk=200):
     for i in range(chunk):
       env.step(actions[i % n])
     return chunk * env.num_envs
-  return _timed(run, min_seconds)
+  return run
 
 
-# The ladder's rows of `bench_envs` and the steering task's row each is held against
-# (SPEC section 11: each task's analytic batch and MuJoCo backend at least half the
-# steering task's).
+def _interleaved(reference, run, min_seconds, rounds=5):
+  """(`run`'s steps per second, its speed over `reference`'s): the two timed in turn,
+  `rounds` times, each for `min_seconds / rounds`; the medians of `run`'s rates and of
+  each round's ratio. A ratio of two rates measured apart moves with the machine's
+  speed, which drifts by the minute (20-30% by the hour here)."""
+  rates, ratios = [], []
+  for _ in range(rounds):
+    against = _timed(reference, min_seconds / rounds)
+    rates.append(_timed(run, min_seconds / rounds))
+    ratios.append(rates[-1] / against if against else float("inf"))
+  return float(np.median(rates)), float(np.median(ratios))
+
+
+# The ladder's rows of `bench_envs`, each measured in turn with the steering task's
+# same row (SPEC section 11: each task's analytic batch and MuJoCo backend at least half
+# the steering task's).
 _LADDER_DOMAINS = ("ship_current", "ship_goal", "ship_regatta", "ship_harbour")
 _LADDER_IDS = ("ShipCurrent", "ShipGoal", "ShipRegatta", "ShipHarbour")
-_AGAINST_STEERING = {
-    **{f"dm_control {d} hard (MuJoCo)": "dm_control ship steer (MuJoCo)" for d in _LADDER_DOMAINS},
-    **{f"Gymnasium {n}-v0 hard analytic, make_vec batch of 1024":
-       "Gymnasium ShipSteering-v0 analytic, make_vec batch of 1024" for n in _LADDER_IDS},
-    **{f"Gymnasium {n}-v0 hard mujoco, make_vec batch of 16 (loop)":
-       "Gymnasium ShipSteering-v0 mujoco, make_vec batch of 16 (loop)" for n in _LADDER_IDS},
-}
 
 
 def bench_envs(min_seconds=1.0):
-  """Rows of (name, unit, steps per second)."""
+  """Rows of (name, unit, steps per second), a ladder task's with a fourth: its speed
+  over the steering task's same row, timed in turn with it (`_interleaved`)."""
   import gymnasium
 
   import hpg_mj  # noqa: F401  (registers the ids)
@@ -137,72 +147,63 @@ def bench_envs(min_seconds=1.0):
                bench_analytic_batch(min_seconds)))
   rows.append(("analytic ship in the hard current, batch of 1024 (compiled)", "0.2 s steps/s",
                bench_current_batch(min_seconds)))
+
+  def ladder_rows(name_of, steering, stepper_of, unit="control steps/s"):
+    for domain, env_id in zip(_LADDER_DOMAINS, _LADDER_IDS):
+      rate, ratio = _interleaved(steering, stepper_of(domain, env_id), min_seconds)
+      rows.append((name_of(domain, env_id), unit, rate, ratio))
+
+  action = [np.array([5.0])]
+  steering = _dm_stepper(suite.load("ship", "steer", {"random": 0}), action)
   rows.append(("dm_control ship steer (MuJoCo)", "control steps/s",
-               _bench_dm_env(suite.load("ship", "steer", {"random": 0}), np.array([5.0]),
-                             min_seconds)))
-  for domain in _LADDER_DOMAINS:
-    rows.append((f"dm_control {domain} hard (MuJoCo)", "control steps/s",
-                 _bench_dm_env(suite.load(domain, "hard", {"random": 0}), np.array([5.0]),
-                               min_seconds)))
+               _timed(steering, min_seconds)))
+  ladder_rows(lambda domain, _: f"dm_control {domain} hard (MuJoCo)", steering,
+              lambda domain, _: _dm_stepper(suite.load(domain, "hard", {"random": 0}), action))
   ship_actions = [np.array([r]) for r in np.random.default_rng(0).uniform(-15, 15, 97)]
   for backend in ("mujoco", "analytic"):   # as a user gets it: with gymnasium.make's wrappers
     env = gymnasium.make("hpg_mj/ShipSteering-v0", backend=backend)
     rows.append((f"Gymnasium ShipSteering-v0 backend={backend} (gymnasium.make)",
-                 "control steps/s", _bench_gym_env(env, ship_actions, min_seconds)))
+                 "control steps/s", _timed(_gym_stepper(env, ship_actions), min_seconds)))
   # Native batches (hpg_mj.envs.vector), random actions, autoreset NextStep.
   rng = np.random.default_rng(0)
-  env = gymnasium.make_vec("hpg_mj/ShipSteering-v0", 1024, backend="analytic")
-  rows.append(("Gymnasium ShipSteering-v0 analytic, make_vec batch of 1024", "control steps/s",
-               _bench_vector_env(env, rng.uniform(-15, 15, (97, 1024, 1)), min_seconds)))
-  for name in _LADDER_IDS:   # the ladder's, hardest
-    env = gymnasium.make_vec(f"hpg_mj/{name}-v0", 1024, level="hard", backend="analytic")
-    rows.append((f"Gymnasium {name}-v0 hard analytic, make_vec batch of 1024",
-                 "control steps/s",
-                 _bench_vector_env(env, rng.uniform(-15, 15, (97, 1024, 1)), min_seconds)))
-  env = gymnasium.make_vec("hpg_mj/ShipSteering-v0", 16, backend="mujoco")
-  rows.append(("Gymnasium ShipSteering-v0 mujoco, make_vec batch of 16 (loop)",
-               "control steps/s",
-               _bench_vector_env(env, rng.uniform(-15, 15, (97, 16, 1)), min_seconds, 20)))
-  for name in _LADDER_IDS:
-    env = gymnasium.make_vec(f"hpg_mj/{name}-v0", 16, level="hard", backend="mujoco")
-    rows.append((f"Gymnasium {name}-v0 hard mujoco, make_vec batch of 16 (loop)",
-                 "control steps/s",
-                 _bench_vector_env(env, rng.uniform(-15, 15, (97, 16, 1)), min_seconds, 20)))
+  for backend, ships, chunk, how in (("analytic", 1024, 200, ""), ("mujoco", 16, 20, " (loop)")):
+    actions = rng.uniform(-15, 15, (97, ships, 1))
+    steering = _vector_stepper(gymnasium.make_vec("hpg_mj/ShipSteering-v0", ships,
+                                                  backend=backend), actions, chunk)
+    rows.append((f"Gymnasium ShipSteering-v0 {backend}, make_vec batch of {ships}{how}",
+                 "control steps/s", _timed(steering, min_seconds)))
+    ladder_rows(   # the ladder's, hardest
+        lambda _, env_id: f"Gymnasium {env_id}-v0 hard {backend}, make_vec batch of {ships}{how}",
+        steering,
+        lambda _, env_id: _vector_stepper(gymnasium.make_vec(
+            f"hpg_mj/{env_id}-v0", ships, level="hard", backend=backend), actions, chunk))
   env = gymnasium.make_vec("hpg_mj/TaxiFuel-v0", 1024)
   rows.append(("Gymnasium TaxiFuel-v0, make_vec batch of 1024", "primitive steps/s",
-               _bench_vector_env(env, rng.integers(0, 7, (101, 1024)), min_seconds)))
+               _timed(_vector_stepper(env, rng.integers(0, 7, (101, 1024))), min_seconds)))
   for task in ("fuel", "classic"):
     n_actions = 7 if task == "fuel" else 6
     env = suite.load("taxi", task, {"random": 0})
     actions = np.random.default_rng(0).integers(0, n_actions, 101)
-    env.reset()
-
-    def run(env=env, actions=actions):
-      for i in range(2000):
-        if env.step(actions[i % len(actions)]).last():
-          env.reset()
-      return 2000
-    rows.append((f"dm_control taxi {task}", "primitive steps/s", _timed(run, min_seconds)))
+    rows.append((f"dm_control taxi {task}", "primitive steps/s",
+                 _timed(_dm_stepper(env, actions), min_seconds)))
   for env_id, n_actions in (("hpg_mj/TaxiFuel-v0", 7), ("hpg_mj/Taxi-v0", 6), ("Taxi-v4", 6)):
     env = gymnasium.make(env_id).unwrapped
     actions = [int(a) for a in np.random.default_rng(0).integers(0, n_actions, 101)]
     rows.append((f"Gymnasium {env_id}", "primitive steps/s",
-                 _bench_gym_env(env, actions, min_seconds)))
+                 _timed(_gym_stepper(env, actions), min_seconds)))
   return rows
 
 
 def format_rows(rows):
   """The table `hpg-mj bench envs` prints: one line per (name, unit, steps per
-  second) row; a ladder task's row also gives its speed over the steering task's
-  same row (`_AGAINST_STEERING`), when both were measured."""
-  width = max(len(name) for name, _, _ in rows)
-  rates = {name: rate for name, _, rate in rows}
+  second) row; a ladder task's row (a fourth item) also gives its speed over the
+  steering task's same row, measured in turn with it (`_interleaved`)."""
+  width = max(len(row[0]) for row in rows)
   lines = [f"{'':<{width}}  {'steps per second':>18}  unit"]
-  for name, unit, rate in rows:
+  for name, unit, rate, *over_steering in rows:
     line = f"{name:<{width}}  {rate:>18,.0f}  {unit}"
-    against = _AGAINST_STEERING.get(name)
-    if against in rates and rates[against]:
-      line += f" (x{rate / rates[against]:.2f} the steering task's)"
+    if over_steering:
+      line += f" (x{over_steering[0]:.2f} the steering task's, interleaved)"
     lines.append(line)
   return "\n".join(lines)
 

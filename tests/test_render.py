@@ -141,7 +141,7 @@ def test_the_demo_runs_every_command_and_replaces_its_own_videos(tmp_path, capsy
   assert "bounds (< 0.25 m" in out and "Gymnasium Taxi-v4" in out    # verify, bench envs
   # bench envs: each ladder task's three rows (dm_control, the analytic batch, the MuJoCo
   # batch) over the steering task's same row (SPEC section 11's bound of one half).
-  assert out.count(" the steering task's)") == 12
+  assert out.count(" the steering task's, interleaved)") == 12
 
 
 def test_the_main_job_writes_only_where_git_does_not_look():

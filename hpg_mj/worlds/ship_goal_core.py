@@ -414,9 +414,9 @@ class OneShip:
     self._judge(state[None, :], samples[None], self._active, self._steps, desired[None, :],
                 rules.max_steps, rules.success_reward, rules.failure_reward, self.tolerance,
                 self.islands, self.piers, self.cells, self._achieved, self._outcome)
-    event, reward, terminated, truncated = (a[0] for a in self._outcome)
-    return (int(event), float(reward), bool(terminated), bool(truncated),
-            EVENT_NAMES[int(event)])
+    events, rewards, terminated, truncated = self._outcome
+    event = int(events[0])
+    return event, float(rewards[0]), bool(terminated[0]), bool(truncated[0]), EVENT_NAMES[event]
 
   def ranges(self, state, readings=None):
     """The ranges (a new array of RAYS) of the ship at `state` (float64, C order): the
