@@ -112,4 +112,67 @@ def make(env_id, level=None, **params):
   unknown = sorted(set(params) - set(allowed))
   if unknown:
     raise ValueError(f"{name}: unknown parameter(s) {unknown}; allowed: {allowed}")
-  return env, defaults.replace(**params)
+  chosen = defaults.replace(**params)
+  _check_values(name, defaults, chosen, params)
+  return env, chosen
+
+
+# What `make` allows of a parameter beyond its kind (a whole number for the int fields, a
+# finite number for the float fields, an array of the default's shape for the obstacles).
+_ABOVE_ZERO = (lambda v: v > 0, "above 0")
+_RANGES = {
+    "max_steps_in_episode": (lambda v: v >= 1, "at least 1"),
+    "speed": _ABOVE_ZERO, "time_constant": _ABOVE_ZERO, "sampling_interval": _ABOVE_ZERO,
+    "half_width": _ABOVE_ZERO, "spacing": _ABOVE_ZERO,
+    "min_cos": (lambda v: -1 <= v <= 1, "in [-1, 1]"),
+    "gates": (lambda v: 1 <= v <= _max_gates(), "in 1..{max_gates}"),
+    "fuel_row": (lambda v: 0 <= v <= 4, "in 0..4"), "fuel_col": (lambda v: 0 <= v <= 4, "in 0..4"),
+    "capacity": (lambda v: v >= 1, "at least 1"),
+    "start_fuel_min": (lambda v: v >= 0, "at least 0"),
+    "start_fuel_max": (lambda v: v >= 0, "at least 0"),
+}
+# Pairs whose first may not exceed the second.
+_ORDERED = (("gate_low", "gate_high"), ("smallest_turn_deg", "largest_turn_deg"),
+            ("start_fuel_min", "start_fuel_max"), ("start_fuel_max", "capacity"))
+
+
+def _max_gates():
+  from hpg_mj.worlds import ship_regatta_core
+  return ship_regatta_core.MAX_GATES
+
+
+def _check_values(name, defaults, chosen, given):
+  """Refuses, in one line naming the parameter and what is allowed, a value `make` was
+  given that the environment cannot take (a traced value is left to the caller)."""
+  import numpy as np
+  for key, value in given.items():
+    default = getattr(defaults, key)
+    try:
+      if isinstance(value, (str, bytes)):
+        raise TypeError(value)
+      array = np.asarray(value, dtype=float)
+    except Exception:          # a tracer, or no number at all
+      if type(value).__module__.startswith("jax"):
+        continue
+      raise ValueError(f"{name}: {key} must be a number, got {value!r}") from None
+    if np.shape(default) != ():
+      if array.shape != np.shape(default) or not np.all(np.isfinite(array)) or np.any(
+          array[:, -1] < 0):
+        raise ValueError(f"{name}: {key} must be {np.shape(default)[0]} rows of "
+                         f"{np.shape(default)[1]} finite numbers (rows of zeros for none, "
+                         f"the last column at least 0), got shape {array.shape}")
+      continue
+    whole = isinstance(default, int)
+    if array.shape != () or isinstance(value, bool) or not np.isfinite(array) or (
+        whole and array != np.round(array)):
+      kind = "a whole number" if whole else "a finite number"
+      raise ValueError(f"{name}: {key} must be {kind}, got {value!r}")
+    rule = _RANGES.get(key)
+    if rule is not None and not rule[0](float(array)):
+      raise ValueError(f"{name}: {key} must be {rule[1].format(max_gates=_max_gates())}, "
+                       f"got {value!r}")
+  for low, high in _ORDERED:
+    if (low in given or high in given) and hasattr(chosen, low) and (
+        float(getattr(chosen, low)) > float(getattr(chosen, high))):
+      raise ValueError(f"{name}: {low} ({getattr(chosen, low)!r}) may not exceed {high} "
+                       f"({getattr(chosen, high)!r})")

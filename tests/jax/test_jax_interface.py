@@ -53,6 +53,35 @@ def test_bad_ids_and_parameters_are_refused_in_one_line():
   assert params.replace(river=2.0).river == 2.0
 
 
+@pytest.mark.parametrize("env_id, given, message", [
+    ("ShipSteering-v0", {"max_steps_in_episode": 0}, "max_steps_in_episode must be at least 1, got 0"),
+    ("ShipSteering-v0", {"max_steps_in_episode": 2.5}, "max_steps_in_episode must be a whole number"),
+    ("ShipSteering-v0", {"max_steps_in_episode": "300"}, "max_steps_in_episode must be a number, got '300'"),
+    ("ShipSteering-v0", {"speed": float("nan")}, "speed must be a finite number, got nan"),
+    ("ShipSteering-v0", {"time_constant": 0.0}, "time_constant must be above 0, got 0.0"),
+    ("ShipRegatta-v0", {"gates": 12}, "gates must be in 1..8, got 12"),
+    ("ShipGoal-v0", {"gate_low": 900.0}, r"gate_low \(900.0\) may not exceed gate_high \(500.0\)"),
+    ("ShipGoal-v0", {"min_cos": 2.0}, r"min_cos must be in \[-1, 1\], got 2.0"),
+    ("ShipHarbour-v0", {"islands": ((500.0, 500.0, 50.0),)},
+     r"islands must be 4 rows of 3 finite numbers \(rows of zeros for none"),
+    ("TaxiFuel-v0", {"fuel_row": 7}, "fuel_row must be in 0..4, got 7"),
+    ("TaxiFuel-v0", {"start_fuel_max": 20}, r"start_fuel_max \(20\) may not exceed capacity \(12\)"),
+])
+def test_a_parameter_make_cannot_take_is_refused_naming_what_is_allowed(env_id, given, message):
+  """A value of the right name but one the environment cannot take (it had sailed on: a
+  step limit of 0 ended every episode at once, NaN spread through every state)."""
+  with pytest.raises(ValueError, match=f"^hpg_mj/{env_id}: {message}"):
+    hpg_jax.make(env_id, **given)
+
+
+def test_values_make_can_take_are_kept_as_given():
+  import jax.numpy as jnp
+  _, params = hpg_jax.make("ShipSteering-v0", speed=jnp.float32(2.0), max_steps_in_episode=300)
+  assert float(params.speed) == 2.0 and params.max_steps_in_episode == 300
+  _, params = hpg_jax.make("ShipGoal-v0", level="hard", min_cos=0.5, gate_low=150.0)
+  assert params.min_cos == 0.5 and params.gate_low == 150.0
+
+
 def test_bad_actions_and_states_are_refused_naming_what_is_allowed():
   key = jax.random.PRNGKey(0)
   ship, params = hpg_jax.make("ShipSteering-v0")
