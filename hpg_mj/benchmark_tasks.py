@@ -158,9 +158,11 @@ def _task_of_environment(task):
   return Task(name, int(env.max_steps), capacity=int(env.capacity))
 
 
-def fixed_starts(task="ship", episodes=base.GREEDY_STARTS, seed=base.GREEDY_SEED):
+def fixed_starts(task="ship", episodes=base.GREEDY_STARTS, seed=base.GREEDY_SEED, *,
+                 level=None):
   """The fixed seeded starts of every report (SPEC section 7): row i from seed
   `seed + i`, drawn as every agent of the task draws its starts; an array of rows.
+  `task` and `level` as `evaluate`'s (`"ship_goal", level="hard"` or "ship_goal/hard").
 
   On the ladder's tasks (`LADDER`), start i is the episode the Gymnasium environment
   lays out at `reset(seed=seed + i)`: the ship's state (the harbour's drawn again while
@@ -168,7 +170,7 @@ def fixed_starts(task="ship", episodes=base.GREEDY_STARTS, seed=base.GREEDY_SEED
   generator. A dictionary of arrays, the reset options
   that set it: "state" (n, 4), and "gate" (n, 3) rows [x, y, heading_deg] or
   "course" (n, gates, 3)."""
-  task = task_of(task)
+  task = task_of(task, level=level)
   if task.name in LADDER:
     return _ladder_starts(task, episodes, seed)
   if task.world == "ship":

@@ -27,6 +27,8 @@ def _done(record):
 @pytest.mark.parametrize("name", benchmark.LADDER)
 def test_a_fixed_start_is_the_environments_reset_with_its_seed(name):
   starts = benchmark.fixed_starts(f"{name}/hard", 3)
+  again = benchmark.fixed_starts(name, 3, level="hard")     # evaluate's two spellings
+  assert starts.keys() == again.keys() and all(np.array_equal(starts[k], again[k]) for k in starts)
   env = gymnasium.make(benchmark.ENV_IDS[name], level="hard", backend="analytic")
   for i in range(3):
     obs, info = env.reset(seed=benchmark.base.GREEDY_SEED + i)

@@ -79,6 +79,21 @@ def canonical_id(env_id):
   return name
 
 
+def _scorers_name(env_id, level):
+  """(id, level) of a ladder task named as `hpg_mj.benchmark` names it ("ship_current",
+  "ship_current/hard"), else `(env_id, level)` as given."""
+  if not isinstance(env_id, str) or not env_id.startswith("ship_"):
+    return env_id, level
+  from hpg_mj.worlds import ship_ladder
+  task, slash, written = env_id.partition("/")
+  if task not in ship_ladder.ENV_IDS:
+    return env_id, level
+  if slash and level is not None and level != written:
+    raise ValueError(f"{env_id!r} names level {written!r} and level={level!r} another; give "
+                     "the level once")
+  return ship_ladder.ENV_IDS[task], written if slash else level
+
+
 def _require_jax():
   try:
     import jax  # noqa: F401
@@ -92,11 +107,13 @@ def make(env_id, level=None, **params):
   default `EnvParams`, with `params` (field names of its `EnvParams`, for example
   `max_steps_in_episode=1000` or `out_of_bounds_reward=-300.0`) replacing defaults.
   `level` ("easy", "medium" or "hard") picks a task ladder's level (SPEC section
-  11; None: "easy"), as the Gymnasium environments' argument.
+  11; None: "easy"), as the Gymnasium environments' argument. A ladder task may also
+  be named as `hpg_mj.benchmark` names it: `make("ship_current/hard")`.
 
   Raises ValueError naming the id, level or parameter and what is allowed,
   ImportError naming the extra to install where JAX is missing.
   """
+  env_id, level = _scorers_name(env_id, level)
   name = canonical_id(env_id)
   _require_jax()
   path, kwargs = ENV_IDS[name]

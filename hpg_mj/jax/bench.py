@@ -39,15 +39,17 @@ LADDER = {"current": "ShipCurrent-v0", "goal": "ShipGoal-v0", "regatta": "ShipRe
 
 def task(name):
   """(id, the native vector environment's arguments) of `--task NAME`: a name of
-  TASKS, or a ladder world and level (`current/medium`); a ValueError names what is
-  allowed."""
+  TASKS, or a ladder world and level (`current/medium`, or as the scorer names it,
+  `ship_current/medium`); a ValueError names what is allowed."""
   if name in TASKS:
     return TASKS[name]
   from hpg_mj.worlds.ship_ladder import LEVELS
   world, _, level = name.partition("/")
+  world = world[len("ship_"):] if world.startswith("ship_") else world   # the scorer's names
   if world not in LADDER or level not in LEVELS:
     raise ValueError(f"--task {name!r}: allowed ship, taxi_fuel, or WORLD/LEVEL with WORLD "
-                     f"one of {', '.join(LADDER)} and LEVEL one of {', '.join(LEVELS)}")
+                     f"one of {', '.join(LADDER)} (or ship_current, ...: the scorer's names) "
+                     f"and LEVEL one of {', '.join(LEVELS)}")
   return LADDER[world], {"backend": "analytic", "level": level}
 
 

@@ -94,11 +94,34 @@ class GoalParams(ship.EnvParams):
   piers: tuple = _OPEN[1]
 
 
+_PARTS = {"observation": OBSERVATION, "achieved_goal": ACHIEVED_GOAL,
+          "desired_goal": DESIRED_GOAL, "ranges": RANGES}
+OBS_SIZE = RANGES.stop          # 19
+
+
 def split_obs(obs):
   """Gymnasium's goal-conditioned dictionary of a flat observation (or of a batch of
-  them, the last axis 19): `observation`, `achieved_goal`, `desired_goal`, `ranges`."""
-  return {"observation": obs[..., OBSERVATION], "achieved_goal": obs[..., ACHIEVED_GOAL],
-          "desired_goal": obs[..., DESIRED_GOAL], "ranges": obs[..., RANGES]}
+  them, the last axis 19): `observation`, `achieved_goal`, `desired_goal`, `ranges`.
+  Another last axis is refused in one line."""
+  if jnp.ndim(obs) == 0 or jnp.shape(obs)[-1] != OBS_SIZE:
+    raise ValueError(f"split_obs takes the goal's flat observation, a last axis of "
+                     f"{OBS_SIZE}; got shape {jnp.shape(obs)}")
+  return {name: obs[..., where] for name, where in _PARTS.items()}
+
+
+def join_obs(parts):
+  """The flat observation (the last axis 19) of Gymnasium's goal-conditioned dictionary
+  (`split_obs`'s inverse, for any batch shape): what a policy of this environment's
+  observation reads when `hpg_mj.benchmark.evaluate` hands it the Gymnasium
+  environment's dictionary, `evaluate(lambda o: f(join_obs(o)), "ship_goal")`. numpy
+  arrays in, a numpy array out; JAX's, JAX's. A key missing is refused naming the four."""
+  missing = [name for name in _PARTS if name not in parts]
+  if missing:
+    raise ValueError(f"join_obs takes the goal's dictionary of {list(_PARTS)}; "
+                     f"{missing} missing")
+  arrays = [parts[name] for name in _PARTS]
+  stack = jnp if any(isinstance(a, jax.Array) for a in arrays) else np
+  return stack.concatenate(arrays, axis=-1)
 
 
 def gate_clear(gate_x, gate_y, heading_deg, obstacles):

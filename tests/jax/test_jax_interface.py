@@ -74,6 +74,19 @@ def test_a_parameter_make_cannot_take_is_refused_naming_what_is_allowed(env_id, 
     hpg_jax.make(env_id, **given)
 
 
+def test_a_ladder_task_may_be_named_as_the_scorer_names_it():
+  env, params = hpg_jax.make("ship_current/hard")
+  same, same_params = hpg_jax.make("ShipCurrent-v0", level="hard")
+  assert env.env_id == same.env_id and params == same_params
+  assert hpg_jax.make("ship_goal", level="medium")[1] == hpg_jax.make("ShipGoal-v0",
+                                                                      level="medium")[1]
+  with pytest.raises(ValueError, match=r"^'ship_current/hard' names level 'hard' and "
+                                       r"level='easy' another; give the level once"):
+    hpg_jax.make("ship_current/hard", level="easy")
+  with pytest.raises(ValueError, match=r"^hpg_mj/ShipCurrent-v0: unknown level 'stormy'"):
+    hpg_jax.make("ship_current/stormy")
+
+
 def test_values_make_can_take_are_kept_as_given():
   import jax.numpy as jnp
   _, params = hpg_jax.make("ShipSteering-v0", speed=jnp.float32(2.0), max_steps_in_episode=300)

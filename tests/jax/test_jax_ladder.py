@@ -477,6 +477,34 @@ def test_the_goals_gates_are_drawn_from_the_levels_ranges():
     assert (np.asarray(obs) >= space.low).all() and (np.asarray(obs) <= space.high).all()
 
 
+def test_a_policy_of_the_flat_observation_is_scored_through_join_obs():
+  """A policy written on the JAX goal's flat observation is scored by `evaluate`, which
+  hands it the Gymnasium dictionary, through `join_obs` (`split_obs`'s inverse): the
+  same numbers as the same rule written on the dictionary. A wrong shape is refused."""
+  from hpg_mj import benchmark
+  env, params = hpg_jax.make("ShipGoal-v0", level="medium")
+  obs, _ = env.reset(jax.random.PRNGKey(0), params)
+  assert np.array_equal(np.asarray(ship_goal.join_obs(ship_goal.split_obs(obs))), np.asarray(obs))
+
+  def toward_gate(ship, gate):          # full rudder towards the gate's point
+    bearing = np.degrees(np.arctan2(gate[..., 0] - ship[..., 0], gate[..., 1] - ship[..., 1]))
+    error = (bearing - ship[..., 2] + 180.0) % 360.0 - 180.0
+    return np.clip(error, -15.0, 15.0)[..., None]
+  def on_flat(x):                       # a policy of the JAX environment's observation
+    return toward_gate(x[..., ship_goal.OBSERVATION], x[..., ship_goal.DESIRED_GOAL])
+  flat = benchmark.evaluate(lambda o: on_flat(ship_goal.join_obs(o)), "ship_goal", 30,
+                            level="medium", batched=True)
+  on_dict = benchmark.evaluate(lambda o: toward_gate(o["observation"], o["desired_goal"]),
+                               "ship_goal", 30, level="medium", batched=True)
+  assert flat.metrics == on_dict.metrics
+  with pytest.raises(ValueError, match=r"^split_obs takes the goal's flat observation, a "
+                                       r"last axis of 19; got shape \(6,\)"):
+    ship_goal.split_obs(jax.numpy.zeros(6))
+  with pytest.raises(ValueError, match=r"^join_obs takes the goal's dictionary of .*\['ranges'\] "
+                                       r"missing"):
+    ship_goal.join_obs({k: v for k, v in ship_goal.split_obs(obs).items() if k != "ranges"})
+
+
 def test_the_goals_compute_reward_is_the_numba_rule(x64):
   """Relabelled goals (what Hindsight Experience Replay asks): the JAX rule gives
   `ship_goal_core.compute_reward`'s rewards exactly, gates passed or not."""
@@ -519,6 +547,7 @@ def test_the_benchmark_times_any_ladder_world_at_any_level_and_refuses_others(ca
   assert {bench.task(f"{world}/{level}")[0] for world in bench.LADDER
           for level in ship_ladder.LEVELS} == {
       "ShipCurrent-v0", "ShipGoal-v0", "ShipRegatta-v0", "ShipHarbour-v0"}
+  assert bench.task("ship_goal/medium") == bench.task("goal/medium")     # the scorer's name
   bench.main(["--envs", "4", "--steps", "3", "--task", "current/hard"])
   rows = capsys.readouterr().out.splitlines()[1:]
   assert len(rows) == 1 and rows[0].startswith("current/hard ") and "numba" in rows[0]
