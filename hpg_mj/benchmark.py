@@ -115,8 +115,8 @@ def evaluate(policy, task=None, episodes=base.GREEDY_STARTS, max_steps=None, *,
   (default: an agent's own task, else "ship"). `max_steps`: a step cap (default the
   task's limit: the ships 5,000 control steps, taxi 200 primitive steps).
   `batched`: whether a function takes a batch of observations (default: False for a
-  function, True for an object with `predict`). `backend`: "analytic" (the ship's Equation 1) or "mujoco" (default:
-  an agent's own, as `hpg-mj evaluate`; else "analytic").
+  function, True for an object with `predict`; one `jax.jit` made gets `fixed_batch`).
+  `backend`: "analytic" (Equation 1) or "mujoco" (default: an agent's, else "analytic").
   `progress`: a progress bar on stderr (None: when stderr is a terminal).
   """
   _count("episodes", episodes)
@@ -153,7 +153,7 @@ def evaluate(policy, task=None, episodes=base.GREEDY_STARTS, max_steps=None, *,
       record = _agent_record(policy, task, episodes, seed, backend, bar)
     else:
       benchmark_spaces.check(policy, task)
-      act, batched = _actor(policy, batched)
+      act, batched = benchmark_spaces.actor(policy, batched, min(num_envs, episodes))
       record = sail(act, batched, task, starts, num_envs=num_envs, backend=backend, bar=bar)
   finally:
     bar.close()
@@ -229,26 +229,6 @@ def _agent_record(agent, task, episodes, seed, backend, bar, chunk=50):
   return record
 
 
-def _actor(policy, batched):
-  """(a function from observations to actions, batched) for a policy."""
-  if batched not in (None, True, False):
-    raise ValueError(f"batched must be None, True or False, got {batched!r}")
-  if hasattr(policy, "predict") and callable(policy.predict):
-    def act(obs):
-      out = policy.predict(obs, deterministic=True)
-      return out[0] if isinstance(out, tuple) else out
-    return act, True if batched is None else batched
-  if callable(policy):
-    return policy, bool(getattr(policy, "batched", False)) if batched is None else batched
-  if isinstance(policy, tuple) and policy and isinstance(policy[0], base.Agent):
-    raise ValueError(f"policy is a tuple of {len(policy)} (agents.load returns (agent, "
-                     "record, metadata)); pass its agent, agents.load(path)[0]")
-  shown = " ".join(repr(policy).split())
-  shown = shown if len(shown) <= 80 else f"{shown[:77]}..."
-  raise ValueError(f"policy {shown} (a {type(policy).__name__}) is not a function, an object "
-                   "with predict(obs, deterministic=True) or an hpg_mj agent")
-
-
 class Pilot:
   """A policy as `evaluate` takes it (a function, `batched` or not, or an object with
   `predict`), acting on one observation at a time, as a video's episode needs
@@ -258,7 +238,7 @@ class Pilot:
   def __init__(self, policy, task, batched=None):
     self.task = task_of(task)
     benchmark_spaces.check(policy, self.task)
-    self.act, self.batched = _actor(policy, batched)
+    self.act, self.batched = benchmark_spaces.actor(policy, batched)
 
     self.steps = 0
 

@@ -9,11 +9,13 @@ refuses it in one line; `rescaled(model, task)` maps the task's observations ont
 the model's observation space and its actions back onto the task's, each bounded
 Box component affinely (low to low, high to high), as the wrappers did in training (a
 dictionary observation's, the goal's, each key's).
-A policy that raises or acts outside the task is a `PolicyError`. `fixed_batch` gives
-a batched policy the same batch size at every call (a jitted JAX function then
-compiles once).
+A policy that raises or acts outside the task is a `PolicyError`. `actor` reads what
+kind of policy it is given; `fixed_batch` gives a batched policy the same batch size at
+every call (a jitted JAX function then compiles once; `evaluate` gives it one itself).
 """
 import numpy as np
+
+from hpg_mj.agents import base
 
 
 class PolicyError(ValueError):
@@ -173,6 +175,36 @@ class FixedBatch:
       return np.concatenate([rows, np.repeat(rows[:1], self.size - n, axis=0)])
     padded = {k: pad(v) for k, v in obs.items()} if isinstance(obs, dict) else pad(obs)
     return np.asarray(self.policy(padded))[:n]
+
+
+def actor(policy, batched, batch=None):
+  """(a function from observations to actions, batched) for a policy as `evaluate` takes
+  it; a jitted batched function given batches of `batch` rows (`one_batch_size`)."""
+  if batched not in (None, True, False):
+    raise ValueError(f"batched must be None, True or False, got {batched!r}")
+  if hasattr(policy, "predict") and callable(policy.predict):
+    def act(obs):
+      out = policy.predict(obs, deterministic=True)
+      return out[0] if isinstance(out, tuple) else out
+    return act, True if batched is None else batched
+  if callable(policy):
+    batched = bool(getattr(policy, "batched", False)) if batched is None else batched
+    return one_batch_size(policy, batched, batch), batched
+  if isinstance(policy, tuple) and policy and isinstance(policy[0], base.Agent):
+    raise ValueError(f"policy is a tuple of {len(policy)} (agents.load returns (agent, "
+                     "record, metadata)); pass its agent, agents.load(path)[0]")
+  shown = " ".join(repr(policy).split())
+  shown = shown if len(shown) <= 80 else f"{shown[:77]}..."
+  raise ValueError(f"policy {shown} (a {type(policy).__name__}) is not a function, an object "
+                   "with predict(obs, deterministic=True) or an hpg_mj agent")
+
+
+def one_batch_size(act, batched, size):
+  """`act`, or where it is a batched function `jax.jit` made (which compiles once an
+  input shape) and `size` is given, `fixed_batch(act, size)`: `evaluate`'s batches
+  shrink as episodes end."""
+  jitted = type(act).__module__.startswith("jaxlib") and hasattr(act, "lower")
+  return fixed_batch(act, size) if batched and jitted and size is not None else act
 
 
 def fixed_batch(policy, size=1000):

@@ -87,6 +87,23 @@ def test_a_ladder_task_may_be_named_as_the_scorer_names_it():
     hpg_jax.make("ship_current/stormy")
 
 
+def test_evaluate_gives_a_jitted_batched_policy_one_batch_size():
+  """A batched policy `jax.jit` made compiles once an input shape; `evaluate`'s batch
+  of live episodes shrinks as they end (a newcomer's took 107 s, 1.6 s with
+  `fixed_batch`). Given one, `evaluate` pads the batches itself: one compile, the same
+  scores as the function unjitted."""
+  from hpg_mj import benchmark
+
+  def toward_north(obs):
+    return jnp.clip(-obs[:, 2:3] - obs[:, 3:4], -15.0, 15.0)
+  jitted = jax.jit(toward_north)
+  scored = benchmark.evaluate(jitted, "ship", 40, batched=True, num_envs=16)
+  assert jitted._cache_size() == 1
+  plain = benchmark.evaluate(lambda o: np.asarray(toward_north(jnp.asarray(o, jnp.float32))),
+                             "ship", 40, batched=True, num_envs=16)
+  assert scored.metrics == plain.metrics
+
+
 def test_values_make_can_take_are_kept_as_given():
   import jax.numpy as jnp
   _, params = hpg_jax.make("ShipSteering-v0", speed=jnp.float32(2.0), max_steps_in_episode=300)
