@@ -13,9 +13,11 @@ def _rate(steps, seconds):
   return steps / seconds if seconds > 0 else float("inf")
 
 
-def _timed(fn, min_seconds):
-  """Calls `fn()` (which returns the steps it took) until `min_seconds` have passed."""
-  fn()  # warm up: compile, allocate, fill caches
+def _timed(fn, min_seconds, warm_up=True):
+  """Calls `fn()` (which returns the steps it took) until `min_seconds` have passed,
+  after a first call (`warm_up`: compile, allocate, fill caches) left out."""
+  if warm_up:
+    fn()
   steps, start = 0, time.perf_counter()
   while True:
     steps += fn()
@@ -113,14 +115,17 @@ def _vector_stepper(env, actions, chunk=200):
 
 
 def _interleaved(reference, run, min_seconds, rounds=5):
-  """(`run`'s steps per second, its speed over `reference`'s): the two timed in turn,
-  `rounds` times, each for `min_seconds / rounds`; the medians of `run`'s rates and of
-  each round's ratio. A ratio of two rates measured apart moves with the machine's
-  speed, which drifts by the minute (20-30% by the hour here)."""
+  """(`run`'s steps per second, its speed over `reference`'s, a warm function): the two
+  timed in turn, `rounds` times (one where `min_seconds` is under a second), each for
+  `min_seconds / rounds`; the medians of `run`'s rates and of each round's ratio. A
+  ratio of two rates measured apart moves with the machine's speed, which drifts by the
+  minute (20-30% by the hour here)."""
+  rounds = rounds if min_seconds >= 1.0 else 1
+  run()                                   # warm up, once
   rates, ratios = [], []
   for _ in range(rounds):
-    against = _timed(reference, min_seconds / rounds)
-    rates.append(_timed(run, min_seconds / rounds))
+    against = _timed(reference, min_seconds / rounds, warm_up=False)
+    rates.append(_timed(run, min_seconds / rounds, warm_up=False))
     ratios.append(rates[-1] / against if against else float("inf"))
   return float(np.median(rates)), float(np.median(ratios))
 
