@@ -189,7 +189,12 @@ def _check_values(name, defaults, chosen, given):
       raise ValueError(f"{name}: {key} must be {rule[1].format(max_gates=_max_gates())}, "
                        f"got {value!r}")
   for low, high in _ORDERED:
-    if (low in given or high in given) and hasattr(chosen, low) and (
-        float(getattr(chosen, low)) > float(getattr(chosen, high))):
+    if not (low in given or high in given) or not hasattr(chosen, low):
+      continue
+    try:
+      out_of_order = float(getattr(chosen, low)) > float(getattr(chosen, high))
+    except Exception:          # a traced value: not known here
+      continue
+    if out_of_order:
       raise ValueError(f"{name}: {low} ({getattr(chosen, low)!r}) may not exceed {high} "
                        f"({getattr(chosen, high)!r})")
