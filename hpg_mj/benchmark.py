@@ -771,7 +771,8 @@ def load_policy(spec):
   try:
     module = importing()
   except ModuleNotFoundError as err:
-    raise ValueError(f"--policy {spec!r}: cannot import {module_name!r}: {err}") from None
+    raise ValueError(f"--policy {spec!r}: cannot import {module_name!r}: {err} (run from "
+                     "its folder, or give path/file.py:name)") from None
   except Exception as err:  # noqa: BLE001  (a user's module may raise anything)
     # one line naming the module, not the error alone (it read as a bad option)
     raise ValueError(f"--policy {spec!r}: {agents.import_error(err)}") from None

@@ -394,7 +394,9 @@ def test_hpg_mj_evaluate_policy_equals_the_function(tmp_path, capsys, monkeypatc
 
 @pytest.mark.parametrize("argv, message", [
     (["evaluate"], "give a saved agent folder, or --policy module:function"),
-    (["evaluate", "--policy", "no_such_module_here:f"], "cannot import 'no_such_module_here'"),
+    (["evaluate", "--policy", "no_such_module_here:f"],
+     "cannot import 'no_such_module_here': No module named 'no_such_module_here' (run from "
+     "its folder, or give path/file.py:name)"),
     (["evaluate", "--policy", "math"], "give module:attribute"),
     (["evaluate", "--policy", "math:no_such"], "math has no attribute 'no_such'"),
     (["evaluate", "--policy", "math:sin", "--seed", "3"], "--seed is for a saved agent"),
