@@ -143,7 +143,8 @@ _RANGES = {
     "half_width": _ABOVE_ZERO, "spacing": _ABOVE_ZERO,
     "min_cos": (lambda v: -1 <= v <= 1, "in [-1, 1]"),
     "gates": (lambda v: 1 <= v <= _max_gates(), "in 1..{max_gates}"),
-    "fuel_row": (lambda v: 0 <= v <= 4, "in 0..4"), "fuel_col": (lambda v: 0 <= v <= 4, "in 0..4"),
+    "fuel_row": (lambda v: 0 <= v < _grid_size(), "in 0..{last_cell}"),
+    "fuel_col": (lambda v: 0 <= v < _grid_size(), "in 0..{last_cell}"),
     "capacity": (lambda v: v >= 1, "at least 1"),
     "start_fuel_min": (lambda v: v >= 0, "at least 0"),
     "start_fuel_max": (lambda v: v >= 0, "at least 0"),
@@ -151,6 +152,11 @@ _RANGES = {
 # Pairs whose first may not exceed the second.
 _ORDERED = (("gate_low", "gate_high"), ("smallest_turn_deg", "largest_turn_deg"),
             ("start_fuel_min", "start_fuel_max"), ("start_fuel_max", "capacity"))
+
+
+def _grid_size():
+  from hpg_mj.worlds import taxi_core
+  return taxi_core.GRID_SIZE
 
 
 def _max_gates():
@@ -186,8 +192,8 @@ def _check_values(name, defaults, chosen, given):
       raise ValueError(f"{name}: {key} must be {kind}, got {value!r}")
     rule = _RANGES.get(key)
     if rule is not None and not rule[0](float(array)):
-      raise ValueError(f"{name}: {key} must be {rule[1].format(max_gates=_max_gates())}, "
-                       f"got {value!r}")
+      allowed = rule[1].format(max_gates=_max_gates(), last_cell=_grid_size() - 1)
+      raise ValueError(f"{name}: {key} must be {allowed}, got {value!r}")
   for low, high in _ORDERED:
     if not (low in given or high in given) or not hasattr(chosen, low):
       continue

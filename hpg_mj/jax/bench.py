@@ -28,29 +28,24 @@ import time
 import numpy as np
 
 # name -> (id, the native vector environment's arguments; a `level` goes to both).
-TASKS = {"ship": ("ShipSteering-v0", {"backend": "analytic"}),
-         "taxi_fuel": ("TaxiFuel-v0", {}),
-         "regatta/hard": ("ShipRegatta-v0", {"backend": "analytic", "level": "hard"}),
-         "harbour/hard": ("ShipHarbour-v0", {"backend": "analytic", "level": "hard"})}
-# The task ladder's worlds, any of which `--task WORLD/LEVEL` names.
-LADDER = {"current": "ShipCurrent-v0", "goal": "ShipGoal-v0", "regatta": "ShipRegatta-v0",
-          "harbour": "ShipHarbour-v0"}
-
-
+TASKS = {"ship": ("hpg_mj/ShipSteering-v0", {"backend": "analytic"}),
+         "taxi_fuel": ("hpg_mj/TaxiFuel-v0", {}),
+         "regatta/hard": ("hpg_mj/ShipRegatta-v0", {"backend": "analytic", "level": "hard"}),
+         "harbour/hard": ("hpg_mj/ShipHarbour-v0", {"backend": "analytic", "level": "hard"})}
 def task(name):
   """(id, the native vector environment's arguments) of `--task NAME`: a name of
   TASKS, or a ladder world and level (`current/medium`, or as the scorer names it,
   `ship_current/medium`); a ValueError names what is allowed."""
   if name in TASKS:
     return TASKS[name]
-  from hpg_mj.worlds.ship_ladder import LEVELS
+  from hpg_mj.worlds.ship_ladder import ENV_IDS, LEVELS
   world, _, level = name.partition("/")
-  world = world[len("ship_"):] if world.startswith("ship_") else world   # the scorer's names
-  if world not in LADDER or level not in LEVELS:
+  # The short names (`current`) beside the scorer's (`ship_current`), one table.
+  ids = {**{task.partition("_")[2]: env_id for task, env_id in ENV_IDS.items()}, **ENV_IDS}
+  if world not in ids or level not in LEVELS:
     raise ValueError(f"--task {name!r}: allowed ship, taxi_fuel, or WORLD/LEVEL with WORLD "
-                     f"one of {', '.join(LADDER)} (or ship_current, ...: the scorer's names) "
-                     f"and LEVEL one of {', '.join(LEVELS)}")
-  return LADDER[world], {"backend": "analytic", "level": level}
+                     f"one of {', '.join(ids)} and LEVEL one of {', '.join(LEVELS)}")
+  return ids[world], {"backend": "analytic", "level": level}
 
 
 def jax_steps_per_second(env_id, n_envs, n_steps, seed=0, level=None):
@@ -91,7 +86,7 @@ def numba_steps_per_second(env_id, kwargs, n_envs, n_steps, seed=0):
   import gymnasium
 
   import hpg_mj  # noqa: F401  (registers the ids)
-  envs = gymnasium.make_vec("hpg_mj/" + env_id, num_envs=n_envs, **kwargs)
+  envs = gymnasium.make_vec(env_id, num_envs=n_envs, **kwargs)
   envs.reset(seed=seed)
   rng = np.random.default_rng(seed)
   space = envs.action_space
@@ -246,11 +241,12 @@ def main(argv=None):
     return
   print(f"{args.envs} environments x {args.steps} steps, JAX on {jax.devices()[0]} "
         f"({'float64' if args.x64 else 'float32'})")
+  width = max(map(len, tasks))
   for name, (env_id, kwargs) in tasks.items():
     jax_rate, compile_s = jax_steps_per_second(env_id, args.envs, args.steps,
                                                level=kwargs.get("level"))
     numba_rate = numba_steps_per_second(env_id, kwargs, args.envs, args.steps)
-    print(f"{name:14s} JAX {jax_rate:13,.0f} steps/s (compiled in {compile_s:.1f} s)   "
+    print(f"{name:{width}s} JAX {jax_rate:13,.0f} steps/s (compiled in {compile_s:.1f} s)   "
           f"numba vector env {numba_rate:13,.0f} steps/s   x{jax_rate / numba_rate:.2f}")
 
 

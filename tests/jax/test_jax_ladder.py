@@ -544,9 +544,8 @@ def test_the_benchmark_times_any_ladder_world_at_any_level_and_refuses_others(ca
   task's world): the ladder's worlds and levels are the package's, a run prints the
   named task's row, and a name outside them is refused naming what is allowed."""
   from hpg_mj.jax import bench
-  assert {bench.task(f"{world}/{level}")[0] for world in bench.LADDER
-          for level in ship_ladder.LEVELS} == {
-      "ShipCurrent-v0", "ShipGoal-v0", "ShipRegatta-v0", "ShipHarbour-v0"}
+  assert {bench.task(f"{world}/{level}")[0] for world in ("current", "goal", "regatta", "harbour")
+          for level in ship_ladder.LEVELS} == set(ship_ladder.ENV_IDS.values())
   assert bench.task("ship_goal/medium") == bench.task("goal/medium")     # the scorer's name
   bench.main(["--envs", "4", "--steps", "3", "--task", "current/hard"])
   rows = capsys.readouterr().out.splitlines()[1:]
