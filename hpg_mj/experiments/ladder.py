@@ -129,11 +129,11 @@ def leads(task, entries):
   return out
 
 
-def helmsman(task):
-  """The scripted helmsman's normalized score (`scores(task)[0]`) at each level, from SPEC
-  section 7.1's bounds (a policy of the observation alone, not a learner); nan where
-  none is published."""
-  score, out = scores(task)[0], []
+def helmsman(task, score=None):
+  """The scripted helmsman's normalized `score` (None: `scores(task)[0]`) at each level,
+  from SPEC section 7.1's bounds (a policy of the observation alone, not a learner); nan
+  where none is published."""
+  score, out = score or scores(task)[0], []
   for level in LEVELS:
     key = bounds.bounds_key(task, level)
     entry = bounds.bounds()["tasks"].get(key) or {}
@@ -143,13 +143,15 @@ def helmsman(task):
 
 
 def helmsman_line(task):
-  """The report's line for scale: `helmsman(task)` at each level."""
-  score = scores(task)[0]
-  cells = [f"{level} {'-' if np.isnan(v) else f'{v:.1f}'}"
-           for level, v in zip(LEVELS, helmsman(task))]
+  """The report's line for scale: `helmsman(task)` at each level, each of the task's
+  scores, as the table gives the learners'."""
+  parts = []
+  for score in scores(task):
+    cells = [f"{level} {'-' if np.isnan(v) else f'{v:.1f}'}"
+             for level, v in zip(LEVELS, helmsman(task, score))]
+    parts.append(f"{', '.join(cells)} ({score}, normalized)")
   return (f"- for scale, not a learner: the scripted helmsman (`benchmark.ladder_helmsman`, a "
-          f"policy of the observation alone, SPEC section 7.1) scores {', '.join(cells)} "
-          f"({score}, normalized).")
+          f"policy of the observation alone, SPEC section 7.1) scores {'; '.join(parts)}.")
 
 
 def headroom(task, entries):

@@ -74,7 +74,11 @@ def test_an_experiment_runs_each_task_at_each_level_and_the_ladder_report_reads_
   helmsman = 100 * (bound["helmsman"]["gate_pass_rate"] - bound["random"]["gate_pass_rate"]) / (
       bound["best"]["gate_pass_rate"] - bound["random"]["gate_pass_rate"])
   assert "- for scale, not a learner: the scripted helmsman" in text
-  assert f", hard {helmsman:.1f} (gate_pass_rate, normalized)." in text
+  assert f", hard {helmsman:.1f} (gate_pass_rate, normalized); easy " in text
+  j = 100 * (bound["helmsman"]["J"] - bound["random"]["J"]) / (
+      bound["best"]["J"] - bound["random"]["J"])
+  assert f", hard {j:.1f} (J, normalized)." in text                  # its J, as the learners'
+
   assert (report.parent / "ladder.png").is_file()
   rows = (report.parent / "ladder.csv").read_text().splitlines()
   assert rows[0] == "task,level,learner,score,mean,low,high,runs" and len(rows) == 2  # easy
