@@ -32,6 +32,8 @@ TASKS = {"ship": ("hpg_mj/ShipSteering-v0", {"backend": "analytic"}),
          "taxi_fuel": ("hpg_mj/TaxiFuel-v0", {}),
          "regatta/hard": ("hpg_mj/ShipRegatta-v0", {"backend": "analytic", "level": "hard"}),
          "harbour/hard": ("hpg_mj/ShipHarbour-v0", {"backend": "analytic", "level": "hard"})}
+
+
 def task(name):
   """(id, the native vector environment's arguments) of `--task NAME`: a name of
   TASKS, or a ladder world and level (`current/medium`, or as the scorer names it,
@@ -41,7 +43,8 @@ def task(name):
   from hpg_mj.worlds.ship_ladder import ENV_IDS, LEVELS
   world, _, level = name.partition("/")
   # The short names (`current`) beside the scorer's (`ship_current`), one table.
-  ids = {**{task.partition("_")[2]: env_id for task, env_id in ENV_IDS.items()}, **ENV_IDS}
+  ids = {**{scorers.partition("_")[2]: env_id for scorers, env_id in ENV_IDS.items()},
+         **ENV_IDS}
   if world not in ids or level not in LEVELS:
     raise ValueError(f"--task {name!r}: allowed ship, taxi_fuel, or WORLD/LEVEL with WORLD "
                      f"one of {', '.join(ids)} and LEVEL one of {', '.join(LEVELS)}")
