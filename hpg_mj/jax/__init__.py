@@ -94,6 +94,16 @@ def _scorers_name(env_id, level):
   return ship_ladder.ENV_IDS[task], written if slash else level
 
 
+def __getattr__(name):
+  """`hpg_mj.jax.ship_goal` (and every other submodule) after a plain `import
+  hpg_mj.jax`, imported on first use (PEP 562), so that the module stays light."""
+  import pkgutil
+  if name in {m.name for m in pkgutil.iter_modules(__path__)}:
+    _require_jax()
+    return importlib.import_module(f"{__name__}.{name}")
+  raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 def _require_jax():
   try:
     import jax  # noqa: F401

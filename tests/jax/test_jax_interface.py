@@ -222,6 +222,18 @@ def test_without_jax_make_names_the_extra_in_one_line():
                                "installed: pip install hpg_mj[jax]"]
 
 
+def test_a_plain_import_reaches_every_submodule_by_name():
+  out = _run("import hpg_mj.jax\n"
+             "print(hpg_mj.jax.ship_regatta.MAX_GATES, hpg_mj.jax.ship_harbour.MAX_ISLANDS)\n"
+             "print(callable(hpg_mj.jax.ship_goal.split_obs))\n"
+             "try:\n  hpg_mj.jax.ship_gaol\nexcept AttributeError as e:\n  print(e)")
+  assert out.splitlines() == ["8 4", "True",
+                              "module 'hpg_mj.jax' has no attribute 'ship_gaol'"]
+  out = _run("import sys\nsys.modules['jax'] = None\nimport hpg_mj.jax\n"
+             "try:\n  hpg_mj.jax.ship_goal\nexcept ImportError as e:\n  print(e)")
+  assert out.strip() == "hpg_mj.jax needs JAX, which is not installed: pip install hpg_mj[jax]"
+
+
 def test_with_gymnax_installed_the_spaces_are_gymnaxs():
   spaces = pytest.importorskip("gymnax.environments.spaces")
   assert isinstance(hpg_jax.make("Taxi-v0")[0].action_space(), spaces.Discrete)
