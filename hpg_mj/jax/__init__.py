@@ -17,8 +17,9 @@ float64 the JAX worlds equal the analytic numba worlds step by step (SPEC sectio
 the reference. See docs/jax.md.
 
 Nothing else in hpg_mj imports JAX, and this module imports it only in `make`
-(the environments' modules import it when loaded), so the registry below is
-readable without it.
+and where a submodule is named (`hpg_mj.jax.ship_goal`, loaded on first use; the
+environments' modules import it when loaded), so the registry below is readable
+without it.
 """
 import importlib
 
