@@ -72,8 +72,8 @@ class ShipLadderHierarchy(_ladder.LadderMachineAgent):
   benchmark's for the task (`hpg_mj.benchmark`), scored from its fixed starts
   (`evaluate_fixed`) and normalized against its bounds by `hpg-mj train` and `evaluate`.
   Its record: the fields of `record_fields` among passed (the gate; the regatta's
-  finish), steps, return, gates (the regatta's passed), calls and `{node}_runs`,
-  `{node}_successes`."""
+  finish), steps, return, gates (the regatta's gates passed; 0 on the other tasks), calls
+  and `{node}_runs`, `{node}_successes`."""
 
   Config = LadderHierarchyConfig
   record_fields = ("passed", "steps", "return", "gates", "calls")

@@ -94,7 +94,10 @@ class ShipHarbourEnv(ship_env.ShipSteeringEnv):
   | 10 | `range_starboard_90`: the range along the ray 90 deg to starboard | m |
 
   Each range is 0 to 150 m (bearings -90, -60, -30, 0, 30, 60, 90 deg from the heading,
-  clockwise, `ship_harbour_core.BEARINGS_DEG`).
+  clockwise, `ship_harbour_core.BEARINGS_DEG`). The rays see the islands and the piers
+  only: the field's edges are not obstacles (leaving ends the episode, as on every
+  ship task). After a step that ran aground, the step's last position may lie inside
+  the obstacle; a ray from there reads the way out, as MuJoCo's does.
 
   On MuJoCo the ranges are the rangefinder sensors of assets/ship_harbour.xml; on the
   analytic ship the same rays cast in closed form (they agree within 1e-9 m).
