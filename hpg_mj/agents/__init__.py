@@ -336,7 +336,9 @@ def chunks(agent, episodes, backend=None, done=0, every=None):
 def train(task, episodes=None, seed=None, backend=None, progress=None):
   """Trains a fresh agent; returns (agent, record, wall seconds).
 
-  `progress(done, total, summary)` is called after each chunk of episodes.
+  The seconds include the first call's compile (numba's or XLA's, where no cache
+  holds it); `hpg-mj train --json` and `hpg-mj bench train` give training apart from
+  compiling. `progress(done, total, summary)` is called after each chunk of episodes.
   """
   agent = build(task, seed)
   episodes = task.protocol.episodes if episodes is None else episodes
@@ -346,7 +348,8 @@ def train(task, episodes=None, seed=None, backend=None, progress=None):
 def train_further(agent, episodes, backend=None, progress=None):
   """Trains `agent` (a fresh one, or one loaded from its folder: it goes on from its
   generator and learners as a run never stopped would) `episodes` more; returns (the
-  record of these episodes, wall seconds). `progress` as `train`'s."""
+  record of these episodes alone, wall seconds, compiling included). `progress` as
+  `train`'s."""
   if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
     raise ValueError(f"episodes must be a positive integer, got {episodes!r}")
   records = []

@@ -207,7 +207,8 @@ class Agent:
     self.rng_state[:] = rng.make_state(int(seed))
 
   def train(self, episodes, backend=None):
-    """Learns for `episodes` episodes; returns their record."""
+    """Learns for `episodes` more episodes; returns the record of those episodes alone
+    (a later call goes on from where this one ended)."""
     return self.run(episodes, backend, learn=True)
 
   def evaluate(self, episodes, backend=None, policy="greedy"):
