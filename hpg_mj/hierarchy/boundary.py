@@ -393,7 +393,8 @@ def read_past(error, functions, roles, obs_size):
   if not users:
     return error
   return IndexError(f"the graph's compiled program read past the end of an array ({error}); "
-                    f"numba checks the bounds in your own code: {', '.join(users)} (the "
+                    f"numba checks the bounds in your own code but does not say which read "
+                    f"it; one of: {', '.join(users)} (the "
                     f"observation holds {obs_size} numbers, obs[0] to obs[{obs_size - 1}])")
 
 

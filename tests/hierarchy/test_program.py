@@ -400,7 +400,8 @@ def test_a_rule_reading_past_the_observation_is_one_line_not_memory():
   graph = lambda: one_node_graph(view=Features(_past_the_observation),  # noqa: E731
                                  learner=blocks.GaussianCMAC(CODER3))
   want = (r"^the graph's compiled program read past the end of an array \(index is out of "
-          r"bounds\); numba checks the bounds in your own code: view "
+          r"bounds\); numba checks the bounds in your own code but does not say which read it; "
+          r"one of: view "
           r"Features\(_past_the_observation\), termination Termination\(arrived\) \(the "
           r"observation holds 4 numbers, obs\[0\] to obs\[3\]\)$")
   with pytest.raises(IndexError, match=want):
