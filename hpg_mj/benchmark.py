@@ -11,16 +11,22 @@ result.metrics["J"], result.metrics["J_normalized"], result.record["steps"]
     of observations, shape (n, ...), to n actions),
   - any object with Stable-Baselines3's `predict(obs, deterministic=True)`
     (called with a batch of observations; its first return value is the actions;
-    one that declares an `observation_space` or `action_space` other than the
-    task's is refused: a model trained on rescaled spaces is scored as
+    where it takes SB3's `state` and `episode_start` and returns a state, as
+    sb3-contrib's RecurrentPPO does, it is called with every copy in order, its
+    state handed back and `episode_start` marking the copies that begin an episode,
+    as SB3's `evaluate_policy` calls it: `benchmark_spaces.Predicting`; one that
+    declares an `observation_space` or `action_space` other than the task's is
+    refused: a model trained on rescaled spaces is scored as
     `evaluate(rescaled(model, task), task)`, `hpg_mj.benchmark_spaces`),
   - or an hpg_mj agent (`hpg_mj.agents.Agent`: its own greedy episodes,
     `Agent.evaluate_fixed`),
 and sails it greedily from the fixed seeded starts of every report (start i from
 seed `GREEDY_SEED + i`, `hpg_mj.agents.base.seeded_starts`), stepping the native
 vector environments (`gymnasium.make_vec`, `hpg_mj.envs.vector`) with up to
-`num_envs` episodes at a time. A policy must be a function of the observation
-alone (no memory between steps): the episodes of a batch run side by side.
+`num_envs` episodes at a time. A function must be one of the observation alone (no
+memory between steps): the episodes of a batch run side by side, and a shrinking
+batch of them is handed over as episodes end. A policy with memory is an object with
+a recurrent `predict` (above) or an agent.
 
 The tasks (`TASKS`): "ship" (SPEC section 2; observation `[x, y, theta_deg,
 theta_dot_deg]`, action the turning rate r in deg/s, clipped to [-15, 15]),
@@ -233,7 +239,8 @@ class Pilot:
   """A policy as `evaluate` takes it (a function, `batched` or not, or an object with
   `predict`), acting on one observation at a time, as a video's episode needs
   (`hpg-mj render --policy module:name`): its space checked against `task`'s first
-  (`benchmark_spaces.check`)."""
+  (`benchmark_spaces.check`). A recurrent `predict` gets its state back at each call
+  and `episode_start` at the first step after `reset`."""
 
   def __init__(self, policy, task, batched=None):
     self.task = task_of(task)
@@ -243,7 +250,8 @@ class Pilot:
     self.steps = 0
 
   def reset(self):
-    """A new episode: its steps are counted from 0 (for the error a raise gives)."""
+    """A new episode: its steps are counted from 0 (for the error a raise gives, and
+    a recurrent policy's `episode_start`)."""
     self.steps = 0
 
   def __call__(self, obs):
@@ -253,7 +261,9 @@ class Pilot:
       else:
         batch = ({key: np.asarray(value)[None] for key, value in obs.items()}
                  if isinstance(obs, dict) else np.asarray(obs)[None])
-        out = np.asarray(self.act(batch))[0]
+        remembers = getattr(self.act, "takes_state", False)   # a predict's memory
+        out = self.act.step(batch, [self.steps == 0]) if remembers else self.act(batch)
+        out = np.asarray(out)[0]
     except Exception as err:
       raise benchmark_spaces.raised(f"step {self.steps}", err, obs) from err
     self.steps += 1
@@ -301,11 +311,20 @@ def sail(act, batched, task, starts, num_envs=DEFAULT_NUM_ENVS, backend="analyti
   actions = np.zeros(num_envs, dtype=np.int64 if task.world == "taxi" else np.float64)
   obs, _ = env.reset(options=placed)
   total_steps, loops, shown = 0, 0, time.monotonic()
+  # A predict that may return a state (a recurrent policy's) is called with every copy,
+  # in order, and told which begin an episode, while it returns one; the first call
+  # (every copy live) says whether it does.
+  remembering = batched and getattr(act, "takes_state", False)
   try:
     while (episode >= 0).any():
       live = np.flatnonzero(episode >= 0)
       actions[:] = 0
-      actions[live] = _act(act, batched, _rows(obs, live), episode[live], steps[live], check)
+      if remembering:
+        every = _act(lambda rows: act.step(rows, steps == 0), True, obs, episode, steps, check)
+        actions[live] = every[live]
+        remembering = act.state is not None
+      else:
+        actions[live] = _act(act, batched, _rows(obs, live), episode[live], steps[live], check)
       obs, reward, terminated, truncated, info = env.step(actions)
       steps[live] += 1
       returns[live] += reward[live]

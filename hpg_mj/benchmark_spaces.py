@@ -13,6 +13,8 @@ A policy that raises or acts outside the task is a `PolicyError`. `actor` reads 
 kind of policy it is given; `fixed_batch` gives a batched policy the same batch size at
 every call (a jitted JAX function then compiles once; `evaluate` gives it one itself).
 """
+import inspect
+
 import numpy as np
 
 from hpg_mj.agents import base
@@ -101,10 +103,17 @@ class Rescaled:
     self._act = _affine(model.action_space, action_space, model.action_space, action_space,
                         "action_space", task_name)
 
-  def predict(self, obs, deterministic=True):
-    """The model's actions in the task's units for a batch of the task's observations."""
-    out = self.model.predict(_mapped(self._obs, obs), deterministic=deterministic)
-    return _mapped(self._act, out[0] if isinstance(out, tuple) else out), None
+  def predict(self, obs, state=None, episode_start=None, deterministic=True):
+    """The model's actions in the task's units for a batch of the task's observations,
+    and the state the model returns (a recurrent model's: `Predicting`)."""
+    mapped = _mapped(self._obs, obs)
+    if takes_state(self.model.predict):
+      out = self.model.predict(mapped, state=state, episode_start=episode_start,
+                               deterministic=deterministic)
+    else:
+      out = self.model.predict(mapped, deterministic=deterministic)
+    actions, state = out if isinstance(out, tuple) else (out, None)
+    return _mapped(self._act, actions), state
 
 
 def _mapped(affine, x):
@@ -177,16 +186,66 @@ class FixedBatch:
     return np.asarray(self.policy(padded))[:n]
 
 
+def takes_state(predict):
+  """Whether `predict` takes Stable-Baselines3's `state` and `episode_start` (every SB3
+  model's does; sb3-contrib's recurrent models use them), or any keyword."""
+  try:
+    params = inspect.signature(predict).parameters
+  except (TypeError, ValueError):
+    return False
+  return ({"state", "episode_start"} <= set(params)
+          or any(p.kind is p.VAR_KEYWORD for p in params.values()))
+
+
+class Predicting:
+  """An object with SB3's `predict` as `evaluate` calls it, deterministic=True.
+
+  Called on a batch of observations alone, it is a function of them. `step(obs,
+  episode_start)` also hands `predict` the state its previous call returned and
+  `episode_start` (which rows begin an episode), as SB3's own `evaluate_policy` does:
+  a recurrent model (sb3-contrib's RecurrentPPO, or a user's object with the same
+  `predict(obs, state, episode_start, deterministic)` returning `(actions, state)`)
+  carries its memory from step to step. `state` is what the last call returned: None
+  for a policy of the observation alone. Called on one observation (`batched=False`),
+  a policy that returns a state is refused: its memory would be lost between calls."""
+
+  def __init__(self, policy):
+    self.policy = policy
+    self.takes_state = takes_state(policy.predict)
+    self.state = None
+
+  def __call__(self, obs):
+    out = self.policy.predict(obs, deterministic=True)
+    return out[0] if isinstance(out, tuple) else out
+
+  def step(self, obs, episode_start):
+    """The actions for a batch that is the same copies at every call, in order."""
+    out = self.policy.predict(obs, state=self.state, deterministic=True,
+                              episode_start=np.asarray(episode_start, dtype=np.bool_))
+    actions, self.state = out if isinstance(out, tuple) and len(out) == 2 else (out, None)
+    return actions
+
+  def one(self, obs):
+    """The action for one observation, from a policy with no memory."""
+    if not self.takes_state:
+      return self(obs)
+    actions, state = self.step(obs, np.ones(1, dtype=np.bool_)), self.state
+    self.state = None
+    if state is not None:
+      raise ValueError(f"{type(self.policy).__name__}.predict returned a state (a recurrent "
+                       "policy's memory), which one observation at a time would lose; "
+                       "score it with batched=True (the default for an object with predict)")
+    return actions
+
+
 def actor(policy, batched, batch=None):
   """(a function from observations to actions, batched) for a policy as `evaluate` takes
   it; a jitted batched function given batches of `batch` rows (`one_batch_size`)."""
   if batched not in (None, True, False):
     raise ValueError(f"batched must be None, True or False, got {batched!r}")
   if hasattr(policy, "predict") and callable(policy.predict):
-    def act(obs):
-      out = policy.predict(obs, deterministic=True)
-      return out[0] if isinstance(out, tuple) else out
-    return act, True if batched is None else batched
+    predicting, batched = Predicting(policy), True if batched is None else batched
+    return (predicting if batched else predicting.one), batched
   if callable(policy):
     batched = bool(getattr(policy, "batched", False)) if batched is None else batched
     return one_batch_size(policy, batched, batch), batched

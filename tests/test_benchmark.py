@@ -285,6 +285,96 @@ def test_a_fixed_batch_policy_is_called_with_one_size_and_scores_the_same():
     benchmark.fixed_batch(benchmark.helmsman, size=0)
 
 
+class Helm:
+  """A user's policy with memory, with SB3's recurrent `predict`: each episode turns
+  hard left for its first 8 control steps, then holds its course; the state is each
+  row's step count, which `episode_start` sets back to 0."""
+
+  def __init__(self):
+    self.rows = []
+
+  def predict(self, obs, state=None, episode_start=None, deterministic=True):
+    self.rows.append(len(obs))
+    count = np.zeros(len(obs), dtype=np.int64) if state is None else state.copy()
+    count[np.asarray(episode_start, dtype=bool)] = 0
+    return np.where(count < 8, 15.0, 0.0), count + 1
+
+
+def _one_by_one(predict, task, episodes, memory=True):
+  """Each fixed start sailed alone in its own environment, `predict` called as SB3's
+  `evaluate_policy` calls a recurrent model (with memory=False: with no state, every
+  step); the steps and returns."""
+  import gymnasium
+  task = benchmark.task_of(task)
+  steps, returns = [], []
+  for start in benchmark.fixed_starts(task, episodes):
+    env = gymnasium.make(task.env_id, **task.env_kwargs("analytic"))
+    obs, _ = env.reset(options={"state": start})
+    state, begins, done, total, n = None, np.ones(1, dtype=bool), False, 0.0, 0
+    while not done:
+      action, new = predict(obs[None], state=state, episode_start=begins, deterministic=True)
+      if memory:
+        state, begins = new, np.zeros(1, dtype=bool)
+      obs, reward, terminated, truncated, _ = env.step(np.asarray(action).reshape(-1)[:1])
+      total, n, done = total + reward, n + 1, terminated or truncated
+    steps.append(n)
+    returns.append(total)
+  return np.array(steps), np.array(returns)
+
+
+def test_a_policy_with_memory_gets_its_state_back_and_each_episode_start():
+  """A predict that returns a state is called with every copy of the vector
+  environment, in order, its state handed back and `episode_start` marking the copies
+  that begin an episode: it scores as each episode sailed alone with its memory
+  (12 episodes over 5 copies: copies reused, the last ones idle)."""
+  helm = Helm()
+  task = benchmark.task_of("ship", 300)
+  scored = benchmark.evaluate(helm, task, 12, num_envs=5, progress=False)
+  assert set(helm.rows) == {5}                         # every copy, every call
+  steps, returns = _one_by_one(Helm().predict, task, 12)
+  np.testing.assert_array_equal(scored.record["steps"], steps)
+  np.testing.assert_array_equal(scored.record["return"], returns)
+  forgetting = _one_by_one(Helm().predict, task, 12, memory=False)   # circles for good
+  assert not np.array_equal(forgetting[0], steps)
+
+
+def test_a_recurrent_sb3_contrib_model_is_scored_with_its_memory():
+  """sb3-contrib's RecurrentPPO (an LSTM policy) scores as SB3's own loop sails each
+  start with the LSTM's state carried, through `evaluate` and `Pilot` (a video's)."""
+  sb3_contrib = pytest.importorskip("sb3_contrib")
+  import gymnasium
+
+  import hpg_mj  # noqa: F401
+  env = gymnasium.make("hpg_mj/ShipSteering-v0", backend="analytic")
+  model = sb3_contrib.RecurrentPPO("MlpLstmPolicy", env, n_steps=64, batch_size=32, seed=0,
+                                   device="cpu")
+  scored = benchmark.evaluate(model, "ship", 8, num_envs=3, progress=False)
+  steps, returns = _one_by_one(model.predict, "ship", 8)
+  np.testing.assert_array_equal(scored.record["steps"], steps)
+  np.testing.assert_array_equal(scored.record["return"], returns)
+  pilot = benchmark.Pilot(model, "ship")
+  obs, _ = env.reset(options={"state": benchmark.fixed_starts("ship", 1)[0]})
+  pilot.reset()
+  done, n = False, 0
+  while not done:
+    obs, _, terminated, truncated, _ = env.step(pilot(obs))
+    done, n = terminated or truncated, n + 1
+  assert n == steps[0]
+  # trained on [-1, 1] turning rates: `rescaled` hands the state through both ways
+  unit = sb3_contrib.RecurrentPPO("MlpLstmPolicy", gymnasium.wrappers.RescaleAction(env, -1, 1),
+                                  n_steps=64, batch_size=32, seed=0, device="cpu")
+  mapped = benchmark.rescaled(unit, "ship")
+  assert mapped.predict(np.zeros((3, 4)), episode_start=np.ones(3, bool))[1] is not None
+  scored = benchmark.evaluate(mapped, "ship", 4, num_envs=3, progress=False)
+  np.testing.assert_array_equal(scored.record["steps"], _one_by_one(mapped.predict, "ship", 4)[0])
+  with pytest.raises(benchmark.PolicyError) as err:     # one observation at a time
+    benchmark.evaluate(model, "ship", 2, batched=False, progress=False)
+  assert str(err.value) == (
+      "the policy raised at episode 0, step 0: ValueError: RecurrentPPO.predict returned a "
+      "state (a recurrent policy's memory), which one observation at a time would lose; "
+      "score it with batched=True (the default for an object with predict)")
+
+
 def test_a_taxi_action_outside_the_actions_is_refused():
   with pytest.raises(benchmark.PolicyError) as err:
     benchmark.evaluate(lambda obs: 7, "taxi_fuel", 3, progress=False)
