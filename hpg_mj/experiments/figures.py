@@ -405,7 +405,8 @@ def write_report(root, experiment, results, drawn, protocol=None):
   root = pathlib.Path(root)
   n_runs = len(next(iter(results.values())))
   labels = {t.path.stem: t.name for t in experiment["task_files"]}
-  lines = [f"# {experiment['name']}: {experiment['description']}", ""]
+  described = f": {experiment['description']}" if experiment.get("description") else ""
+  lines = [f"# {experiment['name']}{described}", ""]
   if protocol and experiment.get("tuning"):
     lines += [f"Protocol: {protocol_line(protocol)}. **Not for publication**: these runs may "
               "use the tasks' tuning seeds (`tuning = true`; SPEC section 7).", ""]

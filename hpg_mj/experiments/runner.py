@@ -87,11 +87,14 @@ from hpg_mj import taskfile
 from hpg_mj.learners import rng
 
 POSITIVE = ("int_min", 1)
-EXPERIMENT_SCHEMA = {"name": "str", "description": "str", "tasks": "str_list", "runs": POSITIVE,
-                     "episodes": POSITIVE, "quick_runs": POSITIVE, "quick_episodes": POSITIVE}
+EXPERIMENT_SCHEMA = {"name": "str", "tasks": "str_list", "runs": POSITIVE, "episodes": POSITIVE}
 # first_seed: the runs' first seed; tuning = true: an experiment on tuning seeds
-# (for tuning or tests), whose reports say they are not for publication.
-EXPERIMENT_OPTIONAL = {"first_seed": ("int_min", 0), "tuning": "bool",
+# (for tuning or tests), whose reports say they are not for publication. Left out:
+# description "", quick_runs 1, quick_episodes the episodes (`--quick`: one run of
+# them), and no [[figure]]: one greedy curve of the world's first greedy metric
+# (`default_figure`).
+EXPERIMENT_OPTIONAL = {"description": "str", "quick_runs": POSITIVE, "quick_episodes": POSITIVE,
+                       "first_seed": ("int_min", 0), "tuning": "bool",
                        "greedy_at": "int_list_any", "levels": "str_list"}
 # levels = ["easy", "hard"]: each task file (a ladder task's, SPEC section 11) is run at
 # each level, as `hpg-mj train --set environment.level=...` runs it, under the name
@@ -121,11 +124,25 @@ FIGURE_KINDS = {
 FIGURE_AGENTS = {"trajectories": ("ship_hybrid",), "options": ("ship_option_critic",)}
 
 
+def default_figure(section, tasks):
+  """The figure of an experiment file with no [[figure]]: each task's greedy score at
+  the runs' end (and at `greedy_at`), the world's first greedy metric (the ships' gate
+  pass rate, the regatta's finish rate, the taxi's mean return)."""
+  from hpg_mj.experiments import figures
+  world = tasks[0].section("environment")["world"]
+  metric = figures.GREEDY_METRICS.get(world, ("mean_return",))[0]
+  return {"name": section["name"], "kind": "greedy_curve", "metric": metric,
+          "title": section["description"] or section["name"], "ylabel": f"{metric}, greedy",
+          "paper": "none"}
+
+
 def _check_figures(path, section, tasks, figures_):
   from hpg_mj.experiments import figures
+  if figures_ is None:
+    figures_ = [default_figure(section, tasks)]
   if not isinstance(figures_, list) or not figures_:
-    raise taskfile.TaskFileError(f"{path}: needs at least one [[figure]] table saying what "
-                                 f"is plotted")
+    raise taskfile.TaskFileError(f"{path}: [[figure]] must be tables saying what is "
+                                 f"plotted, got {figures_!r}")
   names = [t.path.stem for t in tasks]
   seen = set()
   checked = []
@@ -187,10 +204,13 @@ def load_experiment(path):
   except tomllib.TOMLDecodeError as err:
     raise taskfile.TaskFileError(f"{path}: not valid TOML: {err}") from None
   if "experiment" not in data or set(data) - {"experiment", "figure"}:
-    raise taskfile.TaskFileError(f"{path}: needs one [experiment] section and [[figure]] "
-                                 f"tables, got {sorted(data)}")
+    raise taskfile.TaskFileError(f"{path}: needs one [experiment] section and, if it says "
+                                 f"what is plotted, [[figure]] tables; got {sorted(data)}")
   section = taskfile.check_table(path, "[experiment]", data["experiment"], EXPERIMENT_SCHEMA,
                                  EXPERIMENT_OPTIONAL)
+  section.setdefault("description", "")
+  section.setdefault("quick_runs", 1)
+  section.setdefault("quick_episodes", section["episodes"])
   section.setdefault("first_seed", 0)
   section.setdefault("tuning", False)
   points = section.setdefault("greedy_at", [])

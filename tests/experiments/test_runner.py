@@ -125,6 +125,28 @@ def test_malformed_experiment_files_are_refused_before_running(tmp_path, old, ne
   assert_refused(tmp_path, EXPERIMENT.replace(old, new, 1), message)
 
 
+def test_an_experiment_of_ones_own_needs_its_name_tasks_runs_and_episodes(tmp_path, capsys):
+  """Left out: description, the --quick protocol (one run of the same episodes) and
+  [[figure]] (one greedy curve of the world's first greedy metric)."""
+  path = tmp_path / "mine.toml"
+  path.write_text('[experiment]\nname = "mine"\ntasks = ["ship_hybrid"]\nruns = 2\n'
+                  'episodes = 40\nfirst_seed = 100\n')
+  experiment = runner.load_experiment(path)
+  assert (experiment["description"], experiment["quick_runs"],
+          experiment["quick_episodes"]) == ("", 1, 40)
+  assert [(f["name"], f["kind"], f["metric"]) for f in experiment["figures"]] == [
+      ("mine", "greedy_curve", "gate_pass_rate")]
+  assert cli.main(["run", str(path), "--out", str(tmp_path / "out"), "--quick"]) == 0
+  capsys.readouterr()
+  done = tmp_path / "out" / "mine_quick"
+  assert sorted(p.name for p in (done / "ship_hybrid").iterdir()) == ["seed100"]
+  assert (done / "mine.png").is_file()
+  assert (done / "REPORT.md").read_text().startswith("# mine\n")
+  path.write_text(path.read_text() + "[figure]\nname = 1\n")
+  with pytest.raises(taskfile.TaskFileError, match=r"\[\[figure\]\] must be tables"):
+    runner.load_experiment(path)
+
+
 def test_taxi_experiment_draws_figure_6(tmp_path, capsys):
   path = tmp_path / "taxi.toml"
   path.write_text(TAXI)
