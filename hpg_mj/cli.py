@@ -523,9 +523,10 @@ def build_parser():
                  "--policy` takes it: module:name or path/file.py:name (a function obs -> "
                  "action, or an object with predict(obs, deterministic=True))")
   p.add_argument("--seed", type=_seed, default=0,
-                 help="the episode's reset(seed=S) (`hpg-mj evaluate`'s start i is "
-                      "reset(seed=1000000 + i), on the analytic ship by default, where "
-                      "--backend is mujoco: an episode may end a step apart)")
+                 help="the episode: reset(seed=S); with --policy, the start `hpg-mj "
+                      "evaluate` draws from seed S (its start i: S = 1000000 + i; on the "
+                      "ladder that is reset(seed=S)). evaluate sails the analytic ship by "
+                      "default: with --backend mujoco an episode may end a step apart")
   p.add_argument("--out", default=None, help="output path (.mp4 or .gif; default in "
                  f"{VIDEOS_OUT}/, named after the task or the agent)")
   p.add_argument("--gif", action="store_true", help="write an animated GIF instead of MP4")

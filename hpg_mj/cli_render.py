@@ -35,20 +35,33 @@ def _cmd_render(args):
   named = args.policy.rsplit(":", 1)[-1] if own else args.policy
   args.out = _video_out(args, f"{VIDEOS_OUT}/{args.domain}_{args.task}_{named}."
                               f"{'gif' if args.gif else 'mp4'}")
-  pilot = None
+  pilot, options = None, None
   if own:
     pilot = _user_pilot(args)
+    options = _scored_start(pilot.task, args.seed)
   elif args.domain in video.LADDER_IDS and args.policy == "scripted":
     pilot = LadderPilot(args.domain, args.task)
   path, summary = video.render_task(args.domain, args.task, policy=args.policy, seed=args.seed,
                                     out=args.out, gif=args.gif, width=args.width,
                                     height=args.height, max_steps=args.max_steps,
                                     backend=args.backend,
-                                    frame_every=getattr(args, "stride", None), pilot=pilot)
+                                    frame_every=getattr(args, "stride", None), pilot=pilot,
+                                    options=options)
   event = summary["info"].get("event") if isinstance(summary["info"], dict) else None
   print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB): {summary['steps']} steps, "
         f"return {summary['return']:.1f}" + (f", ended by {event}" if event else ""))
   return 0
+
+
+def _scored_start(task, seed):
+  """The reset options that lay out the start `hpg-mj evaluate` draws from `seed` (its
+  start i from 1000000 + i): on the steering ship and the taxi a start drawn as the
+  agents draw theirs, which the environment's reset(seed=seed) is not; None on the
+  ladder, whose start is reset(seed=seed) itself."""
+  from hpg_mj import benchmark
+  if task.name in benchmark.LADDER:
+    return None
+  return {"state": benchmark.fixed_starts(task, 1, seed=seed)[0]}
 
 
 # The benchmark's task (`hpg_mj.benchmark.task_of`) of a filmed domain and task, where

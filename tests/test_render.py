@@ -75,6 +75,8 @@ def test_a_users_own_policy_is_filmed_as_hpg_mj_evaluate_scores_it(tmp_path, cap
       "import numpy as np\n"
       "def hard_left(obs):\n"
       "  return np.array([15.0])\n"
+      "def ahead(obs):\n"
+      "  return 0.0\n"
       "class Model:\n"
       "  def predict(self, obs, deterministic=True):\n"
       "    return np.full((len(obs['observation']), 1), -15.0), None\n"
@@ -86,6 +88,14 @@ def test_a_users_own_policy_is_filmed_as_hpg_mj_evaluate_scores_it(tmp_path, cap
   assert capsys.readouterr().out.startswith(f"wrote {out} (")
   frames = [np.asarray(f)[..., :3] for f in imageio.mimread(out)]
   _check_frames(frames)
+  # --seed 1000000 + i films the start `hpg-mj evaluate` scores as its start i (on the
+  # steering ship a start drawn as the agents draw theirs, not reset(seed=S))
+  from hpg_mj import benchmark
+  steps = benchmark.evaluate(lambda obs: 0.0, "ship", 2, progress=False).record["steps"]
+  assert cli.main(["render", "--policy", f"{tmp_path / 'mine.py'}:ahead", "--seed", "1000001",
+                   "--backend", "analytic", "--width", "32", "--height", "32", "--stride",
+                   "100", "--out", str(tmp_path / "ahead.gif")]) == 0
+  assert f": {int(steps[1])} steps, return" in capsys.readouterr().out
   assert cli.main(["render", "--policy", f"{tmp_path / 'mine.py'}:model", "--domain",
                    "ship_goal", "--level", "easy", "--max-steps", "3", "--out",
                    str(tmp_path / "model.gif")]) == 0      # SB3's predict, on a batch of 1

@@ -66,8 +66,10 @@ def make_policy(env, domain, task, policy):
   return taxi_pilot.TaxiPilot(fuel=(task == "fuel"))
 
 
-def record_episode(env, policy, seed=0, max_steps=None, frame_every=1, hold_last=10):
-  """Runs one episode of a Gymnasium env with render_mode="rgb_array".
+def record_episode(env, policy, seed=0, max_steps=None, frame_every=1, hold_last=10,
+                   options=None):
+  """Runs one episode of a Gymnasium env with render_mode="rgb_array", from
+  `reset(seed=seed, options=options)`.
 
   Returns (frames, summary) where summary has the return, the steps and the
   last `info`. Every `frame_every`-th step is drawn, and the last frame is
@@ -77,7 +79,7 @@ def record_episode(env, policy, seed=0, max_steps=None, frame_every=1, hold_last
     raise ValueError(f"frame_every must be >= 1, got {frame_every}")
   policy.reset()
   env.action_space.seed(seed)
-  obs, info = env.reset(seed=seed)
+  obs, info = env.reset(seed=seed, options=options)
   frames = [env.render()]
   total, steps = 0.0, 0
   terminated = truncated = False
@@ -163,14 +165,15 @@ LEVELS = ("easy", "medium", "hard")
 
 def render_task(domain, task, policy="scripted", seed=0, out=None, gif=False, width=640,
                 height=480, max_steps=None, backend="mujoco", fps=20, frame_every=None,
-                pilot=None):
+                pilot=None, options=None):
   """Renders one episode of a task to a video file; returns (path, summary).
   `out`: default `runs/videos/<domain>_<task>_<policy>.mp4` (or .gif), in a folder
   git ignores, never over the repository's showcase videos. A ladder domain's
   (`LADDER_IDS`) task is its level; its scripted `pilot` (a function of one
   observation, `hpg-mj render` gives the planners' helmsman) is the caller's.
   `pilot`, where given, is filmed (with `reset()` and a call per observation; `policy`
-  then only names the file), else `policy` ("scripted" or "random")."""
+  then only names the file), else `policy` ("scripted" or "random"). `options`: the
+  reset's (a start: {"state": ...})."""
   import gymnasium
 
   import hpg_mj  # noqa: F401  (registers the ids)
@@ -203,7 +206,7 @@ def render_task(domain, task, policy="scripted", seed=0, out=None, gif=False, wi
     if frame_every is None:
       frame_every = 1 if domain == "taxi" else 2
     frames, summary = record_episode(env, pilot, seed=seed, max_steps=max_steps,
-                                     frame_every=frame_every)
+                                     frame_every=frame_every, options=options)
   finally:
     env.close()
   if out is None:
