@@ -14,6 +14,7 @@ kind of policy it is given; `fixed_batch` gives a batched policy the same batch 
 every call (a jitted JAX function then compiles once; `evaluate` gives it one itself).
 """
 import inspect
+import warnings
 
 import numpy as np
 
@@ -212,7 +213,7 @@ class Predicting:
   def __init__(self, policy):
     self.policy = policy
     self.takes_state = takes_state(policy.predict)
-    self.state = None
+    self.state, self.warned = None, False
 
   def __call__(self, obs):
     out = self.policy.predict(obs, deterministic=True)
@@ -222,20 +223,32 @@ class Predicting:
     """The actions for a batch that is the same copies at every call, in order."""
     out = self.policy.predict(obs, state=self.state, deterministic=True,
                               episode_start=np.asarray(episode_start, dtype=np.bool_))
-    actions, self.state = out if isinstance(out, tuple) and len(out) == 2 else (out, None)
-    return actions
+    if isinstance(out, tuple) and len(out) == 2:
+      actions, self.state = out
+      return actions
+    if not self.warned:
+      self.warned = True
+      warnings.warn(f"{type(self.policy).__name__}.predict takes a state but returned the "
+                    "actions alone: it is scored as a policy of the observation alone; "
+                    "return (actions, state) for its state to come back at the next step",
+                    stacklevel=2)
+    self.state = None
+    return out
 
   def one(self, obs):
-    """The action for one observation, from a policy with no memory."""
+    """The action for one observation, from a policy with no memory; one whose
+    predict takes a state is asked with a batch of one, to see whether it returns one."""
     if not self.takes_state:
       return self(obs)
-    actions, state = self.step(obs, np.ones(1, dtype=np.bool_)), self.state
+    batch = ({key: np.asarray(value)[None] for key, value in obs.items()}
+             if isinstance(obs, dict) else np.asarray(obs)[None])
+    actions, state = self.step(batch, np.ones(1, dtype=np.bool_)), self.state
     self.state = None
     if state is not None:
       raise ValueError(f"{type(self.policy).__name__}.predict returned a state (a recurrent "
                        "policy's memory), which one observation at a time would lose; "
                        "score it with batched=True (the default for an object with predict)")
-    return actions
+    return np.asarray(actions)[0]
 
 
 def actor(policy, batched, batch=None):
@@ -243,6 +256,9 @@ def actor(policy, batched, batch=None):
   it; a jitted batched function given batches of `batch` rows (`one_batch_size`)."""
   if batched not in (None, True, False):
     raise ValueError(f"batched must be None, True or False, got {batched!r}")
+  if isinstance(policy, type):
+    raise ValueError(f"policy is the class {policy.__name__}, not an object of it; pass one: "
+                     f"{policy.__name__}()")
   if hasattr(policy, "predict") and callable(policy.predict):
     predicting, batched = Predicting(policy), True if batched is None else batched
     return (predicting if batched else predicting.one), batched

@@ -336,6 +336,23 @@ def test_a_policy_with_memory_gets_its_state_back_and_each_episode_start():
   np.testing.assert_array_equal(scored.record["return"], returns)
   forgetting = _one_by_one(Helm().predict, task, 12, memory=False)   # circles for good
   assert not np.array_equal(forgetting[0], steps)
+  with pytest.raises(benchmark.PolicyError) as err:     # one observation at a time
+    benchmark.evaluate(Helm(), task, 2, batched=False, progress=False)
+  assert str(err.value) == (
+      "the policy raised at episode 0, step 0: ValueError: Helm.predict returned a state (a "
+      "recurrent policy's memory), which one observation at a time would lose; score it "
+      "with batched=True (the default for an object with predict)")
+  with pytest.raises(ValueError, match=r"^policy is the class Helm, not an object of it; "
+                                       r"pass one: Helm\(\)$"):
+    benchmark.evaluate(Helm, task, 2, progress=False)
+
+  class Forgetful(Helm):             # takes a state, returns the actions alone
+    def predict(self, obs, state=None, episode_start=None, deterministic=True):
+      return super().predict(obs, state, episode_start)[0]
+  with pytest.warns(UserWarning, match=r"^Forgetful.predict takes a state but returned the "
+                                       r"actions alone: it is scored as a policy of the "):
+    forgot = benchmark.evaluate(Forgetful(), task, 12, num_envs=5, progress=False)
+  np.testing.assert_array_equal(forgot.record["steps"], forgetting[0])
 
 
 def test_a_recurrent_sb3_contrib_model_is_scored_with_its_memory():
@@ -367,12 +384,8 @@ def test_a_recurrent_sb3_contrib_model_is_scored_with_its_memory():
   assert mapped.predict(np.zeros((3, 4)), episode_start=np.ones(3, bool))[1] is not None
   scored = benchmark.evaluate(mapped, "ship", 4, num_envs=3, progress=False)
   np.testing.assert_array_equal(scored.record["steps"], _one_by_one(mapped.predict, "ship", 4)[0])
-  with pytest.raises(benchmark.PolicyError) as err:     # one observation at a time
+  with pytest.raises(benchmark.PolicyError, match="RecurrentPPO.predict returned a state"):
     benchmark.evaluate(model, "ship", 2, batched=False, progress=False)
-  assert str(err.value) == (
-      "the policy raised at episode 0, step 0: ValueError: RecurrentPPO.predict returned a "
-      "state (a recurrent policy's memory), which one observation at a time would lose; "
-      "score it with batched=True (the default for an object with predict)")
 
 
 def test_a_taxi_action_outside_the_actions_is_refused():
