@@ -101,13 +101,16 @@ def check_table(path, where, table, required, optional=None):
   if unknown:
     raise TaskFileError(f"{path}: {where} unknown key(s) {sorted(unknown)}; allowed: "
                         f"{sorted(allowed)}")
-  values = {}
-  for key, kind in allowed.items():
-    if key in table:
-      values[key] = _check(path, where, key, table[key], kind)
-    elif key in required:
-      raise TaskFileError(f"{path}: {where} {key} is missing ({_describe(kind)})")
-  return values
+  missing = [key for key in required if key not in table]
+  if len(missing) == 1:
+    raise TaskFileError(f"{path}: {where} {missing[0]} is missing "
+                        f"({_describe(required[missing[0]])})")
+  if missing:                                   # all of them at once, not one a try
+    raise TaskFileError(f"{path}: {where} {', '.join(missing[:-1])} and {missing[-1]} are "
+                        "missing (" + "; ".join(f"{key}: {_describe(required[key])}"
+                                                for key in missing) + ")")
+  return {key: _check(path, where, key, table[key], kind)
+          for key, kind in allowed.items() if key in table}
 
 
 # ---- configurations as dataclasses: the schema of a task file -------------------

@@ -96,3 +96,21 @@ def test_no_page_says_a_tracker_number_for_the_thing_itself():
   assert "figures/REPORT.md" in pages and "docs/changelog.md" in pages
   found = {name: re.findall(TRACKER_NUMBER, text) for name, text in pages.items()}
   assert {name: hits for name, hits in found.items() if hits} == {}
+
+
+def test_the_experiments_page_names_every_figure_kind_and_its_keys():
+  from hpg_mj.experiments import figures
+  from hpg_mj.experiments import runner
+  page = (REPO / "docs" / "experiments.md").read_text()
+  table = page.split("each kind has keys of its\nown:", 1)[1].split("\n\n", 2)[1]
+  rows = {line.split("|")[1].strip(" `"): line for line in table.splitlines()
+          if line.startswith("| `")}
+  assert set(rows) == set(runner.FIGURE_KINDS)
+  for kind, (required, optional) in runner.FIGURE_KINDS.items():
+    for key in [*required, *optional]:
+      assert f"`{key}`" in rows[kind], (kind, key)
+  for metric in figures.METRICS:
+    assert metric in rows["curve"], metric
+  for metric in {m for ms in figures.GREEDY_METRICS.values() for m in ms if
+                 not m.endswith("_normalized")}:
+    assert metric in rows["greedy_curve"], metric

@@ -58,7 +58,8 @@ X_AXES = ("episodes", "steps")
 REFERENCES = ("optimal",)
 
 
-def _has(task, metric):
+def has_metric(task, metric):
+  """Whether the agent of `task` (a task file) records the fields curve `metric` reads."""
   from hpg_mj import agents
   return set(METRICS[metric][0]) <= set(agents.lookup(task.kind).record_fields)
 
@@ -75,7 +76,7 @@ def check_curve(fig, tasks):
     return f"better = {fig['better']!r}; allowed: ['higher', 'lower']"
   if "reference" in fig and fig["metric"] != "mean_return":
     return "reference = 'optimal' needs metric = 'mean_return' (the taxi's exact optimum)"
-  if not any(_has(t, fig["metric"]) for t in tasks):
+  if not any(has_metric(t, fig["metric"]) for t in tasks):
     return (f"metric {fig['metric']!r} needs the record fields {list(METRICS[fig['metric']][0])}; "
             f"none of {[t.path.stem for t in tasks]} has them")
   return None
@@ -110,7 +111,7 @@ def draw_curve(root, fig, tasks, records_by_task, optimal=None, protocol=None):
   plt.figure(figsize=(6.4, 4.4))
   columns, header, summary = [], [], {}
   for task in tasks:
-    if not _has(task, fig["metric"]):
+    if not has_metric(task, fig["metric"]):
       continue
     name = task.path.stem
     records = records_by_task[name]

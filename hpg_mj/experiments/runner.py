@@ -91,7 +91,7 @@ EXPERIMENT_SCHEMA = {"name": "str", "tasks": "str_list", "runs": POSITIVE, "epis
 # first_seed: the runs' first seed; tuning = true: an experiment on tuning seeds
 # (for tuning or tests), whose reports say they are not for publication. Left out:
 # description "", quick_runs 1, quick_episodes the episodes (`--quick`: one run of
-# them), and no [[figure]]: one greedy curve of the world's first greedy metric
+# them), and no [[figure]]: one figure, the learning curve or the greedy scores
 # (`default_figure`).
 EXPERIMENT_OPTIONAL = {"description": "str", "quick_runs": POSITIVE, "quick_episodes": POSITIVE,
                        "first_seed": ("int_min", 0), "tuning": "bool",
@@ -125,15 +125,24 @@ FIGURE_AGENTS = {"trajectories": ("ship_hybrid",), "options": ("ship_option_crit
 
 
 def default_figure(section, tasks):
-  """The figure of an experiment file with no [[figure]]: each task's greedy score at
-  the runs' end (and at `greedy_at`), the world's first greedy metric (the ships' gate
-  pass rate, the regatta's finish rate, the taxi's mean return)."""
+  """The figure of an experiment file with no [[figure]]: the learning curve of gate
+  passes (or, where a task's record has no passes, the mean return) per 1,000 episodes
+  against episodes, where the runs (full and quick) have 1,000 episodes or more and
+  every task records it; else each task's greedy score at the runs' end (and at
+  `greedy_at`), the world's first greedy metric (the ships' gate pass rate, the
+  regatta's finish rate, the taxi's mean return)."""
   from hpg_mj.experiments import figures
+  title = section["description"] or section["name"]
+  if min(section["episodes"], section["quick_episodes"]) >= figures.BLOCK:
+    for metric, label in (("gate_passes", "gate passes per 1,000 episodes"),
+                          ("mean_return", "mean return per episode")):
+      if all(figures.has_metric(t, metric) for t in tasks):
+        return {"name": section["name"], "kind": "curve", "metric": metric,
+                "x": "episodes", "title": title, "ylabel": label, "paper": "none"}
   world = tasks[0].section("environment")["world"]
   metric = figures.GREEDY_METRICS.get(world, ("mean_return",))[0]
   return {"name": section["name"], "kind": "greedy_curve", "metric": metric,
-          "title": section["description"] or section["name"], "ylabel": f"{metric}, greedy",
-          "paper": "none"}
+          "title": title, "ylabel": f"{metric}, greedy", "paper": "none"}
 
 
 def _check_figures(path, section, tasks, figures_):

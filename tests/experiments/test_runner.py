@@ -113,6 +113,8 @@ def test_finished_runs_are_skipped_and_figures_written(tmp_path, capsys):
     ('x = "episodes"', 'x = "time"', r"'fig7' x = 'time'; allowed: \['episodes', 'steps'\]"),
     ('kind = "curve"', 'kind = "bars"', r"\[\[figure\]\] #1 kind = 'bars'; allowed"),
     ('ylabel = "gate passes"\n', '', r"\[\[figure\]\] #1 ylabel is missing"),
+    ('title = "Gate passes per 1,000 episodes"\nylabel = "gate passes"\n', '',
+     r"\[\[figure\]\] #1 title and ylabel are missing \(title: a string; ylabel: a string\)"),
     ('paper_value = 4.0', 'paper_value = "4"', "paper_value must be a number"),
     ('paper_order = ["ship_hybrid", "ship_flat_pg"]', 'paper_order = ["ship_actor_critic"]',
      "names task 'ship_actor_critic', which is not in"),
@@ -142,6 +144,11 @@ def test_an_experiment_of_ones_own_needs_its_name_tasks_runs_and_episodes(tmp_pa
   assert sorted(p.name for p in (done / "ship_hybrid").iterdir()) == ["seed100"]
   assert (done / "mine.png").is_file()
   assert (done / "REPORT.md").read_text().startswith("# mine\n")
+  for tasks, metric in (('"ship_hybrid"', "gate_passes"), ('"taxi_fuel_hpg"', "mean_return")):
+    path.write_text(f'[experiment]\nname = "long"\ntasks = [{tasks}]\nruns = 2\n'
+                    'episodes = 2000\nfirst_seed = 100\n')     # a learning curve
+    assert [(f["kind"], f["metric"], f["x"]) for f in runner.load_experiment(path)["figures"]] \
+        == [("curve", metric, "episodes")]
   path.write_text(path.read_text() + "[figure]\nname = 1\n")
   with pytest.raises(taskfile.TaskFileError, match=r"\[\[figure\]\] must be tables"):
     runner.load_experiment(path)
