@@ -108,5 +108,6 @@ def test_shipped_tasks_load_by_name():
   assert {"ship_hybrid", "ship_flat_pg", "ship_actor_critic", "taxi_fuel_hpg",
           "taxi_fuel_flat_q"} <= set(names)
   assert agents.load_task("ship_hybrid").kind == "ship_hybrid"
-  with pytest.raises(ValueError, match=r"no shipped task of that name; shipped: \['ship_"):
+  with pytest.raises(ValueError, match=r"no shipped task of that name; did you mean "
+                                       r"'ship_hybrid'\? shipped: \['ship_"):
     agents.load_task("ship_hybird")

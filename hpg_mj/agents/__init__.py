@@ -297,8 +297,11 @@ def load_task(path, assignments=()):
   if not pathlib.Path(path).exists() and str(path) in shipped_tasks():
     path = shipped_tasks()[str(path)]
   elif not pathlib.Path(path).exists():
+    import difflib
+    close = difflib.get_close_matches(str(path), shipped_tasks(), n=1)
+    hint = f"did you mean {close[0]!r}? " if close else ""
     raise taskfile.TaskFileError(f"{path}: no such task file, and no shipped task of that "
-                                 f"name; shipped: {sorted(shipped_tasks())}")
+                                 f"name; {hint}shipped: {sorted(shipped_tasks())}")
   task = taskfile.load(path, _Registry)
   return taskfile.assigned(task, assignments, _Registry) if assignments else task
 

@@ -107,7 +107,8 @@ def test_finished_runs_are_skipped_and_figures_written(tmp_path, capsys):
 @pytest.mark.parametrize("old,new,message", [
     ('runs = 2', 'runs = 0', "runs must be a positive integer"),
     ('runs = 2', 'run = 2', r"unknown key\(s\) \['run'\]"),
-    ('"ship_flat_pg"]', '"ship_flat_pgg"]', "no shipped task of that name"),
+    ('"ship_flat_pg"]', '"ship_flat_pgg"]',
+     "no shipped task of that name; did you mean 'ship_flat_pg'\\? shipped: "),
     ('episodes = 1000\n', '', "episodes is missing"),
     ('metric = "gate_passes"', 'metric = "gate"', r"\[\[figure\]\] 'fig7' metric = 'gate'; allowed:"),
     ('x = "episodes"', 'x = "time"', r"'fig7' x = 'time'; allowed: \['episodes', 'steps'\]"),
