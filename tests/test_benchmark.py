@@ -474,6 +474,18 @@ def test_normalized_scores_are_0_for_random_and_100_for_best():
   assert benchmark.normalized("taxi", {"mean_return": 1.0}, published) == {}
 
 
+def test_one_tasks_bounds_by_its_name_or_its_level():
+  every = benchmark.bounds()["tasks"]
+  assert benchmark.bounds("ship_goal/easy") == every["ship_goal/easy"]
+  assert benchmark.bounds("ship_goal", level="hard") == every["ship_goal/hard"]
+  assert benchmark.bounds("taxi_fuel") == every["taxi_fuel"]
+  with pytest.raises(ValueError, match=r"^bounds: no task 'ship_goal'; give a level of "
+                                       r"\['easy', 'medium', 'hard'\], e.g. ship_goal/easy; "):
+    benchmark.bounds("ship_goal")
+  with pytest.raises(ValueError, match=r"^bounds: no task 'steer'; allowed: \['ship', "):
+    benchmark.bounds("steer")
+
+
 # ---- the command line ------------------------------------------------------------------------
 
 def test_hpg_mj_evaluate_policy_equals_the_function(tmp_path, capsys, monkeypatch):

@@ -23,13 +23,28 @@ BOUNDS_FILE = pathlib.Path(__file__).resolve().parents[1] / "benchmark_bounds.js
 _LOADED = []
 
 
-def bounds():
+def bounds(task=None, level=None):
   """The published bounds: {"protocol": ..., "tasks": {task: {"random": metrics,
-  "best": metrics, ...}}} (no tasks where the file is missing)."""
+  "best": metrics, ...}}} (no tasks where the file is missing). With `task` (a name
+  of `KEYS`, "ship_goal/easy", or a ladder task and its `level`), that task's entry
+  alone: {"random": ..., "helmsman": ..., "best": ..., "reference": ...}."""
   if not _LOADED:
     _LOADED.append(json.loads(BOUNDS_FILE.read_text()) if BOUNDS_FILE.is_file() else
                    {"protocol": None, "tasks": {}})
-  return _LOADED[0]
+  if task is None:
+    if level is not None:
+      raise ValueError(f"level={level!r} needs a task, one of {list(LADDER)}")
+    return _LOADED[0]
+  key = bounds_key(task, level)
+  if key not in KEYS:
+    hint = (f"; give a level of {list(LEVELS)}, e.g. {task}/easy" if task in LADDER
+            else "")
+    raise ValueError(f"bounds: no task {key!r}{hint}; allowed: {list(KEYS)}")
+  entry = _LOADED[0]["tasks"].get(key)
+  if entry is None:
+    raise ValueError(f"bounds: {BOUNDS_FILE.name} holds no bounds of {key!r} "
+                     "(`hpg-mj bounds --task` computes them)")
+  return entry
 
 
 def bounds_key(name, level=None):
