@@ -214,8 +214,9 @@ def render_physics(physics, model_name, height=240, width=320, camera_id=-1, ove
       ("scene_callback", scene_callback)) if value]
   if unsupported:
     raise ValueError(f"{model_name}: render() draws RGB frames in a worker process; "
-                     f"{', '.join(unsupported)} are not supported (allowed: height, width, "
-                     "camera_id)")
+                     f"{', '.join(unsupported)} {'is' if len(unsupported) == 1 else 'are'} "
+                     "not supported (allowed: height, width, camera_id; the others left "
+                     "at their defaults)")
   render_worker = physics.__dict__.get("_hpg_render_worker")
   if render_worker is None:
     render_worker = physics.__dict__["_hpg_render_worker"] = RenderWorker(

@@ -68,6 +68,9 @@ def load(domain_name, task_name, task_kwargs=None, environment_kwargs=None,
     raise ValueError(f"unknown task {task_name!r} in domain {domain_name!r}; "
                      f"valid tasks: {list(domain.SUITE)}")
   task_kwargs = dict(task_kwargs or {})
+  if "level" in task_kwargs:
+    raise ValueError(f"task_kwargs: a ladder domain's level is its task name, "
+                     f"load({domain_name!r}, {task_kwargs['level']!r}), not a 'level' argument")
   if environment_kwargs is not None:
     task_kwargs["environment_kwargs"] = environment_kwargs
   env = domain.SUITE[task_name](**task_kwargs)

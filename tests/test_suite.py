@@ -141,6 +141,12 @@ def test_unknown_domain_and_task_list_the_valid_ones():
     suite.load("boat", "steer")
   with pytest.raises(ValueError, match=r"unknown task 'sail'.*'steer', 'diagonal', 'straight', 'patrol'"):
     suite.load("ship", "sail")
+  with pytest.raises(ValueError, match=r"^task_kwargs: a ladder domain's level is its task "
+                                       r"name, load\('ship_goal', 'hard'\), not a 'level' "):
+    suite.load("ship_goal", "easy", task_kwargs={"level": "hard"})
+  env = suite.load("ship_goal", "easy")
+  with pytest.raises(ValueError, match=r"depth is not supported \(allowed: height, width, "):
+    env.physics.render(84, 84, depth=True)
 
 
 def test_time_step_types():
