@@ -259,8 +259,7 @@ class Pilot:
       if not self.batched:
         out = self.act(obs)
       else:
-        batch = ({key: np.asarray(value)[None] for key, value in obs.items()}
-                 if isinstance(obs, dict) else np.asarray(obs)[None])
+        batch = benchmark_spaces.batch_of_one(obs)
         remembers = getattr(self.act, "takes_state", False)   # a predict's memory
         out = self.act.step(batch, [self.steps == 0]) if remembers else self.act(batch)
         out = np.asarray(out)[0]

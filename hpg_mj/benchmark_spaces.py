@@ -103,12 +103,13 @@ class Rescaled:
                         observation_space, "observation_space", task_name)
     self._act = _affine(model.action_space, action_space, model.action_space, action_space,
                         "action_space", task_name)
+    self._takes_state = takes_state(model.predict)      # once, not at every step
 
   def predict(self, obs, state=None, episode_start=None, deterministic=True):
     """The model's actions in the task's units for a batch of the task's observations,
     and the state the model returns (a recurrent model's: `Predicting`)."""
     mapped = _mapped(self._obs, obs)
-    if takes_state(self.model.predict):
+    if self._takes_state:
       out = self.model.predict(mapped, state=state, episode_start=episode_start,
                                deterministic=deterministic)
     else:
@@ -187,6 +188,13 @@ class FixedBatch:
     return np.asarray(self.policy(padded))[:n]
 
 
+def batch_of_one(obs):
+  """One observation (an array, or the goal's dictionary of them) as a batch of one."""
+  if isinstance(obs, dict):
+    return {key: np.asarray(value)[None] for key, value in obs.items()}
+  return np.asarray(obs)[None]
+
+
 def takes_state(predict):
   """Whether `predict` takes Stable-Baselines3's `state` and `episode_start` (every SB3
   model's does; sb3-contrib's recurrent models use them), or any keyword."""
@@ -240,9 +248,7 @@ class Predicting:
     predict takes a state is asked with a batch of one, to see whether it returns one."""
     if not self.takes_state:
       return self(obs)
-    batch = ({key: np.asarray(value)[None] for key, value in obs.items()}
-             if isinstance(obs, dict) else np.asarray(obs)[None])
-    actions, state = self.step(batch, np.ones(1, dtype=np.bool_)), self.state
+    actions, state = self.step(batch_of_one(obs), np.ones(1, dtype=np.bool_)), self.state
     self.state = None
     if state is not None:
       raise ValueError(f"{type(self.policy).__name__}.predict returned a state (a recurrent "
