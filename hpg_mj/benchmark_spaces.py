@@ -103,13 +103,12 @@ class Rescaled:
                         observation_space, "observation_space", task_name)
     self._act = _affine(model.action_space, action_space, model.action_space, action_space,
                         "action_space", task_name)
-    self._takes_state = takes_state(model.predict)      # once, not at every step
 
   def predict(self, obs, state=None, episode_start=None, deterministic=True):
     """The model's actions in the task's units for a batch of the task's observations,
     and the state the model returns (a recurrent model's: `Predicting`)."""
     mapped = _mapped(self._obs, obs)
-    if self._takes_state:
+    if takes_state(self.model.predict):     # `model` may be replaced: read at each call
       out = self.model.predict(mapped, state=state, episode_start=episode_start,
                                deterministic=deterministic)
     else:
