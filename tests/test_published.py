@@ -43,6 +43,24 @@ def test_a_report_that_changes_changes_the_page(monkeypatch):
   assert "| ship (gate rate) | SAC (SB3) | 0.999 [0.055, 0.176] |" in changed
 
 
+def test_the_ladders_summary_follows_its_report(monkeypatch):
+  """Who leads, whether the lead is distinguishable, and who has not run yet are the
+  ladder report's: a learner landing there changes the README's summary."""
+  real = published._read
+  monkeypatch.setattr(published, "_read", lambda report: real(report).replace(
+      "- hard: SAC (JAX) leads (63.4 [50.5, 75.1]); not distinguishable",
+      "- hard: SAC (JAX) leads (71.0 [70.1, 75.1]); its interval lies above").replace(
+      "| - | - | - | - | 63.4 [50.5, 75.1] | 61.8 [51.7, 71.8] | 0, 0, 10 |",
+      "| 1.0 [0.0, 2.0] | 1.0 [0.0, 2.0] | 1.0 [0.0, 2.0] | 1.0 [0.0, 2.0] | 71.0 [70.1, 75.1] "
+      "| 61.8 [51.7, 71.8] | 10, 10, 10 |"))
+  summary = published.ladder_summary()
+  assert "| ship_current (gate pass rate) | Waypoints 97.9 | Waypoints 97.8 | SAC (JAX) 71.0 |" \
+      in summary
+  assert "| ship_harbour (gate pass rate) | Waypoints 96.6 | Waypoints 93.9 | Flat PGRL 12.1 " \
+         "(not distinguishable) |" in summary
+  assert "SAC (JAX) at ship_goal/easy," in summary and "ship_current/" not in summary
+
+
 def _number(text):
   return float(text.replace(",", ""))
 

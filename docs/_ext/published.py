@@ -259,13 +259,52 @@ def beyond_width():
   return table(BEYOND, "A more expressive low-level policy").text()
 
 
+LADDER = "figures/ladder/REPORT.md"
+LADDER_LEVELS = ("easy", "medium", "hard")
+
+
+def ladder_summary():
+  """The README's and docs/results_ladder.md's short ladder table: per task, each
+  level's leading learner and its success rate normalized (the report's mean over
+  runs, and whether its lead is distinguishable), and the scripted helmsman's."""
+  lines = ["| task (score, normalized) | easy | medium | hard | the scripted helmsman "
+           "(easy, medium, hard) |", "|---|---|---|---|---|"]
+  missing = {}        # learner -> the task/levels it has not run yet
+  for task in ("ship_current", "ship_goal", "ship_regatta", "ship_harbour"):
+    text = section(_read(LADDER), task, LADDER)
+    found = table(LADDER, task)
+    for learner, row in found.rows.items():
+      runs = [int(n) for n in row[-1].split(",")]
+      missing.setdefault(learner, []).extend(
+          f"{task}/{level}" for level, n in zip(LADDER_LEVELS, runs) if n == 0)
+    cells = []
+    for level in LADDER_LEVELS:
+      lead = re.search(rf"^- {level}: (.+?) leads \((\S+) \[[^\]]*\]\); (.)", text, re.M)
+      if lead is None:
+        raise ValueError(f"{LADDER}, '{task}': no line saying who leads at {level}")
+      learner = re.sub(r" \((current|goal|regatta|harbour)\)$", "", lead.group(1))
+      apart = "" if lead.group(3) == "i" else " (not distinguishable)"
+      cells.append(f"{learner} {lead.group(2)}{apart}")
+    helm = re.search(r"scripted helmsman .*? scores easy (\S+), medium (\S+), hard (\S+) "
+                     r"\((\w+), normalized\)", text)
+    if helm is None:
+      raise ValueError(f"{LADDER}, '{task}': no line giving the scripted helmsman's scores")
+    score = helm.group(4).replace("_", " ")
+    lines.append(f"| {task} ({score}) | {' | '.join(cells)} | "
+                 f"{helm.group(1)}, {helm.group(2)}, {helm.group(3)} |")
+  lines += [f"\nNot run yet, so in no lead: {learner} at {', '.join(where)}."
+            for learner, where in missing.items() if where]
+  return "\n".join(lines)
+
+
 # NAME -> (the function that makes the part, the reports it is made from)
 PARTS = {"readme_results": (readme_results, (FULL, BEYOND)),
          "readme_reference": (readme_reference, (REFERENCE,)),
          "results_table": (results_table, (FULL,)),
          "beyond_patrol": (beyond_patrol, (BEYOND,)),
          "beyond_route": (beyond_route, (BEYOND,)),
-         "beyond_width": (beyond_width, (BEYOND,))}
+         "beyond_width": (beyond_width, (BEYOND,)),
+         "ladder_summary": (ladder_summary, (LADDER,))}
 
 _PART = re.compile(r"^<!-- published (\w+):[^\n]*-->\n(.*?)^<!-- /published \1 -->$",
                    re.M | re.S)
