@@ -102,7 +102,9 @@ class ShipRegattaEnv(ship_env.ShipSteeringEnv):
   on [-180, 180) deg, turning rate uniform on [-15, 15] deg/s; then the course is laid
   out, both from the generator `reset(seed=...)` seeds. `reset(options={"state": [x, y,
   theta_deg, theta_dot_deg], "course": [[x, y, heading_deg], ...]})` fixes either (a
-  course is the level's number of gates, each with its posts on the field).
+  course is the level's number of gates, each with its posts on the field; it is not
+  held to the level's spacing and turns, so its scores are not the level's, whose
+  bounds are over laid-out courses).
 
   ## Episode end
   Terminated when the last gate is passed (`info["event"] == "finish"`) or the ship
