@@ -58,7 +58,7 @@ def test_the_ladders_summary_follows_its_report(monkeypatch):
       in summary
   assert "| ship_harbour (gate pass rate) | Waypoints 96.6 | Waypoints 93.9 | Flat PGRL 12.1 " \
          "(not distinguishable) |" in summary
-  assert "SAC (JAX) at ship_goal/easy," in summary and "ship_current/" not in summary
+  assert "SAC (JAX) on ship_goal; ship_regatta; ship_harbour." in summary
 
 
 def _number(text):

@@ -275,8 +275,10 @@ def ladder_summary():
     found = table(LADDER, task)
     for learner, row in found.rows.items():
       runs = [int(n) for n in row[-1].split(",")]
-      missing.setdefault(learner, []).extend(
-          f"{task}/{level}" for level, n in zip(LADDER_LEVELS, runs) if n == 0)
+      levels = [level for level, n in zip(LADDER_LEVELS, runs) if n == 0]
+      if levels:
+        missing.setdefault(learner, []).append(
+            task if len(levels) == len(LADDER_LEVELS) else f"{task} at {', '.join(levels)}")
     cells = []
     for level in LADDER_LEVELS:
       lead = re.search(rf"^- {level}: (.+?) leads \((\S+) \[[^\]]*\]\); (.)", text, re.M)
@@ -292,8 +294,8 @@ def ladder_summary():
     score = helm.group(4).replace("_", " ")
     lines.append(f"| {task} ({score}) | {' | '.join(cells)} | "
                  f"{helm.group(1)}, {helm.group(2)}, {helm.group(3)} |")
-  lines += [f"\nNot run yet, so in no lead: {learner} at {', '.join(where)}."
-            for learner, where in missing.items() if where]
+  lines += [f"\nNot run yet, so in no lead: {learner} on {'; '.join(where)}."
+            for learner, where in missing.items()]
   return "\n".join(lines)
 
 
