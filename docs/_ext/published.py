@@ -270,7 +270,7 @@ def ladder_summary():
   lines = ["| task (score, normalized) | easy | medium | hard | the scripted helmsman "
            "(easy, medium, hard) |", "|---|---|---|---|---|"]
   missing = {}        # learner -> the task/levels it has not run yet
-  for task in ("ship_current", "ship_goal", "ship_regatta", "ship_harbour"):
+  for task in re.findall(r"^## (ship_\w+)$", _read(LADDER), re.M):
     text = section(_read(LADDER), task, LADDER)
     found = table(LADDER, task)
     for learner, row in found.rows.items():
@@ -281,11 +281,12 @@ def ladder_summary():
             task if len(levels) == len(LADDER_LEVELS) else f"{task} at {', '.join(levels)}")
     cells = []
     for level in LADDER_LEVELS:
-      lead = re.search(rf"^- {level}: (.+?) leads \((\S+) \[[^\]]*\]\); (.)", text, re.M)
+      lead = re.search(rf"^- {level}: (.+?) leads \((\S+) \[[^\]]*\]\); "
+                       r"(its interval lies above|not distinguishable)", text, re.M)
       if lead is None:
         raise ValueError(f"{LADDER}, '{task}': no line saying who leads at {level}")
       learner = re.sub(r" \((current|goal|regatta|harbour)\)$", "", lead.group(1))
-      apart = "" if lead.group(3) == "i" else " (not distinguishable)"
+      apart = "" if lead.group(3).startswith("its") else " (not distinguishable)"
       cells.append(f"{learner} {lead.group(2)}{apart}")
     helm = re.search(r"scripted helmsman .*? scores easy (\S+), medium (\S+), hard (\S+) "
                      r"\((\w+), normalized\)", text)
