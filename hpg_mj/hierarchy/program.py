@@ -68,6 +68,17 @@ class _Node:
     self.ident = _identifier(name)
 
 
+def _named(name, method, *args, **kwargs):
+  """`method(*args, **kwargs)` of a kind at subtask `name`, its block's refusal (a
+  GraphError, a ValueError) named there: a block alone cannot know where it is used."""
+  try:
+    return method(*args, **kwargs)
+  except ValueError as err:
+    if type(err) not in (GraphError, ValueError) or str(err).startswith("subtask "):
+      raise
+    raise type(err)(f"subtask {name!r}: {err}") from None
+
+
 class Program:
   """A task graph of blocks compiled by the open machine (see the module docstring).
 
@@ -171,17 +182,17 @@ class Program:
                        f"{s.view.gives}")
     bound = self._arguments.get(name, {})
     if s.offer is not None:
-      s.offer.check(name, node.available, bound)
-    s.view.check(name, node.view, bound)
-    s.end.check(name, node.termination, bound)
+      _named(name, s.offer.check, name, node.available, bound)
+    _named(name, s.view.check, name, node.view, bound)
+    _named(name, s.end.check, name, node.termination, bound)
     if s.reward is not None:
-      s.reward.check(name, node.internal_reward, bound)
+      _named(name, s.reward.check, name, node.internal_reward, bound)
       if s.reward.from_termination and not s.end.gives_internal:
         raise GraphError(f"subtask {name!r}: its internal reward {type(node.internal_reward).__name__}"
                          f" is the G of its termination, and {type(node.termination).__name__} "
                          "gives none")
     size = self._given(s.view.size, name, node.view, node.view)
-    s.learner.check(name, node.learner, s.n_children, size)
+    _named(name, s.learner.check, name, node.learner, s.n_children, size)
     s.size = kinds_mod.base.checked_size(name, node.learner, s.learner.size(node.learner))
 
   # -- the text of the graph's operations --
@@ -230,7 +241,7 @@ class Program:
       raise GraphError(f"subtask {name!r}: its {type(block).__name__} reads the world's "
                        "settings, and this program was built without them (Program(graph, "
                        "world=...): the taxi's taxi_rules.world_config)")
-    return method(*args, **extra)
+    return _named(name, method, *args, **extra)
 
   def _settings(self, kind, name, block):
     """A kind's settings for `block` at subtask `name` (`_given`)."""

@@ -78,7 +78,8 @@ def table_graph(view):
 GOTO = {"x": 500.0, "y": 400.0, "limit": 30}
 
 
-def waypoint_graph(root_view=None, goto_view=None, end=None, reward=None, learner=None):
+def waypoint_graph(root_view=None, goto_view=None, end=None, reward=None, learner=None,
+                   root_learner=None):
   """The issue's newcomer design: a root choosing among three waypoints, one shared
   goto(x, y) subtask (integer `limit`: its steps)."""
   goto = Subtask("goto", children=["turn"], termination=end or Termination(arrived),
@@ -87,7 +88,8 @@ def waypoint_graph(root_view=None, goto_view=None, end=None, reward=None, learne
                  internal_reward=reward or InternalReward(closer), reward=blocks.STEP)
   root = Subtask("root", children=[Child("goto", x=x, y=y, limit=80) for x, y in WAYPOINTS],
                  termination=blocks.Never(), view=root_view or Abstraction(cell),
-                 learner=blocks.QTable(400, alpha=0.1, trace_decay=0.9, epsilon=0.2))
+                 learner=root_learner or blocks.QTable(400, alpha=0.1, trace_decay=0.9,
+                                                       epsilon=0.2))
   return TaskGraph("root", [Primitive("turn"), goto, root])
 
 
@@ -666,6 +668,11 @@ class _Unregistered:
     (lambda: waypoint_graph(learner=blocks.ActorCritic(CODER, CODER)),
      "subtask 'goto': an ActorCritic's critic_coder tiles 2 numbers; it must tile 3: the 2 "
      "the actor_coder tiles, then the action r"),
+    # a block's own setting, refused by its kind, named where the block is used
+    (lambda: waypoint_graph(root_learner=blocks.QTable(400.0)),
+     "subtask 'root': QTable.n_states = 400.0: must be an integer >= 1"),
+    (lambda: waypoint_graph(learner=blocks.GaussianCMAC(CODER, alpha=-1.0)),
+     "subtask 'goto': GaussianCMAC.alpha = -1.0: must be a finite number >= 0.0"),
     (lambda: waypoint_graph(learner=_Unregistered()),
      "subtask 'goto': its learner _Unregistered has no start, act, observe; a learner "
      "answers start()"),
