@@ -79,7 +79,8 @@ from hpg_mj.experiments.bounds import (KEYS, LADDER, LEVELS, SCORES, TASKS,  # n
 from hpg_mj.benchmark_tasks import (ENV_IDS, Task, _count, _start_count,  # noqa: F401
                                     fixed_starts, optimal_returns, task_of)  # (public here)
 from hpg_mj import benchmark_spaces
-from hpg_mj.benchmark_spaces import PolicyError, fixed_batch, rescaled  # noqa: F401  (public)
+from hpg_mj.benchmark_spaces import (PolicyError, _agent_task, at_level,  # noqa: F401
+                                     fixed_batch, rescaled)             # (public here)
 from hpg_mj.hierarchy import ship_rules
 from hpg_mj.worlds import ship_core
 from hpg_mj.worlds import taxi_core
@@ -119,7 +120,9 @@ def evaluate(policy, task=None, episodes=base.GREEDY_STARTS, max_steps=None, *,
   `task`: a name of `TASKS`, a ladder task of `LADDER` at `level` (a name of
   `LEVELS`, default "easy"; or "ship_goal/hard" written at once), or a task file
   (default: an agent's own task, else "ship"). `max_steps`: a step cap (default the
-  task's limit: the ships 5,000 control steps, taxi 200 primitive steps).
+  task's limit: the ships 5,000 control steps, taxi 200 primitive steps). An agent is
+  scored at its own level, or at another `level` of its ladder task (`at_level`; the
+  metrics' `trained_level` then names the level it learned at).
   `batched`: whether a function takes a batch of observations (default: False for a
   function, True for an object with `predict`; one `jax.jit` made gets `fixed_batch`).
   `backend`: "analytic" (Equation 1) or "mujoco" (default: an agent's, else "analytic").
@@ -135,21 +138,9 @@ def evaluate(policy, task=None, episodes=base.GREEDY_STARTS, max_steps=None, *,
     backend = policy.backend if isinstance(policy, base.Agent) else "analytic"
   if backend not in base.BACKENDS:
     raise ValueError(f"unknown backend {backend!r}; valid backends: {list(base.BACKENDS)}")
+  trained = None            # the level an agent learned at, where it is scored at another
   if isinstance(policy, base.Agent):
-    task_arg = task
-    own = task_of(policy)
-    task = own if task is None and level is None else task_of(task, level=level)
-    if task.name != own.name:
-      raise ValueError(f"agent {policy.name!r} acts on the task {own.name!r}, not {task.name!r}")
-    asked = level if level is not None else (task.level if isinstance(task_arg, str) and
-                                             "/" in task_arg else None)
-    if asked is not None and asked != own.level:
-      raise ValueError(f"agent {policy.name!r} acts on {own.name!r} at level {own.level!r}, "
-                       f"its task file's, not {asked!r}; set [environment] level there")
-    if max_steps is not None and int(max_steps) != own.max_steps:
-      raise ValueError(f"agent {policy.name!r} runs its task file's max_steps = "
-                       f"{own.max_steps}; set [environment] max_steps there, not max_steps")
-    task = own
+    policy, task, trained = _agent_task(policy, task, level, max_steps)
   else:
     task = task_of("ship" if task is None else task, max_steps, level)
   starts = fixed_starts(task, episodes, seed)
@@ -170,6 +161,8 @@ def evaluate(policy, task=None, episodes=base.GREEDY_STARTS, max_steps=None, *,
     record["delivered"] = record["outcome"] == taxi_rules.DELIVERED
   official = episodes == base.GREEDY_STARTS and seed == base.GREEDY_SEED and task.standard
   level = {} if task.level is None else {"level": task.level}
+  if trained is not None:
+    level["trained_level"] = trained
   metrics = {"task": task.name, **level, "episodes": int(episodes),
              "max_steps": task.max_steps, **metrics_of(record, task),
              "official": bool(official)}

@@ -1,6 +1,7 @@
 """The scorer's input contract: a policy that declares its spaces (a Stable-Baselines3
 model's `observation_space` and `action_space`) is scored only on a task whose
-spaces they are, and `rescaled` adapts one trained on rescaled spaces.
+spaces they are, and `rescaled` adapts one trained on rescaled spaces; an agent of a
+ladder task acts at another level only where the levels' spaces are one (`at_level`).
 
 A model trained through `gymnasium.wrappers.RescaleAction` (or
 `hpg_mj.envs.sb3.make_vec_env(rescale=True)`) acts on [-1, 1]; scored as it is, its
@@ -60,6 +61,64 @@ def _same(a, b):
   if kind == "Dict":
     return list(a.spaces) == list(b.spaces) and all(_same(a[k], b[k]) for k in a.spaces)
   return a == b
+
+
+def _check_levels(name, own, there):
+  """One line (a ValueError) where the spaces of two levels of a ladder task differ
+  (`Task`s): agent `name`, which learned at `own`'s, cannot act at `there`'s."""
+  for which, a, b in zip(("observation", "action"), task_spaces(own), task_spaces(there)):
+    if not _same(a, b):
+      if type(a).__name__ == type(b).__name__ == "Box" and a.shape == b.shape:
+        at = [i for i in np.ndindex(a.shape) if not (np.isclose(a.low[i], b.low[i]) and
+                                                     np.isclose(a.high[i], b.high[i]))]
+        told = "; ".join(f"[{', '.join(map(str, i))}] [{a.low[i]:g}, {a.high[i]:g}] there "
+                         f"[{b.low[i]:g}, {b.high[i]:g}]" for i in at[:3])
+        told = f"its {which}'s bounds differ at {len(at)} of its numbers ({told})"
+      else:
+        told = f"its {which} space is {_describe(a)}, there {_describe(b)}"
+      raise ValueError(f"agent {name!r} learned at {own.name}/{own.level}, and at "
+                       f"{there.level} {told}: a policy acts only in the spaces it learned in")
+
+
+def at_level(agent, level):
+  """`agent`'s policy at `level` of its ladder task: a new agent with its learned state
+  (`agents.rebuilt`: its task file's [environment] level set), to score a learner at a
+  level it did not learn at (`evaluate(agent, level=...)` makes it). `agent` itself at
+  its own level; refused in one line where the agent's task has no levels, or where
+  the two levels' observation or action spaces differ (the regatta's: its levels'
+  courses have more gates)."""
+  from hpg_mj.benchmark_tasks import LADDER, task_of
+  own = task_of(agent)
+  if own.level is None:
+    raise ValueError(f"agent {agent.name!r} acts on {own.name!r}, which has no levels; the "
+                     f"ladder's tasks have: {list(LADDER)}")
+  there = task_of(own.name, level=level)
+  if there.level == own.level:
+    return agent
+  _check_levels(agent.name, own, there)
+  from hpg_mj import agents
+  return agents.rebuilt(agent, [f"environment.level={there.level}"])
+
+
+def _agent_task(agent, task=None, level=None, max_steps=None):
+  """(the agent to score, its `Task`, the level it learned at where that is another)
+  for `evaluate(agent, task, level=..., max_steps=...)`: its own task, or another
+  level of it (`at_level`); another task, or a step cap not its task file's, is
+  refused in one line."""
+  from hpg_mj.benchmark_tasks import task_of
+  own = task_of(agent)
+  asked = task_of(own.name if task is None else task, level=level)
+  if asked.name != own.name:
+    raise ValueError(f"agent {agent.name!r} acts on the task {own.name!r}, not {asked.name!r}")
+  written = isinstance(task, str) and "/" in task         # "ship_goal/hard"
+  trained = None
+  if (level is not None or written) and asked.level != own.level:
+    agent, trained = at_level(agent, asked.level), own.level
+    own = task_of(agent)
+  if max_steps is not None and int(max_steps) != own.max_steps:
+    raise ValueError(f"agent {agent.name!r} runs its task file's max_steps = "
+                     f"{own.max_steps}; set [environment] max_steps there, not max_steps")
+  return agent, own, trained
 
 
 def _describe(space):

@@ -317,11 +317,16 @@ def _cmd_evaluate(args):
   if policy not in agents.POLICIES:
     raise ValueError(f"--policy {policy!r} with a saved agent: allowed {list(agents.POLICIES)} "
                      "(module:function scores a policy without an agent folder)")
-  for flag, value in (("--task", args.task), ("--level", args.level),
-                      ("--max-steps", args.max_steps), ("--batched", args.batched or None)):
+  for flag, value in (("--task", args.task), ("--max-steps", args.max_steps),
+                      ("--batched", args.batched or None)):
     if value is not None:
       raise ValueError(f"{flag} is for --policy; a saved agent runs its own task file")
   agent, _, meta = agents.load(args.agent_dir)
+  trained = None               # --level: its policy at another level of its ladder task
+  if args.level is not None:
+    there = benchmark.at_level(agent, args.level)
+    trained = None if there is agent else bounds.task_name(agent).partition("/")[2]
+    agent = there
   backend = args.backend or agent.backend
   start = time.perf_counter()
   if args.seed is None:      # SPEC section 7: the fixed seeded start set of every report
@@ -340,7 +345,8 @@ def _cmd_evaluate(args):
   metrics.update(bounds.normalized(name, metrics))
   if name is not None:
     task, _, level = name.partition("/")
-    metrics = {"task": task, **({"level": level} if level else {}), **metrics,
+    metrics = {"task": task, **({"level": level} if level else {}),
+               **({"trained_level": trained} if trained else {}), **metrics,
                "official": bool(args.seed is None and policy == "greedy" and
                                 args.episodes == agents.base.GREEDY_STARTS and
                                 benchmark.task_of(agent).standard)}
@@ -616,7 +622,9 @@ def build_parser():
                       "ship_goal, ship_regatta, ship_harbour (default ship)")
   p.add_argument("--level", default=None, metavar="LEVEL",
                  help="with --policy and a ladder task (ship_current, ship_goal, "
-                      "ship_regatta, ship_harbour): easy (default), medium or hard")
+                      "ship_regatta, ship_harbour): easy (default), medium or hard; with a "
+                      "saved ladder agent: score its policy at that level, not its own "
+                      "(where the levels' spaces are the same)")
   p.add_argument("--batched", action="store_true",
                  help="with --policy: the function takes a batch of observations")
   p.add_argument("--max-steps", type=_at_least(1), default=None,

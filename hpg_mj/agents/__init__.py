@@ -233,7 +233,9 @@ def _import(module_name, what):
   except ModuleNotFoundError as err:
     if err.name and (module_name + ".").startswith(err.name + "."):
       raise AgentNotFound(f"{what}: no module {err.name!r} in the current folder or on "
-                          f"sys.path") from None
+                          f"sys.path: run from the folder that holds "
+                          f"{err.name.replace('.', '/')}.py, or put that folder on PYTHONPATH"
+                          ) from None
     raise AgentNotFound(f"{what}: {import_error(err)}") from None
   except Exception as err:  # noqa: BLE001  (a user's module may raise anything)
     raise AgentNotFound(f"{what}: {import_error(err)}") from None
@@ -419,16 +421,36 @@ def _warn_if_edited(agent, meta, directory):
                   provenance.VersionWarning, stacklevel=3)
 
 
+def _kind_and_text(agent):
+  """The agent's kind as a task file names it, and its task file's text (one made in
+  Python without a task file: a text that rebuilds its config)."""
+  kind = agent.name if agent.name in names() else class_path(type(agent))
+  if agent.task:
+    return kind, agent.task.text
+  return kind, taskfile.dumps(kind, agent.config, agent.episodes, agent.seed,
+                              f"{type(agent).__name__}, saved from Python")
+
+
+def rebuilt(agent, assignments):
+  """A new agent of `agent`'s class with its learned state, under its task file with
+  keys set (`assignments`: "section.key=value", as `hpg-mj train --set` takes them,
+  checked as a task file is). `benchmark.at_level` makes with it the same policy at
+  another level of its ladder task. `agent` is left as it is."""
+  kind, text = _kind_and_text(agent)
+  task = agent.task or taskfile.loads(text, pathlib.Path(f"{type(agent).__name__}.toml"),
+                                      _Registry)
+  other = build(taskfile.assigned(task, assignments, _Registry), agent.seed)
+  other.restore({name: np.array(value, copy=True) for name, value in agent.state().items()},
+                f"agent {agent.name!r}")
+  other.episodes = agent.episodes
+  return other
+
+
 def save(agent, directory, record, extra=None, compress=True):
   """Writes the agent's whole state, its record, its task file and what made it
   (`hpg_mj.provenance`) to `directory` (`compress`: see `storage.save`)."""
   from hpg_mj import provenance
-  kind = agent.name if agent.name in names() else class_path(type(agent))
-  if agent.task:
-    text = agent.task.text
-  else:                  # made in Python without a task file: one that rebuilds its config
-    text = taskfile.dumps(kind, agent.config, agent.episodes, agent.seed,
-                          f"{type(agent).__name__}, saved from Python")
+  kind, text = _kind_and_text(agent)
   meta = {"task_file": str(agent.task.path) if agent.task else None,
           "task_text": text, "seed": agent.seed, "episodes": agent.episodes,
           "agent_class": class_path(type(agent)),      # found by `load` in a new process
@@ -465,8 +487,7 @@ def load(directory):
     where = meta.get("agent_file")
     if not where or "no module" not in str(err):
       raise
-    raise taskfile.TaskFileError(f"{err} (its class was saved from {where}: run from that "
-                                 "folder, or put it on PYTHONPATH)") from None
+    raise taskfile.TaskFileError(f"{err} (its class was saved from {where})") from None
   agent = build(task, meta.get("seed", 0))
   _warn_if_edited(agent, meta, directory)
   record = arrays.pop("record", None)

@@ -121,6 +121,44 @@ def test_agents_are_scored_from_the_benchmarks_fixed_starts():
   np.testing.assert_array_equal(result.record["steps"], agent.evaluate_fixed(3)["steps"])
 
 
+def test_an_agent_is_scored_at_another_level_of_its_task_with_what_it_learned(tmp_path,
+                                                                             capsys):
+  """`benchmark.evaluate(agent, level=...)` and `hpg-mj evaluate RUN --level`: the
+  agent's policy at a level it did not learn at (`benchmark.at_level`) is the agent
+  built at that level with its learned state put in; the agent itself stays at its own,
+  and the metrics name the level it learned at. A level whose spaces differ (the
+  regatta's count of gates) and a task with no levels are refused in one line."""
+  agent = GoalApproach(_goal_config(), seed=3)          # made in Python: no task file
+  agent.train(150)
+  got = benchmark.evaluate(agent, level="hard", episodes=6, progress=False)
+  hard = GoalApproach(dataclasses.replace(agent.config, environment=dataclasses.replace(
+      agent.config.environment, level="hard")), seed=3)
+  hard.restore({name: np.array(value) for name, value in agent.state().items()}, "test")
+  want = benchmark.evaluate(hard, episodes=6, progress=False)
+  np.testing.assert_array_equal(got.record, want.record)
+  assert got.metrics == {**want.metrics, "trained_level": "easy"}
+  assert benchmark.task_of(agent).level == "easy" and benchmark.at_level(agent, "easy") is agent
+  out = tmp_path / "goal"
+  assert cli.main(["train", "ship_goal_hybrid", "--episodes", "20", "--out", str(out),
+                   "--quiet"]) == 0
+  capsys.readouterr()
+  assert cli.main(["evaluate", str(out), "--level", "medium", "--episodes", "4", "--json"]) == 0
+  printed = json.loads(capsys.readouterr().out)
+  there = benchmark.evaluate(agents.load(out)[0], level="medium", episodes=4,
+                             progress=False).metrics
+  assert (printed["level"], printed["trained_level"]) == ("medium", "easy")
+  assert printed["J"] == there["J"] and printed["gate_pass_rate"] == there["gate_pass_rate"]
+  regatta = agents.build(agents.load_task("ship_regatta_flat_pg"), seed=0)
+  with pytest.raises(ValueError, match=r"^agent 'ship_ladder_flat_pg' learned at "
+                     r"ship_regatta/easy, and at hard its observation's bounds differ at 1 of "
+                     r"its numbers \(\[10\] \[0, 3\] there \[0, 8\]\): a policy acts only in "
+                     r"the spaces it learned in$"):
+    benchmark.evaluate(regatta, level="hard", episodes=2)
+  with pytest.raises(ValueError, match=r"^agent 'ship_flat_pg' acts on 'ship', which has no "
+                     r"levels; the ladder's tasks have: \['ship_current', "):
+    benchmark.at_level(agents.build(agents.load_task("ship_flat_pg")), "hard")
+
+
 def test_the_command_line_trains_evaluates_and_renders_a_ladder_agent(tmp_path, capsys):
   text = (REPO / "tasks" / "ship_regatta_hybrid.toml").read_text()
   path = tmp_path / "regatta.toml"

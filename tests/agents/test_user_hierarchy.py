@@ -113,8 +113,9 @@ def test_evaluated_from_another_folder_it_says_where_its_class_was(tmp_path):
   done = _run(tmp_path / "elsewhere", "evaluate", tmp_path / "a", "--episodes", 2)
   assert done.returncode == 2 and done.stderr.strip().splitlines()[-1] == (
       "hpg-mj evaluate: error: t.toml: [task] kind = 'my_hierarchy:Waypoints': no module "
-      "'my_hierarchy' in the current folder or on sys.path (its class was saved from "
-      f"{tmp_path / 'my_hierarchy.py'}: run from that folder, or put it on PYTHONPATH)")
+      "'my_hierarchy' in the current folder or on sys.path: run from the folder that holds "
+      "my_hierarchy.py, or put that folder on PYTHONPATH (its class was saved from "
+      f"{tmp_path / 'my_hierarchy.py'})")
 
 
 def test_made_and_saved_in_python_without_a_task_file_it_loads_in_another_process(tmp_path):
