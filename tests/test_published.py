@@ -45,7 +45,8 @@ def test_a_report_that_changes_changes_the_page(monkeypatch):
 
 def test_the_ladders_summary_follows_its_report(monkeypatch):
   """Who leads, whether the lead is distinguishable, and who has not run yet are the
-  ladder report's: a learner landing there changes the README's summary."""
+  ladder report's, as is results_ladder.md's table of every learner: a learner landing
+  there changes both."""
   real = published._read
   monkeypatch.setattr(published, "_read", lambda report: real(report).replace(
       "- hard: SAC (JAX) leads (63.4 [50.5, 75.1]); not distinguishable",
@@ -59,6 +60,11 @@ def test_the_ladders_summary_follows_its_report(monkeypatch):
   assert "| ship_harbour (gate pass rate) | Waypoints 96.6 | Waypoints 93.9 | Flat PGRL 12.1 " \
          "(not distinguishable) |" in summary
   assert "SAC (JAX) on ship_goal; ship_regatta; ship_harbour." in summary
+  learners = published.ladder_learners()
+  assert "| ship_current (gate pass rate) | SAC (JAX) | 1.0 [0.0, 2.0] | 1.0 [0.0, 2.0] | " \
+         "71.0 [70.1, 75.1] |" in learners
+  assert "| ship_regatta (finish rate) | Waypoints | 97.2 [96.4, 97.8] | 98.7 [98.2, 99.0] | " \
+         "49.2 [46.5, 52.4] |" in learners
 
 
 def _number(text):

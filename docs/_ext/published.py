@@ -263,6 +263,12 @@ LADDER = "figures/ladder/REPORT.md"
 LADDER_LEVELS = ("easy", "medium", "hard")
 
 
+def _ladder_tasks():
+  """The ladder report's text and its task sections' names, in its order."""
+  text = _read(LADDER)
+  return text, re.findall(r"^## (ship_\w+)$", text, re.M)
+
+
 def ladder_summary():
   """The README's and docs/results_ladder.md's short ladder table: per task, each
   level's leading learner and its success rate normalized (the report's mean over
@@ -270,10 +276,10 @@ def ladder_summary():
   lines = ["| task (score, normalized) | easy | medium | hard | the scripted helmsman "
            "(easy, medium, hard) |", "|---|---|---|---|---|"]
   missing = {}        # learner -> the task/levels it has not run yet
-  for task in re.findall(r"^## (ship_\w+)$", _read(LADDER), re.M):
-    text = section(_read(LADDER), task, LADDER)
-    found = table(LADDER, task)
-    for learner, row in found.rows.items():
+  report, tasks = _ladder_tasks()
+  for task in tasks:
+    text = section(report, task, LADDER)
+    for learner, row in table(LADDER, task).rows.items():
       runs = [int(n) for n in row[-1].split(",")]
       levels = [level for level, n in zip(LADDER_LEVELS, runs) if n == 0]
       if levels:
@@ -285,7 +291,7 @@ def ladder_summary():
                        r"(its interval lies above|not distinguishable)", text, re.M)
       if lead is None:
         raise ValueError(f"{LADDER}, '{task}': no line saying who leads at {level}")
-      learner = re.sub(r" \((current|goal|regatta|harbour)\)$", "", lead.group(1))
+      learner = lead.group(1).removesuffix(f" ({task.removeprefix('ship_')})")
       apart = "" if lead.group(3).startswith("its") else " (not distinguishable)"
       cells.append(f"{learner} {lead.group(2)}{apart}")
     helm = re.search(r"scripted helmsman .*? scores easy (\S+), medium (\S+), hard (\S+) "
@@ -300,6 +306,27 @@ def ladder_summary():
   return "\n".join(lines)
 
 
+def ladder_learners():
+  """docs/results_ladder.md's table of every learner at every level of every task: its
+  success rate normalized (the report's first score column of each level: the mean
+  over runs [its 95% interval]), "-" where it has not run."""
+  lines = ["| task (score, normalized) | learner | easy | medium | hard |",
+           "|---|---|---|---|---|"]
+  for task in _ladder_tasks()[1]:
+    found = table(LADDER, task)
+    columns = [next((i for i, label in enumerate(found.header)
+                     if label.startswith(f"{level}: ")), None) for level in LADDER_LEVELS]
+    if None in columns:
+      raise ValueError(f"{LADDER}, '{task}': no column for each of {LADDER_LEVELS}; "
+                       f"columns: {found.header}")
+    score = found.header[columns[0]].split(": ", 1)[1].removesuffix(", normalized")
+    for learner, row in found.rows.items():
+      name = learner.removesuffix(f" ({task.removeprefix('ship_')})")
+      lines.append(f"| {task} ({score.replace('_', ' ')}) | {name} | "
+                   f"{' | '.join(row[i] for i in columns)} |")
+  return "\n".join(lines)
+
+
 # NAME -> (the function that makes the part, the reports it is made from)
 PARTS = {"readme_results": (readme_results, (FULL, BEYOND)),
          "readme_reference": (readme_reference, (REFERENCE,)),
@@ -307,7 +334,8 @@ PARTS = {"readme_results": (readme_results, (FULL, BEYOND)),
          "beyond_patrol": (beyond_patrol, (BEYOND,)),
          "beyond_route": (beyond_route, (BEYOND,)),
          "beyond_width": (beyond_width, (BEYOND,)),
-         "ladder_summary": (ladder_summary, (LADDER,))}
+         "ladder_summary": (ladder_summary, (LADDER,)),
+         "ladder_learners": (ladder_learners, (LADDER,))}
 
 _PART = re.compile(r"^<!-- published (\w+):[^\n]*-->\n(.*?)^<!-- /published \1 -->$",
                    re.M | re.S)
