@@ -85,8 +85,8 @@ def at_level(agent, level):
   (`agents.rebuilt`: its task file's [environment] level set), to score a learner at a
   level it did not learn at (`evaluate(agent, level=...)` makes it). `agent` itself at
   its own level; refused in one line where the agent's task has no levels, or where
-  the two levels' observation or action spaces differ (the regatta's: its levels'
-  courses have more gates)."""
+  the two levels' observation or action spaces differ (the current's, whose water
+  runs faster, and the regatta's, whose courses have more gates)."""
   from hpg_mj.benchmark_tasks import LADDER, task_of
   own = task_of(agent)
   if own.level is None:

@@ -436,9 +436,10 @@ def rebuilt(agent, assignments):
   keys set (`assignments`: "section.key=value", as `hpg-mj train --set` takes them,
   checked as a task file is). `benchmark.at_level` makes with it the same policy at
   another level of its ladder task. `agent` is left as it is."""
-  kind, text = _kind_and_text(agent)
-  task = agent.task or taskfile.loads(text, pathlib.Path(f"{type(agent).__name__}.toml"),
-                                      _Registry)
+  task = agent.task
+  if task is None:                    # made in Python: the task file save would write
+    task = taskfile.loads(_kind_and_text(agent)[1],
+                          pathlib.Path(f"{type(agent).__name__}.toml"), _Registry)
   other = build(taskfile.assigned(task, assignments, _Registry), agent.seed)
   other.restore({name: np.array(value, copy=True) for name, value in agent.state().items()},
                 f"agent {agent.name!r}")

@@ -138,8 +138,8 @@ class Agent:
     """Puts saved arrays (name -> array, as `state()` gave them) back into the agent;
     by default copied into the live arrays of `state()`. `where` names where they came
     from (the saved folder, say) in the one-line error that refuses arrays that do not
-    fit. An agent whose state is not
-    a fixed set of arrays (e.g. an outside library's, hpg_mj.agents.sb3) overrides it."""
+    fit. An agent whose state is not a fixed set of arrays (e.g. an outside library's,
+    hpg_mj.agents.sb3) overrides it."""
     from hpg_mj import storage
     storage.restore_into(self.state(), arrays, where)
 
