@@ -16,6 +16,7 @@ A rule that reads an argument its calls do not bind fails numba's typing of the
 graph's module instead, at its first call: `typing_line` finds the subtask and the
 rule in numba's message, for the same one line.
 """
+import inspect
 import math
 import os
 import re
@@ -388,14 +389,39 @@ def read_past(error, functions, roles, obs_size):
   the user's code the graph compiles (`functions`: (global name, function) pairs;
   `roles`: a rule's role by global name) and the observation's length; `error` itself
   where the graph holds none of a user's."""
-  users = [roles.get(name, getattr(fn, "__name__", name)) for name, fn in functions
+  users = [(roles.get(name, getattr(fn, "__name__", name)), fn) for name, fn in functions
            if is_users(fn)]
   if not users:
     return error
+  fixed = [f"{role} reads {read}" for role, fn in users for read in _fixed_reads(fn, obs_size)]
+  fixed = f"; past it at a fixed index: {'; '.join(fixed)}" if fixed else ""
   return IndexError(f"the graph's compiled program read past the end of an array ({error}); "
                     f"numba checks the bounds in your own code but does not say which read "
-                    f"it; one of: {', '.join(users)} (the "
-                    f"observation holds {obs_size} numbers, obs[0] to obs[{obs_size - 1}])")
+                    f"it; one of: {', '.join(role for role, _ in users)} (the "
+                    f"observation holds {obs_size} numbers, obs[0] to obs[{obs_size - 1}])"
+                    f"{fixed}")
+
+
+def _fixed_reads(fn, obs_size):
+  """Each read of the observation at a written index past its end in `fn`'s source,
+  as "obs[11] (file.py, line 7)": the parameter named obs (or holding it in its name),
+  else a rule's first, `rule(obs, call)`."""
+  try:
+    lines, first = inspect.getsourcelines(fn.py_func)
+    path = os.path.basename(inspect.getsourcefile(fn.py_func))
+    names = list(inspect.signature(fn.py_func).parameters)
+  except (OSError, TypeError, ValueError):
+    return []
+  named = [n for n in names if "obs" in n.lower()]
+  if not named and len(names) == 2:               # a rule(obs, call) by other names
+    named = names[:1]
+  found = []
+  for i, line in enumerate(lines):
+    for name in named:
+      found += [f"{m.group(0)} ({path}, line {first + i})"
+                for m in re.finditer(rf"\b{re.escape(name)}\[(\d+)\]", line.split("#")[0])
+                if int(m.group(1)) >= obs_size]
+  return found
 
 
 def attribute_line(error, package_dir, module_path):

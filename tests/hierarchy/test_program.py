@@ -393,7 +393,8 @@ def test_a_rule_reading_past_the_observation_is_one_line_not_memory():
   """A newcomer's view read obs[11] of the harbour's 11 numbers and trained on whatever
   memory lay there. A user's own compiled functions are compiled with numba's bounds
   check (`program.bounds_checked`): the read raises, one line naming the user's code,
-  on both paths; hpg_mj's own functions are compiled as they are."""
+  and the read itself where its index is written past the end, on both paths; hpg_mj's
+  own functions are compiled as they are."""
   from hpg_mj.hierarchy import boundary
   assert boundary.bounds_checked(arrived) is not arrived
   assert boundary.bounds_checked(arrived).targetoptions["boundscheck"] is True
@@ -405,7 +406,9 @@ def test_a_rule_reading_past_the_observation_is_one_line_not_memory():
           r"bounds\); numba checks the bounds in your own code but does not say which read it; "
           r"one of: view "
           r"Features\(_past_the_observation\), termination Termination\(arrived\) \(the "
-          r"observation holds 4 numbers, obs\[0\] to obs\[3\]\)$")
+          r"observation holds 4 numbers, obs\[0\] to obs\[3\]\); past it at a fixed index: "
+          r"view Features\(_past_the_observation\) reads obs\[4\] \(test_program.py, line "
+          r"\d+\)$")
   with pytest.raises(IndexError, match=want):
     Program(graph(), root_args=GOTO).run(3, True, True, rng.make_state(0), WORLD)
   a = rng.make_state(0)
