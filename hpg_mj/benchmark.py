@@ -121,8 +121,8 @@ def evaluate(policy, task=None, episodes=base.GREEDY_STARTS, max_steps=None, *,
   `LEVELS`, default "easy"; or "ship_goal/hard" written at once), or a task file
   (default: an agent's own task, else "ship"). `max_steps`: a step cap (default the
   task's limit: the ships 5,000 control steps, taxi 200 primitive steps). An agent is
-  scored at its own level, or at another `level` of its ladder task (`at_level`; the
-  metrics' `trained_level` then names the level it learned at).
+  scored at its own level, or at another `level` of its ladder task (`at_level`); the
+  metrics' `trained_level` names the level it learned at.
   `batched`: whether a function takes a batch of observations (default: False for a
   function, True for an object with `predict`; one `jax.jit` made gets `fixed_batch`).
   `backend`: "analytic" (Equation 1) or "mujoco" (default: an agent's, else "analytic").
@@ -138,7 +138,7 @@ def evaluate(policy, task=None, episodes=base.GREEDY_STARTS, max_steps=None, *,
     backend = policy.backend if isinstance(policy, base.Agent) else "analytic"
   if backend not in base.BACKENDS:
     raise ValueError(f"unknown backend {backend!r}; valid backends: {list(base.BACKENDS)}")
-  trained = None            # the level an agent learned at, where it is scored at another
+  trained = None            # the level an agent learned at (a ladder task's)
   if isinstance(policy, base.Agent):
     policy, task, trained = _agent_task(policy, task, level, max_steps)
   else:

@@ -63,11 +63,26 @@ def _same(a, b):
   return a == b
 
 
-def _check_levels(name, own, there):
-  """One line (a ValueError) where the spaces of two levels of a ladder task differ
-  (`Task`s): agent `name`, which learned at `own`'s, cannot act at `there`'s."""
+def _same_shape(a, b):
+  """Whether two spaces hold the same numbers, whatever their bounds: of one kind and
+  shape (a Dict: the same keys, each so); others the same space."""
+  if type(a) is not type(b):
+    return False
+  kind = type(a).__name__
+  if kind == "Box":
+    return a.shape == b.shape
+  if kind == "Dict":
+    return list(a.spaces) == list(b.spaces) and all(_same_shape(a[k], b[k]) for k in a.spaces)
+  return a == b
+
+
+def _check_levels(agent, own, there):
+  """One line (a ValueError) where `agent`, which learned at `own`'s level (a `Task`),
+  cannot act at `there`'s: the two levels' spaces differ (for an agent that reads the
+  observation's numbers as they are, `raw_observation`: in their shapes only)."""
+  name, same = agent.name, _same_shape if agent.raw_observation else _same
   for which, a, b in zip(("observation", "action"), task_spaces(own), task_spaces(there)):
-    if not _same(a, b):
+    if not same(a, b):
       if type(a).__name__ == type(b).__name__ == "Box" and a.shape == b.shape:
         at = [i for i in np.ndindex(a.shape) if not (np.isclose(a.low[i], b.low[i]) and
                                                      np.isclose(a.high[i], b.high[i]))]
@@ -76,8 +91,11 @@ def _check_levels(name, own, there):
         told = f"its {which}'s bounds differ at {len(at)} of its numbers ({told})"
       else:
         told = f"its {which} space is {_describe(a)}, there {_describe(b)}"
+      why = ("its policy reads the numbers as they are, and they are not the same ones" if
+             agent.raw_observation else "its policy scales the observation by the bounds it "
+             "learned with, so it acts only in the spaces it learned in")
       raise ValueError(f"agent {name!r} learned at {own.name}/{own.level}, and at "
-                       f"{there.level} {told}: a policy acts only in the spaces it learned in")
+                       f"{there.level} {told}: {why}")
 
 
 def at_level(agent, level):
@@ -85,8 +103,11 @@ def at_level(agent, level):
   (`agents.rebuilt`: its task file's [environment] level set), to score a learner at a
   level it did not learn at (`evaluate(agent, level=...)` makes it). `agent` itself at
   its own level; refused in one line where the agent's task has no levels, or where
-  the two levels' observation or action spaces differ (the current's, whose water
-  runs faster, and the regatta's, whose courses have more gates)."""
+  the two levels' observation or action spaces differ: in their bounds too (the
+  current's, whose water runs faster, and the regatta's, whose courses have more gates)
+  for an agent that scales the observation by them (PPO and SAC in JAX), in their
+  shapes alone for one that reads its numbers as they are (`raw_observation`: the
+  hierarchies on the machine)."""
   from hpg_mj.benchmark_tasks import LADDER, task_of
   own = task_of(agent)
   if own.level is None:
@@ -95,13 +116,13 @@ def at_level(agent, level):
   there = task_of(own.name, level=level)
   if there.level == own.level:
     return agent
-  _check_levels(agent.name, own, there)
+  _check_levels(agent, own, there)
   from hpg_mj import agents
   return agents.rebuilt(agent, [f"environment.level={there.level}"])
 
 
 def _agent_task(agent, task=None, level=None, max_steps=None):
-  """(the agent to score, its `Task`, the level it learned at where that is another)
+  """(the agent to score, its `Task`, the level it learned at: None on a task of none)
   for `evaluate(agent, task, level=..., max_steps=...)`: its own task, or another
   level of it (`at_level`); another task, or a step cap not its task file's, is
   refused in one line."""
@@ -111,9 +132,9 @@ def _agent_task(agent, task=None, level=None, max_steps=None):
   if asked.name != own.name:
     raise ValueError(f"agent {agent.name!r} acts on the task {own.name!r}, not {asked.name!r}")
   written = isinstance(task, str) and "/" in task         # "ship_goal/hard"
-  trained = None
+  trained = own.level
   if (level is not None or written) and asked.level != own.level:
-    agent, trained = at_level(agent, asked.level), own.level
+    agent = at_level(agent, asked.level)
     own = task_of(agent)
   if max_steps is not None and int(max_steps) != own.max_steps:
     raise ValueError(f"agent {agent.name!r} runs its task file's max_steps = "
@@ -142,11 +163,27 @@ def check(policy, task):
   name = task.name if task.level is None else f"{task.name}/{task.level}"
   for which, space in declared.items():
     if space is not None and not _same(space, own[which]):
+      learned = None if isinstance(policy, Rescaled) else _level_of(space, which, task)
+      if learned is not None:
+        raise ValueError(
+            f"the policy's {which}_space is {task.name}/{learned}'s and the task {name!r} "
+            f"has {_describe(own[which])}: a model acts only in the spaces it learned in; "
+            f"score it at {learned} (level={learned!r}), or train one at {task.level}")
       raise ValueError(
           f"the policy's {which}_space is {_describe(space)} and the task {name!r} has "
           f"{_describe(own[which])}: a model trained on rescaled spaces (RescaleAction, "
           f"make_vec_env(rescale=True)) is scored through benchmark.rescaled(model, {name!r}), "
           "which maps them back")
+
+
+def _level_of(space, which, task):
+  """The other level of `task`'s ladder task whose `which` space `space` is, or None."""
+  from hpg_mj.benchmark_tasks import LEVELS, task_of
+  if task.level is None:
+    return None
+  index = ("observation", "action").index(which)
+  return next((level for level in LEVELS if level != task.level and
+               _same(space, task_spaces(task_of(task.name, level=level))[index])), None)
 
 
 class Rescaled:

@@ -254,6 +254,9 @@ def _cmd_train(args):
   limit = getattr(getattr(agent.config, "environment", None), "episode_steps", None)
   if limit is not None:
     metrics["max_steps"] = limit
+  level = (bounds.task_name(agent) or "").partition("/")[2]      # the level it learned at
+  if level:
+    metrics["level"] = level
   if isinstance(metrics.get("greedy"), dict):    # a greedy measure: normalized too (7.1)
     metrics["greedy"].update(bounds.normalized(bounds.task_name(agent), metrics["greedy"]))
   metrics.update({"task": str(task.path), "seed": seed, "episodes": len(record),
@@ -322,11 +325,9 @@ def _cmd_evaluate(args):
     if value is not None:
       raise ValueError(f"{flag} is for --policy; a saved agent runs its own task file")
   agent, _, meta = agents.load(args.agent_dir)
-  trained = None               # --level: its policy at another level of its ladder task
-  if args.level is not None:
-    there = benchmark.at_level(agent, args.level)
-    trained = None if there is agent else bounds.task_name(agent).partition("/")[2]
-    agent = there
+  trained = (bounds.task_name(agent) or "").partition("/")[2]     # a ladder task's level
+  if args.level is not None:       # its policy at another level of its ladder task
+    agent = benchmark.at_level(agent, args.level)
   backend = args.backend or agent.backend
   start = time.perf_counter()
   if args.seed is None:      # SPEC section 7: the fixed seeded start set of every report

@@ -364,7 +364,8 @@ def test_a_model_on_the_goal_s_rescaled_dictionary_is_scored_through_rescaled():
 
 def test_a_ladder_model_is_refused_naming_its_level_and_scored_at_it():
   """A newcomer's PPO on the current at level medium: the refusal named the task alone,
-  and `rescaled(model, 'ship_current')` (easy's spaces) then failed; it names the level."""
+  and `rescaled(model, 'ship_current')` (easy's spaces) then failed; it names the level.
+  A model with another level's spaces is told so."""
   import gymnasium
   from gymnasium.wrappers import RescaleAction
   from stable_baselines3 import PPO
@@ -382,3 +383,12 @@ def test_a_ladder_model_is_refused_naming_its_level_and_scored_at_it():
   scored = benchmark.evaluate(benchmark.rescaled(model, "ship_current/medium"),
                               "ship_current/medium", episodes=3, max_steps=20)
   assert scored.metrics["level"] == "medium" and scored.metrics["episodes"] == 3
+  # A model of another level's spaces, nothing rescaled (a newcomer's transfer study):
+  # the refusal names the level it learned at, not rescaled, which would squeeze the
+  # medium water's [-2, 2] onto the [-1, 1] it learned on.
+  easy = PPO("MlpPolicy", gymnasium.make("hpg_mj/ShipCurrent-v0", level="easy"), seed=0)
+  with pytest.raises(ValueError, match=r"^the policy's observation_space is ship_current/easy's "
+                     r"and the task 'ship_current/medium' has Box .*: a model acts only in the "
+                     r"spaces it learned in; score it at easy \(level='easy'\), or train one "
+                     r"at medium$"):
+    benchmark.evaluate(easy, "ship_current", level="medium", episodes=2)

@@ -171,6 +171,7 @@ class LadderMachineAgent(base.MachineAgent, _ship.ShipAgent):
   machine's counters its `record_fields` name."""
 
   end_field, illegal_field = "passed", "gates"
+  raw_observation = True      # its rules read the numbers; no level's bounds scale them
 
   @property
   def required_fields(self):

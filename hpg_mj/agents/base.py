@@ -115,6 +115,9 @@ class Agent:
   record_steps = None                # control steps per record row of a continuing agent
   metric_window = METRIC_WINDOW      # the record's last rows `metrics` is over
   checkpoint_rows = None             # a run checkpoints at least this often (rows), if set
+  raw_observation = False            # True: its policy reads the observation's numbers as
+                                     # they are, not scaled by its space's bounds, so it
+                                     # acts alike at a level with other bounds (`at_level`)
 
   def __init__(self, config=None, seed=0, task=None):
     if self.Config is not None and config is None:

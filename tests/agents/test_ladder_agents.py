@@ -126,8 +126,8 @@ def test_an_agent_is_scored_at_another_level_of_its_task_with_what_it_learned(tm
   """`benchmark.evaluate(agent, level=...)` and `hpg-mj evaluate RUN --level`: the
   agent's policy at a level it did not learn at (`benchmark.at_level`) is the agent
   built at that level with its learned state put in; the agent itself stays at its own,
-  and the metrics name the level it learned at. A level whose spaces differ (the
-  regatta's count of gates) and a task with no levels are refused in one line."""
+  and the metrics name the level it learned at. A level whose bounds differ, for an
+  agent that scales by them, and a task with no levels are refused in one line."""
   agent = GoalApproach(_goal_config(), seed=3)          # made in Python: no task file
   agent.train(150)
   got = benchmark.evaluate(agent, level="hard", episodes=6, progress=False)
@@ -148,12 +148,22 @@ def test_an_agent_is_scored_at_another_level_of_its_task_with_what_it_learned(tm
                              progress=False).metrics
   assert (printed["level"], printed["trained_level"]) == ("medium", "easy")
   assert printed["J"] == there["J"] and printed["gate_pass_rate"] == there["gate_pass_rate"]
+  # The regatta's levels differ in the count of gates the observation may say (its
+  # bounds): a hierarchy reads the numbers as they are and acts there; an agent that
+  # scaled them by its level's bounds (PPO and SAC in JAX) would not be the same policy.
   regatta = agents.build(agents.load_task("ship_regatta_flat_pg"), seed=0)
+  there = benchmark.evaluate(regatta, level="hard", episodes=2, progress=False).metrics
+  assert (there["level"], there["trained_level"], there["max_steps"]) == ("hard", "easy", 1000)
+
+  class Scaling(type(regatta)):
+    raw_observation = False
+
   with pytest.raises(ValueError, match=r"^agent 'ship_ladder_flat_pg' learned at "
                      r"ship_regatta/easy, and at hard its observation's bounds differ at 1 of "
-                     r"its numbers \(\[10\] \[0, 3\] there \[0, 8\]\): a policy acts only in "
-                     r"the spaces it learned in$"):
-    benchmark.evaluate(regatta, level="hard", episodes=2)
+                     r"its numbers \(\[10\] \[0, 3\] there \[0, 8\]\): its policy scales the "
+                     r"observation by the bounds it learned with, so it acts only in the spaces "
+                     r"it learned in$"):
+    benchmark.at_level(Scaling(regatta.config, seed=0), "hard")
   with pytest.raises(ValueError, match=r"^agent 'ship_flat_pg' acts on 'ship', which has no "
                      r"levels; the ladder's tasks have: \['ship_current', "):
     benchmark.at_level(agents.build(agents.load_task("ship_flat_pg")), "hard")
@@ -174,7 +184,8 @@ def test_the_command_line_trains_evaluates_and_renders_a_ladder_agent(tmp_path, 
   assert cli.main(["train", "ship_regatta_hybrid", "--set", "environment.level=hard",
                    "--episodes", "2", "--out", str(tmp_path / "hard"), "--json",
                    "--quiet"]) == 0
-  assert json.loads(capsys.readouterr().out)["max_steps"] == 1000
+  trained = json.loads(capsys.readouterr().out)
+  assert (trained["max_steps"], trained["level"]) == (1000, "hard")     # the level it learned at
   for backend in ("analytic", "mujoco"):
     assert cli.main(["evaluate", str(out), "--episodes", "2", "--backend", backend,
                      "--json"]) == 0

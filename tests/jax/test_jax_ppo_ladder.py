@@ -159,6 +159,24 @@ def test_the_level_is_the_world_s_and_the_scorer_s(small):
                                 benchmark.fixed_starts("ship_goal/medium", 3)["gate"])
 
 
+def test_another_level_is_scored_only_where_its_scaling_is_the_same(current):
+  """PPO in JAX scales the observation by its level's bounds (`trainer.io`): at the
+  current's hard level, where the water's bounds are wider, it would not be the policy
+  that learned, so it is refused in one line; at the harbour's medium, whose spaces are
+  easy's, it is rebuilt with its learned state and scored there."""
+  agent, _ = current
+  with pytest.raises(ValueError, match=r"^agent 'ladder_ppo_jax' learned at ship_current/easy, "
+                     r"and at hard its observation's bounds differ at 2 of its numbers .*: its "
+                     r"policy scales the observation by the bounds it learned with, so it acts "
+                     r"only in the spaces it learned in$"):
+    benchmark.evaluate(agent, level="hard", episodes=2)
+  harbour = agents.build(agents.load_task("ship_harbour_ppo_jax"), seed=1)
+  there = benchmark.at_level(harbour, "medium")
+  assert bounds.task_name(there) == "ship_harbour/medium"
+  for name, value in harbour.state().items():
+    np.testing.assert_array_equal(np.asarray(there.state()[name]), np.asarray(value), name)
+
+
 def test_the_goal_s_dictionary_is_flattened_as_the_jax_world_lays_it_out():
   """The scorer's observation (Gymnasium's dictionary) flattened in `GOAL_KEYS` order is
   the JAX world's from the same start: what the policy trained on. And an episode's
