@@ -135,13 +135,8 @@ def draw_curve(root, fig, tasks, records_by_task, optimal=None, protocol=None):
     line, = plt.plot(x, mean, label=label)
     plt.fill_between(x, low, high, alpha=0.2, color=line.get_color(), linewidth=0)
     if fig.get("reference") == "optimal":
-      threshold = taxi_values.performance_threshold(optimal, 0.95)
-      reached = []
-      for r in records:
-        trailing = np.convolve(r["return"], np.ones(BLOCK) / BLOCK, mode="valid")
-        hit = np.nonzero(trailing >= threshold)[0]
-        reached.append(np.cumsum(r["steps"])[hit[0] + BLOCK - 1] if len(hit) else np.nan)
-      entry["reached"] = np.array(reached, dtype=np.float64)
+      entry["reached"] = np.array([taxi_values.steps_to_reach(r["return"], r["steps"], optimal,
+                                                              window=BLOCK) for r in records])
     summary[name] = entry
   if fig.get("reference") == "optimal":
     plt.axhline(optimal, color="k", linestyle="--", linewidth=1, label="optimal (exact)")
@@ -397,6 +392,17 @@ def _ordering(fig, summary, labels, n_runs):
   return text
 
 
+def _reached_cell(reached):
+  """A report's cell of the runs' primitive steps to 95% of the optimum (NaN: never),
+  in millions, over the runs that reach it, saying how many those are."""
+  from hpg_mj.experiments import stats
+  k, n = int(np.sum(~np.isnan(reached))), len(reached)
+  if k == 0:
+    return f"not reached (0 of {n} runs)"
+  cell = stats.format_summary(stats.summary(reached / 1e6), 3)
+  return cell if k == n else f"{cell} ({k} of {n} runs reach it)"
+
+
 def write_report(root, experiment, results, drawn, protocol=None):
   """REPORT.md: the final metrics with 95% bootstrap intervals and IQMs, online and
   greedy, then per figure what the paper states beside what we measure.
@@ -427,8 +433,8 @@ def write_report(root, experiment, results, drawn, protocol=None):
     reached = next((v for v in drawn.values() if isinstance(v, dict) and any(
         "reached" in e for e in v.values())), None)
     if reached:
-      cells = [stats.format_summary(stats.summary(reached[t]["reached"] / 1e6), 3)
-               if t in reached else "-" for t in labels if t in results]
+      cells = [_reached_cell(reached[t]["reached"]) if t in reached else "-"
+               for t in labels if t in results]
       lines.append("| million primitive steps to 95% of the optimum | " + " | ".join(cells)
                    + " |")
   else:

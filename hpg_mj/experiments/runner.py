@@ -128,7 +128,8 @@ def default_figure(section, tasks):
   """The figure of an experiment file with no [[figure]]: the learning curve of gate
   passes (or, where a task's record has no passes, the mean return) per 1,000 episodes
   against episodes, where the runs (full and quick) have 1,000 episodes or more and
-  every task records it; else each task's greedy score at the runs' end (and at
+  every task records it (on the taxi with its exact optimum drawn in, and the report's
+  primitive steps to 95% of it); else each task's greedy score at the runs' end (and at
   `greedy_at`), the world's first greedy metric (the ships' gate pass rate, the
   regatta's finish rate, the taxi's mean return)."""
   from hpg_mj.experiments import figures
@@ -137,8 +138,11 @@ def default_figure(section, tasks):
     for metric, label in (("gate_passes", "gate passes per 1,000 episodes"),
                           ("mean_return", "mean return per episode")):
       if all(figures.has_metric(t, metric) for t in tasks):
-        return {"name": section["name"], "kind": "curve", "metric": metric,
-                "x": "episodes", "title": title, "ylabel": label, "paper": "none"}
+        fig = {"name": section["name"], "kind": "curve", "metric": metric,
+               "x": "episodes", "title": title, "ylabel": label, "paper": "none"}
+        if all(t.section("environment")["world"] == "taxi" for t in tasks):
+          fig["reference"] = "optimal"        # the exact optimum, and the steps to 95% of it
+        return fig
   world = tasks[0].section("environment")["world"]
   metric = figures.GREEDY_METRICS.get(world, ("mean_return",))[0]
   return {"name": section["name"], "kind": "greedy_curve", "metric": metric,

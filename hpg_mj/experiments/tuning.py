@@ -64,11 +64,9 @@ def score(agent, record, name):
   episodes), or "steps_to_95" (inf when never reached)."""
   if name == "steps_to_95":
     from hpg_mj.worlds import taxi_values
-    window = 1000
-    threshold = taxi_values.performance_threshold(agent.optimal_mean_return(), 0.95)
-    trailing = np.convolve(record["return"], np.ones(window) / window, mode="valid")
-    hit = np.nonzero(trailing >= threshold)[0]
-    return float(np.cumsum(record["steps"])[hit[0] + window - 1]) if len(hit) else float("inf")
+    steps = taxi_values.steps_to_reach(record["return"], record["steps"],
+                                       agent.optimal_mean_return())
+    return float("inf") if np.isnan(steps) else steps
   metrics = agent.metrics(record)
   if name not in metrics:
     raise ValueError(f"score {name!r} is not a metric of {agent.name}; allowed: "

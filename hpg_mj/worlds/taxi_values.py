@@ -178,6 +178,21 @@ def performance_threshold(optimal: float, fraction: float = 0.95) -> float:
   return optimal / fraction
 
 
+def steps_to_reach(returns, steps, optimal: float, fraction: float = 0.95,
+                   window: int = 1000) -> float:
+  """The primitive steps trained until the trailing `window`-episode mean return first
+  reaches `fraction` of `optimal` (`performance_threshold`): the paper's Figure 6
+  measure, counted to that window's last episode; NaN when it never does. `returns`
+  and `steps` are a record's per-episode columns."""
+  threshold = performance_threshold(optimal, fraction)
+  returns = np.asarray(returns, dtype=np.float64)
+  if len(returns) < window:
+    return float("nan")
+  trailing = np.convolve(returns, np.ones(window) / window, mode="valid")
+  hit = np.nonzero(trailing >= threshold)[0]
+  return float(np.cumsum(steps)[hit[0] + window - 1]) if len(hit) else float("nan")
+
+
 def optimal_mean_return(fuel: bool = True, fuel_station=core.FUEL_STATION,
                         capacity: int = core.FUEL_CAPACITY,
                         start_fuel=(core.START_FUEL_MIN, core.START_FUEL_MAX)) -> float:

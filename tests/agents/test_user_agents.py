@@ -63,6 +63,20 @@ def test_the_tutorials_user_rule_ends_the_legs(capsys):
   assert int(found.group(1)) + int(found.group(2)) > 10
 
 
+def test_the_tutorials_taxi_hierarchy_runs_on_the_machine(capsys):
+  """docs/tutorial_hierarchy.md's taxi block, as printed: the shipped HPG's blocks over
+  a Navigate of the user's (its own view, end and STEP reward) compile into one program
+  and deliver."""
+  text = (REPO / "docs" / "tutorial_hierarchy.md").read_text()
+  namespace = {}
+  exec(compile(_block("A hierarchy of your own on the taxi", text), "tutorial_hierarchy.md",
+               "exec"), namespace)
+  assert type(namespace["agent"].machine).__name__ == "Program"
+  delivered = float(re.search(r"delivered: ([\d.]+)", capsys.readouterr().out).group(1))
+  assert delivered > 0.3
+  assert namespace["agent"].state()["navigate.q"].shape == (125 * 4,)
+
+
 TASK = """
 [task]
 kind = "tabular_q"

@@ -138,6 +138,16 @@ def test_performance_threshold():
     tv.performance_threshold(1.0, 1.5)
 
 
+def test_steps_to_reach_counts_to_the_first_trailing_window_at_the_threshold():
+  # Returns 0 for 3 episodes of 10 steps, then 6 (the threshold of 6.0 is 5.7): a
+  # window of 2 first reaches a mean of 5.7 nowhere before both episodes are 6s.
+  returns, steps = [0.0, 0.0, 0.0, 6.0, 6.0, 6.0], [10, 10, 10, 5, 5, 5]
+  assert tv.steps_to_reach(returns, steps, 6.0, window=2) == 40.0
+  assert tv.steps_to_reach(returns, steps, 6.0, window=1) == 35.0
+  assert np.isnan(tv.steps_to_reach(returns[:4], steps[:4], 6.0, window=2))     # never
+  assert np.isnan(tv.steps_to_reach(returns, steps, 6.0, window=7))             # too short
+
+
 def test_bad_arguments():
   with pytest.raises(ValueError, match="capacity"):
     tv.TaxiValues(True, capacity=0)
