@@ -609,6 +609,10 @@ def build_parser():
                  help="reference and ladder only: for each seed whose run is not finished "
                       "under --out, its metrics from an earlier report's runs.jsonl (for "
                       "example figures/reference/runs.jsonl)")
+  p.add_argument("--add", metavar="JSONL", action="append",
+                 help="ladder only: a method of one's own beside the reference learners, a "
+                      "JSON line a run: benchmark.evaluate's metrics with its label and seed "
+                      "(docs/results_ladder.md); may be given more than once")
   p.set_defaults(func=_cmd_reproduce)
 
   p = sub.add_parser("evaluate", help="score a saved agent, or any policy (--policy), on "

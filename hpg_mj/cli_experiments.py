@@ -146,6 +146,9 @@ def _cmd_reproduce(args):
     raise ValueError(f"--earlier completes `reproduce reference` or `reproduce ladder` with an "
                      f"earlier report's runs; {args.figure!r} reruns its experiments (allowed: "
                      f"reproduce reference --earlier {args.earlier}, or ladder)")
+  if getattr(args, "add", None) and args.figure != "ladder":
+    raise ValueError(f"--add sets a method of one's own beside the ladder's table; "
+                     f"{args.figure!r} has none (allowed: reproduce ladder --add FILE)")
   if args.figure == "beyond":
     return _reproduce_beyond(args)
   if args.figure == "reference":
@@ -232,6 +235,10 @@ def _reproduce_ladder(args):
       rc |= _cmd_run(argparse.Namespace(**{**vars(args), "experiment_file": name}))
   from hpg_mj.experiments import reference
   earlier = reference.read_earlier(args.earlier) if args.earlier else None
-  report = ladder.write(args.out, quick=args.quick, earlier=earlier)
+  added = {}
+  for path in args.add or ():
+    for task, entries in ladder.read_added(path).items():
+      added.setdefault(task, []).extend(entries)
+  report = ladder.write(args.out, quick=args.quick, earlier=earlier, added=added)
   print(f"reproduce ladder: {report}")
   return rc

@@ -113,9 +113,79 @@ def _summary(values):
   return stats.summary([np.nan if v is None else v for v in values]) if values else None
 
 
+def read_added(path):
+  """{task: [entries, as `collect`'s, "kind" "yours"]} of a method of one's own, scored
+  beside the table (`hpg-mj reproduce ladder --add FILE`): a JSON line a run,
+  `benchmark.evaluate`'s metrics (official, at a task of the ladder and a level) with
+  the method's "label" and the run's "seed" (not a tuning seed of the ladder's task
+  files), each (label, level, seed) once. A bad line is refused naming it."""
+  import json
+  path = pathlib.Path(path)
+  if not path.is_file():
+    raise ValueError(f"--add {path}: no such file; give a JSON line per run: "
+                     "{\"label\": ..., \"seed\": ..., **benchmark.evaluate(...).metrics}")
+  tuning = sorted({seed for loaded in shipped().values() for e in loaded
+                   for t in e["task_files"] for seed in t.tuning_seeds})
+  found, seen = {}, set()
+  for number, line in enumerate(path.read_text().splitlines(), 1):
+    if not line.strip():
+      continue
+    where = f"--add {path}, line {number}"
+    try:
+      run = json.loads(line)
+      label, seed, task, level = run["label"], run["seed"], run["task"], run["level"]
+    except (ValueError, KeyError, TypeError) as error:
+      raise ValueError(f"{where}: not a run (a JSON object of benchmark.evaluate's metrics "
+                       f"with label and seed): {error!r}") from None
+    if task not in TASKS or level not in LEVELS:
+      raise ValueError(f"{where}: task {task!r} at level {level!r}; allowed: a task of "
+                       f"{list(TASKS)} at {list(LEVELS)}")
+    if not isinstance(label, str) or not label.strip() or not isinstance(seed, int):
+      raise ValueError(f"{where}: label {label!r} and seed {seed!r}; allowed: a name and "
+                       "an integer")
+    if run.get("official") is not True:
+      raise ValueError(f"{where}: not official (official = {run.get('official')!r}): a "
+                       "score beside the table is made on the level's 1,000 fixed starts "
+                       "with the task's own step cap (benchmark.evaluate's defaults)")
+    if seed in tuning:
+      raise ValueError(f"{where}: seed {seed} is a tuning seed of the ladder's task files "
+                       f"({figures.seed_list(tuning)}); a claim beside the table comes from seeds "
+                       "drawn after the design was fixed (the table's: 1000-1009)")
+    if (label, level, seed) in seen:
+      raise ValueError(f"{where}: {label!r} at {level} seed {seed} is given twice")
+    seen.add((label, level, seed))
+    entries = found.setdefault(task, {})
+    entry = entries.setdefault(label, {"experiment": None, "learner": label,
+                                       "label": f"{label} (yours)",
+                                       "kind": "yours", "runs": {lv: [] for lv in LEVELS}})
+    entry["runs"][level].append({"seed": seed, "greedy": run})
+  return {task: list(entries.values()) for task, entries in found.items()}
+
+
+def against_best(task, entries, entry):
+  """The report's line for a method of one's own: at each level, the best reference
+  learner (not one's own) and whether the two 95% intervals are apart."""
+  score = scores(task)[0]
+  parts = []
+  for level in LEVELS:
+    mine = _summary(normalized(task, entry["runs"][level], score))
+    others = [(e["label"], _summary(normalized(task, e["runs"][level], score)))
+              for e in entries if e["kind"] != "yours" and e["runs"][level]]
+    if mine is None or not others:
+      continue
+    label, best = max(others, key=lambda pair: pair[1]["mean"])
+    side = "ahead of" if mine["mean"] > best["mean"] else "behind"
+    parts.append(f"{level}: {stats.format_summary(mine, 1, iqm=False)}, {side} {label} "
+                 f"({stats.format_summary(best, 1, iqm=False)}), " +
+                 ("distinguishable (the intervals are apart)" if stats.separated(mine, best)
+                  else "not distinguishable (the intervals overlap)"))
+  return (f"- {entry['label']}, against the best reference learner: "
+          + ("; ".join(parts) if parts else "no level in common") + ".")
+
+
 def leads(task, entries):
-  """Per level: (the leading learner's label, its summary, whether its interval lies
-  above every other learner's), over the learners with runs at that level."""
+  """{level: (the leading learner's label, its summary, whether its interval lies above
+  every other learner's)}, over the learners with runs at that level."""
   score = scores(task)[0]
   out = {}
   for level in LEVELS:
@@ -155,8 +225,9 @@ def helmsman_line(task):
 
 
 def headroom(task, entries):
-  """The issue's two checks: (a hierarchy reaches >= 90 at easy, no learner reaches 70 at
-  hard), each None where its runs are missing; on the mean over runs."""
+  """The issue's two checks: (a hierarchy reaches >= 90 at easy, no reference learner
+  reaches 70 at hard; a method of one's own, `read_added`, is not one), each None where
+  its runs are missing; on the mean over runs."""
   score = scores(task)[0]
 
   def mean(entry, level):
@@ -164,7 +235,8 @@ def headroom(task, entries):
     return float(np.nanmean(values)) if values else None
   easy = [mean(e, "easy") for e in entries if e["kind"] in HIERARCHY_KINDS]
   easy = [v for v in easy if v is not None]
-  hard = [v for v in (mean(e, "hard") for e in entries) if v is not None]
+  hard = [v for v in (mean(e, "hard") for e in entries if e["kind"] != "yours")
+          if v is not None]
   return (max(easy) >= EASY_AT_LEAST if easy else None,
           max(hard) < HARD_BELOW if hard else None)
 
@@ -238,13 +310,16 @@ def _verdict(value, yes, no):
   return "not run yet" if value is None else (yes if value else no)
 
 
-def write(out, quick=False, experiments=None, earlier=None):
+def write(out, quick=False, experiments=None, earlier=None, added=None):
   """Draws the figure and writes REPORT.md and runs.jsonl under OUT/ladder (ladder_quick
   with `quick`) from the finished runs (`collect`, of `experiments`, completed by
-  `earlier`'s); returns REPORT.md's path."""
+  `earlier`'s), with `added` (`read_added`: methods of one's own, after the reference
+  learners, each with its line against the best of them); returns REPORT.md's path."""
   root = folder(out, quick)
   root.mkdir(parents=True, exist_ok=True)
   found = collect(out, quick, experiments, earlier)
+  for task, entries in (added or {}).items():
+    found.setdefault(task, []).extend(entries)
   lines = ["# ladder: the task ladder's reference table", "",
            "Each learner trained on held-out seeds (never a tuning seed) at each level, then "
            "measured greedily on the level's fixed 1,000 starts (SPEC sections 7 and 11). "
@@ -272,17 +347,20 @@ def write(out, quick=False, experiments=None, earlier=None):
                    + ("its interval lies above every other learner's." if clear else
                       "not distinguishable from the next (their intervals overlap)."))
     easy, hard = headroom(task, entries)
-    unrun = [e["label"] for e in entries if not e["runs"]["hard"]]
+    unrun = [e["label"] for e in entries if not e["runs"]["hard"] and e["kind"] != "yours"]
     lines += [f"- headroom ({scores(task)[0]}, normalized, the mean over runs): a hierarchy "
               f"reaches {EASY_AT_LEAST:.0f} at easy: {_verdict(easy, 'yes', 'no')}; no "
               f"learner reaches {HARD_BELOW:.0f} at hard: "
               f"{_verdict(hard, 'yes', 'no: the level is not hard enough')}"
               + (f" (of those run there; not yet run at hard: {', '.join(unrun)})"
-                 if unrun and hard is not None else "") + "."]
-    lines += [helmsman_line(task), ""]
+                 if unrun and hard is not None else "")
+              + ("; the checks are the reference learners', not yours"
+                 if any(e["kind"] == "yours" for e in entries) else "") + "."]
+    lines += [helmsman_line(task)]
+    lines += [against_best(task, entries, e) for e in entries if e["kind"] == "yours"] + [""]
     for e in entries:
       for level in LEVELS:
-        if e["runs"][level]:
+        if e["runs"][level] and e["kind"] != "yours":
           made[f"{e['learner']}_{level}"] = e["runs"][level]
   lines += figures.provenance_lines(made)
   (root / "REPORT.md").write_text("\n".join(lines) + "\n")

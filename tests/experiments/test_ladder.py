@@ -176,3 +176,55 @@ def test_a_ladder_experiment_draws_the_greedy_metrics_of_its_task(tmp_path):
   assert runner.load_experiment(path)["figures"][0]["metric"] == "finish_rate_normalized"
   assert_refused(tmp_path, curve.format(metric="J"),
                  r"metric = 'J'; allowed for the ship_regatta: \['finish_rate', ")
+
+
+def test_a_method_of_ones_own_is_set_beside_the_table_from_its_official_scores(tmp_path,
+                                                                                capsys):
+  """A newcomer's CEM controller, scored with benchmark.evaluate, could reach the
+  ladder's report only through its internals. `reproduce ladder --add FILE` reads a JSON
+  line a run (the official metrics, a label, a seed): the table gains the method's row,
+  the report its line against the best reference learner, and the headroom checks stay
+  the reference learners'."""
+  from hpg_mj import benchmark, cli
+  steer = benchmark.evaluate(lambda obs: np.zeros(len(obs)), "ship_regatta", level="hard",
+                             batched=True)
+  assert steer.metrics["official"]
+  lines = [json.dumps({"label": "steady", "seed": seed, **steer.metrics}) for seed in (1000, 1001)]
+  added = tmp_path / "mine.jsonl"
+  added.write_text("\n".join(lines) + "\n")
+  # Two reference runs of the waypoints at the regatta's hard level, as runs.jsonl holds them.
+  earlier = tmp_path / "runs.jsonl"
+  earlier.write_text("".join(json.dumps({"task": "ship_regatta_waypoints_hard", "seed": s,
+                                         "greedy": {"finish_rate_normalized": v,
+                                                    "mean_return_normalized": v}}) + "\n"
+                             for s, v in ((1000, 40.0), (1001, 50.0))))
+  assert cli.main(["reproduce", "ladder", "--existing", "--out", str(tmp_path / "out"),
+                   "--earlier", str(earlier), "--add", str(added)]) == 0
+  text = (tmp_path / "out" / "ladder" / "REPORT.md").read_text()
+  mine = steer.metrics["finish_rate_normalized"]
+  assert f"| steady (yours) | - | - | - | - | {mine:.1f} [{mine:.1f}, {mine:.1f}]" in text
+  assert ("- steady (yours), against the best reference learner: hard: "
+          f"{mine:.1f} [{mine:.1f}, {mine:.1f}], behind Waypoints (regatta) (45.0 [40.0, 50.0]), "
+          "distinguishable (the intervals are apart).") in text
+  assert "the checks are the reference learners', not yours" in text
+  assert "steady" not in (tmp_path / "out" / "ladder" / "runs.jsonl").read_text()
+  assert "steady (yours)" in (tmp_path / "out" / "ladder" / "ladder.csv").read_text()
+  # Each bad line is refused in one line naming it, before anything is written.
+  bad = dict(json.loads(lines[0]))
+  for change, message in (({"official": False}, r"line 1: not official \(official = False\)"),
+                          ({"seed": 3}, r"line 1: seed 3 is a tuning seed of the ladder's "
+                                        r"task files \(0-9\)"),
+                          ({"task": "ship"}, r"line 1: task 'ship' at level 'hard'; allowed"),
+                          ({"label": ""}, r"line 1: label '' and seed 1000; allowed")):
+    added.write_text(json.dumps({**bad, **change}) + "\n")
+    with pytest.raises(ValueError, match=message):
+      ladder.read_added(added)
+  added.write_text(lines[0] + "\n" + lines[0] + "\n")
+  with pytest.raises(ValueError, match=r"line 2: 'steady' at hard seed 1000 is given twice"):
+    ladder.read_added(added)
+  added.write_text("{not json\n")
+  with pytest.raises(ValueError, match=r"line 1: not a run"):
+    ladder.read_added(added)
+  assert cli.main(["reproduce", "reference", "--existing", "--out", str(tmp_path / "o2"),
+                   "--add", str(added)]) == 2
+  assert "--add sets a method of one's own beside the ladder's table" in capsys.readouterr().err
