@@ -235,10 +235,7 @@ def _reproduce_ladder(args):
       rc |= _cmd_run(argparse.Namespace(**{**vars(args), "experiment_file": name}))
   from hpg_mj.experiments import reference
   earlier = reference.read_earlier(args.earlier) if args.earlier else None
-  added = {}
-  for path in args.add or ():
-    for task, entries in ladder.read_added(path).items():
-      added.setdefault(task, []).extend(entries)
+  added = ladder.read_added(*args.add) if args.add else None
   report = ladder.write(args.out, quick=args.quick, earlier=earlier, added=added)
   print(f"reproduce ladder: {report}")
   return rc

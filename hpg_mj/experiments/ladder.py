@@ -113,23 +113,25 @@ def _summary(values):
   return stats.summary([np.nan if v is None else v for v in values]) if values else None
 
 
-def read_added(path):
-  """{task: [entries, as `collect`'s, "kind" "yours"]} of a method of one's own, scored
-  beside the table (`hpg-mj reproduce ladder --add FILE`): a JSON line a run,
-  `benchmark.evaluate`'s metrics (official, at a task of the ladder and a level) with
-  the method's "label" and the run's "seed" (not a tuning seed of the ladder's task
-  files), each (label, level, seed) once. A bad line is refused naming it."""
+def read_added(*paths):
+  """{task: [entries, as `collect`'s, "kind" "yours"]} of methods of one's own, scored
+  beside the table (`hpg-mj reproduce ladder --add FILE`, one or more): a JSON line a
+  run, `benchmark.evaluate`'s metrics (official, at a task of the ladder and a level)
+  with the method's "label" and the run's "seed" (not a tuning seed of the ladder's
+  task files), each (task, label, level, seed) once over the files. A bad line is
+  refused naming it."""
   import json
-  path = pathlib.Path(path)
-  if not path.is_file():
-    raise ValueError(f"--add {path}: no such file; give a JSON line per run: "
-                     "{\"label\": ..., \"seed\": ..., **benchmark.evaluate(...).metrics}")
   tuning = sorted({seed for loaded in shipped().values() for e in loaded
                    for t in e["task_files"] for seed in t.tuning_seeds})
   found, seen = {}, set()
-  for number, line in enumerate(path.read_text().splitlines(), 1):
-    if not line.strip():
-      continue
+  lines = []
+  for path in map(pathlib.Path, paths):
+    if not path.is_file():
+      raise ValueError(f"--add {path}: no such file; give a JSON line per run: "
+                       "{\"label\": ..., \"seed\": ..., **benchmark.evaluate(...).metrics}")
+    lines += [(path, number, line)
+              for number, line in enumerate(path.read_text().splitlines(), 1) if line.strip()]
+  for path, number, line in lines:
     where = f"--add {path}, line {number}"
     try:
       run = json.loads(line)
@@ -151,9 +153,9 @@ def read_added(path):
       raise ValueError(f"{where}: seed {seed} is a tuning seed of the ladder's task files "
                        f"({figures.seed_list(tuning)}); a claim beside the table comes from seeds "
                        "drawn after the design was fixed (the table's: 1000-1009)")
-    if (label, level, seed) in seen:
-      raise ValueError(f"{where}: {label!r} at {level} seed {seed} is given twice")
-    seen.add((label, level, seed))
+    if (task, label, level, seed) in seen:
+      raise ValueError(f"{where}: {label!r} on {task} at {level} seed {seed} is given twice")
+    seen.add((task, label, level, seed))
     entries = found.setdefault(task, {})
     entry = entries.setdefault(label, {"experiment": None, "learner": label,
                                        "label": f"{label} (yours)",

@@ -220,8 +220,16 @@ def test_a_method_of_ones_own_is_set_beside_the_table_from_its_official_scores(t
     with pytest.raises(ValueError, match=message):
       ladder.read_added(added)
   added.write_text(lines[0] + "\n" + lines[0] + "\n")
-  with pytest.raises(ValueError, match=r"line 2: 'steady' at hard seed 1000 is given twice"):
+  with pytest.raises(ValueError, match=r"line 2: 'steady' on ship_regatta at hard seed 1000 "
+                                       "is given twice"):
     ladder.read_added(added)
+  other = tmp_path / "other.jsonl"                 # one method's runs over two files
+  other.write_text(lines[1] + "\n"
+                   + json.dumps({**json.loads(lines[0]), "task": "ship_current"}) + "\n")
+  added.write_text(lines[0] + "\n")
+  both = ladder.read_added(added, other)
+  assert [[m["seed"] for m in e["runs"]["hard"]] for e in both["ship_regatta"]] == [[1000, 1001]]
+  assert [e["label"] for e in both["ship_current"]] == ["steady (yours)"]
   added.write_text("{not json\n")
   with pytest.raises(ValueError, match=r"line 1: not a run"):
     ladder.read_added(added)
