@@ -95,7 +95,7 @@ def _cmd_bench(args):
                                assignments=args.set)
       print(bench.format_rows(rows))
       for name, _, rate in rows[1:] if args.task else ():
-        print(f"{rows[0][0].split(',')[0]} / {name.split(',')[0]}: {rows[0][2] / rate:.1f}x")
+        print(f"{rows[0][0].split(',')[0]} / {name.split(',')[0]}: {rows[0][2] / rate:.2f}x")
   else:
     _bench_experiments(args)
   return 0

@@ -34,7 +34,7 @@ def test_cli_verify_ship(capsys):
 
 
 def test_cli_bench_train_json_gives_the_ratios_the_table_prints(capsys, monkeypatch):
-  """`bench train --task A --task B` prints "A / B: 2.0x" after its table; with --json
+  """`bench train --task A --task B` prints "A / B: 2.00x" after its table; with --json
   each task after the first carries the same ratio (the measuring itself stubbed)."""
   from hpg_mj import bench
   rates = {"a": 3000.0, "b": 1500.0, "c": 0.0}

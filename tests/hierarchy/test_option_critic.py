@@ -126,3 +126,26 @@ def test_what_it_refuses_is_named():
     oc.OptionCritic(10, 2, 7, gamma=2.0)
   with pytest.raises(GraphError, match=r"reads the world's settings"):
     Program(_graph(c), obs_size=5)
+
+
+@dataclasses.dataclass(eq=False)
+class _WithCost(oc.IntraOption):
+  """A newcomer's deliberation-cost variant of the option's learner, its kind forgotten."""
+  eta: float = 0.5
+
+
+@dataclasses.dataclass(eq=False)
+class _Renamed(oc.IntraOption):
+  """A subclass that adds no field: the base's kind runs it, as it is."""
+
+
+def test_a_subclassed_block_with_a_field_of_its_own_needs_a_kind_of_its_own():
+  """Unregistered, the variant ran as the shipped option-critic, its `eta` ignored, bit
+  for bit; now the machine refuses it, naming the field and the kind it would run by."""
+  world = taxi_rules.world_config(core.TaxiRules())
+  c = oc.OptionCritic(core.num_states(True), 2, core.num_actions(True))
+  with pytest.raises(GraphError, match=r"^subtask 'option0': its learner _WithCost adds \['eta'\] "
+                                       r"to IntraOption, whose kind \(IntraOptionKind\) would run "
+                                       r"it ignoring them; register a kind for _WithCost"):
+    Program(_graph(c, option_learner=lambda w: _WithCost(c, w)), obs_size=5, world=world)
+  Program(_graph(c, option_learner=lambda w: _Renamed(c, w)), obs_size=5, world=world)

@@ -1,6 +1,9 @@
 """Block kinds: one module each (`hierarchy.kinds.base` says what a kind is), found
 through one registration. `register(kind)` adds a kind, ours or a user's; `kind_of`
-finds the kind of a block by its class (or a base class of it)."""
+finds the kind of a block by its class (or a base class of it, where the subclass adds no
+field the base's kind would ignore)."""
+import dataclasses
+
 from hpg_mj.hierarchy import graph
 from hpg_mj.hierarchy.graph import GraphError
 from hpg_mj.hierarchy.kinds import base
@@ -40,11 +43,28 @@ def kind_of(block, role, node):
   for cls in type(block).__mro__:
     kind = _KINDS.get((role, cls))
     if kind is not None:
+      _check_inherited(block, cls, kind, role, node)
       return kind
   known = sorted(cls.__name__ for (r, cls) in _KINDS if r == role)
   raise GraphError(f"subtask {node!r}: its {role} {type(block).__name__} has no kind on the "
                    f"open machine; registered {role}s: {known} "
                    "(hpg_mj.hierarchy.kinds.register adds one)")
+
+
+def _check_inherited(block, cls, kind, role, node):
+  """A subclass of a registered block runs by its base's kind only where it adds no
+  field: a field of its own (a variant's new step size, say) would be ignored, the
+  base's algorithm run as if it were not there."""
+  if cls is type(block) or not dataclasses.is_dataclass(block):
+    return
+  base_fields = {f.name for f in dataclasses.fields(cls)} if dataclasses.is_dataclass(cls) \
+      else set()
+  own = [f.name for f in dataclasses.fields(block) if f.name not in base_fields]
+  if own:
+    raise GraphError(f"subtask {node!r}: its {role} {type(block).__name__} adds {own} to "
+                     f"{cls.__name__}, whose kind ({type(kind).__name__}) would run it "
+                     f"ignoring them; register a kind for {type(block).__name__} "
+                     "(hpg_mj.hierarchy.kinds.register)")
 
 
 def _register_shipped():
