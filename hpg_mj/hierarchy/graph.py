@@ -177,7 +177,12 @@ def _check_learner(node):
 
 class TaskGraph:
   """A validated hierarchy: every child exists, there is no cycle, every
-  subtask has a termination, a view and a learner."""
+  subtask has a termination, a view and a learner.
+
+  `root` the root's name; `nodes` {name: its Subtask or Primitive}, in the order given;
+  `schedule` the graph's exploration schedule. A node is changed by building a new
+  graph: `TaskGraph(g.root, [dataclasses.replace(node, learner=...) if name == "option0"
+  else node for name, node in g.nodes.items()], schedule=g.schedule)`."""
 
   def __init__(self, root: str, nodes: Sequence, on_episode_end=None, schedule=None):
     self.root = root
