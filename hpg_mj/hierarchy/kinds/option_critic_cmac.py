@@ -121,7 +121,11 @@ Settings = collections.namedtuple("Settings", (
 Settings.__doc__ = """A node's settings `P`: the step sizes, epsilon, xi, sigma, r_max;
 k options, the coder's tiles `size`, this node's option, the tiling; the shared
 arrays; a termination's scratch (features, tiles) and the gate its features are
-framed by (`blocks.GateFrame`'s at, relative; at -1: none, the observation as it is)."""
+framed by (`blocks.GateFrame`'s at, relative; at -1: none, the observation as it is).
+A variant's compiled operation finds the active tiles of the features x as the
+shipped ones do: `hpg_mj.learners.tiles.active_tiles(x, P.tiling, out)` writes them into
+`out` (int64, one a tiling: the node's scratch `N.tiles[0]`), and a function of s is
+the mean of its array over them at offset w * P.size (option w)."""
 Scratch = collections.namedtuple("Scratch", ("tiles", "last"))
 Scratch.__doc__ = """A node's scratch: the active tiles of s (row 0) and s' (row 1);
 [u, m] of its last draw."""
