@@ -141,7 +141,9 @@ def _task_of_environment(task):
           raise ValueError(f"task {task!r} is not known; allowed: {_ALLOWED}") from None
         raise err
     elif not (hasattr(task, "config") and hasattr(task, "kind")):
-      raise ValueError(f"task {task!r} is not known; allowed: {_ALLOWED} or an hpg_mj agent")
+      what = (f"an array of shape {task.shape}" if isinstance(task, np.ndarray)
+              else repr(task)[:80])
+      raise ValueError(f"task {what} is not known; allowed: {_ALLOWED} or an hpg_mj agent")
     holder = types.SimpleNamespace(config=task.config,
                                    record_steps=agents.lookup(task.kind).record_steps)
     where = f"task file {task.path}"

@@ -296,7 +296,10 @@ def _resumed(args):
                        ("--force", args.force or None)):
     if value is not None:
       raise ValueError(f"--resume takes no {given}: the saved agent goes on with its own task "
-                       "file and generator, into its own folder")
+                       "file and generator, into its own folder" + (
+                           "; to go on with keys set (a curriculum: environment.level=hard), "
+                           "from Python: agents.rebuilt(agent, ['environment.level=hard'])"
+                           ".train(n)" if given == "--set" else ""))
   if args.episodes is None:
     raise ValueError("--resume: give --episodes N, the episodes to train further")
   agent, record, _ = agents.load(args.resume)

@@ -403,6 +403,9 @@ def test_bad_arguments_are_refused():
     benchmark.evaluate(lambda obs: 0.0, "boat", 1, progress=False)
   with pytest.raises(ValueError, match="max_steps must be a positive integer, got 0"):
     benchmark.evaluate(lambda obs: 0.0, "ship", 1, max_steps=0, progress=False)
+  # the arguments the wrong way round: the record is named by its shape, not printed whole
+  with pytest.raises(ValueError, match=r"^task an array of shape \(500,\) is not known"):
+    benchmark.metrics_of("ship", np.zeros(500, dtype=[("passed", "f8")]))
   with pytest.raises(ValueError, match=r"^episodes must be at least 1 \(no episode has no "
                                        r"score\), got 0$"):
     benchmark.evaluate(lambda obs: 0.0, "ship", 0, progress=False)

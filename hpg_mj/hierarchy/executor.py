@@ -94,15 +94,25 @@ class DmControlAdapter:
 
 
 def adapter_for(env):
-  """The adapter of a Gymnasium environment (unwrapped: the checks of
-  `gymnasium.make`'s wrappers cost more than a step) or a dm_control one."""
+  """The adapter of a Gymnasium environment or a dm_control one. The checks that
+  `gymnasium.make` wraps around an environment (`PassiveEnvChecker`, `OrderEnforcing`)
+  cost more than a step and are dropped where they are the outermost wrappers; any
+  other wrapper (a user's reward shaping, a `TimeLimit`) is kept, with all it wraps."""
   if isinstance(env, (GymAdapter, DmControlAdapter)):
     return env
   if hasattr(env, "physics") and hasattr(env, "task"):
     return DmControlAdapter(env)
   if hasattr(env, "unwrapped") and hasattr(env, "step"):
-    return GymAdapter(env.unwrapped)
+    return GymAdapter(_without_checks(env))
   raise TypeError(f"{env!r} is neither a Gymnasium nor a dm_control environment")
+
+
+def _without_checks(env):
+  """`env` less the outermost wrappers that only check it (`gymnasium.make`'s)."""
+  from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker
+  while isinstance(env, (OrderEnforcing, PassiveEnvChecker)):
+    env = env.env
+  return env
 
 
 def step_values(adapter):

@@ -100,7 +100,12 @@ def test_a_trained_folder_trained_further_is_the_run_never_stopped(tmp_path):
                       "further"),
                      (("t.toml", "--resume", "a", "--episodes", 5), "--resume takes no task "
                       "file: the saved agent goes on with its own task file and generator, "
-                      "into its own folder")):
+                      "into its own folder"),
+                     (("--resume", "a", "--episodes", 5, "--set", "environment.max_steps=9"),
+                      "--resume takes no --set: the saved agent goes on with its own task "
+                      "file and generator, into its own folder; to go on with keys set (a "
+                      "curriculum: environment.level=hard), from Python: agents.rebuilt(agent, "
+                      "['environment.level=hard']).train(n)")):
     done = _run(tmp_path, "train", *args)
     assert done.returncode == 2 and done.stderr.strip().splitlines() == [
         f"hpg-mj train: error: {said}"], done.stderr

@@ -44,3 +44,33 @@ def test_stepwise_through_dm_control_on_the_mujoco_ship():
   # A fixed start is honoured and the gate is recognised through dm_control.
   record = agent.run_stepwise(env, 1, learn=False, start=[400.0, 380.0, 0.0, 0.0])
   assert record["passed"][0] == 1.0
+
+
+class _Spy(gymnasium.Wrapper):
+  """A user's wrapper: counts the resets and pays double."""
+
+  def __init__(self, env):
+    super().__init__(env)
+    self.resets = 0
+
+  def reset(self, **kwargs):
+    self.resets += 1
+    return self.env.reset(**kwargs)
+
+  def step(self, action):
+    obs, reward, terminated, truncated, info = self.env.step(action)
+    return obs, 2.0 * reward, terminated, truncated, info
+
+
+def test_stepwise_keeps_a_users_wrapper_and_drops_only_gymnasiums_checks():
+  """A newcomer's wrapper was silently bypassed (the agent stepped `env.unwrapped`):
+  now only gymnasium.make's own checks are dropped, from the outside in."""
+  from hpg_mj.hierarchy import executor
+  made = gymnasium.make("hpg_mj/ShipSteering-v0", backend="analytic")
+  assert executor.adapter_for(made).env is made.unwrapped
+  spy = _Spy(made)
+  assert executor.adapter_for(spy).env is spy
+  plain = ShipHybrid(seed=3).run_stepwise(made, 3, learn=False)
+  doubled = ShipHybrid(seed=3).run_stepwise(spy, 3, learn=False)
+  assert spy.resets == 3
+  np.testing.assert_array_equal(doubled["return"], 2.0 * plain["return"])
